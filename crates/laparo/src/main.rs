@@ -1,0 +1,53 @@
+//! `laparo`: the command-line interface of the laparo toolkit.
+//!
+//! One subcommand per module, in the order of the guidance pipeline (thesis Fig. 1.3):
+//! `depth` (RoDEM), `cats` / `stereo` (CATS), `cpc`, `mpm`, and `demo`, which runs every module
+//! on built-in data and writes an HTML report.
+use clap::{Parser, Subcommand};
+
+mod cmd;
+mod demo;
+
+#[derive(Parser)]
+#[command(name = "laparo", version, about = "Vision-based surgical guidance: depth robustness, stereo camera augmentation, conformal perspective correction, differentiable MPM registration")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// RoDEM: accuracy and robustness of monocular depth estimation (thesis §3.2, App. C).
+    #[command(subcommand)]
+    Depth(cmd::depth::DepthCmd),
+    /// CATS: camera augmentation for uncalibrated stereo laparoscopes (thesis §3.3).
+    #[command(subcommand)]
+    Cats(cmd::cats::CatsCmd),
+    /// Calibrated stereo: rectification, disparity/depth, evaluation (thesis §2.2, §3.3).
+    #[command(subcommand)]
+    Stereo(cmd::stereo::StereoCmd),
+    /// Conformal Perspective Correction (thesis Ch. 4).
+    #[command(subcommand)]
+    Cpc(cmd::cpc::CpcCmd),
+    /// Differentiable Material Point Method simulation (thesis §5.2.3–5.2.4).
+    #[command(subcommand)]
+    Mpm(cmd::mpm::MpmCmd),
+    /// Run every module on built-in data and write an HTML report.
+    Demo(demo::DemoArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Depth(c) => cmd::depth::run(c),
+        Command::Cats(c) => cmd::cats::run(c),
+        Command::Stereo(c) => cmd::stereo::run(c),
+        Command::Cpc(c) => cmd::cpc::run(c),
+        Command::Mpm(c) => cmd::mpm::run(c),
+        Command::Demo(a) => demo::run(a),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
