@@ -1,6 +1,8 @@
 //! One file per subcommand group.
 pub mod cats;
+pub mod cats_stats;
 pub mod cpc;
 pub mod depth;
+pub mod depth_tools;
 pub mod mpm;
 pub mod stereo;

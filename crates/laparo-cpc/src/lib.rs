@@ -1,0 +1,1 @@
+//! laparo-cpc — Conformal Perspective Correction (thesis Ch. 4).

@@ -1,0 +1,6 @@
+//! laparo-depth — RoDEM: accuracy and robustness evaluation of monocular depth estimation
+//! in surgery (thesis §2.3.3, §3.2, Appendix C).
+
+pub mod perturb;
+pub mod reproject;
+pub mod synthetic;

@@ -1,0 +1,7 @@
+//! laparo-stereo — CATS camera augmentation for uncalibrated stereo laparoscopes, stereo
+//! calibration statistics, rectification and stereo evaluation (thesis §2.2, §3.3).
+
+// Calibration statistics, rectification, disparity<->depth, evaluation.
+pub mod calib_stats;
+pub mod eval;
+pub mod rectify;

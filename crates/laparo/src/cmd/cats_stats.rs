@@ -1,0 +1,1 @@
+//! `laparo cats stats` (being written).

@@ -1,0 +1,1 @@
+//! `laparo depth perturb` and `laparo depth reproject` (being written).
