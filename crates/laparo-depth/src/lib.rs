@@ -4,3 +4,6 @@
 pub mod perturb;
 pub mod reproject;
 pub mod synthetic;
+pub mod align;
+pub mod error;
+pub mod metrics;

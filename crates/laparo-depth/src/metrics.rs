@@ -1,0 +1,523 @@
+//! Depth metrics of the RoDEM protocol (thesis §3.2.7, eqs. 3.1–3.2) and validity masks.
+//!
+//! The definitions are those of the numpy reference `depth_eval_ref.py`, over the `N` valid
+//! pixels, depth in metres, natural log:
+//!
+//! * `abs_rel  = mean(|z* − ẑ| / z*)` (eq. 3.1)
+//! * `sq_rel   = mean((z* − ẑ)² / z*)` (metres)
+//! * `rmse     = sqrt(mean((z* − ẑ)²))` (metres)
+//! * `rmse_log = sqrt(mean((log z* − log ẑ)²))`
+//! * `silog    = 100 · sqrt(mean(e²) − mean(e)²)`, `e = log ẑ − log z*` (KITTI/BTS form, λ = 1)
+//! * `delta_t  = mean(max(z*/ẑ, ẑ/z*) < 1.25^t)`, `t ∈ {0.25, 0.5, 1, 2, 3}`, strict `<` (eq. 3.2)
+//!
+//! Valid pixels: ground truth finite and > 0, inside the optional ROI mask. A prediction
+//! that is not finite (or, for a depth prediction, ≤ 0) on a valid pixel is *invalid*: it
+//! is counted (`n_invalid_pred`) and handled by an explicit [`InvalidPredPolicy`].
+use crate::align::{fit, AlignParams, Alignment, DepthRange, PredKind};
+use crate::error::{DepthError, Result};
+use serde::{Deserialize, Serialize};
+
+/// The exponents t of the accuracy thresholds `1.25^t` (thesis §3.2.7).
+pub const DELTA_POWERS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 3.0];
+
+/// All metrics of one prediction under one alignment, with the fitted scale and shift.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    pub abs_rel: f64,
+    pub sq_rel: f64,
+    pub rmse: f64,
+    pub rmse_log: f64,
+    pub silog: f64,
+    #[serde(rename = "delta_0.25")]
+    pub delta_0_25: f64,
+    #[serde(rename = "delta_0.5")]
+    pub delta_0_5: f64,
+    #[serde(rename = "delta_1")]
+    pub delta_1: f64,
+    #[serde(rename = "delta_2")]
+    pub delta_2: f64,
+    #[serde(rename = "delta_3")]
+    pub delta_3: f64,
+    /// Fitted disparity scale (NaN → JSON null when the prediction's median is 0).
+    pub scale: f64,
+    /// Fitted disparity shift.
+    pub shift: f64,
+}
+
+/// Names of the metric columns, in output order (keys of depth_eval_ref.py).
+pub const METRIC_NAMES: [&str; 12] = [
+    "abs_rel",
+    "sq_rel",
+    "rmse",
+    "rmse_log",
+    "silog",
+    "delta_0.25",
+    "delta_0.5",
+    "delta_1",
+    "delta_2",
+    "delta_3",
+    "scale",
+    "shift",
+];
+
+impl Metrics {
+    /// delta_t for `DELTA_POWERS[i]`.
+    pub fn delta(&self, i: usize) -> f64 {
+        [self.delta_0_25, self.delta_0_5, self.delta_1, self.delta_2, self.delta_3][i]
+    }
+
+    /// Values in the order of [`METRIC_NAMES`].
+    pub fn values(&self) -> [f64; 12] {
+        [
+            self.abs_rel,
+            self.sq_rel,
+            self.rmse,
+            self.rmse_log,
+            self.silog,
+            self.delta_0_25,
+            self.delta_0_5,
+            self.delta_1,
+            self.delta_2,
+            self.delta_3,
+            self.scale,
+            self.shift,
+        ]
+    }
+
+    /// The per-image error `E` used by the robustness measures (eqs. 3.3–3.4).
+    pub fn error(&self, e: ErrorMetric) -> f64 {
+        match e {
+            ErrorMetric::AbsRel => self.abs_rel,
+            ErrorMetric::OneMinusDelta025 => 1.0 - self.delta_0_25,
+        }
+    }
+}
+
+/// The error `E` of eqs. 3.3–3.4: Abs Rel, or 1 − δ_0.25 (thesis Tables 3.3–3.5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorMetric {
+    AbsRel,
+    OneMinusDelta025,
+}
+
+impl ErrorMetric {
+    /// Both, in the thesis' column order.
+    pub const ALL: [ErrorMetric; 2] = [ErrorMetric::AbsRel, ErrorMetric::OneMinusDelta025];
+    /// Column title.
+    pub fn title(self) -> &'static str {
+        match self {
+            ErrorMetric::AbsRel => "Abs Rel",
+            ErrorMetric::OneMinusDelta025 => "1 − δ0.25",
+        }
+    }
+    /// JSON key.
+    pub fn key(self) -> &'static str {
+        match self {
+            ErrorMetric::AbsRel => "abs_rel",
+            ErrorMetric::OneMinusDelta025 => "one_minus_delta_0.25",
+        }
+    }
+}
+
+/// What to do with an invalid prediction (non-finite, or depth ≤ 0) on a valid GT pixel.
+/// In every case the count is reported as `n_invalid_pred`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InvalidPredPolicy {
+    /// Disparity 0 ("infinitely far"), kept in the fit and the metrics: aligned depth goes to
+    /// the far clamp without alignment (the reference's rule for depth predictions).
+    #[default]
+    Far,
+    /// Removed from the valid set (fit and metrics); `n_valid` excludes them.
+    Exclude,
+    /// Refuse the image (the reference's rule for disparity predictions).
+    Error,
+}
+
+impl std::str::FromStr for InvalidPredPolicy {
+    type Err = DepthError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "far" => Ok(InvalidPredPolicy::Far),
+            "exclude" => Ok(InvalidPredPolicy::Exclude),
+            "error" => Ok(InvalidPredPolicy::Error),
+            _ => {
+                Err(DepthError::invalid("invalid-prediction policy", format!("'{s}' (expected far, exclude or error)")))
+            }
+        }
+    }
+}
+
+/// Options of a single prediction-vs-GT evaluation.
+#[derive(Clone, Debug)]
+pub struct PairOptions {
+    /// Alignments to compute.
+    pub alignments: Vec<Alignment>,
+    /// Clamp range of aligned depth.
+    pub range: DepthRange,
+    /// Handling of invalid predictions.
+    pub invalid_pred: InvalidPredPolicy,
+}
+
+impl Default for PairOptions {
+    fn default() -> Self {
+        PairOptions {
+            alignments: Alignment::ALL.to_vec(),
+            range: DepthRange::default(),
+            invalid_pred: Default::default(),
+        }
+    }
+}
+
+/// The prediction (as disparity) and the ground truth on the valid pixels.
+#[derive(Clone, Debug, Default)]
+pub struct ValidPixels {
+    /// Predicted disparity (any scale) per valid pixel.
+    pub d: Vec<f64>,
+    /// Ground-truth depth (m) per valid pixel.
+    pub z_gt: Vec<f64>,
+    /// Ground-truth disparity `1/z*` (1/m) per valid pixel.
+    pub d_gt: Vec<f64>,
+    /// Pixel index (row-major) of each valid pixel.
+    pub index: Vec<u32>,
+    /// Valid GT pixels whose prediction is invalid (non-finite, or depth ≤ 0).
+    pub n_invalid_pred: usize,
+    /// Pixels with a valid GT value that the ROI mask removed.
+    pub n_masked_out: usize,
+}
+
+/// Select the valid pixels: GT `gt_m` (metres) finite and > 0, `mask` true if given; turn the
+/// prediction into disparity. Errors (`what` = "size", "mask", "ground truth", "prediction")
+/// leave the caller to name the file.
+pub fn select_valid(
+    pred: &[f64],
+    kind: PredKind,
+    gt_m: &[f64],
+    mask: Option<&[bool]>,
+    policy: InvalidPredPolicy,
+) -> Result<ValidPixels> {
+    if pred.len() != gt_m.len() {
+        return Err(DepthError::invalid(
+            "size",
+            format!("prediction has {} pixels, ground truth {}", pred.len(), gt_m.len()),
+        ));
+    }
+    if let Some(m) = mask {
+        if m.len() != gt_m.len() {
+            return Err(DepthError::invalid(
+                "size",
+                format!("mask has {} pixels, ground truth {}", m.len(), gt_m.len()),
+            ));
+        }
+        if !m.iter().any(|&b| b) {
+            return Err(DepthError::invalid("mask", "selects no pixel (all false)"));
+        }
+    }
+    let mut v = ValidPixels::default();
+    let cap = gt_m.len();
+    v.d.reserve(cap);
+    v.z_gt.reserve(cap);
+    v.d_gt.reserve(cap);
+    v.index.reserve(cap);
+    let mut n_gt_valid = 0usize;
+    for (i, (&p, &z)) in pred.iter().zip(gt_m).enumerate() {
+        if !(z.is_finite() && z > 0.0) {
+            continue;
+        }
+        n_gt_valid += 1;
+        if let Some(m) = mask {
+            if !m[i] {
+                continue;
+            }
+        }
+        let d = match kind {
+            PredKind::Disparity => p,
+            PredKind::Depth => {
+                if p.is_finite() && p > 0.0 {
+                    1.0 / p
+                } else {
+                    f64::NAN
+                }
+            }
+        };
+        let d = if d.is_finite() {
+            d
+        } else {
+            v.n_invalid_pred += 1;
+            match policy {
+                InvalidPredPolicy::Far | InvalidPredPolicy::Error => 0.0,
+                InvalidPredPolicy::Exclude => continue,
+            }
+        };
+        v.d.push(d);
+        v.z_gt.push(z);
+        v.d_gt.push(1.0 / z);
+        v.index.push(i as u32);
+    }
+    let n_in = v.d.len() + if policy == InvalidPredPolicy::Exclude { v.n_invalid_pred } else { 0 };
+    v.n_masked_out = n_gt_valid - n_in;
+    if n_gt_valid == 0 {
+        return Err(DepthError::invalid("ground truth", "has no valid pixel (finite and > 0)"));
+    }
+    if n_in == 0 {
+        return Err(DepthError::invalid(
+            "mask",
+            format!("leaves no valid ground-truth pixel (the GT has {n_gt_valid} valid pixels, none inside the mask)"),
+        ));
+    }
+    if v.n_invalid_pred == n_in {
+        return Err(DepthError::invalid(
+            "prediction",
+            format!(
+                "has no valid value (all {n_in} values on valid ground-truth pixels are non-finite{})",
+                if kind == PredKind::Depth { " or ≤ 0" } else { "" }
+            ),
+        ));
+    }
+    if policy == InvalidPredPolicy::Error && v.n_invalid_pred > 0 {
+        return Err(DepthError::invalid(
+            "prediction",
+            format!("has {} invalid value(s) on valid ground-truth pixels (policy: error)", v.n_invalid_pred),
+        ));
+    }
+    Ok(v)
+}
+
+/// All metrics of disparity `d` aligned with `p` against GT depth `z_gt` (m), GT disparity
+/// `d_gt = 1/z_gt`. One fused pass; the slices have equal, non-zero length.
+pub fn metrics(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange) -> Metrics {
+    debug_assert!(z_gt.len() == d.len() && d_gt.len() == d.len());
+    let thr: [f64; 5] = DELTA_POWERS.map(|t| 1.25f64.powf(t));
+    let (mut s_abs, mut s_sqrel, mut s_sq, mut s_e, mut s_e2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut cnt = [0usize; 5];
+    for ((&zg, &ig), &di) in z_gt.iter().zip(d_gt).zip(d) {
+        let z = p.depth(di, range);
+        let diff = zg - z;
+        let r = z * ig; // ẑ / z*
+        let q = zg / z; // z* / ẑ
+        s_abs += diff.abs() * ig;
+        let d2 = diff * diff;
+        s_sqrel += d2 * ig;
+        s_sq += d2;
+        let e = r.ln(); // log ẑ − log z*
+        s_e += e;
+        s_e2 += e * e;
+        let ratio = if q > r { q } else { r };
+        for k in 0..5 {
+            cnt[k] += (ratio < thr[k]) as usize;
+        }
+    }
+    let n = d.len() as f64;
+    let me2 = s_e2 / n;
+    let me = s_e / n;
+    Metrics {
+        abs_rel: s_abs / n,
+        sq_rel: s_sqrel / n,
+        rmse: (s_sq / n).sqrt(),
+        rmse_log: me2.sqrt(),
+        silog: 100.0 * (me2 - me * me).max(0.0).sqrt(),
+        delta_0_25: cnt[0] as f64 / n,
+        delta_0_5: cnt[1] as f64 / n,
+        delta_1: cnt[2] as f64 / n,
+        delta_2: cnt[3] as f64 / n,
+        delta_3: cnt[4] as f64 / n,
+        scale: p.scale,
+        shift: p.shift,
+    }
+}
+
+/// Metrics of one prediction against one GT under several alignments (`None` = not computed).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairMetrics {
+    /// Number of pixels the metrics average over.
+    pub n_valid: usize,
+    /// Valid GT pixels with an invalid prediction (see [`InvalidPredPolicy`]).
+    pub n_invalid_pred: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub none: Option<Metrics>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale: Option<Metrics>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_shift: Option<Metrics>,
+}
+
+impl PairMetrics {
+    /// The metrics of `a`, if computed.
+    pub fn get(&self, a: Alignment) -> Option<&Metrics> {
+        match a {
+            Alignment::None => self.none.as_ref(),
+            Alignment::Scale => self.scale.as_ref(),
+            Alignment::ScaleShift => self.scale_shift.as_ref(),
+        }
+    }
+}
+
+/// Fit and evaluate the selected alignments on prepared valid pixels.
+pub fn evaluate_valid(v: &ValidPixels, opts: &PairOptions) -> PairMetrics {
+    let mut out = PairMetrics {
+        n_valid: v.d.len(),
+        n_invalid_pred: v.n_invalid_pred,
+        none: None,
+        scale: None,
+        scale_shift: None,
+    };
+    let mut scratch = Vec::new();
+    for &a in &opts.alignments {
+        let p = fit(a, &v.d, &v.d_gt, &mut scratch);
+        let m = metrics(&v.z_gt, &v.d_gt, &v.d, p, opts.range);
+        match a {
+            Alignment::None => out.none = Some(m),
+            Alignment::Scale => out.scale = Some(m),
+            Alignment::ScaleShift => out.scale_shift = Some(m),
+        }
+    }
+    out
+}
+
+/// Evaluate prediction `pred` (depth or disparity, any scale) against GT depth `gt_m`
+/// (metres), optional ROI `mask`, all of the same size (row-major).
+pub fn evaluate_pair(
+    pred: &[f64],
+    kind: PredKind,
+    gt_m: &[f64],
+    mask: Option<&[bool]>,
+    opts: &PairOptions,
+) -> Result<PairMetrics> {
+    opts.range.validate()?;
+    let v = select_valid(pred, kind, gt_m, mask, opts.invalid_pred)?;
+    Ok(evaluate_valid(&v, opts))
+}
+
+/// Aligned, clamped predicted depth (m) per pixel (NaN outside the valid set) and the fit,
+/// e.g. for error maps (thesis Fig. C.1).
+pub fn aligned_depth_map(
+    pred: &[f64],
+    kind: PredKind,
+    gt_m: &[f64],
+    mask: Option<&[bool]>,
+    alignment: Alignment,
+    opts: &PairOptions,
+) -> Result<(Vec<f64>, AlignParams)> {
+    let v = select_valid(pred, kind, gt_m, mask, opts.invalid_pred)?;
+    let p = fit(alignment, &v.d, &v.d_gt, &mut Vec::new());
+    let mut out = vec![f64::NAN; gt_m.len()];
+    for (&i, &d) in v.index.iter().zip(&v.d) {
+        out[i as usize] = p.depth(d, opts.range);
+    }
+    Ok((out, p))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-12 * (1.0 + b.abs())
+    }
+
+    fn only(a: Alignment) -> PairOptions {
+        PairOptions { alignments: vec![a], ..Default::default() }
+    }
+
+    #[test]
+    fn every_metric_by_hand_without_alignment() {
+        // z* = (1/8, 1/4) m, ẑ = (1/8, 5/16) m: one exact pixel, one 25 % too far.
+        let gt = [0.125, 0.25];
+        let pred = [0.125, 0.3125];
+        let r = evaluate_pair(&pred, PredKind::Depth, &gt, None, &only(Alignment::None)).unwrap();
+        let m = r.none.unwrap();
+        assert_eq!(r.n_valid, 2);
+        let l = 1.25f64.ln();
+        assert!(close(m.abs_rel, 0.125)); // (0 + 0.0625/0.25) / 2
+        assert!(close(m.sq_rel, 0.0078125)); // (0.0625² / 0.25) / 2
+        assert!(close(m.rmse, 0.0625 / 2f64.sqrt()));
+        assert!(close(m.rmse_log, l / 2f64.sqrt()));
+        assert!(close(m.silog, 50.0 * l)); // 100 sqrt(l²/2 − l²/4)
+                                           // ratio 1.25: fails 1.25^0.25, 1.25^0.5 and (strict <) 1.25^1; passes 1.25^2, 1.25^3.
+        assert_eq!([m.delta_0_25, m.delta_0_5, m.delta_1, m.delta_2, m.delta_3], [0.5, 0.5, 0.5, 1.0, 1.0]);
+        assert_eq!((m.scale, m.shift), (1.0, 0.0));
+        assert_eq!(m.error(ErrorMetric::OneMinusDelta025), 0.5);
+    }
+
+    #[test]
+    fn scale_alignment_by_hand() {
+        // d = (1, 2, 3), d* = (10, 20, 25): s = 20 / 2 = 10, ẑ = (0.1, 0.05, 1/30).
+        let gt = [0.1, 0.05, 0.04];
+        let r = evaluate_pair(&[1.0, 2.0, 3.0], PredKind::Disparity, &gt, None, &only(Alignment::Scale)).unwrap();
+        let m = r.scale.unwrap();
+        assert!(close(m.scale, 10.0) && m.shift == 0.0);
+        assert!(close(m.abs_rel, (1.0 / 6.0) / 3.0)); // |0.04 − 1/30| / 0.04 = 1/6
+        assert!(close(m.rmse, ((0.04f64 - 1.0 / 30.0).powi(2) / 3.0).sqrt()));
+        // ratio 1.2 on the third pixel: < 1.25 but > 1.25^0.5 = 1.118.
+        assert!(close(m.delta_0_5, 2.0 / 3.0) && m.delta_1 == 1.0);
+    }
+
+    #[test]
+    fn scale_shift_alignment_by_hand() {
+        // d = (0, 1, 2), d* = (1, 2, 4) -> s = 3/2, t = 5/6 (see align.rs),
+        // ẑ = (6/5 -> clamped 0.5, 3/7, 6/23), z* = (1, 0.5, 0.25).
+        let gt = [1.0, 0.5, 0.25];
+        let r = evaluate_pair(&[0.0, 1.0, 2.0], PredKind::Disparity, &gt, None, &only(Alignment::ScaleShift)).unwrap();
+        let m = r.scale_shift.unwrap();
+        assert!(close(m.scale, 1.5) && close(m.shift, 5.0 / 6.0));
+        assert!(close(m.abs_rel, (0.5 + 1.0 / 7.0 + 1.0 / 23.0) / 3.0));
+        let e = [(0.5f64).ln(), (6.0f64 / 7.0).ln(), (24.0f64 / 23.0).ln()];
+        let me = e.iter().sum::<f64>() / 3.0;
+        let me2 = e.iter().map(|x| x * x).sum::<f64>() / 3.0;
+        assert!(close(m.rmse_log, me2.sqrt()));
+        assert!(close(m.silog, 100.0 * (me2 - me * me).sqrt()));
+    }
+
+    #[test]
+    fn invalid_predictions_are_counted_and_handled() {
+        let gt = [0.1, 0.1, f64::NAN, 0.1];
+        let pred = [0.1, f64::NAN, 0.3, 0.0]; // NaN and 0 depth on valid pixels; 0.3 on invalid GT
+        let far = evaluate_pair(&pred, PredKind::Depth, &gt, None, &only(Alignment::None)).unwrap();
+        assert_eq!((far.n_valid, far.n_invalid_pred), (3, 2));
+        // Far: both invalid pixels at 0.5 m -> |0.1 − 0.5| / 0.1 = 4.
+        assert!(close(far.none.unwrap().abs_rel, 8.0 / 3.0));
+        let ex = PairOptions { invalid_pred: InvalidPredPolicy::Exclude, ..only(Alignment::None) };
+        let r = evaluate_pair(&pred, PredKind::Depth, &gt, None, &ex).unwrap();
+        assert_eq!((r.n_valid, r.n_invalid_pred), (1, 2));
+        assert_eq!(r.none.unwrap().abs_rel, 0.0);
+        let er = PairOptions { invalid_pred: InvalidPredPolicy::Error, ..only(Alignment::None) };
+        assert!(evaluate_pair(&pred, PredKind::Depth, &gt, None, &er).is_err());
+    }
+
+    #[test]
+    fn bad_inputs_are_refused() {
+        let o = PairOptions::default();
+        let e = evaluate_pair(&[1.0], PredKind::Disparity, &[0.1, 0.2], None, &o).unwrap_err();
+        assert!(e.to_string().contains("size"), "{e}");
+        let e = evaluate_pair(&[f64::NAN, f64::NAN], PredKind::Disparity, &[0.1, 0.2], None, &o).unwrap_err();
+        assert!(e.to_string().contains("prediction"), "{e}");
+        let e = evaluate_pair(&[1.0, 2.0], PredKind::Disparity, &[0.0, f64::NAN], None, &o).unwrap_err();
+        assert!(e.to_string().contains("ground truth"), "{e}");
+        let e = evaluate_pair(&[1.0, 2.0], PredKind::Disparity, &[0.1, 0.2], Some(&[false, false]), &o).unwrap_err();
+        assert!(e.to_string().contains("mask"), "{e}");
+        let e =
+            evaluate_pair(&[1.0, 2.0], PredKind::Disparity, &[0.1, f64::NAN], Some(&[false, true]), &o).unwrap_err();
+        assert!(e.to_string().contains("mask"), "{e}");
+    }
+
+    #[test]
+    fn mask_restricts_valid_set() {
+        let gt = [0.1, 0.2, 0.3];
+        let r =
+            evaluate_pair(&[0.1, 0.4, 0.3], PredKind::Depth, &gt, Some(&[true, false, true]), &only(Alignment::None))
+                .unwrap();
+        assert_eq!(r.n_valid, 2);
+        assert_eq!(r.none.unwrap().abs_rel, 0.0);
+        let (z, p) = aligned_depth_map(
+            &[0.1, 0.4, 0.3],
+            PredKind::Depth,
+            &gt,
+            Some(&[true, false, true]),
+            Alignment::None,
+            &Default::default(),
+        )
+        .unwrap();
+        assert!(z[1].is_nan() && z[0] == 0.1 && p == AlignParams::IDENTITY);
+    }
+}
