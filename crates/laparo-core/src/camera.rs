@@ -31,7 +31,10 @@ impl Intrinsics {
     /// Check that focal lengths are finite and > 0, the principal point finite, the size non-zero.
     pub fn validate(&self) -> Result<()> {
         if !(self.fx.is_finite() && self.fx > 0.0 && self.fy.is_finite() && self.fy > 0.0) {
-            return Err(CoreError::invalid("focal length", format!("fx = {}, fy = {} (must be finite and > 0)", self.fx, self.fy)));
+            return Err(CoreError::invalid(
+                "focal length",
+                format!("fx = {}, fy = {} (must be finite and > 0)", self.fx, self.fy),
+            ));
         }
         if !(self.cx.is_finite() && self.cy.is_finite() && self.skew.is_finite()) {
             return Err(CoreError::invalid("principal point", format!("cx = {}, cy = {}", self.cx, self.cy)));
@@ -44,7 +47,8 @@ impl Intrinsics {
 
     /// From a 3×3 camera matrix K.
     pub fn from_matrix(k: &Matrix3<f64>, width: usize, height: usize) -> Result<Self> {
-        let i = Intrinsics { fx: k[(0, 0)], fy: k[(1, 1)], cx: k[(0, 2)], cy: k[(1, 2)], skew: k[(0, 1)], width, height };
+        let i =
+            Intrinsics { fx: k[(0, 0)], fy: k[(1, 1)], cx: k[(0, 2)], cy: k[(1, 2)], skew: k[(0, 1)], width, height };
         i.validate()?;
         Ok(i)
     }
@@ -138,7 +142,10 @@ impl Distortion {
             return Err(CoreError::invalid("distortion", "non-finite coefficient"));
         }
         if n == 14 && (c[12] != 0.0 || c[13] != 0.0) {
-            return Err(CoreError::invalid("distortion", "tilted-sensor coefficients (tau_x, tau_y) are not supported"));
+            return Err(CoreError::invalid(
+                "distortion",
+                "tilted-sensor coefficients (tau_x, tau_y) are not supported",
+            ));
         }
         let g = |i: usize| if i < n { c[i] } else { 0.0 };
         Ok(Distortion {
@@ -183,7 +190,8 @@ impl Distortion {
         let r2 = x * x + y * y;
         let r4 = r2 * r2;
         let r6 = r4 * r2;
-        let radial = (1.0 + self.k1 * r2 + self.k2 * r4 + self.k3 * r6) / (1.0 + self.k4 * r2 + self.k5 * r4 + self.k6 * r6);
+        let radial =
+            (1.0 + self.k1 * r2 + self.k2 * r4 + self.k3 * r6) / (1.0 + self.k4 * r2 + self.k5 * r4 + self.k6 * r6);
         let xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x) + self.s1 * r2 + self.s2 * r4;
         let yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y + self.s3 * r2 + self.s4 * r4;
         (xd, yd)

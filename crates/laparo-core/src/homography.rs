@@ -24,10 +24,7 @@ impl Homography {
 
     /// The inverse homography.
     pub fn inverse(&self) -> Result<Self> {
-        self.0
-            .try_inverse()
-            .map(Homography)
-            .ok_or_else(|| CoreError::invalid("homography", "singular matrix"))
+        self.0.try_inverse().map(Homography).ok_or_else(|| CoreError::invalid("homography", "singular matrix"))
     }
 
     /// `self ∘ other` (apply `other` first).
@@ -49,7 +46,10 @@ impl Homography {
     /// (Hartley-normalised, solved by SVD).
     pub fn from_points(src: &[(f64, f64)], dst: &[(f64, f64)]) -> Result<Self> {
         if src.len() != dst.len() || src.len() < 4 {
-            return Err(CoreError::invalid("correspondences", format!("need >= 4 pairs, got {} and {}", src.len(), dst.len())));
+            return Err(CoreError::invalid(
+                "correspondences",
+                format!("need >= 4 pairs, got {} and {}", src.len(), dst.len()),
+            ));
         }
         let (ts, ns) = normalisation(src);
         let (td, nd) = normalisation(dst);
@@ -67,11 +67,11 @@ impl Homography {
         }
         let ata = a.transpose() * &a;
         let eig = ata.symmetric_eigen();
-        let (imin, _) = eig
-            .eigenvalues
-            .iter()
-            .enumerate()
-            .fold((0, f64::INFINITY), |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc });
+        let (imin, _) =
+            eig.eigenvalues
+                .iter()
+                .enumerate()
+                .fold((0, f64::INFINITY), |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc });
         let h = eig.eigenvectors.column(imin);
         let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
         let td_inv = td.try_inverse().ok_or_else(|| CoreError::invalid("correspondences", "degenerate"))?;

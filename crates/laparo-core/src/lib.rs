@@ -11,6 +11,7 @@ pub mod depth;
 pub mod error;
 pub mod homography;
 pub mod image;
+pub mod io;
 pub mod se3;
 
 pub use camera::{Distortion, Intrinsics};

@@ -1,0 +1,60 @@
+//! Readers and writers for the raster formats surgical-vision users exchange.
+//!
+//! | format | read | write | notes |
+//! |---|---|---|---|
+//! | PNG / JPEG / TIFF 8-bit | [`read_image`], [`read_rgb8`] | [`write_png`] | channels as stored (1/3/4) |
+//! | PNG 16-bit | [`read_png16`] | [`write_png16`] | values kept exactly (no rescaling) |
+//! | NumPy `.npy` / `.npz` | [`read_npy`], [`read_npz`] | [`write_npy_f32`], [`write_npy_f64`], [`write_npz_f64`] | f32/f64/u8/u16/i32/i64/bool, C or Fortran order |
+//! | PFM | [`read_pfm`] | [`write_pfm`] | rows bottom-to-top on disk, top row first in memory |
+//! | float TIFF | [`read_tiff_f32`] | [`write_tiff_f32`] | 32-bit float gray (or RGB) |
+//!
+//! Every error names the file. Every writer is atomic (temporary sibling + rename).
+mod depth_io;
+mod npy;
+mod pfm;
+mod png;
+mod tiff;
+
+pub use depth_io::{read_depth, read_float_map, write_depth, write_float_map};
+pub use npy::{read_npy, read_npz, read_npz_names, write_npy_f32, write_npy_f64, write_npz_f64};
+pub use pfm::{read_pfm, write_pfm};
+pub use png::{read_image, read_png16, read_rgb8, write_jpeg, write_png, write_png16};
+pub use tiff::{read_tiff_f32, write_tiff_f32};
+
+use crate::error::{CoreError, Result};
+use std::path::Path;
+
+/// Lower-case extension of `path` without the dot ("" when there is none).
+pub fn extension(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}
+
+/// Read a whole file, naming it in the error.
+pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| CoreError::io(path, e))
+}
+
+/// Check that an image to be written is non-empty and has `allowed` channels.
+pub(crate) fn check_writable<T>(path: &Path, img: &crate::image::Image<T>, allowed: &[usize]) -> Result<()> {
+    if img.width == 0 || img.height == 0 {
+        return Err(CoreError::format(path, format!("cannot write an empty {}x{} image", img.width, img.height)));
+    }
+    if !allowed.contains(&img.channels) {
+        return Err(CoreError::format(
+            path,
+            format!("cannot write {} channels to this format (supported: {allowed:?})", img.channels),
+        ));
+    }
+    if img.data.len() != img.width * img.height * img.channels {
+        return Err(CoreError::SizeMismatch(format!(
+            "{}: image data has {} values, {}x{}x{} needs {}",
+            path.display(),
+            img.data.len(),
+            img.width,
+            img.height,
+            img.channels,
+            img.width * img.height * img.channels
+        )));
+    }
+    Ok(())
+}
