@@ -7,3 +7,4 @@ pub mod synthetic;
 pub mod align;
 pub mod error;
 pub mod metrics;
+pub mod robustness;
