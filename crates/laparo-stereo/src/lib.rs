@@ -5,3 +5,7 @@
 pub mod calib_stats;
 pub mod eval;
 pub mod rectify;
+
+// CATS camera augmentation (eqs. 3.5-3.9), its configuration and dataset layouts.
+pub mod augment;
+pub mod cats_params;
