@@ -8,3 +8,5 @@ pub mod align;
 pub mod error;
 pub mod metrics;
 pub mod robustness;
+pub mod manifest;
+pub mod eval;
