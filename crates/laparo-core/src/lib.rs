@@ -6,6 +6,7 @@
 //! OpenCV FileStorage YAML, JSON, OBJ/PLY/STL).
 
 pub mod atomic;
+pub mod calib;
 pub mod camera;
 pub mod depth;
 pub mod error;
@@ -14,6 +15,7 @@ pub mod image;
 pub mod io;
 pub mod se3;
 
+pub use calib::StereoCalibration;
 pub use camera::{Distortion, Intrinsics};
 pub use depth::{DepthMap, DepthUnit};
 pub use error::{CoreError, Result};

@@ -1,0 +1,1327 @@
+//! Stereo calibration and OpenCV FileStorage YAML.
+//!
+//! [`StereoCalibration`] holds the two pinhole cameras (K, distortion) and the pose of the right
+//! camera with respect to the left exactly as OpenCV's `stereoCalibrate` returns it:
+//! `X_right = R · X_left + T`, T in millimetres.
+//!
+//! It reads
+//! - OpenCV FileStorage YAML (`%YAML:1.0`, `!!opencv-matrix`): SCARED `endoscope_calibration.yaml`
+//!   (`M1 D1 M2 D2 R T`), the EndoVis 2017 layout (`cam1 dis1 cam2 dis2 rot trans imageSize`),
+//!   OpenCV's `stereo_calib` sample pair (`intrinsics.yml`: `M1 D1 M2 D2` + `extrinsics.yml`:
+//!   `R T R1 R2 P1 P2 Q`, see [`StereoCalibration::read_pair`]) and the common key aliases
+//!   (`K1`, `CameraMatrix1`, `DistCoeffs1`, ...);
+//! - laparo's JSON format (see the crate README and [`StereoCalibration::write_json`]).
+//!
+//! The FileStorage reader is hand-written: no maintained crate parses OpenCV's YAML dialect
+//! (`%YAML:1.0` header, `!!opencv-matrix` tags); generic YAML crates reject the header.
+use crate::atomic::write_atomic;
+use crate::camera::{Distortion, Intrinsics};
+use crate::error::{CoreError, Result};
+use crate::se3::{se3_from_rt, Se3};
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------------------------------------
+// FileStorage value tree
+// ---------------------------------------------------------------------------------------------
+
+/// A dense matrix from a `!!opencv-matrix` node (row-major, `channels` interleaved).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FsMatrix {
+    pub rows: usize,
+    pub cols: usize,
+    pub channels: usize,
+    /// OpenCV element type code as written (`d`, `f`, `i`, `u`, `3d`, ...).
+    pub dt: String,
+    pub data: Vec<f64>,
+}
+
+impl FsMatrix {
+    /// A single-channel f64 matrix (`dt: d`).
+    pub fn new(rows: usize, cols: usize, data: Vec<f64>) -> Result<Self> {
+        if data.len() != rows * cols {
+            return Err(CoreError::SizeMismatch(format!(
+                "matrix {rows}x{cols} needs {} values, got {}",
+                rows * cols,
+                data.len()
+            )));
+        }
+        Ok(FsMatrix { rows, cols, channels: 1, dt: "d".into(), data })
+    }
+
+    /// Element (r, c) of a single-channel matrix.
+    pub fn get(&self, r: usize, c: usize) -> f64 {
+        self.data[(r * self.cols + c) * self.channels]
+    }
+
+    /// As a 3×3 matrix, if it is one.
+    pub fn to_matrix3(&self) -> Option<Matrix3<f64>> {
+        (self.rows == 3 && self.cols == 3 && self.channels == 1).then(|| Matrix3::from_row_slice(&self.data))
+    }
+
+    /// As a 3-vector if it is 3×1 or 1×3.
+    pub fn to_vector3(&self) -> Option<Vector3<f64>> {
+        (self.rows * self.cols * self.channels == 3).then(|| Vector3::new(self.data[0], self.data[1], self.data[2]))
+    }
+}
+
+/// One node of an OpenCV FileStorage document.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FsNode {
+    Int(i64),
+    Real(f64),
+    Str(String),
+    Seq(Vec<FsNode>),
+    /// A mapping, keys in file order.
+    Map(Vec<(String, FsNode)>),
+    Mat(FsMatrix),
+    /// `key:` with nothing after it.
+    Empty,
+}
+
+impl FsNode {
+    /// Numeric value of an Int or Real node.
+    pub fn as_f64(&self) -> Option<f64> {
+        match self {
+            FsNode::Int(i) => Some(*i as f64),
+            FsNode::Real(r) => Some(*r),
+            _ => None,
+        }
+    }
+    /// Non-negative integer value (a Real with an integral value is accepted).
+    pub fn as_usize(&self) -> Option<usize> {
+        match self {
+            FsNode::Int(i) if *i >= 0 => Some(*i as usize),
+            FsNode::Real(r) if *r >= 0.0 && r.fract() == 0.0 && *r < 1e15 => Some(*r as usize),
+            _ => None,
+        }
+    }
+    /// String value.
+    pub fn as_str(&self) -> Option<&str> {
+        match self {
+            FsNode::Str(s) => Some(s),
+            _ => None,
+        }
+    }
+    /// Value of `key` in a Map node.
+    pub fn get(&self, key: &str) -> Option<&FsNode> {
+        match self {
+            FsNode::Map(m) => m.iter().find(|(k, _)| k == key).map(|(_, v)| v),
+            _ => None,
+        }
+    }
+    /// All numbers of a Mat, or of a Seq of numbers.
+    pub fn numbers(&self) -> Option<Vec<f64>> {
+        match self {
+            FsNode::Mat(m) => Some(m.data.clone()),
+            FsNode::Seq(s) => s.iter().map(|v| v.as_f64()).collect(),
+            _ => None,
+        }
+    }
+}
+
+/// A parsed OpenCV FileStorage YAML document: its top-level mapping, keys in file order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileStorage {
+    /// The file it was read from (used in error messages; empty for in-memory documents).
+    pub path: PathBuf,
+    pub entries: Vec<(String, FsNode)>,
+}
+
+impl FileStorage {
+    /// Value of a top-level key.
+    pub fn get(&self, key: &str) -> Option<&FsNode> {
+        self.entries.iter().find(|(k, _)| k == key).map(|(_, v)| v)
+    }
+
+    /// The first of `keys` present at the top level, with its name.
+    pub fn get_any<'a>(&'a self, keys: &[&'a str]) -> Option<(&'a str, &'a FsNode)> {
+        keys.iter().find_map(|k| self.get(k).map(|v| (*k, v)))
+    }
+
+    /// Top-level keys in file order.
+    pub fn keys(&self) -> Vec<&str> {
+        self.entries.iter().map(|(k, _)| k.as_str()).collect()
+    }
+
+    /// The matrix stored under `key` (an `!!opencv-matrix`, or a flow sequence of numbers read as
+    /// a column); an error naming the file when the key is missing or holds something else.
+    pub fn matrix(&self, key: &str) -> Result<FsMatrix> {
+        match self.get(key) {
+            Some(FsNode::Mat(m)) => Ok(m.clone()),
+            Some(n @ FsNode::Seq(_)) => match n.numbers() {
+                Some(v) => Ok(FsMatrix { rows: v.len(), cols: 1, channels: 1, dt: "d".into(), data: v }),
+                None => Err(CoreError::format(&self.path, format!("'{key}' is a sequence but not of numbers"))),
+            },
+            Some(_) => Err(CoreError::format(&self.path, format!("'{key}' is not a matrix"))),
+            None => Err(CoreError::format(&self.path, format!("no '{key}' entry (keys: {:?})", self.keys()))),
+        }
+    }
+
+    /// Parse FileStorage YAML text; `path` only names the source in errors.
+    pub fn parse(text: &str, path: impl Into<PathBuf>) -> Result<Self> {
+        let path = path.into();
+        let lines = logical_lines(text, &path)?;
+        let mut p = BlockParser { lines, i: 0, path: &path };
+        if p.lines.is_empty() {
+            return Err(CoreError::format(&path, "no entries in the FileStorage document"));
+        }
+        let indent = p.lines[0].indent;
+        let entries = p.parse_map(indent)?;
+        if p.i < p.lines.len() {
+            let l = &p.lines[p.i];
+            return Err(CoreError::format(&path, format!("line {}: unexpected indentation", l.no)));
+        }
+        Ok(FileStorage { path, entries })
+    }
+
+    /// Serialise as OpenCV FileStorage YAML (readable by `cv::FileStorage` and [`read_filestorage`]).
+    pub fn to_yaml(&self) -> String {
+        let mut s = String::from("%YAML:1.0\n---\n");
+        for (k, v) in &self.entries {
+            emit(&mut s, k, v, 0);
+        }
+        s
+    }
+
+    /// Write the document to `path` atomically.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
+        write_atomic(path.as_ref(), self.to_yaml().as_bytes())
+    }
+}
+
+/// Read an OpenCV FileStorage YAML file (`%YAML:1.0` header optional).
+pub fn read_filestorage(path: impl AsRef<Path>) -> Result<FileStorage> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| CoreError::io(path, e))?;
+    let text = String::from_utf8(bytes).map_err(|_| CoreError::format(path, "not UTF-8 text"))?;
+    let first = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'));
+    match first {
+        None => return Err(CoreError::format(path, "empty file")),
+        Some(l) if l.starts_with('<') => {
+            return Err(CoreError::format(path, "XML FileStorage is not supported; save it as YAML"))
+        }
+        Some(l) if l.starts_with('{') => {
+            return Err(CoreError::format(path, "looks like JSON, not OpenCV FileStorage YAML"))
+        }
+        _ => {}
+    }
+    FileStorage::parse(&text, path)
+}
+
+// ----- parsing -------------------------------------------------------------------------------
+
+struct Line {
+    no: usize,
+    indent: usize,
+    text: String,
+}
+
+/// Position of a YAML comment `#` (at the start or after whitespace, outside quotes).
+fn comment_start(s: &str) -> Option<usize> {
+    let mut quote: Option<char> = None;
+    let mut prev_ws = true;
+    for (i, ch) in s.char_indices() {
+        match quote {
+            Some(q) if ch == q => quote = None,
+            Some(_) => {}
+            None if ch == '"' || ch == '\'' => quote = Some(ch),
+            None if ch == '#' && prev_ws => return Some(i),
+            None => {}
+        }
+        prev_ws = ch.is_whitespace();
+    }
+    None
+}
+
+/// Bracket depth change of `s` outside quotes.
+fn bracket_balance(s: &str) -> i64 {
+    let mut quote: Option<char> = None;
+    let mut depth = 0i64;
+    for ch in s.chars() {
+        match quote {
+            Some(q) if ch == q => quote = None,
+            Some(_) => {}
+            None => match ch {
+                '"' | '\'' => quote = Some(ch),
+                '[' | '{' => depth += 1,
+                ']' | '}' => depth -= 1,
+                _ => {}
+            },
+        }
+    }
+    depth
+}
+
+/// Strip comments, directives and document markers; join flow collections spanning lines.
+fn logical_lines(text: &str, path: &Path) -> Result<Vec<Line>> {
+    let mut out: Vec<Line> = Vec::new();
+    let mut pending: Option<(Line, i64)> = None;
+    for (idx, raw) in text.lines().enumerate() {
+        let no = idx + 1;
+        let raw = raw.trim_end_matches('\r');
+        let body = match comment_start(raw) {
+            Some(c) => &raw[..c],
+            None => raw,
+        };
+        let trimmed = body.trim();
+        if let Some((mut l, depth)) = pending.take() {
+            if trimmed.is_empty() {
+                pending = Some((l, depth));
+                continue;
+            }
+            l.text.push(' ');
+            l.text.push_str(trimmed);
+            let d = depth + bracket_balance(trimmed);
+            if d > 0 {
+                pending = Some((l, d));
+            } else {
+                out.push(l);
+            }
+            continue;
+        }
+        if trimmed.is_empty() {
+            continue;
+        }
+        let indent = body.len() - body.trim_start().len();
+        if indent == 0
+            && (trimmed.starts_with('%') || trimmed == "---" || trimmed == "..." || trimmed.starts_with("--- "))
+        {
+            continue;
+        }
+        let l = Line { no, indent, text: trimmed.to_string() };
+        let d = bracket_balance(trimmed);
+        if d > 0 {
+            pending = Some((l, d));
+        } else if d < 0 {
+            return Err(CoreError::format(path, format!("line {no}: unbalanced closing bracket")));
+        } else {
+            out.push(l);
+        }
+    }
+    if let Some((l, _)) = pending {
+        return Err(CoreError::format(path, format!("line {}: '[' or '{{' never closed (file truncated?)", l.no)));
+    }
+    Ok(out)
+}
+
+/// Split `key: rest` at the first `:` followed by whitespace or end of line, outside quotes.
+fn split_key(s: &str) -> Option<(String, &str)> {
+    let bytes = s.as_bytes();
+    let mut quote: Option<u8> = None;
+    for (i, &b) in bytes.iter().enumerate() {
+        match quote {
+            Some(q) if b == q => quote = None,
+            Some(_) => {}
+            None if b == b'"' || b == b'\'' => quote = Some(b),
+            None if b == b'[' || b == b'{' => return None,
+            None if b == b':' && (i + 1 == bytes.len() || bytes[i + 1].is_ascii_whitespace()) => {
+                let key = unquote(s[..i].trim());
+                if key.is_empty() {
+                    return None;
+                }
+                return Some((key, s[i + 1..].trim()));
+            }
+            None => {}
+        }
+    }
+    None
+}
+
+fn unquote(s: &str) -> String {
+    let b = s.as_bytes();
+    if b.len() >= 2 && ((b[0] == b'"' && b[b.len() - 1] == b'"') || (b[0] == b'\'' && b[b.len() - 1] == b'\'')) {
+        let inner = &s[1..s.len() - 1];
+        if b[0] == b'"' {
+            return inner.replace("\\\"", "\"").replace("\\n", "\n").replace("\\\\", "\\");
+        }
+        return inner.replace("''", "'");
+    }
+    s.to_string()
+}
+
+/// A plain scalar: integer, real (including `.Inf`, `-.Inf`, `.NaN`) or string.
+fn scalar(s: &str) -> FsNode {
+    let s = s.trim();
+    if s.starts_with('"') || s.starts_with('\'') {
+        return FsNode::Str(unquote(s));
+    }
+    if let Ok(i) = s.parse::<i64>() {
+        return FsNode::Int(i);
+    }
+    match s.to_ascii_lowercase().as_str() {
+        ".inf" | "+.inf" => return FsNode::Real(f64::INFINITY),
+        "-.inf" => return FsNode::Real(f64::NEG_INFINITY),
+        ".nan" => return FsNode::Real(f64::NAN),
+        _ => {}
+    }
+    let numeric = s.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '+' || c == '.');
+    if numeric {
+        if let Ok(r) = s.parse::<f64>() {
+            return FsNode::Real(r);
+        }
+    }
+    FsNode::Str(s.to_string())
+}
+
+/// Parser for one flow collection `[ ... ]` / `{ ... }` (already joined onto one line).
+struct FlowParser<'a> {
+    s: &'a [u8],
+    src: &'a str,
+    pos: usize,
+}
+
+impl FlowParser<'_> {
+    fn ws(&mut self) {
+        while self.pos < self.s.len() && self.s[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+    }
+    fn value(&mut self) -> std::result::Result<FsNode, String> {
+        self.ws();
+        // Tags inside flow collections (rare) are skipped.
+        if self.src[self.pos..].starts_with("!!") {
+            while self.pos < self.s.len() && !self.s[self.pos].is_ascii_whitespace() {
+                self.pos += 1;
+            }
+            self.ws();
+        }
+        match self.s.get(self.pos) {
+            Some(b'[') => {
+                self.pos += 1;
+                let mut items = Vec::new();
+                loop {
+                    self.ws();
+                    match self.s.get(self.pos) {
+                        Some(b']') => {
+                            self.pos += 1;
+                            return Ok(FsNode::Seq(items));
+                        }
+                        None => return Err("unterminated '['".into()),
+                        _ => {}
+                    }
+                    items.push(self.value()?);
+                    self.ws();
+                    match self.s.get(self.pos) {
+                        Some(b',') => self.pos += 1,
+                        Some(b']') => {}
+                        _ => return Err(format!("expected ',' or ']' at column {}", self.pos + 1)),
+                    }
+                }
+            }
+            Some(b'{') => {
+                self.pos += 1;
+                let mut items = Vec::new();
+                loop {
+                    self.ws();
+                    match self.s.get(self.pos) {
+                        Some(b'}') => {
+                            self.pos += 1;
+                            return Ok(FsNode::Map(items));
+                        }
+                        None => return Err("unterminated '{'".into()),
+                        _ => {}
+                    }
+                    let start = self.pos;
+                    while self.pos < self.s.len() && self.s[self.pos] != b':' {
+                        self.pos += 1;
+                    }
+                    if self.pos >= self.s.len() {
+                        return Err("expected 'key: value' inside '{ }'".into());
+                    }
+                    let key = unquote(self.src[start..self.pos].trim());
+                    self.pos += 1;
+                    let v = self.value()?;
+                    items.push((key, v));
+                    self.ws();
+                    match self.s.get(self.pos) {
+                        Some(b',') => self.pos += 1,
+                        Some(b'}') => {}
+                        _ => return Err(format!("expected ',' or '}}' at column {}", self.pos + 1)),
+                    }
+                }
+            }
+            Some(b'"') | Some(b'\'') => {
+                let q = self.s[self.pos];
+                let start = self.pos;
+                self.pos += 1;
+                while self.pos < self.s.len() && !(self.s[self.pos] == q && self.s[self.pos - 1] != b'\\') {
+                    self.pos += 1;
+                }
+                if self.pos >= self.s.len() {
+                    return Err("unterminated quoted string".into());
+                }
+                self.pos += 1;
+                Ok(FsNode::Str(unquote(&self.src[start..self.pos])))
+            }
+            Some(_) => {
+                let start = self.pos;
+                while self.pos < self.s.len() && !matches!(self.s[self.pos], b',' | b']' | b'}') {
+                    self.pos += 1;
+                }
+                let tok = self.src[start..self.pos].trim();
+                if tok.is_empty() {
+                    return Err(format!("empty value at column {}", start + 1));
+                }
+                Ok(scalar(tok))
+            }
+            None => Err("missing value".into()),
+        }
+    }
+}
+
+fn parse_flow(s: &str) -> std::result::Result<FsNode, String> {
+    let mut p = FlowParser { s: s.as_bytes(), src: s, pos: 0 };
+    let v = p.value()?;
+    p.ws();
+    if p.pos != s.len() {
+        return Err(format!("unexpected text after the closing bracket: '{}'", &s[p.pos..]));
+    }
+    Ok(v)
+}
+
+struct BlockParser<'a> {
+    lines: Vec<Line>,
+    i: usize,
+    path: &'a Path,
+}
+
+impl BlockParser<'_> {
+    fn err(&self, no: usize, msg: impl std::fmt::Display) -> CoreError {
+        CoreError::format(self.path, format!("line {no}: {msg}"))
+    }
+
+    fn is_seq_item(text: &str) -> bool {
+        text == "-" || text.starts_with("- ")
+    }
+
+    fn parse_map(&mut self, indent: usize) -> Result<Vec<(String, FsNode)>> {
+        let mut out: Vec<(String, FsNode)> = Vec::new();
+        while self.i < self.lines.len() && self.lines[self.i].indent == indent {
+            let (no, text) = (self.lines[self.i].no, self.lines[self.i].text.clone());
+            if Self::is_seq_item(&text) {
+                return Err(self.err(no, "a sequence item where a 'key: value' was expected"));
+            }
+            let Some((key, rest)) = split_key(&text) else {
+                return Err(self.err(no, format!("expected 'key: value', found '{text}'")));
+            };
+            if out.iter().any(|(k, _)| *k == key) {
+                return Err(self.err(no, format!("duplicate key '{key}'")));
+            }
+            self.i += 1;
+            let v = self.parse_value(rest, indent, no, true)?;
+            out.push((key, v));
+        }
+        Ok(out)
+    }
+
+    fn parse_seq(&mut self, indent: usize) -> Result<Vec<FsNode>> {
+        let mut out = Vec::new();
+        while self.i < self.lines.len()
+            && self.lines[self.i].indent == indent
+            && Self::is_seq_item(&self.lines[self.i].text)
+        {
+            let (no, text) = (self.lines[self.i].no, self.lines[self.i].text.clone());
+            let rest = text[1..].trim_start();
+            let offset = text.len() - rest.len();
+            if !rest.is_empty() && !rest.starts_with(['[', '{', '"', '\'', '!']) && split_key(rest).is_some() {
+                // "- key: value" starts a mapping indented at the key's column.
+                self.lines[self.i].indent = indent + offset;
+                self.lines[self.i].text = rest.to_string();
+                out.push(FsNode::Map(self.parse_map(indent + offset)?));
+            } else {
+                self.i += 1;
+                out.push(self.parse_value(rest, indent, no, false)?);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The value after `key:` (or `-`) on line `no`, whose block children are indented more
+    /// than `indent`.
+    fn parse_value(&mut self, rest: &str, indent: usize, no: usize, in_map: bool) -> Result<FsNode> {
+        let (tag, rest) = if rest.starts_with("!!") {
+            match rest.find(char::is_whitespace) {
+                Some(p) => (Some(&rest[2..p]), rest[p..].trim()),
+                None => (Some(&rest[2..]), ""),
+            }
+        } else {
+            (None, rest)
+        };
+        let node = if rest.is_empty() {
+            match self.lines.get(self.i) {
+                Some(next) if next.indent > indent => {
+                    let ind = next.indent;
+                    if Self::is_seq_item(&next.text) {
+                        FsNode::Seq(self.parse_seq(ind)?)
+                    } else {
+                        FsNode::Map(self.parse_map(ind)?)
+                    }
+                }
+                // YAML allows "key:\n- a\n- b" with the items at the key's own indentation.
+                Some(next) if in_map && next.indent == indent && Self::is_seq_item(&next.text) => {
+                    FsNode::Seq(self.parse_seq(indent)?)
+                }
+                _ => FsNode::Empty,
+            }
+        } else if rest.starts_with('[') || rest.starts_with('{') {
+            parse_flow(rest).map_err(|m| self.err(no, m))?
+        } else {
+            scalar(rest)
+        };
+        match tag {
+            Some("opencv-matrix") => self.to_matrix(node, no),
+            Some("opencv-nd-matrix") => self.nd_to_matrix(node, no),
+            _ => Ok(node),
+        }
+    }
+
+    fn to_matrix(&self, node: FsNode, no: usize) -> Result<FsNode> {
+        let field = |k: &str| node.get(k).ok_or_else(|| self.err(no, format!("opencv-matrix without '{k}'")));
+        let rows = field("rows")?.as_usize().ok_or_else(|| self.err(no, "opencv-matrix 'rows' is not an integer"))?;
+        let cols = field("cols")?.as_usize().ok_or_else(|| self.err(no, "opencv-matrix 'cols' is not an integer"))?;
+        let dt = match field("dt")? {
+            FsNode::Str(s) => s.clone(),
+            FsNode::Int(i) => i.to_string(),
+            _ => return Err(self.err(no, "opencv-matrix 'dt' is not a type code")),
+        };
+        let data = match field("data")? {
+            FsNode::Empty => Vec::new(),
+            d => d.numbers().ok_or_else(|| self.err(no, "opencv-matrix 'data' is not a list of numbers"))?,
+        };
+        let channels = channels_of(&dt);
+        if data.len() != rows * cols * channels {
+            return Err(self.err(
+                no,
+                format!(
+                    "opencv-matrix {rows}x{cols} ({dt}) needs {} values, 'data' has {}",
+                    rows * cols * channels,
+                    data.len()
+                ),
+            ));
+        }
+        Ok(FsNode::Mat(FsMatrix { rows, cols, channels, dt, data }))
+    }
+
+    fn nd_to_matrix(&self, node: FsNode, no: usize) -> Result<FsNode> {
+        let sizes: Vec<usize> = node
+            .get("sizes")
+            .and_then(|s| s.numbers())
+            .map(|v| v.iter().map(|&x| x as usize).collect())
+            .ok_or_else(|| self.err(no, "opencv-nd-matrix without 'sizes'"))?;
+        let (rows, cols) = match sizes.as_slice() {
+            [n] => (*n, 1),
+            [r, c] => (*r, *c),
+            [r, rest @ ..] => (*r, rest.iter().product()),
+            [] => (0, 0),
+        };
+        let mut m = node.clone();
+        if let FsNode::Map(ref mut kv) = m {
+            kv.push(("rows".into(), FsNode::Int(rows as i64)));
+            kv.push(("cols".into(), FsNode::Int(cols as i64)));
+        }
+        self.to_matrix(m, no)
+    }
+}
+
+fn channels_of(dt: &str) -> usize {
+    let digits: String = dt.chars().take_while(|c| c.is_ascii_digit()).collect();
+    digits.parse().unwrap_or(1).max(1)
+}
+
+// ----- writing -------------------------------------------------------------------------------
+
+fn fmt_real(v: f64) -> String {
+    if v.is_nan() {
+        ".Nan".into()
+    } else if v.is_infinite() {
+        if v > 0.0 { ".Inf" } else { "-.Inf" }.into()
+    } else {
+        // Shortest representation that reads back to the same f64.
+        let s = format!("{v:?}");
+        if s.contains(['.', 'e', 'E']) {
+            s
+        } else {
+            format!("{s}.")
+        }
+    }
+}
+
+fn fmt_scalar(n: &FsNode) -> Option<String> {
+    Some(match n {
+        FsNode::Int(i) => i.to_string(),
+        FsNode::Real(r) => fmt_real(*r),
+        FsNode::Str(s) => {
+            let plain = !s.is_empty()
+                && matches!(scalar(s), FsNode::Str(_))
+                && !s.contains([':', '#', '[', ']', '{', '}', ',', '"', '\'', '\n'])
+                && !s.starts_with(['!', '-', '%', '&', '*', ' '])
+                && !s.ends_with(' ');
+            if plain {
+                s.clone()
+            } else {
+                format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\"").replace('\n', "\\n"))
+            }
+        }
+        FsNode::Empty => String::new(),
+        _ => return None,
+    })
+}
+
+fn flow_list(items: &[String], indent: usize) -> String {
+    // Wrap long lists like OpenCV does (a few values per line).
+    let mut s = String::from("[ ");
+    let mut line_len = 0;
+    for (i, it) in items.iter().enumerate() {
+        if i > 0 {
+            s.push_str(", ");
+            if line_len > 70 {
+                s.push('\n');
+                s.push_str(&" ".repeat(indent + 4));
+                line_len = 0;
+            }
+        }
+        s.push_str(it);
+        line_len += it.len() + 2;
+    }
+    s.push_str(" ]");
+    s
+}
+
+/// Block sequence items `- x` at `indent`; nested collections go on the following lines.
+fn emit_items(s: &mut String, items: &[FsNode], indent: usize) {
+    let pad = " ".repeat(indent);
+    for it in items {
+        match (fmt_scalar(it), it) {
+            (Some(t), _) => {
+                let _ = writeln!(s, "{pad}- {t}");
+            }
+            (None, FsNode::Map(kv)) => {
+                let _ = writeln!(s, "{pad}-");
+                for (k, x) in kv {
+                    emit(s, k, x, indent + 3);
+                }
+            }
+            (None, FsNode::Seq(inner)) => {
+                let _ = writeln!(s, "{pad}-");
+                emit_items(s, inner, indent + 3);
+            }
+            (None, FsNode::Mat(m)) => {
+                // A matrix item: "- !!opencv-matrix" then its fields.
+                let mut tmp = String::new();
+                emit(&mut tmp, "x", &FsNode::Mat(m.clone()), indent + 2);
+                let tmp = tmp.replacen(&format!("{}x: ", " ".repeat(indent + 2)), &format!("{pad}- "), 1);
+                s.push_str(&tmp);
+            }
+            (None, _) => {}
+        }
+    }
+}
+
+fn emit(s: &mut String, key: &str, v: &FsNode, indent: usize) {
+    let pad = " ".repeat(indent);
+    let key = fmt_scalar(&FsNode::Str(key.to_string())).unwrap_or_default();
+    match v {
+        FsNode::Mat(m) => {
+            let _ = writeln!(s, "{pad}{key}: !!opencv-matrix");
+            let _ = writeln!(s, "{pad}   rows: {}", m.rows);
+            let _ = writeln!(s, "{pad}   cols: {}", m.cols);
+            let _ = writeln!(s, "{pad}   dt: {}", m.dt);
+            let items: Vec<String> = m.data.iter().map(|&x| fmt_real(x)).collect();
+            let _ = writeln!(s, "{pad}   data: {}", flow_list(&items, indent + 3));
+        }
+        FsNode::Map(kv) => {
+            let _ = writeln!(s, "{pad}{key}:");
+            for (k, x) in kv {
+                emit(s, k, x, indent + 3);
+            }
+        }
+        FsNode::Seq(items) => {
+            let flat: Option<Vec<String>> = items.iter().map(fmt_scalar).collect();
+            match flat {
+                Some(f) => {
+                    let _ = writeln!(s, "{pad}{key}: {}", flow_list(&f, indent));
+                }
+                None => {
+                    let _ = writeln!(s, "{pad}{key}:");
+                    emit_items(s, items, indent + 3);
+                }
+            }
+        }
+        other => {
+            let _ = writeln!(s, "{pad}{key}: {}", fmt_scalar(other).unwrap_or_default());
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stereo calibration
+// ---------------------------------------------------------------------------------------------
+
+/// A calibrated stereo pair: intrinsics and distortion of each camera, and the pose of the right
+/// camera w.r.t. the left as OpenCV `stereoCalibrate` gives it: `X_right = R · X_left + T`,
+/// T in millimetres. Both cameras have the image size `width × height` px.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(into = "StereoJson", try_from = "StereoJson")]
+pub struct StereoCalibration {
+    pub width: usize,
+    pub height: usize,
+    pub left: Intrinsics,
+    pub left_dist: Distortion,
+    pub right: Intrinsics,
+    pub right_dist: Distortion,
+    pub r: Matrix3<f64>,
+    pub t_mm: Vector3<f64>,
+}
+
+const LEFT_K: &[&str] =
+    &["M1", "K1", "cam1", "CameraMatrix1", "cameraMatrix1", "camera_matrix_left", "left_camera_matrix", "KL", "K_left"];
+const LEFT_D: &[&str] =
+    &["D1", "dis1", "dist1", "DistCoeffs1", "distCoeffs1", "dist_coeffs_left", "left_distortion", "DL", "D_left"];
+const RIGHT_K: &[&str] = &[
+    "M2",
+    "K2",
+    "cam2",
+    "CameraMatrix2",
+    "cameraMatrix2",
+    "camera_matrix_right",
+    "right_camera_matrix",
+    "KR",
+    "K_right",
+];
+const RIGHT_D: &[&str] =
+    &["D2", "dis2", "dist2", "DistCoeffs2", "distCoeffs2", "dist_coeffs_right", "right_distortion", "DR", "D_right"];
+const ROT: &[&str] = &["R", "rot", "Rot", "rotation", "R_stereo"];
+const TRANS: &[&str] = &["T", "trans", "Trans", "translation", "T_stereo"];
+const SIZE: &[&str] = &["imageSize", "image_size", "ImageSize", "Size", "size", "imgSize", "resolution"];
+
+/// Largest tolerated |RᵀR − I| entry and |det R − 1| for a rotation read from a file.
+const ROTATION_TOL: f64 = 1e-3;
+
+impl StereoCalibration {
+    /// Check sizes, intrinsics, distortion finiteness, that R is a rotation and T finite.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(CoreError::invalid("stereo calibration", format!("image size {}x{}", self.width, self.height)));
+        }
+        self.left.validate()?;
+        self.right.validate()?;
+        if self.left_dist.to_opencv().iter().chain(self.right_dist.to_opencv().iter()).any(|v| !v.is_finite()) {
+            return Err(CoreError::invalid("stereo calibration", "non-finite distortion coefficient"));
+        }
+        if self.r.iter().chain(self.t_mm.iter()).any(|v| !v.is_finite()) {
+            return Err(CoreError::invalid("stereo calibration", "non-finite R or T"));
+        }
+        let e = (self.r.transpose() * self.r - Matrix3::identity()).abs().max();
+        let det = self.r.determinant();
+        if e > ROTATION_TOL || (det - 1.0).abs() > ROTATION_TOL {
+            return Err(CoreError::invalid(
+                "stereo calibration",
+                format!("R is not a rotation (max |RᵀR − I| = {e:.2e}, det = {det:.6})"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The rigid transform mapping left-camera coordinates to right-camera coordinates (mm).
+    pub fn right_from_left(&self) -> Se3 {
+        se3_from_rt(&self.r, &self.t_mm)
+    }
+
+    /// Baseline |T| in millimetres.
+    pub fn baseline_mm(&self) -> f64 {
+        self.t_mm.norm()
+    }
+
+    /// Angle of the relative rotation R in degrees.
+    pub fn relative_rotation_deg(&self) -> f64 {
+        ((self.r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    }
+
+    /// Read a calibration: JSON (by `.json` extension or a leading `{`) or OpenCV FileStorage YAML.
+    /// The image size must be in the file; otherwise use [`StereoCalibration::read_with_size`].
+    pub fn read(path: impl AsRef<Path>) -> Result<Self> {
+        Self::read_impl(path.as_ref(), None)
+    }
+
+    /// Like [`read`](Self::read) for files that do not state the image size (SCARED's
+    /// `endoscope_calibration.yaml` does not: it is 1280×1024). A size in the file must agree.
+    pub fn read_with_size(path: impl AsRef<Path>, width: usize, height: usize) -> Result<Self> {
+        Self::read_impl(path.as_ref(), Some((width, height)))
+    }
+
+    fn read_impl(path: &Path, size: Option<(usize, usize)>) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| CoreError::io(path, e))?;
+        let text = String::from_utf8(bytes).map_err(|_| CoreError::format(path, "not UTF-8 text"))?;
+        let is_json = crate::io::extension(path) == "json" || text.trim_start().starts_with('{');
+        let c = if is_json {
+            let j: StereoJson = serde_json::from_str(&text)
+                .map_err(|e| CoreError::format(path, format!("not a laparo stereo calibration JSON: {e}")))?;
+            let c = Self::try_from(j).map_err(|e| CoreError::format(path, e))?;
+            if let Some((w, h)) = size {
+                if (w, h) != (c.width, c.height) {
+                    return Err(CoreError::format(
+                        path,
+                        format!("file says {}x{}, caller says {w}x{h}", c.width, c.height),
+                    ));
+                }
+            }
+            c
+        } else {
+            let fs = FileStorage::parse(&text, path)?;
+            Self::from_filestorage(&fs, size)?
+        };
+        Ok(c)
+    }
+
+    /// Read OpenCV's `stereo_calib` two-file layout: `intrinsics` (M1 D1 M2 D2) and `extrinsics`
+    /// (R T, plus rectification R1 R2 P1 P2 Q which are ignored). The size must be in one of them.
+    pub fn read_pair(intrinsics: impl AsRef<Path>, extrinsics: impl AsRef<Path>) -> Result<Self> {
+        Self::read_pair_impl(intrinsics.as_ref(), extrinsics.as_ref(), None)
+    }
+
+    /// [`read_pair`](Self::read_pair) with the image size given by the caller.
+    pub fn read_pair_with_size(
+        intrinsics: impl AsRef<Path>,
+        extrinsics: impl AsRef<Path>,
+        width: usize,
+        height: usize,
+    ) -> Result<Self> {
+        Self::read_pair_impl(intrinsics.as_ref(), extrinsics.as_ref(), Some((width, height)))
+    }
+
+    fn read_pair_impl(intr: &Path, extr: &Path, size: Option<(usize, usize)>) -> Result<Self> {
+        let a = read_filestorage(intr)?;
+        let b = read_filestorage(extr)?;
+        let mut merged = a.clone();
+        merged.path = PathBuf::from(format!("{} + {}", intr.display(), extr.display()));
+        for (k, v) in b.entries {
+            if merged.get(&k).is_none() {
+                merged.entries.push((k, v));
+            }
+        }
+        Self::from_filestorage(&merged, size)
+    }
+
+    /// Interpret a parsed FileStorage document (see the module doc for the accepted keys).
+    pub fn from_filestorage(fs: &FileStorage, size: Option<(usize, usize)>) -> Result<Self> {
+        let path = &fs.path;
+        let need = |keys: &[&str], what: &str| -> Result<FsMatrix> {
+            match fs.get_any(keys) {
+                Some((k, _)) => fs.matrix(k),
+                None => Err(CoreError::format(
+                    path,
+                    format!("no {what} (looked for {keys:?}; the file has {:?})", fs.keys()),
+                )),
+            }
+        };
+        let k1 = need(LEFT_K, "left camera matrix")?;
+        let k2 = need(RIGHT_K, "right camera matrix")?;
+        let d1 = need(LEFT_D, "left distortion")?;
+        let d2 = need(RIGHT_D, "right distortion")?;
+        let r = fs.get_any(ROT).map(|(k, _)| fs.matrix(k)).transpose()?;
+        let t = fs.get_any(TRANS).map(|(k, _)| fs.matrix(k)).transpose()?;
+        let (r, t) = match (r, t) {
+            (Some(r), Some(t)) => (r, t),
+            _ => {
+                return Err(CoreError::format(
+                    path,
+                    "no stereo extrinsics R and T (for OpenCV's two-file intrinsics/extrinsics layout use \
+                     StereoCalibration::read_pair)",
+                ))
+            }
+        };
+        let m3 = |m: &FsMatrix, what: &str| {
+            m.to_matrix3()
+                .ok_or_else(|| CoreError::format(path, format!("{what} is {}x{}, expected 3x3", m.rows, m.cols)))
+        };
+        let file_size = Self::size_from(fs)?;
+        let (width, height) = match (file_size, size) {
+            (Some(f), Some(s)) if f != s => {
+                return Err(CoreError::format(
+                    path,
+                    format!("file says image size {}x{}, caller says {}x{}", f.0, f.1, s.0, s.1),
+                ))
+            }
+            (Some(f), _) => f,
+            (None, Some(s)) => s,
+            (None, None) => {
+                return Err(CoreError::format(
+                    path,
+                    "no image size in the file (image_width/image_height, imageSize or Size); pass it \
+                     with read_with_size (SCARED: 1280x1024)",
+                ))
+            }
+        };
+        let fmt = |e: CoreError| CoreError::format(path, e.to_string());
+        let t_mm = t
+            .to_vector3()
+            .ok_or_else(|| CoreError::format(path, format!("T is {}x{}, expected 3x1", t.rows, t.cols)))?;
+        let c = StereoCalibration {
+            width,
+            height,
+            left: Intrinsics::from_matrix(&m3(&k1, "left camera matrix")?, width, height).map_err(fmt)?,
+            left_dist: Distortion::from_opencv(&d1.data).map_err(fmt)?,
+            right: Intrinsics::from_matrix(&m3(&k2, "right camera matrix")?, width, height).map_err(fmt)?,
+            right_dist: Distortion::from_opencv(&d2.data).map_err(fmt)?,
+            r: m3(&r, "R")?,
+            t_mm,
+        };
+        c.validate().map_err(fmt)?;
+        Ok(c)
+    }
+
+    fn size_from(fs: &FileStorage) -> Result<Option<(usize, usize)>> {
+        let bad =
+            |what: &str| CoreError::format(&fs.path, format!("image size entry '{what}' is not two positive integers"));
+        if let (Some(w), Some(h)) = (
+            fs.get_any(&["image_width", "imageWidth", "width", "ImageWidth"]),
+            fs.get_any(&["image_height", "imageHeight", "height", "ImageHeight"]),
+        ) {
+            return match (w.1.as_usize(), h.1.as_usize()) {
+                (Some(w), Some(h)) if w > 0 && h > 0 => Ok(Some((w, h))),
+                _ => Err(bad("image_width/image_height")),
+            };
+        }
+        if let Some((k, v)) = fs.get_any(SIZE) {
+            let wh = match v {
+                FsNode::Map(_) => {
+                    match (v.get("width").and_then(FsNode::as_usize), v.get("height").and_then(FsNode::as_usize)) {
+                        (Some(w), Some(h)) => vec![w as f64, h as f64],
+                        _ => return Err(bad(k)),
+                    }
+                }
+                _ => v.numbers().ok_or_else(|| bad(k))?,
+            };
+            return match wh.as_slice() {
+                [w, h] if *w >= 1.0 && *h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 => {
+                    Ok(Some((*w as usize, *h as usize)))
+                }
+                _ => Err(bad(k)),
+            };
+        }
+        Ok(None)
+    }
+
+    /// The calibration as a FileStorage document (`image_width`, `image_height`, `M1 D1 M2 D2 R T`).
+    pub fn to_filestorage(&self) -> FileStorage {
+        let mat = |rows: usize, cols: usize, data: Vec<f64>| {
+            FsNode::Mat(FsMatrix { rows, cols, channels: 1, dt: "d".into(), data })
+        };
+        let m3 = |m: &Matrix3<f64>| mat(3, 3, (0..9).map(|i| m[(i / 3, i % 3)]).collect());
+        let dv = |d: &Distortion| {
+            let v = d.to_opencv();
+            mat(1, v.len(), v)
+        };
+        FileStorage {
+            path: PathBuf::new(),
+            entries: vec![
+                ("image_width".into(), FsNode::Int(self.width as i64)),
+                ("image_height".into(), FsNode::Int(self.height as i64)),
+                ("M1".into(), m3(&self.left.matrix())),
+                ("D1".into(), dv(&self.left_dist)),
+                ("M2".into(), m3(&self.right.matrix())),
+                ("D2".into(), dv(&self.right_dist)),
+                ("R".into(), m3(&self.r)),
+                ("T".into(), mat(3, 1, self.t_mm.iter().copied().collect())),
+            ],
+        }
+    }
+
+    /// Write as OpenCV FileStorage YAML (SCARED layout plus `image_width`/`image_height`), atomically.
+    pub fn write_opencv_yaml(&self, path: impl AsRef<Path>) -> Result<()> {
+        self.to_filestorage().write(path)
+    }
+
+    /// Write laparo's JSON calibration format (documented in the crate README), atomically.
+    pub fn write_json(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        let s = serde_json::to_string_pretty(&StereoJson::from(self.clone()))
+            .map_err(|e| CoreError::format(path, format!("cannot encode JSON: {e}")))?;
+        write_atomic(path, (s + "\n").as_bytes())
+    }
+}
+
+/// One camera in the JSON format: K (3×3, rows) and OpenCV-order distortion (4, 5, 8, 12 or 14).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct CameraJson {
+    #[serde(rename = "K")]
+    k: [[f64; 3]; 3],
+    #[serde(default)]
+    dist: Vec<f64>,
+}
+
+/// The JSON calibration format (see the crate README).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct StereoJson {
+    #[serde(default = "format_tag")]
+    format: String,
+    width: usize,
+    height: usize,
+    left: CameraJson,
+    right: CameraJson,
+    #[serde(rename = "R")]
+    r: [[f64; 3]; 3],
+    #[serde(rename = "T_mm", alias = "T")]
+    t_mm: [f64; 3],
+}
+
+fn format_tag() -> String {
+    "laparo-stereo-calibration-v1".into()
+}
+
+impl From<StereoCalibration> for StereoJson {
+    fn from(c: StereoCalibration) -> Self {
+        let rows = |m: &Matrix3<f64>| {
+            [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]]
+        };
+        StereoJson {
+            format: format_tag(),
+            width: c.width,
+            height: c.height,
+            left: CameraJson { k: rows(&c.left.matrix()), dist: c.left_dist.to_opencv() },
+            right: CameraJson { k: rows(&c.right.matrix()), dist: c.right_dist.to_opencv() },
+            r: rows(&c.r),
+            t_mm: [c.t_mm.x, c.t_mm.y, c.t_mm.z],
+        }
+    }
+}
+
+impl TryFrom<StereoJson> for StereoCalibration {
+    type Error = String;
+    fn try_from(j: StereoJson) -> std::result::Result<Self, String> {
+        if !j.format.starts_with("laparo-stereo-calibration") {
+            return Err(format!("unknown format tag '{}'", j.format));
+        }
+        let m = |a: &[[f64; 3]; 3]| Matrix3::from_fn(|r, c| a[r][c]);
+        let c = StereoCalibration {
+            width: j.width,
+            height: j.height,
+            left: Intrinsics::from_matrix(&m(&j.left.k), j.width, j.height).map_err(|e| format!("left: {e}"))?,
+            left_dist: Distortion::from_opencv(&j.left.dist).map_err(|e| format!("left: {e}"))?,
+            right: Intrinsics::from_matrix(&m(&j.right.k), j.width, j.height).map_err(|e| format!("right: {e}"))?,
+            right_dist: Distortion::from_opencv(&j.right.dist).map_err(|e| format!("right: {e}"))?,
+            r: m(&j.r),
+            t_mm: Vector3::from(j.t_mm),
+        };
+        c.validate().map_err(|e| e.to_string())?;
+        Ok(c)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data_dir() -> PathBuf {
+        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/calib"))
+    }
+
+    const SAMPLE: &str = "%YAML:1.0\n---\n# comment line\nimage_width: 640\nimage_height: 480 # trailing\n\
+name: \"left cam: a\"\nM1: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 500., 0., 320.5,\n       0., 510.,\n       240., 0., 0., 1. ]\n\
+vals: [ 1, -2.5e-3, .Inf ]\nnested:\n   a: 1\n   b: [ x, \"y z\" ]\nitems:\n   - 1\n   - two\n   - { k: 3 }\ncolor: !!opencv-matrix\n   rows: 1\n   cols: 1\n   dt: 3u\n   data: [ 1, 2, 3 ]\n";
+
+    #[test]
+    fn filestorage_parses_matrices_scalars_sequences() {
+        let fs = FileStorage::parse(SAMPLE, "sample.yml").unwrap();
+        assert_eq!(fs.keys(), vec!["image_width", "image_height", "name", "M1", "vals", "nested", "items", "color"]);
+        assert_eq!(fs.get("image_width"), Some(&FsNode::Int(640)));
+        assert_eq!(fs.get("name").unwrap().as_str(), Some("left cam: a"));
+        let m = fs.matrix("M1").unwrap();
+        assert_eq!((m.rows, m.cols), (3, 3));
+        assert_eq!(m.get(0, 2), 320.5);
+        assert_eq!(m.get(1, 1), 510.0);
+        let v = fs.get("vals").unwrap().numbers().unwrap();
+        assert_eq!(v[0], 1.0);
+        assert_eq!(v[1], -2.5e-3);
+        assert!(v[2].is_infinite());
+        let n = fs.get("nested").unwrap();
+        assert_eq!(n.get("a"), Some(&FsNode::Int(1)));
+        assert_eq!(n.get("b"), Some(&FsNode::Seq(vec![FsNode::Str("x".into()), FsNode::Str("y z".into())])));
+        match fs.get("items").unwrap() {
+            FsNode::Seq(s) => {
+                assert_eq!(s.len(), 3);
+                assert_eq!(s[1], FsNode::Str("two".into()));
+                assert_eq!(s[2].get("k"), Some(&FsNode::Int(3)));
+            }
+            other => panic!("{other:?}"),
+        }
+        let c = fs.matrix("color").unwrap();
+        assert_eq!((c.channels, c.data.len()), (3, 3));
+    }
+
+    #[test]
+    fn filestorage_writer_round_trip() {
+        let fs = FileStorage::parse(SAMPLE, "sample.yml").unwrap();
+        let text = fs.to_yaml();
+        let back = FileStorage::parse(&text, "back.yml").unwrap();
+        assert_eq!(back.keys(), fs.keys());
+        for (k, v) in &fs.entries {
+            if k == "vals" {
+                continue; // contains inf; compared below
+            }
+            assert_eq!(back.get(k), Some(v), "{k}\n{text}");
+        }
+        assert!(back.get("vals").unwrap().numbers().unwrap()[2].is_infinite());
+        // nested collections inside sequences
+        let nested = FsNode::Seq(vec![
+            FsNode::Seq(vec![FsNode::Int(1), FsNode::Seq(vec![FsNode::Str("a b".into())])]),
+            FsNode::Mat(FsMatrix::new(1, 2, vec![0.5, -1.0]).unwrap()),
+            FsNode::Map(vec![("k".into(), FsNode::Real(2.5)), ("e".into(), FsNode::Empty)]),
+            FsNode::Str("-starts with dash".into()),
+            FsNode::Str("123".into()),
+        ]);
+        let fs = FileStorage { path: PathBuf::new(), entries: vec![("n".into(), nested.clone())] };
+        let text = fs.to_yaml();
+        assert_eq!(FileStorage::parse(&text, "n").unwrap().get("n"), Some(&nested), "{text}");
+        // bit-exact reals with many digits and a long wrapped data list
+        let data: Vec<f64> = (0..40).map(|i| (i as f64 * 0.731).sin() * 1e-7 + 1.0 / 3.0).collect();
+        let fs = FileStorage {
+            path: PathBuf::new(),
+            entries: vec![("A".into(), FsNode::Mat(FsMatrix::new(5, 8, data.clone()).unwrap()))],
+        };
+        let back = FileStorage::parse(&fs.to_yaml(), "x").unwrap();
+        assert_eq!(back.matrix("A").unwrap().data, data);
+    }
+
+    #[test]
+    fn filestorage_errors_name_the_file_and_line() {
+        let cases = [
+            "%YAML:1.0\nM: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1., 2.,\n",
+            "%YAML:1.0\nM: !!opencv-matrix\n   rows: 2\n   cols: 2\n   dt: d\n   data: [ 1., 2., 3. ]\n",
+            "%YAML:1.0\njust some words\n",
+            "%YAML:1.0\na: 1\na: 2\n",
+            "%YAML:1.0\na: [ 1, 2 ] ]\n",
+        ];
+        for c in cases {
+            let e = FileStorage::parse(c, "broken.yml").unwrap_err().to_string();
+            assert!(e.contains("broken.yml") && e.contains("line"), "{e}");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("empty.yml");
+        std::fs::write(&p, "%YAML:1.0\n").unwrap();
+        assert!(read_filestorage(&p).unwrap_err().to_string().contains("empty.yml"));
+        assert!(read_filestorage(dir.path().join("nope.yml")).unwrap_err().to_string().contains("nope.yml"));
+    }
+
+    fn sample_calib() -> StereoCalibration {
+        StereoCalibration {
+            width: 1280,
+            height: 1024,
+            left: Intrinsics::new(1035.30811, 1035.08765, 596.955017, 520.410034, 1280, 1024).unwrap(),
+            left_dist: Distortion::brown_conrady(-0.000595157442, -0.000546629308, 0.0, 0.0, 0.00182959007),
+            right: Intrinsics::new(1035.17419, 1034.979, 688.361877, 521.070801, 1280, 1024).unwrap(),
+            right_dist: Distortion::from_opencv(&[0.1, -0.2, 0.001, 0.002, 0.3, 0.01, 0.02, 0.03]).unwrap(),
+            r: crate::se3::rotation_zyx(0.01, -0.02, 0.003),
+            t_mm: Vector3::new(-4.14339018, -0.0238197036, -0.00190685259),
+        }
+    }
+
+    #[test]
+    fn json_and_yaml_round_trip_bit_exact() {
+        let dir = tempfile::tempdir().unwrap();
+        let c = sample_calib();
+        let j = dir.path().join("c.json");
+        c.write_json(&j).unwrap();
+        assert_eq!(StereoCalibration::read(&j).unwrap(), c);
+        let y = dir.path().join("c.yaml");
+        c.write_opencv_yaml(&y).unwrap();
+        assert_eq!(StereoCalibration::read(&y).unwrap(), c);
+        // serde embedding uses the same JSON shape
+        let v = serde_json::to_value(&c).unwrap();
+        assert_eq!(v["T_mm"][0], serde_json::json!(-4.14339018));
+        assert_eq!(v["left"]["K"][0][2], serde_json::json!(596.955017));
+        let back: StereoCalibration = serde_json::from_value(v).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn bad_calibrations_are_rejected() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut c = sample_calib();
+        c.r[(0, 0)] = 2.0;
+        assert!(c.validate().is_err());
+        let p = dir.path().join("bad.yaml");
+        c.to_filestorage().write(&p).unwrap();
+        let e = StereoCalibration::read(&p).unwrap_err().to_string();
+        assert!(e.contains("bad.yaml") && e.contains("rotation"), "{e}");
+        let p = dir.path().join("bad.json");
+        std::fs::write(&p, "{\"width\": 10}").unwrap();
+        assert!(StereoCalibration::read(&p).unwrap_err().to_string().contains("bad.json"));
+        // size given and stated differently
+        let ok = dir.path().join("ok.yaml");
+        sample_calib().write_opencv_yaml(&ok).unwrap();
+        let e = StereoCalibration::read_with_size(&ok, 640, 480).unwrap_err().to_string();
+        assert!(e.contains("1280x1024") && e.contains("640x480"), "{e}");
+    }
+
+    #[test]
+    fn real_scared_calibrations() {
+        let dir = data_dir();
+        let p = dir.join("scared_ds1-3_endoscope_calibration.yaml");
+        if !p.exists() {
+            eprintln!("SKIP real_scared_calibrations: {} absent", dir.display());
+            return;
+        }
+        // SCARED files do not state the size.
+        let e = StereoCalibration::read(&p).unwrap_err().to_string();
+        assert!(e.contains("read_with_size") && e.contains("scared_ds1-3"), "{e}");
+        let c = StereoCalibration::read_with_size(&p, 1280, 1024).unwrap();
+        assert_eq!(c.left.fx, 1035.30811);
+        assert_eq!(c.right.cx, 688.361877);
+        assert_eq!(c.left_dist.k3, 0.00182959007);
+        assert_eq!(c.t_mm.x, -4.14339018);
+        assert_eq!(c.r[(0, 1)], 1.94856493e-05);
+        assert!((c.baseline_mm() - 4.1435).abs() < 1e-3);
+        assert!(c.relative_rotation_deg() < 0.02);
+        for f in ["scared_ds4-5_endoscope_calibration.yaml", "scared_ds8_endoscope_calibration.yaml"] {
+            let c = StereoCalibration::read_with_size(dir.join(f), 1280, 1024).unwrap();
+            assert!(c.baseline_mm() > 4.0 && c.baseline_mm() < 4.5, "{f}");
+            assert!(c.t_mm.x < 0.0, "{f}: right camera is to the +x of the left, so T.x < 0");
+        }
+    }
+
+    #[test]
+    fn real_ris2017_calibration() {
+        let p = data_dir().join("ris2017_kidney_ghattab_camera2.yml");
+        if !p.exists() {
+            eprintln!("SKIP real_ris2017_calibration: {} absent", p.display());
+            return;
+        }
+        let c = StereoCalibration::read(&p).unwrap();
+        assert_eq!((c.width, c.height), (1280, 1024));
+        assert_eq!(c.left.fx, 1068.39);
+        assert_eq!(c.right.cx, 698.22);
+        assert_eq!(c.right_dist.k2, 0.00403);
+        assert_eq!(c.t_mm, Vector3::new(-4.2773, -0.0440, -0.0303));
+        assert_eq!(c.r[(0, 2)], -0.0013);
+        let fs = read_filestorage(&p).unwrap();
+        let p2 = fs.matrix("P2").unwrap();
+        assert_eq!((p2.rows, p2.cols), (3, 4));
+        assert_eq!(p2.get(0, 3), -2.9531842436268389e+03);
+    }
+
+    #[test]
+    fn real_questionable_stereo_calib_pair() {
+        let d = data_dir().join("questionable");
+        let (i, e) = (d.join("dvrk_student_intrinsics.yml"), d.join("dvrk_student_extrinsics.yml"));
+        if !i.exists() {
+            eprintln!("SKIP real_questionable_stereo_calib_pair: {} absent", d.display());
+            return;
+        }
+        let err = StereoCalibration::read_with_size(&i, 640, 480).unwrap_err().to_string();
+        assert!(err.contains("read_pair"), "{err}");
+        let err = StereoCalibration::read_pair(&i, &e).unwrap_err().to_string();
+        assert!(err.contains("image size"), "{err}");
+        let c = StereoCalibration::read_pair_with_size(&i, &e, 640, 480).unwrap();
+        assert_eq!(c.left.fx, 7.6708803985990880e+02);
+        assert_eq!(c.left_dist.k6, 2.1677690293834040e+00);
+        assert_eq!(c.right_dist.k6, -2.2090680312824404e+00);
+        assert_eq!(c.t_mm.z, 2.0633522772376783e-01);
+        // README: "~2 deg relative rotation"
+        let a = c.relative_rotation_deg();
+        assert!(a > 1.5 && a < 3.0, "{a}");
+    }
+}
