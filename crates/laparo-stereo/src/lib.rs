@@ -9,3 +9,5 @@ pub mod rectify;
 // CATS camera augmentation (eqs. 3.5-3.9), its configuration and dataset layouts.
 pub mod augment;
 pub mod cats_params;
+pub mod dataset;
+pub mod synthetic;
