@@ -29,9 +29,9 @@
 //! Principal-point offset `c_x^L − c_x^R` (px; the disparity offset of §3.3.8, negative for the
 //! da Vinci laparoscopes), baseline (mm), and the largest displacement (px) that lens distortion
 //! causes inside the image: `max |D(p) − p|` over every pixel p of the image, D the distortion
-//! of an ideal pixel ([`Distortion::max_displacement_px`] with a 1-px step).
+//! of an ideal pixel ([`laparo_core::camera::Distortion::max_displacement_px`] with a 1-px step).
 use crate::cats_params::{CameraDist, CatsConfig, DisparityOffsetDist, Dist, EulerDist};
-use laparo_core::camera::{Distortion, Intrinsics};
+use laparo_core::calib::StereoCalibration;
 use laparo_core::error::{CoreError, Result};
 use laparo_core::se3::euler_zyx;
 use nalgebra::{Matrix3, Vector3};
@@ -44,20 +44,6 @@ pub const LARGE_ROTATION_DEG: f64 = 5.0;
 pub const LARGE_DISTORTION_PX: f64 = 0.5;
 /// Tolerance on `|RᵀR − I|` (max abs entry) before R is called "not a rotation".
 pub const ROTATION_TOLERANCE: f64 = 1e-3;
-
-/// The parts of a stereo calibration the statistics need (mirrors
-/// `laparo_core::calib::StereoCalibration`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct StereoParts {
-    pub left: Intrinsics,
-    pub left_dist: Distortion,
-    pub right: Intrinsics,
-    pub right_dist: Distortion,
-    /// Rotation of the right camera w.r.t. the left: `X_right = R X_left + T`.
-    pub r: Matrix3<f64>,
-    /// Translation (mm), same convention.
-    pub t_mm: Vector3<f64>,
-}
 
 /// The ideal rectified stereo frame of a calibrated pair (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
@@ -167,7 +153,7 @@ pub struct CalibStats {
 
 /// Compute the statistics of one calibration. Never fails on an odd but valid calibration (the
 /// oddities go to `warnings`); fails on invalid intrinsics, a non-rotation R or a zero baseline.
-pub fn calib_stats(c: &StereoParts) -> Result<CalibStats> {
+pub fn calib_stats(c: &StereoCalibration) -> Result<CalibStats> {
     c.left.validate().map_err(|e| CoreError::invalid("left intrinsics", e.to_string()))?;
     c.right.validate().map_err(|e| CoreError::invalid("right intrinsics", e.to_string()))?;
     let frame = ideal_stereo_frame(&c.r, &c.t_mm)?;

@@ -26,7 +26,7 @@
 //! For a rectified pair, or a near-rectified raw pair "for reference only" (Table 3.7):
 //! `d = f b / z + (c_x^L − c_x^R)`, so `z = f b / (d − (c_x^L − c_x^R))`. Middlebury calls
 //! `doffs = c_x^R − c_x^L` (then `z = f b / (d + doffs)`); laparo stores `doffs` with that sign.
-use crate::calib_stats::StereoParts;
+use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
 use laparo_core::depth::{DepthMap, DepthUnit};
 use laparo_core::error::{CoreError, Result};
@@ -63,7 +63,7 @@ pub enum Side {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rectification {
     /// The source calibration.
-    pub calib: StereoParts,
+    pub calib: StereoCalibration,
     /// Rectifying rotations: `X_rect,left = r1 X_left`, `X_rect,right = r2 X_right`.
     pub r1: Matrix3<f64>,
     pub r2: Matrix3<f64>,
@@ -140,7 +140,7 @@ impl Rectification {
     /// Compute the rectification of `calib` (see the module docs). Fails on non-rotation R,
     /// zero baseline, a vertical pair, different image sizes or an undistortion that does not
     /// converge at the image border.
-    pub fn new(calib: &StereoParts, options: RectifyOptions) -> Result<Self> {
+    pub fn new(calib: &StereoCalibration, options: RectifyOptions) -> Result<Self> {
         calib.left.validate()?;
         calib.right.validate()?;
         let (w, h) = (calib.left.width, calib.left.height);
@@ -364,8 +364,10 @@ impl Rectification {
     }
 
     /// The calibration of the rectified pair: new K's, no distortion, R = I, T = (−b, 0, 0).
-    pub fn rectified_parts(&self) -> StereoParts {
-        StereoParts {
+    pub fn rectified_calibration(&self) -> StereoCalibration {
+        StereoCalibration {
+            width: self.k1.width,
+            height: self.k1.height,
             left: self.k1,
             left_dist: Distortion::default(),
             right: self.k2,
@@ -545,7 +547,7 @@ impl DisparityGeometry {
     /// From a calibration used as is ("static calibration parameters", Table 3.7): f = left f_x,
     /// b = |T|, the two principal points. Exact only for a rectified pair; for a raw
     /// near-rectified pair it is the §3.3.8 approximation.
-    pub fn from_parts(c: &StereoParts) -> Result<Self> {
+    pub fn from_calibration(c: &StereoCalibration) -> Result<Self> {
         c.left.validate()?;
         c.right.validate()?;
         let b = c.t_mm.norm();
@@ -660,7 +662,9 @@ mod tests {
     #[test]
     fn identity_pair_keeps_cameras() {
         let k = Intrinsics::new(1000.0, 1000.0, 319.5, 239.5, 640, 480).unwrap();
-        let c = StereoParts {
+        let c = StereoCalibration {
+            width: 640,
+            height: 480,
             left: k,
             left_dist: Distortion::default(),
             right: k,

@@ -1,15 +1,17 @@
 //! Rectification acceptance: synthetic 3D points seen by a distorted, rotated, calibrated stereo
 //! pair land on the same row after rectification (< 1e-6 px), with the disparity of §3.3.8.
+use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
 use laparo_core::se3::rotation_zyx;
-use laparo_stereo::calib_stats::StereoParts;
 use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
 use nalgebra::Vector3;
 
-fn pair() -> StereoParts {
+fn pair() -> StereoCalibration {
     let left = Intrinsics::new(1035.3, 1035.1, 596.9, 520.4, 1280, 1024).unwrap();
     let right = Intrinsics::new(1030.2, 1031.0, 688.4, 515.1, 1280, 1024).unwrap();
-    StereoParts {
+    StereoCalibration {
+        width: 1280,
+        height: 1024,
         left,
         // Much stronger than SCARED's, to exercise undistortion.
         left_dist: Distortion::brown_conrady(-0.12, 0.05, 0.001, -0.0008, 0.01),
