@@ -1,0 +1,167 @@
+//! `simulate_with_gradient`: forward pass with per-step particle checkpoints, then the hand-derived
+//! reverse pass, recomputing each step's grid from its checkpoint (as DiffTaichi's diffmpm does).
+use crate::backward::{g2p::g2p_adjoint, grid_update::grid_update_adjoint, p2g::p2g_adjoint, p2g::ParticleAdjoint};
+use crate::cfl::{self, Warning};
+use crate::constitutive::{lame_vjp, ConstitutiveModel};
+use crate::error::MpmError;
+use crate::linalg::{Matrix, Vector};
+use crate::loss::Loss;
+use crate::scene::{Model, Scene};
+use crate::simulate::{ParticleState, Stepper};
+use crate::{fixed_corotated::FixedCorotated, neo_hookean::NeoHookean};
+
+/// Loss value and its exact gradient with respect to the scene's inputs.
+#[derive(Clone, Debug)]
+pub struct GradientResult<const D: usize> {
+    /// L.
+    pub loss: f64,
+    /// ∂L/∂v₀ per particle.
+    pub d_velocities: Vec<Vector<D>>,
+    /// ∂L/∂x₀ per particle.
+    pub d_positions: Vec<Vector<D>>,
+    /// ∂L/∂C₀ per particle.
+    pub d_affine: Vec<Matrix<D>>,
+    /// ∂L/∂F₀ per particle.
+    pub d_deformation: Vec<Matrix<D>>,
+    /// ∂L/∂E.
+    pub d_youngs_modulus: f64,
+    /// ∂L/∂ν.
+    pub d_poisson_ratio: f64,
+    /// ∂L/∂μ.
+    pub d_mu: f64,
+    /// ∂L/∂λ.
+    pub d_lambda: f64,
+    /// Final particle state.
+    pub final_state: ParticleState<D>,
+    /// Non-fatal warnings (CFL).
+    pub warnings: Vec<Warning>,
+}
+
+/// Simulate the scene and return L and ∂L/∂(v₀, x₀, C₀, E, ν) by reverse-mode differentiation.
+pub fn simulate_with_gradient<const D: usize, L: Loss<D> + ?Sized>(
+    scene: &Scene<D>,
+    loss: &L,
+) -> Result<GradientResult<D>, MpmError> {
+    scene.validate()?;
+    match scene.material.model {
+        Model::NeoHookean => run(&NeoHookean, scene, loss),
+        Model::FixedCorotated => run(&FixedCorotated, scene, loss),
+    }
+}
+
+fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
+    model: &M,
+    scene: &Scene<D>,
+    loss: &L,
+) -> Result<GradientResult<D>, MpmError> {
+    let n = scene.n_particles();
+    let t = scene.steps;
+    let (mu, la) = scene.material.lame();
+    let mut stepper = Stepper::new(scene);
+    // ---- forward with checkpoints of every step's particle state ----
+    let mut states: Vec<ParticleState<D>> = Vec::with_capacity(t + 1);
+    states.push(ParticleState::initial(scene));
+    let mut loss_grads: Vec<Option<Vec<Vector<D>>>> = vec![None; t + 1];
+    let mut total = 0.0;
+    let mut observe = |s: usize, st: &ParticleState<D>, total: &mut f64| -> Result<(), MpmError> {
+        if loss.observes(s, t) {
+            let mut g = vec![Vector::<D>::zeros(); n];
+            let v = loss.evaluate(s, &st.x, &mut g);
+            if !v.is_finite() || !g.iter().all(|g| g.iter().all(|c| c.is_finite())) {
+                return Err(MpmError::Loss(format!("non-finite loss or gradient at step {s}")));
+            }
+            *total += v;
+            loss_grads[s] = Some(g);
+        }
+        Ok(())
+    };
+    observe(0, &states[0], &mut total)?;
+    for s in 0..t {
+        let mut next = states[s].clone();
+        stepper.step(model, scene, &states[s], &mut next, s)?;
+        states.push(next);
+        observe(s + 1, &states[s + 1], &mut total)?;
+    }
+    // ---- reverse pass ----
+    let mut x_bar = loss_grads[t].take().unwrap_or_else(|| vec![Vector::<D>::zeros(); n]);
+    let mut v_bar = vec![Vector::<D>::zeros(); n];
+    let mut c_bar = vec![Matrix::<D>::zeros(); n];
+    let mut f_bar = vec![Matrix::<D>::zeros(); n];
+    let mut x_bar_g2p = vec![Vector::<D>::zeros(); n];
+    let mut vel_bar: Vec<Vector<D>> = Vec::new();
+    let mut mass_bar: Vec<f64> = Vec::new();
+    let zero_adj = ParticleAdjoint {
+        x: Vector::zeros(),
+        v: Vector::zeros(),
+        c: Matrix::zeros(),
+        f: Matrix::zeros(),
+        mu: 0.0,
+        lambda: 0.0,
+    };
+    let mut adj = vec![zero_adj; n];
+    let (mut mu_bar, mut la_bar) = (0.0, 0.0);
+    for s in (0..t).rev() {
+        let cur = &states[s];
+        stepper.to_grid(model, scene, cur, s)?;
+        let nodes = stepper.grid.n_nodes();
+        vel_bar.clear();
+        vel_bar.resize(nodes, Vector::<D>::zeros());
+        mass_bar.clear();
+        mass_bar.resize(nodes, 0.0);
+        g2p_adjoint(&stepper.grid, scene, &cur.x, &x_bar, &v_bar, &c_bar, &mut vel_bar, &mut x_bar_g2p);
+        grid_update_adjoint(&stepper.grid, scene, &mut vel_bar, &mut mass_bar);
+        p2g_adjoint(
+            model,
+            mu,
+            la,
+            &stepper.grid,
+            scene,
+            &cur.x,
+            &cur.v,
+            &cur.c,
+            &cur.f,
+            &stepper.f_next,
+            &stepper.affine,
+            &vel_bar,
+            &mass_bar,
+            &f_bar,
+            &mut adj,
+        );
+        let lg = loss_grads[s].take();
+        for p in 0..n {
+            let a = &adj[p];
+            x_bar[p] = x_bar_g2p[p] + a.x;
+            if let Some(g) = &lg {
+                x_bar[p] += g[p];
+            }
+            v_bar[p] = a.v;
+            c_bar[p] = a.c;
+            f_bar[p] = a.f;
+            // Fixed summation order: deterministic whatever the thread count.
+            mu_bar += a.mu;
+            la_bar += a.lambda;
+        }
+    }
+    if t == 0 {
+        if let Some(g) = loss_grads[0].take() {
+            for p in 0..n {
+                x_bar[p] += g[p];
+            }
+        }
+    }
+    let (d_e, d_nu) = lame_vjp(scene.material.youngs_modulus, scene.material.poisson_ratio, mu_bar, la_bar);
+    let final_state = states.pop().expect("at least the initial state");
+    Ok(GradientResult {
+        loss: total,
+        d_velocities: v_bar,
+        d_positions: x_bar,
+        d_affine: c_bar,
+        d_deformation: f_bar,
+        d_youngs_modulus: d_e,
+        d_poisson_ratio: d_nu,
+        d_mu: mu_bar,
+        d_lambda: la_bar,
+        final_state,
+        warnings: cfl::check(scene),
+    })
+}

@@ -1,0 +1,68 @@
+//! Grid-to-particle transfer (eq. 5.7) with the APIC affine matrix C and advection x += Δt v.
+use crate::error::MpmError;
+use crate::linalg::{stencil_len, Matrix, Vector};
+use crate::scene::Scene;
+use crate::sparse_grid::{bspline, stencil_offset, SparseGrid};
+use rayon::prelude::*;
+
+/// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
+/// their position (v = 0, C = 0). Errors when a particle state becomes non-finite.
+pub fn gather<const D: usize>(
+    grid: &SparseGrid<D>,
+    scene: &Scene<D>,
+    x: &[Vector<D>],
+    x_next: &mut [Vector<D>],
+    v_next: &mut [Vector<D>],
+    c_next: &mut [Matrix<D>],
+    step: usize,
+) -> Result<(), MpmError> {
+    let inv_dx = 1.0 / scene.grid.dx;
+    let dt = scene.dt;
+    let bad = x_next
+        .par_iter_mut()
+        .zip(v_next.par_iter_mut())
+        .zip(c_next.par_iter_mut())
+        .enumerate()
+        .map(|(p, ((xn, vn), cn))| {
+            if scene.is_fixed(p) {
+                *xn = x[p];
+                *vn = Vector::<D>::zeros();
+                *cn = Matrix::<D>::zeros();
+                return usize::MAX;
+            }
+            let (fx, w, _) = bspline(&x[p], &grid.base[p], inv_dx);
+            let st = &grid.stencil[p];
+            let mut nv = Vector::<D>::zeros();
+            let mut nc = Matrix::<D>::zeros();
+            for k in 0..stencil_len(D) {
+                let o = stencil_offset::<D>(k);
+                let mut weight = 1.0;
+                let mut dpos = Vector::<D>::zeros();
+                for d in 0..D {
+                    weight *= w[d][o[d]];
+                    dpos[d] = o[d] as f64 - fx[d];
+                }
+                let gv = grid.vel[st[k] as usize];
+                nv += gv * weight;
+                nc += gv * dpos.transpose() * (4.0 * weight * inv_dx);
+            }
+            *vn = nv;
+            *cn = nc;
+            *xn = x[p] + nv * dt;
+            if xn.iter().chain(nv.iter()).chain(nc.iter()).all(|v| v.is_finite()) {
+                usize::MAX
+            } else {
+                p
+            }
+        })
+        .min()
+        .unwrap_or(usize::MAX);
+    if bad != usize::MAX {
+        return Err(MpmError::BlowUp {
+            step,
+            particle: bad,
+            reason: "non-finite particle velocity or position".into(),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,102 @@
+//! Particle-to-grid transfer (eq. 5.6): deformation-gradient update F ← (I + Δt C) F, Kirchhoff
+//! stress, and the colour-partitioned APIC/MLS scatter of mass and momentum.
+use crate::constitutive::ConstitutiveModel;
+use crate::error::MpmError;
+use crate::linalg::{stencil_len, Matrix, Vector};
+use crate::scene::Scene;
+use crate::sparse_grid::{bspline, stencil_offset, SparseGrid, SyncPtr};
+use rayon::prelude::*;
+
+/// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
+#[inline(always)]
+pub fn stress_scale<const D: usize>(scene: &Scene<D>, p: usize) -> f64 {
+    let inv_dx = 1.0 / scene.grid.dx;
+    -scene.dt * scene.volumes[p] * 4.0 * inv_dx * inv_dx
+}
+
+/// Per-particle part of P2G: F_{t+1} = (I + Δt C_t) F_t and the affine momentum matrix
+/// A_p = −Δt V_p 4/Δx² τ(F_{t+1}) + m_p C_t. Errors on an inverted or non-finite F (blow-up).
+#[allow(clippy::too_many_arguments)]
+pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
+    model: &M,
+    mu: f64,
+    lambda: f64,
+    scene: &Scene<D>,
+    c: &[Matrix<D>],
+    f: &[Matrix<D>],
+    f_next: &mut [Matrix<D>],
+    affine: &mut [Matrix<D>],
+    step: usize,
+) -> Result<(), MpmError> {
+    let dt = scene.dt;
+    let bad = f_next
+        .par_iter_mut()
+        .zip(affine.par_iter_mut())
+        .enumerate()
+        .map(|(p, (fnext, a))| {
+            let nf = (Matrix::<D>::identity() + c[p] * dt) * f[p];
+            *fnext = nf;
+            match model.kirchhoff(&nf, mu, lambda) {
+                Some(tau) if tau.iter().all(|v| v.is_finite()) => {
+                    *a = tau * stress_scale(scene, p) + c[p] * scene.masses[p];
+                    usize::MAX
+                }
+                _ => p,
+            }
+        })
+        .min()
+        .unwrap_or(usize::MAX);
+    if bad != usize::MAX {
+        let j = crate::linalg::det(&f_next[bad]);
+        return Err(MpmError::BlowUp {
+            step,
+            particle: bad,
+            reason: if j.is_finite() {
+                format!("inverted deformation gradient, J = {j:.3e} <= 0")
+            } else {
+                "non-finite deformation gradient".into()
+            },
+        });
+    }
+    Ok(())
+}
+
+/// Scatter of eq. 5.6: m_i += w_ip m_p, (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)).
+pub fn scatter<const D: usize>(
+    grid: &mut SparseGrid<D>,
+    scene: &Scene<D>,
+    x: &[Vector<D>],
+    v: &[Vector<D>],
+    affine: &[Matrix<D>],
+) {
+    let dx = scene.grid.dx;
+    let inv_dx = 1.0 / dx;
+    let mass = SyncPtr(grid.mass.as_mut_ptr());
+    let mom = SyncPtr(grid.mom.as_mut_ptr());
+    let g = &*grid;
+    g.for_each_coloured(|p| {
+        let (fx, w, _) = bspline(&x[p], &g.base[p], inv_dx);
+        let m = scene.masses[p];
+        let mut mv = v[p] * m;
+        if !scene.external_forces.is_empty() {
+            mv += scene.external_forces[p] * scene.dt;
+        }
+        let a = affine[p];
+        let st = &g.stencil[p];
+        for k in 0..stencil_len(D) {
+            let o = stencil_offset::<D>(k);
+            let mut weight = 1.0;
+            let mut dpos = Vector::<D>::zeros();
+            for d in 0..D {
+                weight *= w[d][o[d]];
+                dpos[d] = (o[d] as f64 - fx[d]) * dx;
+            }
+            let i = st[k] as usize;
+            // SAFETY: same-colour particle blocks touch disjoint nodes (see sparse_grid).
+            unsafe {
+                *mom.at(i) += (mv + a * dpos) * weight;
+                *mass.at(i) += weight * m;
+            }
+        }
+    });
+}

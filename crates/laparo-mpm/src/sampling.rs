@@ -1,0 +1,1 @@
+//! Particle sampling from meshes (being written).

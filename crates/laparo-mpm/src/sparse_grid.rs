@@ -1,0 +1,303 @@
+//! Sparse background grid: only the 4^D-node blocks touched by particle stencils are allocated.
+//!
+//! Particles are sorted by the block of their stencil base node ("particle blocks"); a particle in
+//! block b touches nodes of blocks b and b+1 along every axis. Particle blocks are given one of 2^D
+//! colours by the parity of their block coordinates; blocks of one colour touch disjoint nodes, so
+//! a colour can scatter in parallel without atomics, and the order of the additions into every node
+//! is fixed (colour by colour, particles in sorted order): results are bit-identical whatever the
+//! number of threads.
+use crate::error::MpmError;
+use crate::linalg::{stencil_len, Vector};
+use crate::scene::GridSpec;
+use rayon::prelude::*;
+
+/// Block side in cells (≥ 3 so that same-colour particle blocks never share a node).
+pub const BLOCK: usize = 4;
+const BLOCK_SHIFT: u32 = 2;
+const INACTIVE: u32 = u32::MAX;
+
+/// Stencil base node of a particle: floor(x/Δx − 0.5) per axis, or `None` when the 3-node stencil
+/// is not inside the grid (nodes 0..n_grid−1).
+#[inline(always)]
+pub fn particle_base<const D: usize>(x: &Vector<D>, grid: &GridSpec) -> Option<[i32; D]> {
+    let inv_dx = 1.0 / grid.dx;
+    let mut b = [0i32; D];
+    for d in 0..D {
+        let q = x[d] * inv_dx - 0.5;
+        if !(q >= 0.0 && q < (grid.n_grid as f64 - 2.0)) {
+            return None;
+        }
+        b[d] = q as i32;
+    }
+    Some(b)
+}
+
+/// Number of nodes in a block: 4^D.
+pub const fn block_nodes(d: usize) -> usize {
+    let mut n = 1;
+    let mut i = 0;
+    while i < d {
+        n *= BLOCK;
+        i += 1;
+    }
+    n
+}
+
+/// A run of sorted particles sharing one base block.
+#[derive(Clone, Copy, Debug)]
+pub struct ParticleBlock {
+    /// Range into [`SparseGrid::order`].
+    pub start: u32,
+    /// End of the range (exclusive).
+    pub end: u32,
+}
+
+/// The sparse grid of one time step (rebuilt each step from the particle positions).
+pub struct SparseGrid<const D: usize> {
+    spec: GridSpec,
+    blocks_per_axis: usize,
+    table: Vec<u32>,
+    /// Block coordinates of the active blocks (dense index → block coordinate).
+    pub blocks: Vec<[u32; D]>,
+    /// Particle blocks (runs of [`Self::order`]).
+    pub pblocks: Vec<ParticleBlock>,
+    /// Particle-block indices per colour (2^D colours).
+    pub colors: Vec<Vec<u32>>,
+    /// Particle indices sorted by base block.
+    pub order: Vec<u32>,
+    /// Stencil base node per particle.
+    pub base: Vec<[i32; D]>,
+    /// The 3^D node indices of every particle's stencil (first 3^D entries used).
+    pub stencil: Vec<[u32; 27]>,
+    /// Node mass m_i.
+    pub mass: Vec<f64>,
+    /// Node momentum (m v)_i after P2G; node velocity after the grid update.
+    pub mom: Vec<Vector<D>>,
+    /// Node velocity after the grid update (boundary conditions applied).
+    pub vel: Vec<Vector<D>>,
+    /// Per node: which velocity components the wall condition zeroed (bit d), for the adjoint.
+    pub wall_mask: Vec<u8>,
+    keys: Vec<u64>,
+}
+
+/// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
+/// disjoint by construction.
+#[derive(Clone, Copy)]
+pub(crate) struct SyncPtr<T>(pub *mut T);
+unsafe impl<T> Send for SyncPtr<T> {}
+unsafe impl<T> Sync for SyncPtr<T> {}
+impl<T> SyncPtr<T> {
+    /// # Safety
+    /// `i` in bounds and no other thread touches element `i` concurrently.
+    #[inline(always)]
+    pub unsafe fn at(&self, i: usize) -> &mut T {
+        &mut *self.0.add(i)
+    }
+}
+
+impl<const D: usize> SparseGrid<D> {
+    /// An empty grid for `spec`.
+    pub fn new(spec: GridSpec) -> Self {
+        let blocks_per_axis = spec.n_grid.div_ceil(BLOCK);
+        SparseGrid {
+            spec,
+            blocks_per_axis,
+            table: vec![INACTIVE; blocks_per_axis.pow(D as u32)],
+            blocks: Vec::new(),
+            pblocks: Vec::new(),
+            colors: vec![Vec::new(); 1 << D],
+            order: Vec::new(),
+            base: Vec::new(),
+            stencil: Vec::new(),
+            mass: Vec::new(),
+            mom: Vec::new(),
+            vel: Vec::new(),
+            wall_mask: Vec::new(),
+            keys: Vec::new(),
+        }
+    }
+
+    /// Grid specification.
+    pub fn spec(&self) -> &GridSpec {
+        &self.spec
+    }
+
+    /// Number of allocated nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.mass.len()
+    }
+
+    #[inline(always)]
+    fn block_key(&self, c: &[usize; D]) -> usize {
+        let mut k = 0;
+        for d in 0..D {
+            k = k * self.blocks_per_axis + c[d];
+        }
+        k
+    }
+
+    /// Global node coordinate of node `n`.
+    #[inline(always)]
+    pub fn node_coord(&self, n: usize) -> [usize; D] {
+        let b = &self.blocks[n / block_nodes(D)];
+        let mut l = n % block_nodes(D);
+        let mut out = [0usize; D];
+        for d in 0..D {
+            out[d] = b[d] as usize * BLOCK + (l % BLOCK);
+            l /= BLOCK;
+        }
+        out
+    }
+
+    /// Rebuild for particle positions `x` at `step`: sort particles into blocks, activate the
+    /// blocks their stencils touch, colour the particle blocks, zero the node arrays.
+    pub fn build(&mut self, x: &[Vector<D>], step: usize) -> Result<(), MpmError> {
+        let spec = self.spec;
+        let n = x.len();
+        self.base.resize(n, [0; D]);
+        let bad = self
+            .base
+            .par_iter_mut()
+            .zip(x.par_iter())
+            .enumerate()
+            .map(|(p, (b, xp))| match particle_base(xp, &spec) {
+                Some(v) => {
+                    *b = v;
+                    usize::MAX
+                }
+                None => p,
+            })
+            .min()
+            .unwrap_or(usize::MAX);
+        if bad != usize::MAX {
+            return Err(MpmError::OutsideDomain { particle: bad, step });
+        }
+        // Sort particles by base block (key, particle) — unique keys, so the order is deterministic.
+        self.keys.clear();
+        for (p, b) in self.base.iter().enumerate() {
+            let mut c = [0usize; D];
+            for d in 0..D {
+                c[d] = (b[d] as usize) >> BLOCK_SHIFT;
+            }
+            self.keys.push(((self.block_key(&c) as u64) << 32) | p as u64);
+        }
+        self.keys.sort_unstable();
+        self.order.clear();
+        self.order.extend(self.keys.iter().map(|k| (*k & 0xffff_ffff) as u32));
+        // Reset the block table, then activate blocks in order of first touch.
+        for b in &self.blocks {
+            let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
+            let k = self.block_key(&c);
+            self.table[k] = INACTIVE;
+        }
+        self.blocks.clear();
+        self.pblocks.clear();
+        for c in self.colors.iter_mut() {
+            c.clear();
+        }
+        let mut i = 0;
+        while i < n {
+            let key = self.keys[i] >> 32;
+            let mut j = i + 1;
+            while j < n && self.keys[j] >> 32 == key {
+                j += 1;
+            }
+            let b0 = self.base[(self.keys[i] & 0xffff_ffff) as usize];
+            let c0: [usize; D] = std::array::from_fn(|d| (b0[d] as usize) >> BLOCK_SHIFT);
+            for nb in 0..(1usize << D) {
+                let c: [usize; D] = std::array::from_fn(|d| c0[d] + ((nb >> d) & 1));
+                if c.iter().all(|&v| v < self.blocks_per_axis) {
+                    let k = self.block_key(&c);
+                    if self.table[k] == INACTIVE {
+                        self.table[k] = self.blocks.len() as u32;
+                        self.blocks.push(std::array::from_fn(|d| c[d] as u32));
+                    }
+                }
+            }
+            let colour: usize = (0..D).map(|d| (c0[d] & 1) << d).sum();
+            self.colors[colour].push(self.pblocks.len() as u32);
+            self.pblocks.push(ParticleBlock { start: i as u32, end: j as u32 });
+            i = j;
+        }
+        // Node indices of every particle's stencil.
+        let nn = block_nodes(D);
+        let bpa = self.blocks_per_axis;
+        let table = &self.table;
+        self.stencil.resize(n, [0u32; 27]);
+        self.stencil.par_iter_mut().zip(self.base.par_iter()).for_each(|(st, b)| {
+            for (k, slot) in st.iter_mut().enumerate().take(stencil_len(D)) {
+                let mut bk = 0usize;
+                let mut local = 0usize;
+                let mut stride = 1usize;
+                let mut rem = k;
+                let mut o = [0usize; D];
+                for d in (0..D).rev() {
+                    o[d] = rem % 3;
+                    rem /= 3;
+                }
+                for d in 0..D {
+                    let node = b[d] as usize + o[d];
+                    bk = bk * bpa + (node >> BLOCK_SHIFT);
+                    local += (node & (BLOCK - 1)) * stride;
+                    stride *= BLOCK;
+                }
+                *slot = (table[bk] as usize * nn + local) as u32;
+            }
+        });
+        let nodes = self.blocks.len() * nn;
+        self.mass.clear();
+        self.mass.resize(nodes, 0.0);
+        self.mom.clear();
+        self.mom.resize(nodes, Vector::<D>::zeros());
+        self.vel.clear();
+        self.vel.resize(nodes, Vector::<D>::zeros());
+        self.wall_mask.clear();
+        self.wall_mask.resize(nodes, 0);
+        Ok(())
+    }
+
+    /// Run `f(particle)` for every particle, colour by colour, same-colour blocks in parallel.
+    /// `f` may write to the stencil nodes of its particle (disjoint across a colour).
+    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize) + Sync) {
+        for colour in &self.colors {
+            colour.par_iter().for_each(|&pb| {
+                let blk = self.pblocks[pb as usize];
+                for &p in &self.order[blk.start as usize..blk.end as usize] {
+                    f(p as usize);
+                }
+            });
+        }
+    }
+}
+
+/// Quadratic B-spline weights (eq. 5.6's N) of a particle: fx = x/Δx − base ∈ [0.5, 1.5), and per
+/// axis the weights of nodes base+0,1,2 and their derivatives with respect to fx.
+#[inline(always)]
+pub fn bspline<const D: usize>(
+    x: &Vector<D>,
+    base: &[i32; D],
+    inv_dx: f64,
+) -> (Vector<D>, [[f64; 3]; D], [[f64; 3]; D]) {
+    let mut fx = Vector::<D>::zeros();
+    let mut w = [[0.0; 3]; D];
+    let mut dw = [[0.0; 3]; D];
+    for d in 0..D {
+        let f = x[d] * inv_dx - base[d] as f64;
+        fx[d] = f;
+        w[d] = [0.5 * (1.5 - f) * (1.5 - f), 0.75 - (f - 1.0) * (f - 1.0), 0.5 * (f - 0.5) * (f - 0.5)];
+        dw[d] = [f - 1.5, -2.0 * (f - 1.0), f - 0.5];
+    }
+    (fx, w, dw)
+}
+
+/// Offset of stencil entry `k` along axis `d` (axis 0 slowest).
+#[inline(always)]
+pub fn stencil_offset<const D: usize>(k: usize) -> [usize; D] {
+    let mut o = [0usize; D];
+    let mut rem = k;
+    for d in (0..D).rev() {
+        o[d] = rem % 3;
+        rem /= 3;
+    }
+    o
+}
