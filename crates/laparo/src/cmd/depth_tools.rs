@@ -1,7 +1,14 @@
 //! `laparo depth perturb` (seeded synthetic perturbations, issue 2 item 7) and
 //! `laparo depth reproject` (GT preparation of thesis §3.2.6, issue 2 item 6).
+use anyhow::{bail, Context, Result};
 use clap::Args;
-use std::path::PathBuf;
+use indicatif::{ProgressBar, ProgressStyle};
+use laparo_core::{DepthUnit, Image};
+use laparo_depth::manifest::{FrameSpec, Manifest};
+use laparo_depth::perturb::{self as pt, Perturbation};
+use laparo_depth::reproject::{self as rp, ClampMode, ReprojectParams, TargetCamera};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `laparo depth perturb`.
 #[derive(Args, Debug, Clone)]
@@ -24,6 +31,12 @@ pub struct PerturbArgs {
     /// Optional ground-truth depth file or folder (same stems as the inputs) to list in the manifest.
     #[arg(long)]
     pub gt: Option<PathBuf>,
+    /// Unit of the values in the `--gt` files (m or mm).
+    #[arg(long, default_value = "mm")]
+    pub gt_unit: String,
+    /// Scene name used in the manifest (default: the input folder's name).
+    #[arg(long)]
+    pub scene: Option<String>,
     /// Recompute outputs that already exist (default: skip them, so an interrupted run resumes).
     #[arg(long)]
     pub overwrite: bool,
@@ -66,6 +79,9 @@ pub struct ReprojectArgs {
     /// Upper clamp of the output depth in m (values above become invalid).
     #[arg(long, default_value_t = 0.5)]
     pub max_depth_m: f64,
+    /// Saturate out-of-range depth to the range bounds instead of invalidating it.
+    #[arg(long)]
+    pub saturate: bool,
     /// Drop sensor triangles whose depth jump (max/min − 1) exceeds this (depth discontinuities).
     #[arg(long, default_value_t = 0.05)]
     pub max_rel_jump: f64,
@@ -77,14 +93,328 @@ pub struct ReprojectArgs {
     pub out: PathBuf,
 }
 
+const RGB_EXT: [&str; 5] = ["png", "jpg", "jpeg", "tif", "tiff"];
+const MAP_EXT: [&str; 6] = ["npy", "npz", "pfm", "tif", "tiff", "png"];
+
+fn has_ext(p: &Path, exts: &[&str]) -> bool {
+    p.extension().and_then(|e| e.to_str()).is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+/// The input images: one file, or the images of a folder in sorted order.
+fn list_inputs(input: &Path) -> Result<Vec<PathBuf>> {
+    if input.is_file() {
+        return Ok(vec![input.to_path_buf()]);
+    }
+    if !input.is_dir() {
+        bail!("--input {}: no such file or folder", input.display());
+    }
+    let mut v: Vec<PathBuf> = std::fs::read_dir(input)
+        .with_context(|| format!("reading folder {}", input.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && has_ext(p, &RGB_EXT))
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        bail!("--input {}: no PNG/JPEG/TIFF image in this folder", input.display());
+    }
+    let mut stems: Vec<String> = v.iter().map(|p| stem(p)).collect();
+    stems.sort();
+    if let Some(w) = stems.windows(2).find(|w| w[0] == w[1]) {
+        bail!("--input {}: two images share the name '{}' (outputs are named by stem)", input.display(), w[0]);
+    }
+    Ok(v)
+}
+
+/// GT file of input `img`: `gt` itself if it is a file, else `<gt>/<stem>.<map ext>`.
+fn find_gt(gt: &Path, img: &Path) -> Result<PathBuf> {
+    if gt.is_file() {
+        return Ok(gt.to_path_buf());
+    }
+    let s = stem(img);
+    for e in MAP_EXT {
+        let p = gt.join(format!("{s}.{e}"));
+        if p.is_file() {
+            return Ok(p);
+        }
+    }
+    bail!("--gt {}: no depth file named '{s}.<npy|npz|pfm|tif|tiff|png>' for input {}", gt.display(), img.display())
+}
+
+fn absolute(p: &Path) -> PathBuf {
+    std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// Output file of one (input, kind, severity).
+pub fn perturbed_path(out: &Path, kind: Perturbation, severity: u8, stem: &str) -> PathBuf {
+    out.join(kind.name()).join(format!("s{severity}")).join(format!("{stem}.png"))
+}
+
 /// Run `laparo depth perturb`.
-pub fn perturb(a: PerturbArgs) -> anyhow::Result<()> {
-    let _ = a;
-    anyhow::bail!("laparo depth perturb: being written")
+pub fn perturb(a: PerturbArgs) -> Result<()> {
+    let inputs = list_inputs(&a.input)?;
+    let kinds: Vec<Perturbation> = a
+        .kinds
+        .iter()
+        .map(|k| k.parse::<Perturbation>().with_context(|| "--kinds".to_string()))
+        .collect::<Result<_>>()?;
+    if kinds.is_empty() {
+        bail!("--kinds: no perturbation given");
+    }
+    let mut sevs = a.severities.clone();
+    sevs.sort();
+    sevs.dedup();
+    if sevs.is_empty() || sevs.iter().any(|s| !(1..=3).contains(s)) {
+        bail!("--severities {:?}: each must be 1, 2 or 3", a.severities);
+    }
+    let gt_unit: DepthUnit = a.gt_unit.parse().context("--gt-unit")?;
+    let gts: Option<Vec<PathBuf>> = match &a.gt {
+        Some(g) => Some(inputs.iter().map(|i| find_gt(g, i)).collect::<Result<_>>()?),
+        None => None,
+    };
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+
+    let jobs: Vec<(usize, Perturbation)> = (0..inputs.len()).flat_map(|i| kinds.iter().map(move |&k| (i, k))).collect();
+    let n_total = jobs.len() * sevs.len();
+    let pb = ProgressBar::new(n_total as u64);
+    pb.set_style(
+        ProgressStyle::with_template("perturb {bar:40} {pos}/{len} images  {elapsed_precise} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    // One job = one (input, kind): read once, write each missing severity atomically.
+    let results: Vec<Result<(usize, usize)>> = jobs
+        .par_iter()
+        .map(|&(i, kind)| -> Result<(usize, usize)> {
+            let path = &inputs[i];
+            let name = stem(path);
+            let todo: Vec<u8> = sevs
+                .iter()
+                .copied()
+                .filter(|&s| a.overwrite || !perturbed_path(&a.out, kind, s, &name).is_file())
+                .collect();
+            let skipped = sevs.len() - todo.len();
+            pb.inc(skipped as u64);
+            if todo.is_empty() {
+                return Ok((0, skipped));
+            }
+            let img = laparo_core::io::read_image(path)?;
+            let seed = pt::item_seed(a.seed, &name, kind);
+            for s in &todo {
+                let out = pt::apply(&img, kind, *s, seed).with_context(|| format!("perturbing {}", path.display()))?;
+                laparo_core::io::write_png(perturbed_path(&a.out, kind, *s, &name), &out)?;
+                pb.inc(1);
+            }
+            Ok((todo.len(), skipped))
+        })
+        .collect();
+    pb.finish_and_clear();
+    let (mut written, mut skipped, mut errors) = (0, 0, Vec::new());
+    for r in results {
+        match r {
+            Ok((w, s)) => {
+                written += w;
+                skipped += s;
+            }
+            Err(e) => errors.push(format!("{e:#}")),
+        }
+    }
+    if !errors.is_empty() {
+        bail!("{} of {} jobs failed:\n  {}", errors.len(), jobs.len(), errors.join("\n  "));
+    }
+
+    // Parameters, for reproducibility.
+    let params = serde_json::json!({
+        "seed": a.seed,
+        "seed_rule": "per (image stem, kind): laparo_depth::perturb::item_seed(seed, stem, kind); same for all severities",
+        "kinds": kinds.iter().map(|k| serde_json::json!({
+            "kind": k.name(),
+            "severities": sevs.iter().map(|&s| serde_json::json!({"severity": s, "parameters": k.describe(s)})).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
+        "inputs": inputs.iter().map(|p| absolute(p).display().to_string()).collect::<Vec<_>>(),
+    });
+    laparo_core::atomic::write_atomic(
+        &a.out.join("perturbations.json"),
+        serde_json::to_string_pretty(&params)?.as_bytes(),
+    )?;
+
+    let mut manifest_note = String::new();
+    if let Some(gts) = gts {
+        let scene = a.scene.clone().unwrap_or_else(|| {
+            let base = if a.input.is_dir() {
+                a.input.clone()
+            } else {
+                a.input.parent().map(Path::to_path_buf).unwrap_or_default()
+            };
+            absolute(&base).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into())
+        });
+        let m = perturb_manifest(&a.out, &scene, &inputs, &gts, gt_unit, &kinds, &sevs);
+        let mp = a.out.join("manifest.toml");
+        m.write(&mp)?;
+        manifest_note = format!(
+            "; manifest {} ({} frames; add [[methods]] with your predictions, then `laparo depth manifest validate`)",
+            mp.display(),
+            m.frames.len()
+        );
+    }
+    println!(
+        "perturb: {written} images written, {skipped} already present (skipped), {} inputs x {} kinds x {} severities -> {}{manifest_note}",
+        inputs.len(),
+        kinds.len(),
+        sevs.len(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// A manifest listing the clean inputs (perturbation `clean`, severity 0) and every perturbed
+/// image, all with the input's GT. Paths of perturbed images are relative to `out`.
+pub fn perturb_manifest(
+    out: &Path,
+    scene: &str,
+    inputs: &[PathBuf],
+    gts: &[PathBuf],
+    gt_unit: DepthUnit,
+    kinds: &[Perturbation],
+    sevs: &[u8],
+) -> Manifest {
+    let _ = out;
+    let mut frames = Vec::new();
+    for (img, gt) in inputs.iter().zip(gts) {
+        let name = stem(img);
+        let gt = absolute(gt);
+        frames.push(FrameSpec {
+            id: format!("{scene}/clean/s0/{name}"),
+            scene: scene.to_string(),
+            perturbation: "clean".into(),
+            severity: Some(0),
+            sequence: None,
+            name: Some(name.clone()),
+            rgb: absolute(img),
+            gt: gt.clone(),
+            mask: None,
+            gt_unit: None,
+        });
+        for k in kinds {
+            for &s in sevs {
+                frames.push(FrameSpec {
+                    id: format!("{scene}/{}/s{s}/{name}", k.name()),
+                    scene: scene.to_string(),
+                    perturbation: k.name().into(),
+                    severity: Some(s as u32),
+                    sequence: None,
+                    name: Some(name.clone()),
+                    rgb: Path::new(k.name()).join(format!("s{s}")).join(format!("{name}.png")),
+                    gt: gt.clone(),
+                    mask: None,
+                    gt_unit: None,
+                });
+            }
+        }
+    }
+    Manifest {
+        version: 1,
+        gt_unit,
+        depth_min_m: None,
+        depth_max_m: None,
+        baseline: None,
+        error_map_frames: Vec::new(),
+        methods: Vec::new(),
+        sequences: Vec::new(),
+        frames,
+        base_dir: out.to_path_buf(),
+        source: out.join("manifest.toml"),
+    }
+}
+
+fn read_json(p: &Path, what: &str) -> Result<serde_json::Value> {
+    let t = std::fs::read_to_string(p).with_context(|| format!("{what} {}", p.display()))?;
+    serde_json::from_str(&t).with_context(|| format!("{what} {}: invalid JSON", p.display()))
 }
 
 /// Run `laparo depth reproject`.
-pub fn reproject(a: ReprojectArgs) -> anyhow::Result<()> {
-    let _ = a;
-    anyhow::bail!("laparo depth reproject: being written")
+pub fn reproject(a: ReprojectArgs) -> Result<()> {
+    let depth_unit: DepthUnit = a.depth_unit.parse().context("--depth-unit")?;
+    let ext_unit: DepthUnit = a.extrinsics_unit.parse().context("--extrinsics-unit")?;
+    let out_unit: DepthUnit = a.out_unit.parse().context("--out-unit")?;
+    let sp = a.sensor_intrinsics.display().to_string();
+    let sensor = rp::intrinsics_from_json(&read_json(&a.sensor_intrinsics, "--sensor-intrinsics")?, &sp)?;
+    let lp = a.intrinsics.display().to_string();
+    let mut lap = rp::intrinsics_from_json(&read_json(&a.intrinsics, "--intrinsics")?, &lp)?;
+    lap.width = a.width.unwrap_or(lap.width);
+    lap.height = a.height.unwrap_or(lap.height);
+    lap.validate().context("--width/--height")?;
+    let ep = a.extrinsics.display().to_string();
+    let t = rp::extrinsics_from_json(&read_json(&a.extrinsics, "--extrinsics")?, ext_unit, &ep)?;
+    let depth = laparo_core::io::read_depth(&a.depth, depth_unit)?;
+    if depth.width != sensor.width || depth.height != sensor.height {
+        bail!(
+            "--depth {} is {}x{} but --sensor-intrinsics {} is for {}x{}",
+            a.depth.display(),
+            depth.width,
+            depth.height,
+            sp,
+            sensor.width,
+            sensor.height
+        );
+    }
+    let mask = match &a.tool_mask {
+        Some(p) => {
+            let m = laparo_core::io::read_image(p)?;
+            if m.width != lap.width || m.height != lap.height {
+                bail!(
+                    "--tool-mask {} is {}x{}, the laparoscope image is {}x{}",
+                    p.display(),
+                    m.width,
+                    m.height,
+                    lap.width,
+                    lap.height
+                );
+            }
+            let ch = m.channels;
+            Some(Image {
+                width: m.width,
+                height: m.height,
+                channels: 1,
+                data: m.data.chunks(ch).map(|p| p.iter().take(ch.min(3)).any(|&v| v != 0)).collect(),
+            })
+        }
+        None => None,
+    };
+    let params = ReprojectParams {
+        min_depth_m: a.min_depth_m,
+        max_depth_m: a.max_depth_m,
+        max_rel_jump: a.max_rel_jump,
+        clamp: if a.saturate { ClampMode::Saturate } else { ClampMode::Invalidate },
+    };
+    let target = TargetCamera { intrinsics: lap, distortion: None };
+    let (d, st) = rp::reproject_depth(&depth, &sensor, &t, &target, mask.as_ref(), &params)?;
+    if st.valid == 0 {
+        bail!(
+            "reprojection of {} left no valid pixel ({} sensor pixels valid, {} covered, {} out of range): check units and T_DS->L",
+            a.depth.display(),
+            st.sensor_valid,
+            st.covered,
+            st.out_of_range
+        );
+    }
+    laparo_core::io::write_depth(&a.out, &d.to_unit(out_unit))?;
+    println!(
+        "reproject: {} -> {} ({}x{}, {out_unit}): {} valid px ({:.1}%), {} triangles, {} dropped at discontinuities, {} tool px removed, {} out of [{}, {}] m",
+        a.depth.display(),
+        a.out.display(),
+        lap.width,
+        lap.height,
+        st.valid,
+        100.0 * st.valid as f64 / (lap.width * lap.height) as f64,
+        st.triangles,
+        st.triangles_dropped_jump,
+        st.removed_tool,
+        st.out_of_range,
+        a.min_depth_m,
+        a.max_depth_m
+    );
+    Ok(())
 }
