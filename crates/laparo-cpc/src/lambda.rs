@@ -1,0 +1,254 @@
+//! Automatic selection of λ (thesis §4.5.4): sweep λ, measure δ_area(λ) (eq. 4.13), fit the
+//! piecewise Gompertz/exponential model f (eq. 4.14) under the constraints 4.15–4.18, and return
+//! its transition point ℓ.
+//!
+//! Parametrisation of the fit. With a1 = median(δ_area) (eq. 4.15) fixed, the exponential branch
+//! a2·exp(b2(λ + c2)) + d2 depends on a2 and c2 only through K = a2·e^{b2 c2}; eq. 4.16 gives
+//! d2 = 1 − K e^{b2}, eq. 4.18 gives K = G'(ℓ) e^{−b2 ℓ} / b2 (G the Gompertz branch) and eq. 4.17
+//! then reduces to (e^{b2(1−ℓ)} − 1) / b2 = (1 − G(ℓ)) / G'(ℓ), solved for b2 by bisection.
+//! The free parameters are thus (b1, c1, ℓ), fitted by least squares with Nelder–Mead from several
+//! starts (hand-written: 3 unknowns, a few hundred evaluations; no optimisation crate needed).
+//! The reported (a2, c2) use the convention c2 = 0 (a2 = K).
+use crate::error::{CpcError, Result};
+use crate::metrics;
+use crate::mesh::CpcMesh;
+use crate::solve::CpcSystem;
+use serde::Serialize;
+
+/// The default λ grid of the sweep: 0 to 0.95 by 0.05, then denser towards 1.
+pub fn default_lambda_grid() -> Vec<f64> {
+    let mut g: Vec<f64> = (0..20).map(|i| i as f64 * 0.05).collect();
+    g.extend([0.96, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999]);
+    g
+}
+
+/// The fitted model of eq. 4.14.
+#[derive(Clone, Debug, Serialize)]
+pub struct GompertzExpFit {
+    pub a1: f64,
+    pub b1: f64,
+    pub c1: f64,
+    pub a2: f64,
+    pub b2: f64,
+    pub c2: f64,
+    pub d2: f64,
+    /// Transition point ℓ (the selected λ).
+    pub ell: f64,
+    /// RMS residual of the fit over the sweep.
+    pub rmse: f64,
+}
+
+impl GompertzExpFit {
+    /// f(λ) of eq. 4.14.
+    pub fn eval(&self, lambda: f64) -> f64 {
+        if lambda < self.ell {
+            self.a1 * (-self.b1 * (-self.c1 * lambda).exp()).exp()
+        } else {
+            self.a2 * (self.b2 * (lambda + self.c2)).exp() + self.d2
+        }
+    }
+}
+
+/// One row of the sweep.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepPoint {
+    pub lambda: f64,
+    pub delta_area: f64,
+    pub angle_error_deg: f64,
+    pub n_flipped: usize,
+}
+
+/// Result of the automatic λ selection.
+#[derive(Clone, Debug, Serialize)]
+pub struct LambdaSweep {
+    pub points: Vec<SweepPoint>,
+    pub fit: GompertzExpFit,
+    /// The selected λ = ℓ.
+    pub ell: f64,
+}
+
+/// Solve for every λ of `grid` and record δ_area (eq. 4.13), the angle error and the flips.
+pub fn sweep(system: &CpcSystem, mesh: &CpcMesh, grid: &[f64]) -> Result<Vec<SweepPoint>> {
+    grid.iter()
+        .map(|&lambda| {
+            let p = system.solve(lambda)?;
+            Ok(SweepPoint {
+                lambda,
+                delta_area: metrics::delta_area(&p, &mesh.p_init, &mesh.faces),
+                angle_error_deg: metrics::angle_error_deg(&p, &mesh.x3d, &mesh.faces),
+                n_flipped: metrics::n_flipped(&p, &mesh.faces),
+            })
+        })
+        .collect()
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// Build the constrained model from the free parameters (b1, c1, ℓ); `None` if infeasible.
+fn model(a1: f64, b1: f64, c1: f64, ell: f64) -> Option<GompertzExpFit> {
+    if !(b1 > 0.0 && c1 > 0.0 && ell > 0.0 && ell < 1.0) {
+        return None;
+    }
+    let e = (-c1 * ell).exp();
+    let g = a1 * (-b1 * e).exp();
+    let dg = a1 * b1 * c1 * e * (-b1 * e).exp();
+    if !(g < 1.0 && dg > 0.0) {
+        return None;
+    }
+    let target = (1.0 - g) / dg;
+    let span = 1.0 - ell;
+    // h(b) = (e^{b·span} − 1)/b is increasing, h(0) = span.
+    let h = |b: f64| if b.abs() < 1e-12 { span } else { (b * span).exp_m1() / b };
+    let (mut lo, mut hi) = (-1e4_f64, 700.0 / span);
+    if !(h(lo) <= target && h(hi) >= target) {
+        return None;
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if h(mid) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let b2 = 0.5 * (lo + hi);
+    if b2.abs() < 1e-12 {
+        return None;
+    }
+    let k = dg * (-b2 * ell).exp() / b2;
+    let d2 = 1.0 - k * b2.exp();
+    if !(k.is_finite() && d2.is_finite()) {
+        return None;
+    }
+    Some(GompertzExpFit { a1, b1, c1, a2: k, b2, c2: 0.0, d2, ell, rmse: f64::NAN })
+}
+
+fn nelder_mead(f: &dyn Fn(&[f64; 3]) -> f64, x0: [f64; 3], step: [f64; 3], iters: usize) -> ([f64; 3], f64) {
+    let mut s: Vec<([f64; 3], f64)> = vec![(x0, f(&x0))];
+    for i in 0..3 {
+        let mut x = x0;
+        x[i] += step[i];
+        s.push((x, f(&x)));
+    }
+    for _ in 0..iters {
+        s.sort_by(|a, b| a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal));
+        let mut c = [0.0; 3];
+        for p in &s[..3] {
+            for k in 0..3 {
+                c[k] += p.0[k] / 3.0;
+            }
+        }
+        let worst = s[3];
+        let lerp = |t: f64| {
+            let mut x = [0.0; 3];
+            for k in 0..3 {
+                x[k] = c[k] + t * (worst.0[k] - c[k]);
+            }
+            x
+        };
+        let xr = lerp(-1.0);
+        let fr = f(&xr);
+        if fr < s[0].1 {
+            let xe = lerp(-2.0);
+            let fe = f(&xe);
+            s[3] = if fe < fr { (xe, fe) } else { (xr, fr) };
+        } else if fr < s[2].1 {
+            s[3] = (xr, fr);
+        } else {
+            let xc = lerp(0.5);
+            let fc = f(&xc);
+            if fc < worst.1 {
+                s[3] = (xc, fc);
+            } else {
+                let best = s[0].0;
+                for p in s.iter_mut().skip(1) {
+                    for k in 0..3 {
+                        p.0[k] = best[k] + 0.5 * (p.0[k] - best[k]);
+                    }
+                    p.1 = f(&p.0);
+                }
+            }
+        }
+    }
+    s.sort_by(|a, b| a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal));
+    s[0]
+}
+
+/// Fit eq. 4.14 under constraints 4.15–4.18 to (λ_i, δ_i).
+pub fn fit_gompertz_exp(lambdas: &[f64], delta: &[f64]) -> Result<GompertzExpFit> {
+    if lambdas.len() != delta.len() || lambdas.len() < 5 {
+        return Err(CpcError::invalid("lambda sweep", "needs at least 5 (lambda, delta_area) pairs"));
+    }
+    if lambdas.iter().chain(delta).any(|v| !v.is_finite()) {
+        return Err(CpcError::invalid("lambda sweep", "contains non-finite values"));
+    }
+    let a1 = median(delta);
+    if !(a1 > 0.0 && a1 < 1.0) {
+        return Err(CpcError::invalid("lambda sweep", format!("median delta_area {a1} is not in (0, 1)")));
+    }
+    let cost = |x: &[f64; 3]| -> f64 {
+        let ell = 1.0 / (1.0 + (-x[2]).exp());
+        match model(a1, x[0].exp(), x[1].exp(), ell) {
+            Some(m) => lambdas.iter().zip(delta).map(|(&l, &d)| (m.eval(l) - d).powi(2)).sum(),
+            None => f64::INFINITY,
+        }
+    };
+    let logit = |l: f64| (l / (1.0 - l)).ln();
+    let mut best: Option<([f64; 3], f64)> = None;
+    for &ell0 in &[0.5, 0.8, 0.9, 0.95, 0.98] {
+        for &c0 in &[3.0_f64, 10.0, 30.0] {
+            for &b0 in &[1.0_f64, 5.0, 30.0] {
+                let x0 = [b0.ln(), c0.ln(), logit(ell0)];
+                if !cost(&x0).is_finite() {
+                    continue;
+                }
+                let r = nelder_mead(&cost, x0, [0.5, 0.5, 0.5], 400);
+                if best.as_ref().map_or(true, |b| r.1 < b.1) {
+                    best = Some(r);
+                }
+            }
+        }
+    }
+    let (x, c) = best.ok_or_else(|| CpcError::invalid("lambda sweep", "no feasible Gompertz/exponential fit"))?;
+    let ell = 1.0 / (1.0 + (-x[2]).exp());
+    let mut m = model(a1, x[0].exp(), x[1].exp(), ell)
+        .ok_or_else(|| CpcError::invalid("lambda sweep", "no feasible Gompertz/exponential fit"))?;
+    m.rmse = (c / lambdas.len() as f64).sqrt();
+    Ok(m)
+}
+
+/// Sweep λ over `grid`, fit the model and return ℓ (§4.5.4).
+pub fn auto_lambda(system: &CpcSystem, mesh: &CpcMesh, grid: &[f64]) -> Result<LambdaSweep> {
+    let points = sweep(system, mesh, grid)?;
+    let l: Vec<f64> = points.iter().map(|p| p.lambda).collect();
+    let d: Vec<f64> = points.iter().map(|p| p.delta_area).collect();
+    let fit = fit_gompertz_exp(&l, &d)?;
+    Ok(LambdaSweep { ell: fit.ell, points, fit })
+}
+
+impl LambdaSweep {
+    /// CSV: `lambda,delta_area,fit,angle_error_deg,n_flipped`.
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("lambda,delta_area,fit,angle_error_deg,n_flipped\n");
+        for p in &self.points {
+            s.push_str(&format!(
+                "{},{},{},{},{}\n",
+                p.lambda,
+                p.delta_area,
+                self.fit.eval(p.lambda),
+                p.angle_error_deg,
+                p.n_flipped
+            ));
+        }
+        s
+    }
+}

@@ -1,0 +1,323 @@
+//! The two meshes of CPC (thesis §4.4.6 step 3): a regular 2D grid over the ROI pixels and the
+//! 3D mesh with the same connectivity, obtained by back-projecting the metric depth.
+//!
+//! Grid nodes sit at integer pixel centres `(i·s, j·s)`; each grid cell is split into the two
+//! triangles `(p00, p10, p01)` and `(p10, p11, p01)` (`pXY`: X along u, Y along v), both with a
+//! positive signed area in image coordinates (u right, v down). A triangle is kept when its three
+//! corners are in the ROI with valid depth, no edge has a relative depth jump above the threshold,
+//! its 3D shape is not degenerate and (guard) it is not seen at a grazing angle.
+use crate::error::{CpcError, Result};
+use laparo_core::camera::Intrinsics;
+use laparo_core::depth::DepthMap;
+use laparo_core::image::Mask;
+use nalgebra::Vector3;
+use serde::Serialize;
+
+/// Sentinel for "no triangle" in [`CpcMesh::cell_faces`].
+pub const NO_FACE: u32 = u32::MAX;
+
+/// Parameters of the mesh construction.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeshParams {
+    /// Grid step in px (≥ 1).
+    pub grid_step_px: usize,
+    /// Drop a triangle if an edge has |z_i − z_j| / min(z_i, z_j) above this (depth discontinuity).
+    pub max_rel_depth_jump: f64,
+    /// Drop a 3D triangle whose `2·area / longest_edge²` is below this (degenerate / needle).
+    pub min_shape_quality: f64,
+    /// Grazing guard: drop triangles whose normal makes more than this angle (deg) with the viewing
+    /// ray; `None` disables the guard.
+    pub max_view_angle_deg: Option<f64>,
+    /// Connected components with fewer triangles are dropped (and reported).
+    pub min_component_triangles: usize,
+}
+
+impl Default for MeshParams {
+    fn default() -> Self {
+        MeshParams {
+            grid_step_px: 4,
+            max_rel_depth_jump: 0.1,
+            min_shape_quality: 1e-4,
+            max_view_angle_deg: Some(85.0),
+            min_component_triangles: 8,
+        }
+    }
+}
+
+/// What happened while building the mesh (reported to the user).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct MeshReport {
+    pub grid_step_px: usize,
+    /// Triangles whose three corners are inside the ROI.
+    pub n_candidate_triangles: usize,
+    pub dropped_invalid_depth: usize,
+    pub dropped_depth_jump: usize,
+    pub dropped_degenerate: usize,
+    pub dropped_grazing: usize,
+    pub dropped_small_components: usize,
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    /// Triangle count of every kept connected component (largest first).
+    pub component_triangles: Vec<usize>,
+}
+
+/// The paired 2D/3D meshes.
+#[derive(Clone, Debug)]
+pub struct CpcMesh {
+    /// Grid step in px.
+    pub grid_step_px: usize,
+    /// Number of grid nodes along u and v.
+    pub grid_cols: usize,
+    pub grid_rows: usize,
+    /// Initial 2D vertex positions P_init (px, u right, v down).
+    pub p_init: Vec<[f64; 2]>,
+    /// Back-projected 3D vertices (camera frame, unit of the depth map).
+    pub x3d: Vec<Vector3<f64>>,
+    /// Triangles (indices into the vertex arrays), positive orientation in the image.
+    pub faces: Vec<[usize; 3]>,
+    /// Per grid cell (row-major, (grid_cols−1)·(grid_rows−1)): its two triangles or [`NO_FACE`].
+    pub cell_faces: Vec<[u32; 2]>,
+    /// Connected component of every triangle (0 = largest).
+    pub face_component: Vec<usize>,
+    /// Construction report.
+    pub report: MeshReport,
+}
+
+/// Check the inputs shared by every CPC entry point.
+pub fn validate_inputs(roi: &Mask, depth: &DepthMap, k: &Intrinsics) -> Result<()> {
+    k.validate().map_err(|e| CpcError::invalid("intrinsics", e.to_string()))?;
+    if depth.width != roi.width || depth.height != roi.height {
+        return Err(CpcError::SizeMismatch(format!(
+            "depth is {}x{}, ROI mask is {}x{}",
+            depth.width, depth.height, roi.width, roi.height
+        )));
+    }
+    if k.width != depth.width || k.height != depth.height {
+        return Err(CpcError::SizeMismatch(format!(
+            "intrinsics are for {}x{}, depth is {}x{}",
+            k.width, k.height, depth.width, depth.height
+        )));
+    }
+    if roi.channels != 1 {
+        return Err(CpcError::invalid("ROI mask", format!("has {} channels, expected 1", roi.channels)));
+    }
+    if !depth.data.iter().any(|&z| DepthMap::is_valid(z)) {
+        return Err(CpcError::invalid("depth", "no valid value (all NaN, zero or negative)"));
+    }
+    let n_roi = roi.data.iter().filter(|&&b| b).count();
+    if n_roi == 0 {
+        return Err(CpcError::invalid("ROI mask", "is empty"));
+    }
+    Ok(())
+}
+
+impl CpcMesh {
+    /// Build the 2D grid and the 3D mesh over `roi` (§4.4.6 step 3).
+    pub fn build(roi: &Mask, depth: &DepthMap, k: &Intrinsics, params: &MeshParams) -> Result<CpcMesh> {
+        validate_inputs(roi, depth, k)?;
+        let s = params.grid_step_px;
+        if s == 0 {
+            return Err(CpcError::invalid("grid step", "must be at least 1 px"));
+        }
+        if !(params.max_rel_depth_jump > 0.0) {
+            return Err(CpcError::invalid("max relative depth jump", format!("{} (must be > 0)", params.max_rel_depth_jump)));
+        }
+        if let Some(a) = params.max_view_angle_deg {
+            if !(a > 0.0 && a <= 90.0) {
+                return Err(CpcError::invalid("max view angle", format!("{a} deg (must be in (0, 90])")));
+            }
+        }
+        let (w, h) = (roi.width, roi.height);
+        let gc = (w - 1) / s + 1;
+        let gr = (h - 1) / s + 1;
+        // Grid nodes: in ROI with valid depth?
+        let node_in_roi = |i: usize, j: usize| roi.data[(j * s) * w + i * s];
+        let node_z = |i: usize, j: usize| depth.data[(j * s) * w + i * s];
+        let node_x = |i: usize, j: usize| {
+            let (u, v) = ((i * s) as f64, (j * s) as f64);
+            k.backproject(u, v, node_z(i, j))
+        };
+        let mut rep = MeshReport { grid_step_px: s, ..Default::default() };
+        let cos_max = params.max_view_angle_deg.map(|a| a.to_radians().cos());
+        // Candidate triangles as grid-node triplets, with their cell and slot.
+        let mut tris: Vec<([(usize, usize); 3], usize, usize)> = Vec::new();
+        for j in 0..gr.saturating_sub(1) {
+            for i in 0..gc.saturating_sub(1) {
+                let cell = j * (gc - 1) + i;
+                let t0 = [(i, j), (i + 1, j), (i, j + 1)];
+                let t1 = [(i + 1, j), (i + 1, j + 1), (i, j + 1)];
+                for (slot, t) in [t0, t1].into_iter().enumerate() {
+                    if !t.iter().all(|&(a, b)| node_in_roi(a, b)) {
+                        continue;
+                    }
+                    rep.n_candidate_triangles += 1;
+                    let z = t.map(|(a, b)| node_z(a, b));
+                    if !z.iter().all(|&v| DepthMap::is_valid(v)) {
+                        rep.dropped_invalid_depth += 1;
+                        continue;
+                    }
+                    let jump = |a: f64, b: f64| (a - b).abs() / a.min(b);
+                    if jump(z[0], z[1]) > params.max_rel_depth_jump
+                        || jump(z[1], z[2]) > params.max_rel_depth_jump
+                        || jump(z[0], z[2]) > params.max_rel_depth_jump
+                    {
+                        rep.dropped_depth_jump += 1;
+                        continue;
+                    }
+                    let x = t.map(|(a, b)| node_x(a, b));
+                    let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
+                    let area2 = n.norm();
+                    let lmax = (x[1] - x[0]).norm_squared().max((x[2] - x[1]).norm_squared()).max((x[0] - x[2]).norm_squared());
+                    if !(area2.is_finite() && area2 > params.min_shape_quality * lmax) {
+                        rep.dropped_degenerate += 1;
+                        continue;
+                    }
+                    if let Some(cmax) = cos_max {
+                        let c = (x[0] + x[1] + x[2]) / 3.0;
+                        let cosv = n.dot(&c).abs() / (area2 * c.norm());
+                        if cosv < cmax {
+                            rep.dropped_grazing += 1;
+                            continue;
+                        }
+                    }
+                    tris.push((t, cell, slot));
+                }
+            }
+        }
+        // Connected components (union–find on grid nodes).
+        let n_nodes = gc * gr;
+        let mut parent: Vec<usize> = (0..n_nodes).collect();
+        fn find(p: &mut [usize], mut a: usize) -> usize {
+            while p[a] != a {
+                p[a] = p[p[a]];
+                a = p[a];
+            }
+            a
+        }
+        let nid = |(a, b): (usize, usize)| b * gc + a;
+        for (t, _, _) in &tris {
+            let r0 = find(&mut parent, nid(t[0]));
+            for &q in &t[1..] {
+                let r = find(&mut parent, nid(q));
+                if r != r0 {
+                    parent[r] = r0;
+                }
+            }
+        }
+        let mut comp_count = std::collections::HashMap::<usize, usize>::new();
+        let roots: Vec<usize> = tris.iter().map(|(t, _, _)| find(&mut parent, nid(t[0]))).collect();
+        for &r in &roots {
+            *comp_count.entry(r).or_default() += 1;
+        }
+        let mut comps: Vec<(usize, usize)> = comp_count.into_iter().collect();
+        comps.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        let comp_id: std::collections::HashMap<usize, usize> =
+            comps.iter().enumerate().map(|(i, &(r, _))| (r, i)).collect();
+        let mut node_vertex = vec![usize::MAX; n_nodes];
+        let mut mesh = CpcMesh {
+            grid_step_px: s,
+            grid_cols: gc,
+            grid_rows: gr,
+            p_init: Vec::new(),
+            x3d: Vec::new(),
+            faces: Vec::new(),
+            cell_faces: vec![[NO_FACE; 2]; gc.saturating_sub(1) * gr.saturating_sub(1)],
+            face_component: Vec::new(),
+            report: MeshReport::default(),
+        };
+        for ((t, cell, slot), r) in tris.iter().zip(&roots) {
+            let c = comp_id[r];
+            if comps[c].1 < params.min_component_triangles {
+                rep.dropped_small_components += 1;
+                continue;
+            }
+            let mut f = [0usize; 3];
+            for (q, fi) in t.iter().zip(f.iter_mut()) {
+                let id = nid(*q);
+                if node_vertex[id] == usize::MAX {
+                    node_vertex[id] = mesh.p_init.len();
+                    mesh.p_init.push([(q.0 * s) as f64, (q.1 * s) as f64]);
+                    mesh.x3d.push(node_x(q.0, q.1));
+                }
+                *fi = node_vertex[id];
+            }
+            mesh.cell_faces[*cell][*slot] = mesh.faces.len() as u32;
+            mesh.faces.push(f);
+            mesh.face_component.push(c);
+        }
+        rep.component_triangles =
+            comps.iter().map(|&(_, n)| n).filter(|&n| n >= params.min_component_triangles).collect();
+        rep.n_vertices = mesh.p_init.len();
+        rep.n_triangles = mesh.faces.len();
+        if mesh.faces.is_empty() {
+            return Err(CpcError::invalid(
+                "ROI mask",
+                format!(
+                    "yields no usable triangle at grid step {s} px ({} candidates: {} invalid depth, {} depth jump, \
+                     {} degenerate, {} grazing, {} in too small components)",
+                    rep.n_candidate_triangles,
+                    rep.dropped_invalid_depth,
+                    rep.dropped_depth_jump,
+                    rep.dropped_degenerate,
+                    rep.dropped_grazing,
+                    rep.dropped_small_components
+                ),
+            ));
+        }
+        mesh.report = rep;
+        Ok(mesh)
+    }
+
+    /// Number of vertices.
+    pub fn n_vertices(&self) -> usize {
+        self.p_init.len()
+    }
+
+    /// Number of triangles.
+    pub fn n_triangles(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// Number of kept connected components.
+    pub fn n_components(&self) -> usize {
+        self.report.component_triangles.len()
+    }
+
+    /// The triangle of the initial 2D grid containing pixel point `(u, v)` and its barycentric
+    /// coordinates, or `None` outside the mesh. O(1) thanks to the regular grid.
+    pub fn locate_initial(&self, u: f64, v: f64) -> Option<(usize, [f64; 3])> {
+        let s = self.grid_step_px as f64;
+        let (gu, gv) = (u / s, v / s);
+        if !(gu >= 0.0 && gv >= 0.0) {
+            return None;
+        }
+        let (nc, nr) = (self.grid_cols - 1, self.grid_rows - 1);
+        if nc == 0 || nr == 0 {
+            return None;
+        }
+        // Points on the last grid line belong to the last cell.
+        let i = (gu.floor() as usize).min(nc - 1);
+        let j = (gv.floor() as usize).min(nr - 1);
+        let (fu, fv) = (gu - i as f64, gv - j as f64);
+        if fu > 1.0 || fv > 1.0 {
+            return None;
+        }
+        let cf = self.cell_faces[j * nc + i];
+        let eps = 1e-12;
+        // Triangle 0 = (p00, p10, p01): barycentrics (1−fu−fv, fu, fv).
+        if fu + fv <= 1.0 + eps && cf[0] != NO_FACE {
+            return Some((cf[0] as usize, [1.0 - fu - fv, fu, fv]));
+        }
+        // Triangle 1 = (p10, p11, p01): barycentrics w10 = 1 − fv, w11 = fu + fv − 1, w01 = 1 − fu.
+        if fu + fv >= 1.0 - eps && cf[1] != NO_FACE {
+            return Some((cf[1] as usize, [1.0 - fv, fu + fv - 1.0, 1.0 - fu]));
+        }
+        None
+    }
+}
+
+/// Signed area of the 2D triangle (a, b, c) in px² (positive for the grid orientation).
+#[inline]
+pub fn signed_area(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+}

@@ -1,0 +1,163 @@
+//! The whole CPC pipeline (§4.4.6 steps 3–5) on one frame: meshes → system → λ (fixed or
+//! automatic, §4.5.4) → convex solve (eq. 4.11) → optional equiareal refinement (eq. 4.9) → warp.
+use crate::conformal::ConformalParams;
+use crate::equiareal::{refine, EquiarealParams};
+use crate::error::{CpcError, Result};
+use crate::lambda::{auto_lambda, default_lambda_grid, LambdaSweep};
+use crate::mesh::{CpcMesh, MeshParams, MeshReport};
+use crate::metrics;
+use crate::solve::{validate_lambda, CpcSystem};
+use crate::warp::Warp;
+use laparo_core::camera::Intrinsics;
+use laparo_core::depth::DepthMap;
+use laparo_core::image::{Image, Mask};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// How λ is chosen.
+#[derive(Clone, Debug, Serialize)]
+pub enum LambdaChoice {
+    /// A fixed λ ∈ [0, 1).
+    Fixed(f64),
+    /// Automatic selection (§4.5.4) over this λ grid.
+    Auto(Vec<f64>),
+}
+
+/// Default λ when none is given: strongly conformal while keeping the scale (see README).
+pub const DEFAULT_LAMBDA: f64 = 0.95;
+
+/// All parameters of a CPC run.
+#[derive(Clone, Debug, Serialize)]
+pub struct CpcParams {
+    pub mesh: MeshParams,
+    pub conformal: ConformalParams,
+    pub lambda: LambdaChoice,
+    /// Equiareal refinement (eq. 4.9); `None` (default) keeps the convex solution.
+    pub equiareal: Option<EquiarealParams>,
+}
+
+impl Default for CpcParams {
+    fn default() -> Self {
+        CpcParams {
+            mesh: MeshParams::default(),
+            conformal: ConformalParams::default(),
+            lambda: LambdaChoice::Fixed(DEFAULT_LAMBDA),
+            equiareal: None,
+        }
+    }
+}
+
+impl CpcParams {
+    /// Automatic λ over the default grid.
+    pub fn auto_lambda() -> LambdaChoice {
+        LambdaChoice::Auto(default_lambda_grid())
+    }
+}
+
+/// Figures of one CPC run (written as `stats.json` by the CLI).
+#[derive(Clone, Debug, Serialize)]
+pub struct CpcStats {
+    pub lambda: f64,
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    pub n_components: usize,
+    /// Mean |2D corner angle − 3D corner angle| (deg) of the initial grid.
+    pub angle_error_deg_before: f64,
+    /// Same for the flattened mesh.
+    pub angle_error_deg_after: f64,
+    /// δ_area (eq. 4.13) of the flattened mesh.
+    pub delta_area: f64,
+    pub n_flipped: usize,
+    pub mean_displacement_px: f64,
+    pub max_displacement_px: f64,
+    pub canvas_width: usize,
+    pub canvas_height: usize,
+    /// Flattened coordinates of canvas pixel (0, 0).
+    pub canvas_origin: [f64; 2],
+    pub equiareal_iterations: usize,
+    pub mesh: MeshReport,
+    pub timings_ms: BTreeMap<String, f64>,
+}
+
+/// Output of [`cpc_warp`].
+pub struct CpcResult {
+    pub warp: Warp,
+    pub warped: Image<u8>,
+    pub mask: Mask,
+    pub stats: CpcStats,
+    /// The λ sweep when λ was selected automatically.
+    pub sweep: Option<LambdaSweep>,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Run CPC on one frame: `image` (any channels), metric `depth`, intrinsics `k`, ROI `roi`.
+pub fn cpc_warp(image: &Image<u8>, depth: &DepthMap, k: &Intrinsics, roi: &Mask, params: &CpcParams) -> Result<CpcResult> {
+    if image.width != depth.width || image.height != depth.height {
+        return Err(CpcError::SizeMismatch(format!(
+            "image is {}x{}, depth is {}x{}",
+            image.width, image.height, depth.width, depth.height
+        )));
+    }
+    if let LambdaChoice::Fixed(l) = params.lambda {
+        validate_lambda(l)?;
+    }
+    let mut timings = BTreeMap::new();
+    let t = Instant::now();
+    let mesh = CpcMesh::build(roi, depth, k, &params.mesh)?;
+    timings.insert("mesh".to_string(), ms(t));
+    let t = Instant::now();
+    let system = CpcSystem::assemble(&mesh, &params.conformal)?;
+    timings.insert("assemble".to_string(), ms(t));
+    let mut sweep = None;
+    let lambda = match &params.lambda {
+        LambdaChoice::Fixed(l) => *l,
+        LambdaChoice::Auto(grid) => {
+            let t = Instant::now();
+            let s = auto_lambda(&system, &mesh, grid)?;
+            timings.insert("lambda_sweep".to_string(), ms(t));
+            let l = s.ell;
+            sweep = Some(s);
+            l
+        }
+    };
+    let t = Instant::now();
+    let mut p = system.solve(lambda)?;
+    timings.insert("solve".to_string(), ms(t));
+    let mut eq_iters = 0;
+    if let Some(ep) = &params.equiareal {
+        let t = Instant::now();
+        let r = refine(&system, &mesh, &p, lambda, ep)?;
+        p = r.p;
+        eq_iters = r.iterations;
+        timings.insert("equiareal".to_string(), ms(t));
+    }
+    let t = Instant::now();
+    let warp = Warp::new(&mesh, p, image.width, image.height)?;
+    let (warped, mask) = warp.warp_image(image)?;
+    timings.insert("warp".to_string(), ms(t));
+    let p = &warp.p_flat;
+    let (mean_d, max_d) = metrics::displacement_px(p, &mesh.p_init);
+    let stats = CpcStats {
+        lambda,
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+        n_components: mesh.n_components(),
+        angle_error_deg_before: metrics::angle_error_deg(&mesh.p_init, &mesh.x3d, &mesh.faces),
+        angle_error_deg_after: metrics::angle_error_deg(p, &mesh.x3d, &mesh.faces),
+        delta_area: metrics::delta_area(p, &mesh.p_init, &mesh.faces),
+        n_flipped: metrics::n_flipped(p, &mesh.faces),
+        mean_displacement_px: mean_d,
+        max_displacement_px: max_d,
+        canvas_width: warp.width,
+        canvas_height: warp.height,
+        canvas_origin: warp.origin,
+        equiareal_iterations: eq_iters,
+        mesh: mesh.report.clone(),
+        timings_ms: timings,
+    };
+    Ok(CpcResult { warp, warped, mask, stats, sweep })
+}

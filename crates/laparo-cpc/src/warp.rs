@@ -1,0 +1,349 @@
+//! Step 5 of the CPC pipeline (§4.4.6): the input image is used as a texture and mapped onto the
+//! flattened mesh by piecewise-affine interpolation. Every output pixel is inverse-mapped (the
+//! affine map of the flattened triangle that contains it) to the original image and sampled
+//! bilinearly. The output canvas is the bounding box of the flattened mesh; canvas pixel (i, j)
+//! is the flattened point (i + origin_x, j + origin_y).
+//!
+//! Dense coordinate maps (canvas → original and original → canvas) let an external matcher run on
+//! the warped image and bring its keypoints back; [`Warp::original_to_warped`] and
+//! [`Warp::warped_to_original`] do the same for single points (barycentric coordinates).
+use crate::error::{CpcError, Result};
+use crate::mesh::{signed_area, CpcMesh};
+use laparo_core::image::{Image, Mask};
+use rayon::prelude::*;
+
+const NONE: u32 = u32::MAX;
+
+/// Largest canvas accepted, as a multiple of the input image area (guards against exploded solutions).
+pub const MAX_CANVAS_FACTOR: usize = 16;
+
+/// A piecewise-affine warp from the initial grid to its flattened counterpart.
+#[derive(Clone, Debug)]
+pub struct Warp {
+    mesh: CpcMesh,
+    /// Flattened vertex positions (px, solver frame).
+    pub p_flat: Vec<[f64; 2]>,
+    /// Canvas origin in the flattened frame (integer).
+    pub origin: [f64; 2],
+    /// Canvas size (px).
+    pub width: usize,
+    pub height: usize,
+    /// Original image size (px).
+    pub src_width: usize,
+    pub src_height: usize,
+    /// Per face: affine map canvas → original, [a00, a01, a10, a11] and anchor points (canvas a, original A).
+    inv_lin: Vec<[f64; 4]>,
+    /// Per face: affine map original → canvas (linear part).
+    fwd_lin: Vec<[f64; 4]>,
+    /// Triangle covering every canvas pixel (or NONE).
+    face_id: Vec<u32>,
+    /// Bucket grid over the canvas for point location.
+    bucket_px: f64,
+    bucket_cols: usize,
+    bucket_rows: usize,
+    bucket_start: Vec<u32>,
+    bucket_items: Vec<u32>,
+}
+
+/// Dense coordinate maps of a warp.
+pub struct WarpMaps {
+    /// Canvas-sized, 2 channels: original (x, y) of every warped pixel (NaN where invalid).
+    pub backward: Image<f64>,
+    /// Original-sized, 2 channels: canvas (x, y) of every original pixel (NaN outside the mesh).
+    pub forward: Image<f64>,
+}
+
+/// `[[e0x, e1x], [e0y, e1y]] · adj([[f0x, f1x], [f0y, f1y]]) / det(F)`: the linear part of the
+/// affine map sending edges f to edges e. Multiplying before dividing keeps the identity exact.
+fn edge_map(e0: [f64; 2], e1: [f64; 2], f0: [f64; 2], f1: [f64; 2]) -> Option<[f64; 4]> {
+    let det = f0[0] * f1[1] - f1[0] * f0[1];
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    // adj(F) = [[f1y, −f1x], [−f0y, f0x]]
+    let m00 = e0[0] * f1[1] - e1[0] * f0[1];
+    let m01 = -e0[0] * f1[0] + e1[0] * f0[0];
+    let m10 = e0[1] * f1[1] - e1[1] * f0[1];
+    let m11 = -e0[1] * f1[0] + e1[1] * f0[0];
+    Some([m00 / det, m01 / det, m10 / det, m11 / det])
+}
+
+#[inline]
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+/// Barycentric coordinates of `q` in triangle (a, b, c).
+#[inline]
+fn barycentric(q: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> [f64; 3] {
+    let d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    let wb = ((q[0] - a[0]) * (c[1] - a[1]) - (q[1] - a[1]) * (c[0] - a[0])) / d;
+    let wc = ((b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0])) / d;
+    [1.0 - wb - wc, wb, wc]
+}
+
+impl Warp {
+    /// Build the warp of `mesh` to the flattened positions `p_flat` (one per vertex).
+    pub fn new(mesh: &CpcMesh, p_flat: Vec<[f64; 2]>, src_width: usize, src_height: usize) -> Result<Warp> {
+        if p_flat.len() != mesh.n_vertices() {
+            return Err(CpcError::SizeMismatch(format!(
+                "{} flattened positions for {} vertices",
+                p_flat.len(),
+                mesh.n_vertices()
+            )));
+        }
+        if p_flat.iter().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
+            return Err(CpcError::invalid("flattened mesh", "has non-finite vertex positions"));
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &p_flat {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let origin = [lo[0].floor(), lo[1].floor()];
+        let width = (hi[0] - origin[0]).floor() as usize + 1;
+        let height = (hi[1] - origin[1]).floor() as usize + 1;
+        if width.saturating_mul(height) > MAX_CANVAS_FACTOR * src_width.max(1) * src_height.max(1) {
+            return Err(CpcError::invalid(
+                "flattened mesh",
+                format!("canvas {width}x{height} is more than {MAX_CANVAS_FACTOR}x the input image"),
+            ));
+        }
+        let canvas: Vec<[f64; 2]> = p_flat.iter().map(|p| sub(*p, origin)).collect();
+        let m = mesh.n_triangles();
+        let mut inv_lin = Vec::with_capacity(m);
+        let mut fwd_lin = Vec::with_capacity(m);
+        for f in &mesh.faces {
+            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+            let (pa, pb, pc) = (mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
+            let inv = edge_map(sub(pb, pa), sub(pc, pa), sub(b, a), sub(c, a)).unwrap_or([f64::NAN; 4]);
+            let fwd = edge_map(sub(b, a), sub(c, a), sub(pb, pa), sub(pc, pa)).unwrap_or([f64::NAN; 4]);
+            inv_lin.push(inv);
+            fwd_lin.push(fwd);
+        }
+        // Rasterise: canvas pixel → covering triangle.
+        let mut face_id = vec![NONE; width * height];
+        let eps = 1e-9;
+        for (t, f) in mesh.faces.iter().enumerate() {
+            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+            if signed_area(a, b, c) == 0.0 || inv_lin[t][0].is_nan() {
+                continue;
+            }
+            let x0 = a[0].min(b[0]).min(c[0]).ceil().max(0.0) as usize;
+            let y0 = a[1].min(b[1]).min(c[1]).ceil().max(0.0) as usize;
+            let x1 = (a[0].max(b[0]).max(c[0]).floor() as usize).min(width - 1);
+            let y1 = (a[1].max(b[1]).max(c[1]).floor() as usize).min(height - 1);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let w = barycentric([x as f64, y as f64], a, b, c);
+                    if w[0] >= -eps && w[1] >= -eps && w[2] >= -eps {
+                        face_id[y * width + x] = t as u32;
+                    }
+                }
+            }
+        }
+        // Buckets for point location (cell ≈ 2 grid steps).
+        let bucket_px = (2 * mesh.grid_step_px).max(4) as f64;
+        let bucket_cols = (width as f64 / bucket_px).ceil() as usize + 1;
+        let bucket_rows = (height as f64 / bucket_px).ceil() as usize + 1;
+        let mut counts = vec![0u32; bucket_cols * bucket_rows + 1];
+        let brange = |f: &[usize; 3]| {
+            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+            let bx0 = (a[0].min(b[0]).min(c[0]) / bucket_px).floor().max(0.0) as usize;
+            let by0 = (a[1].min(b[1]).min(c[1]) / bucket_px).floor().max(0.0) as usize;
+            let bx1 = ((a[0].max(b[0]).max(c[0]) / bucket_px).floor() as usize).min(bucket_cols - 1);
+            let by1 = ((a[1].max(b[1]).max(c[1]) / bucket_px).floor() as usize).min(bucket_rows - 1);
+            (bx0, by0, bx1, by1)
+        };
+        for f in &mesh.faces {
+            let (bx0, by0, bx1, by1) = brange(f);
+            for by in by0..=by1 {
+                for bx in bx0..=bx1 {
+                    counts[by * bucket_cols + bx + 1] += 1;
+                }
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let bucket_start = counts.clone();
+        let mut fill = counts;
+        let mut bucket_items = vec![0u32; *bucket_start.last().unwrap() as usize];
+        for (t, f) in mesh.faces.iter().enumerate() {
+            let (bx0, by0, bx1, by1) = brange(f);
+            for by in by0..=by1 {
+                for bx in bx0..=bx1 {
+                    let b = by * bucket_cols + bx;
+                    bucket_items[fill[b] as usize] = t as u32;
+                    fill[b] += 1;
+                }
+            }
+        }
+        Ok(Warp {
+            mesh: mesh.clone(),
+            p_flat,
+            origin,
+            width,
+            height,
+            src_width,
+            src_height,
+            inv_lin,
+            fwd_lin,
+            face_id,
+            bucket_px,
+            bucket_cols,
+            bucket_rows,
+            bucket_start,
+            bucket_items,
+        })
+    }
+
+    /// The mesh this warp was built on.
+    pub fn mesh(&self) -> &CpcMesh {
+        &self.mesh
+    }
+
+    /// Canvas position of vertex `v`.
+    #[inline]
+    fn canvas_vertex(&self, v: usize) -> [f64; 2] {
+        sub(self.p_flat[v], self.origin)
+    }
+
+    /// Original coordinates of canvas point `q` through the affine map of face `t`.
+    #[inline]
+    fn inv_affine(&self, t: usize, q: [f64; 2]) -> [f64; 2] {
+        let f = self.mesh.faces[t];
+        let a = self.canvas_vertex(f[0]);
+        let pa = self.mesh.p_init[f[0]];
+        let l = self.inv_lin[t];
+        let d = sub(q, a);
+        [pa[0] + (l[0] * d[0] + l[1] * d[1]), pa[1] + (l[2] * d[0] + l[3] * d[1])]
+    }
+
+    /// Canvas coordinates of original point `q` through the affine map of face `t`.
+    #[inline]
+    fn fwd_affine(&self, t: usize, q: [f64; 2]) -> [f64; 2] {
+        let f = self.mesh.faces[t];
+        let a = self.canvas_vertex(f[0]);
+        let pa = self.mesh.p_init[f[0]];
+        let l = self.fwd_lin[t];
+        let d = sub(q, pa);
+        [a[0] + (l[0] * d[0] + l[1] * d[1]), a[1] + (l[2] * d[0] + l[3] * d[1])]
+    }
+
+    /// Original image coordinates of canvas pixel (x, y), if it is covered by the mesh.
+    pub fn backward_pixel(&self, x: usize, y: usize) -> Option<[f64; 2]> {
+        let t = *self.face_id.get(y * self.width + x)?;
+        if t == NONE {
+            return None;
+        }
+        Some(self.inv_affine(t as usize, [x as f64, y as f64]))
+    }
+
+    /// Warp `image` (any number of channels, same size as the depth/ROI): piecewise-affine,
+    /// inverse mapping, bilinear sampling. Returns the warped image and its validity mask.
+    pub fn warp_image(&self, image: &Image<u8>) -> Result<(Image<u8>, Mask)> {
+        if image.width != self.src_width || image.height != self.src_height {
+            return Err(CpcError::SizeMismatch(format!(
+                "image is {}x{}, the mesh was built on {}x{}",
+                image.width, image.height, self.src_width, self.src_height
+            )));
+        }
+        let ch = image.channels;
+        let mut out = Image::filled(self.width, self.height, ch, 0u8);
+        let mut mask = Image::filled(self.width, self.height, 1, false);
+        let (wmax, hmax) = ((image.width - 1) as f64, (image.height - 1) as f64);
+        out.data.par_chunks_mut(self.width * ch).zip(mask.data.par_chunks_mut(self.width)).enumerate().for_each(
+            |(y, (row, mrow))| {
+                for x in 0..self.width {
+                    if let Some(q) = self.backward_pixel(x, y) {
+                        // Clamp round-off just outside the pixel-centre hull.
+                        let qx = q[0].clamp(0.0, wmax);
+                        let qy = q[1].clamp(0.0, hmax);
+                        for c in 0..ch {
+                            let v = image.sample_bilinear(qx, qy, c).unwrap_or(0.0);
+                            row[x * ch + c] = v.round().clamp(0.0, 255.0) as u8;
+                        }
+                        mrow[x] = true;
+                    }
+                }
+            },
+        );
+        Ok((out, mask))
+    }
+
+    /// Dense coordinate maps (see [`WarpMaps`]).
+    pub fn maps(&self) -> WarpMaps {
+        let mut backward = Image::filled(self.width, self.height, 2, f64::NAN);
+        backward.data.par_chunks_mut(self.width * 2).enumerate().for_each(|(y, row)| {
+            for x in 0..self.width {
+                if let Some(q) = self.backward_pixel(x, y) {
+                    row[2 * x] = q[0];
+                    row[2 * x + 1] = q[1];
+                }
+            }
+        });
+        let mut forward = Image::filled(self.src_width, self.src_height, 2, f64::NAN);
+        forward.data.par_chunks_mut(self.src_width * 2).enumerate().for_each(|(y, row)| {
+            for x in 0..self.src_width {
+                if let Some(q) = self.original_to_warped(x as f64, y as f64) {
+                    row[2 * x] = q[0];
+                    row[2 * x + 1] = q[1];
+                }
+            }
+        });
+        WarpMaps { backward, forward }
+    }
+
+    /// Canvas coordinates of original image point (u, v), or `None` outside the mesh.
+    pub fn original_to_warped(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        let (t, w) = self.mesh.locate_initial(u, v)?;
+        let f = self.mesh.faces[t];
+        let (a, b, c) = (self.canvas_vertex(f[0]), self.canvas_vertex(f[1]), self.canvas_vertex(f[2]));
+        Some([w[0] * a[0] + w[1] * b[0] + w[2] * c[0], w[0] * a[1] + w[1] * b[1] + w[2] * c[1]])
+    }
+
+    /// The flattened triangle containing canvas point (x, y) and its barycentric coordinates.
+    pub fn locate_warped(&self, x: f64, y: f64) -> Option<(usize, [f64; 3])> {
+        if !(x.is_finite() && y.is_finite()) {
+            return None;
+        }
+        let bx = (x / self.bucket_px).floor();
+        let by = (y / self.bucket_px).floor();
+        if bx < 0.0 || by < 0.0 || bx as usize >= self.bucket_cols || by as usize >= self.bucket_rows {
+            return None;
+        }
+        let b = by as usize * self.bucket_cols + bx as usize;
+        let mut best: Option<(usize, [f64; 3], f64)> = None;
+        for &t in &self.bucket_items[self.bucket_start[b] as usize..self.bucket_start[b + 1] as usize] {
+            let f = self.mesh.faces[t as usize];
+            let (a, bb, c) = (self.canvas_vertex(f[0]), self.canvas_vertex(f[1]), self.canvas_vertex(f[2]));
+            if signed_area(a, bb, c) == 0.0 {
+                continue;
+            }
+            let w = barycentric([x, y], a, bb, c);
+            let mn = w[0].min(w[1]).min(w[2]);
+            if mn >= -1e-9 && best.as_ref().map_or(true, |bst| mn > bst.2) {
+                best = Some((t as usize, w, mn));
+            }
+        }
+        best.map(|(t, w, _)| (t, w))
+    }
+
+    /// Original image coordinates of canvas point (x, y), or `None` outside the flattened mesh.
+    pub fn warped_to_original(&self, x: f64, y: f64) -> Option<[f64; 2]> {
+        let (t, w) = self.locate_warped(x, y)?;
+        let f = self.mesh.faces[t];
+        let (a, b, c) = (self.mesh.p_init[f[0]], self.mesh.p_init[f[1]], self.mesh.p_init[f[2]]);
+        Some([w[0] * a[0] + w[1] * b[0] + w[2] * c[0], w[0] * a[1] + w[1] * b[1] + w[2] * c[1]])
+    }
+
+    /// Canvas coordinates of original point `q` by the affine map of the initial triangle
+    /// containing it (same as [`Warp::original_to_warped`], via the per-face affine maps).
+    pub fn original_to_warped_affine(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        let (t, _) = self.mesh.locate_initial(u, v)?;
+        Some(self.fwd_affine(t, [u, v]))
+    }
+}
