@@ -17,6 +17,7 @@ pub mod linalg;
 pub mod loss;
 pub mod neo_hookean;
 pub mod p2g;
+pub mod reference;
 pub mod sampling;
 pub mod scene;
 pub mod simulate;
