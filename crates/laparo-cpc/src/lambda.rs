@@ -252,3 +252,41 @@ impl LambdaSweep {
         s
     }
 }
+
+impl LambdaSweep {
+    /// Plot δ_area(λ), the fitted model f(λ) and ℓ (like thesis Fig. 4.12c) as PNG.
+    pub fn plot_png(&self, path: &std::path::Path) -> Result<()> {
+        use plotters::prelude::*;
+        let ymax = self.points.iter().map(|p| p.delta_area).fold(1.0_f64, f64::max) * 1.08;
+        let fit = self.fit.clone();
+        let pts: Vec<(f64, f64)> = self.points.iter().map(|p| (p.lambda, p.delta_area)).collect();
+        let ell = self.ell;
+        laparo_core::plot::draw_png(path, 720, 460, move |root| {
+            let mut chart = ChartBuilder::on(&root)
+                .caption(format!("automatic λ: δ_area(λ), fit (eq. 4.14), ℓ = {ell:.3}"), ("sans-serif", 20))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(55)
+                .build_cartesian_2d(0f64..1f64, 0f64..ymax)?;
+            chart.configure_mesh().x_desc("λ").y_desc("δ_area (eq. 4.13)").draw()?;
+            chart
+                .draw_series(LineSeries::new(
+                    (0..=1000).map(|i| i as f64 / 1000.0).map(|l| (l, fit.eval(l).clamp(0.0, ymax))),
+                    BLUE.stroke_width(2),
+                ))?
+                .label("fit f(λ)")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+            chart
+                .draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 4, BLACK.filled())))?
+                .label("measured δ_area")
+                .legend(|(x, y)| Circle::new((x + 10, y), 4, BLACK.filled()));
+            chart
+                .draw_series(LineSeries::new(vec![(ell, 0.0), (ell, ymax)], RED.stroke_width(2)))?
+                .label("ℓ")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+            chart.configure_series_labels().position(SeriesLabelPosition::UpperLeft).border_style(BLACK).draw()?;
+            Ok(())
+        })?;
+        Ok(())
+    }
+}

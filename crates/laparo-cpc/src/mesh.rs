@@ -295,22 +295,31 @@ impl CpcMesh {
         if nc == 0 || nr == 0 {
             return None;
         }
-        // Points on the last grid line belong to the last cell.
-        let i = (gu.floor() as usize).min(nc - 1);
-        let j = (gv.floor() as usize).min(nr - 1);
-        let (fu, fv) = (gu - i as f64, gv - j as f64);
-        if fu > 1.0 || fv > 1.0 {
-            return None;
-        }
-        let cf = self.cell_faces[j * nc + i];
+        // Points on a grid line also belong to the cells on its left / above.
+        let i = (gu.floor() as usize).min(nc);
+        let j = (gv.floor() as usize).min(nr);
         let eps = 1e-12;
-        // Triangle 0 = (p00, p10, p01): barycentrics (1−fu−fv, fu, fv).
-        if fu + fv <= 1.0 + eps && cf[0] != NO_FACE {
-            return Some((cf[0] as usize, [1.0 - fu - fv, fu, fv]));
-        }
-        // Triangle 1 = (p10, p11, p01): barycentrics w10 = 1 − fv, w11 = fu + fv − 1, w01 = 1 − fu.
-        if fu + fv >= 1.0 - eps && cf[1] != NO_FACE {
-            return Some((cf[1] as usize, [1.0 - fv, fu + fv - 1.0, 1.0 - fu]));
+        for (di, dj) in [(0usize, 0usize), (1, 0), (0, 1), (1, 1)] {
+            if i < di || j < dj {
+                continue;
+            }
+            let (ci, cj) = (i - di, j - dj);
+            if ci >= nc || cj >= nr {
+                continue;
+            }
+            let (fu, fv) = (gu - ci as f64, gv - cj as f64);
+            if !(fu >= -eps && fv >= -eps && fu <= 1.0 + eps && fv <= 1.0 + eps) {
+                continue;
+            }
+            let cf = self.cell_faces[cj * nc + ci];
+            // Triangle 0 = (p00, p10, p01): barycentrics (1−fu−fv, fu, fv).
+            if fu + fv <= 1.0 + eps && cf[0] != NO_FACE {
+                return Some((cf[0] as usize, [1.0 - fu - fv, fu, fv]));
+            }
+            // Triangle 1 = (p10, p11, p01): barycentrics w10 = 1 − fv, w11 = fu + fv − 1, w01 = 1 − fu.
+            if fu + fv >= 1.0 - eps && cf[1] != NO_FACE {
+                return Some((cf[1] as usize, [1.0 - fv, fu + fv - 1.0, 1.0 - fu]));
+            }
         }
         None
     }
