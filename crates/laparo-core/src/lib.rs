@@ -8,15 +8,18 @@
 pub mod atomic;
 pub mod calib;
 pub mod camera;
+pub mod colormap;
 pub mod depth;
 pub mod error;
 pub mod homography;
 pub mod image;
 pub mod io;
+pub mod plot;
 pub mod se3;
 
 pub use calib::StereoCalibration;
 pub use camera::{Distortion, Intrinsics};
+pub use colormap::Colormap;
 pub use depth::{DepthMap, DepthUnit};
 pub use error::{CoreError, Result};
 pub use homography::Homography;
