@@ -22,6 +22,7 @@
 //! | `motion` | uniform line kernel of length L at a random angle (bilinear taps, replicate borders) | L = 9 / 17 / 29 px |
 //! | `dirt` | translucent blurred spots: `I = (1−α)((1−b) J + b J_blur) + α C`, Gaussian α with irregular outline, b = min(1, 2α), C ≈ (0.75, 0.72, 0.60) | spots 3 / 6 / 10, σ 0.05 / 0.07 / 0.09·min(w,h), opacity 0.35 / 0.50 / 0.65, blur radius 3 / 5 / 8 px |
 use laparo_core::{CoreError, Image, Result};
+use plotters::style::IntoFont;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -208,7 +209,9 @@ impl ValueNoise {
 
     /// Noise value in [0, 1) at pixel (x, y) (C¹ continuous).
     pub fn at(&self, x: f64, y: f64) -> f32 {
-        let (gx, gy) = ((x / self.cell).max(0.0), (y / self.cell).max(0.0));
+        // Clamped to the lattice: points outside the covered area repeat the border value.
+        let gx = (x / self.cell).clamp(0.0, (self.gw - 1) as f64);
+        let gy = (y / self.cell).clamp(0.0, (self.gh - 1) as f64);
         let (i, j) = ((gx.floor() as usize).min(self.gw - 2), (gy.floor() as usize).min(self.gh - 2));
         let (fx, fy) = ((gx - i as f64) as f32, (gy - j as f64) as f32);
         let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
@@ -508,6 +511,63 @@ pub fn mean_abs_diff(a: &Image<u8>, b: &Image<u8>) -> Result<f64> {
     }
     let s: u64 = a.data.iter().zip(&b.data).map(|(&x, &y)| (x as i32 - y as i32).unsigned_abs() as u64).sum();
     Ok(s as f64 / a.data.len().max(1) as f64)
+}
+
+/// A labelled contact sheet (like thesis Fig. 3.2): one row per entry of `rows`
+/// (`(label, images)`), columns titled by `col_labels`; images are shrunk to `thumb_w` px wide
+/// (box filter). Blank cells are left white when a row is shorter.
+pub fn contact_sheet(rows: &[(String, Vec<Image<u8>>)], col_labels: &[String], thumb_w: usize) -> Result<Image<u8>> {
+    let first =
+        rows.iter().flat_map(|r| r.1.first()).next().ok_or_else(|| CoreError::invalid("contact sheet", "no image"))?;
+    let tw = thumb_w.clamp(8, first.width.max(8));
+    let th = (first.height * tw / first.width).max(1);
+    let (left, top, gap) = (110usize, 26usize, 4usize);
+    let ncol = col_labels.len().max(rows.iter().map(|r| r.1.len()).max().unwrap_or(0));
+    let (w, h) = (left + ncol * (tw + gap), top + rows.len() * (th + gap));
+    let mut canvas = laparo_core::plot::render_rgb(w as u32, h as u32, |root| {
+        let font = ("sans-serif", 15).into_font();
+        for (c, l) in col_labels.iter().enumerate() {
+            root.draw_text(l, &font.clone().into(), ((left + c * (tw + gap) + 4) as i32, 5))?;
+        }
+        for (r, (l, _)) in rows.iter().enumerate() {
+            root.draw_text(l, &font.clone().into(), (4, (top + r * (th + gap) + th / 2 - 7) as i32))?;
+        }
+        Ok(())
+    })
+    .map_err(|e| CoreError::invalid("contact sheet", e))?;
+    for (r, (_, imgs)) in rows.iter().enumerate() {
+        for (c, img) in imgs.iter().enumerate() {
+            let t = shrink(&img.to_rgb(), tw, th);
+            let (x0, y0) = (left + c * (tw + gap), top + r * (th + gap));
+            for y in 0..th {
+                let dst = ((y0 + y) * w + x0) * 3;
+                canvas.data[dst..dst + tw * 3].copy_from_slice(&t.data[y * tw * 3..(y + 1) * tw * 3]);
+            }
+        }
+    }
+    Ok(canvas)
+}
+
+/// Box-filter downscale of an RGB image to `tw × th`.
+fn shrink(img: &Image<u8>, tw: usize, th: usize) -> Image<u8> {
+    let mut out = Image::filled(tw, th, 3, 0u8);
+    for y in 0..th {
+        let (y0, y1) = (y * img.height / th, ((y + 1) * img.height / th).max(y * img.height / th + 1));
+        for x in 0..tw {
+            let (x0, x1) = (x * img.width / tw, ((x + 1) * img.width / tw).max(x * img.width / tw + 1));
+            let mut acc = [0u32; 3];
+            for yy in y0..y1.min(img.height) {
+                for xx in x0..x1.min(img.width) {
+                    for c in 0..3 {
+                        acc[c] += img.get(xx, yy, c) as u32;
+                    }
+                }
+            }
+            let n = ((y1.min(img.height) - y0) * (x1.min(img.width) - x0)).max(1) as u32;
+            out.pixel_mut(x, y).copy_from_slice(&acc.map(|a| ((a + n / 2) / n) as u8));
+        }
+    }
+    out
 }
 
 #[cfg(test)]

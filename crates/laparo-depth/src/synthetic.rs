@@ -96,7 +96,7 @@ enum Hit {
 impl Surface {
     fn new(rng: &mut ChaCha8Rng) -> Surface {
         // Texture fields live in metric lateral coordinates scaled to "pixels" of 0.1 mm.
-        let span = 2000; // 20 cm of lateral extent at 0.1 mm per unit
+        let span = 4000; // 40 cm of lateral extent at 0.1 mm per unit
         let organs = vec![
             Organ {
                 cx: rng.gen_range(-0.025..-0.01),
@@ -137,7 +137,7 @@ impl Surface {
 
     /// Texture coordinates (0.1 mm units, offset to be positive) of lateral point (X, Y) in m.
     fn uv(x: f64, y: f64) -> (f64, f64) {
-        ((x + 0.1) * 1e4, (y + 0.1) * 1e4)
+        ((x + 0.2) * 1e4, (y + 0.2) * 1e4)
     }
 
     /// Depth of surface `hit` at lateral (X, Y), m (None if that organ does not cover it).
@@ -288,7 +288,7 @@ fn render(surface: &Surface, k: &Intrinsics) -> Result<SyntheticScene> {
                 n = -n;
             }
             let ndl = n.dot(&l).max(0.0) as f32;
-            let fall = (0.09 / z).powi(2) as f32;
+            let fall = ((0.11 / z).powi(2) as f32).min(1.4);
             let (u, v) = Surface::uv(p.x, p.y);
             let wet = 0.25 + 0.75 * surface.wet.at(u, v);
             let spec = 0.9 * wet * ndl.powf(60.0) * fall.min(1.5);
@@ -429,7 +429,7 @@ pub fn default_methods() -> Vec<SyntheticMethod> {
             kind: PredKind::Depth,
             scale: 0.3,
             shift: 0.0,
-            noise_rel: 0.05,
+            noise_rel: 0.08,
             flatten: 0.25,
             sensitivity: 0.9,
         },
@@ -438,7 +438,7 @@ pub fn default_methods() -> Vec<SyntheticMethod> {
             kind: PredKind::Disparity,
             scale: 0.02,
             shift: 1.5,
-            noise_rel: 0.015,
+            noise_rel: 0.03,
             flatten: 0.05,
             sensitivity: 0.35,
         },
@@ -447,7 +447,7 @@ pub fn default_methods() -> Vec<SyntheticMethod> {
             kind: PredKind::Disparity,
             scale: 0.05,
             shift: 0.3,
-            noise_rel: 0.035,
+            noise_rel: 0.05,
             flatten: 0.12,
             sensitivity: 0.7,
         },
@@ -456,7 +456,7 @@ pub fn default_methods() -> Vec<SyntheticMethod> {
             kind: PredKind::Depth,
             scale: 1.15,
             shift: 0.0,
-            noise_rel: 0.04,
+            noise_rel: 0.06,
             flatten: 0.15,
             sensitivity: 0.5,
         },
