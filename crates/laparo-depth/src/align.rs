@@ -199,7 +199,7 @@ pub fn median(v: &mut [f64]) -> f64 {
         return f64::NAN;
     }
     let k = n / 2;
-    let (lo, mid, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+    let (lo, mid, _) = v.select_nth_unstable_by(k, |a, b| a.partial_cmp(b).unwrap_or_else(|| a.total_cmp(b)));
     let hi = *mid;
     if n % 2 == 1 {
         hi

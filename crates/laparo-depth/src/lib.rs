@@ -10,3 +10,5 @@ pub mod metrics;
 pub mod robustness;
 pub mod manifest;
 pub mod eval;
+pub mod report;
+pub mod bench;

@@ -197,6 +197,26 @@ pub fn select_valid(
     mask: Option<&[bool]>,
     policy: InvalidPredPolicy,
 ) -> Result<ValidPixels> {
+    let mut v = ValidPixels::default();
+    select_valid_into(&mut v, pred, kind, gt_m, mask, policy)?;
+    Ok(v)
+}
+
+fn grow<T: Copy + Default>(v: &mut Vec<T>, n: usize) {
+    if v.len() < n {
+        v.resize(n, T::default());
+    }
+}
+
+/// [`select_valid`] into reused buffers (no allocation once they are large enough).
+pub fn select_valid_into(
+    v: &mut ValidPixels,
+    pred: &[f64],
+    kind: PredKind,
+    gt_m: &[f64],
+    mask: Option<&[bool]>,
+    policy: InvalidPredPolicy,
+) -> Result<()> {
     if pred.len() != gt_m.len() {
         return Err(DepthError::invalid(
             "size",
@@ -214,47 +234,49 @@ pub fn select_valid(
             return Err(DepthError::invalid("mask", "selects no pixel (all false)"));
         }
     }
-    let mut v = ValidPixels::default();
-    let cap = gt_m.len();
-    v.d.reserve(cap);
-    v.z_gt.reserve(cap);
-    v.d_gt.reserve(cap);
-    v.index.reserve(cap);
+    let n = gt_m.len();
+    grow(&mut v.d, n);
+    grow(&mut v.z_gt, n);
+    grow(&mut v.d_gt, n);
+    grow(&mut v.index, n);
+    // Branch-free stream compaction: write every pixel, advance only over valid ones.
+    let mut k = 0usize;
     let mut n_gt_valid = 0usize;
-    for (i, (&p, &z)) in pred.iter().zip(gt_m).enumerate() {
-        if !(z.is_finite() && z > 0.0) {
-            continue;
-        }
-        n_gt_valid += 1;
-        if let Some(m) = mask {
-            if !m[i] {
-                continue;
-            }
-        }
-        let d = match kind {
-            PredKind::Disparity => p,
-            PredKind::Depth => {
-                if p.is_finite() && p > 0.0 {
-                    1.0 / p
-                } else {
-                    f64::NAN
+    let mut n_bad = 0usize;
+    let exclude = policy == InvalidPredPolicy::Exclude;
+    {
+        let (d_out, z_out, g_out, idx) = (&mut v.d[..n], &mut v.z_gt[..n], &mut v.d_gt[..n], &mut v.index[..n]);
+        for i in 0..n {
+            let z = gt_m[i];
+            let p = pred[i];
+            let gt_ok = z.is_finite() && z > 0.0;
+            n_gt_valid += gt_ok as usize;
+            let inside = gt_ok && mask.map_or(true, |m| m[i]);
+            let d = match kind {
+                PredKind::Disparity => p,
+                PredKind::Depth => {
+                    if p.is_finite() && p > 0.0 {
+                        1.0 / p
+                    } else {
+                        f64::NAN
+                    }
                 }
-            }
-        };
-        let d = if d.is_finite() {
-            d
-        } else {
-            v.n_invalid_pred += 1;
-            match policy {
-                InvalidPredPolicy::Far | InvalidPredPolicy::Error => 0.0,
-                InvalidPredPolicy::Exclude => continue,
-            }
-        };
-        v.d.push(d);
-        v.z_gt.push(z);
-        v.d_gt.push(1.0 / z);
-        v.index.push(i as u32);
+            };
+            let bad = !d.is_finite();
+            n_bad += (inside && bad) as usize;
+            // k <= i < n: the slot exists.
+            d_out[k] = if bad { 0.0 } else { d };
+            z_out[k] = z;
+            g_out[k] = 1.0 / z;
+            idx[k] = i as u32;
+            k += (inside && !(bad && exclude)) as usize;
+        }
     }
+    v.d.truncate(k);
+    v.z_gt.truncate(k);
+    v.d_gt.truncate(k);
+    v.index.truncate(k);
+    v.n_invalid_pred = n_bad;
     let n_in = v.d.len() + if policy == InvalidPredPolicy::Exclude { v.n_invalid_pred } else { 0 };
     v.n_masked_out = n_gt_valid - n_in;
     if n_gt_valid == 0 {
@@ -281,7 +303,7 @@ pub fn select_valid(
             format!("has {} invalid value(s) on valid ground-truth pixels (policy: error)", v.n_invalid_pred),
         ));
     }
-    Ok(v)
+    Ok(())
 }
 
 /// All metrics of disparity `d` aligned with `p` against GT depth `z_gt` (m), GT disparity
@@ -295,7 +317,6 @@ pub fn metrics(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: Dep
         let z = p.depth(di, range);
         let diff = zg - z;
         let r = z * ig; // ẑ / z*
-        let q = zg / z; // z* / ẑ
         s_abs += diff.abs() * ig;
         let d2 = diff * diff;
         s_sqrel += d2 * ig;
@@ -303,9 +324,9 @@ pub fn metrics(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: Dep
         let e = r.ln(); // log ẑ − log z*
         s_e += e;
         s_e2 += e * e;
-        let ratio = if q > r { q } else { r };
+        // max(z*/ẑ, ẑ/z*) < thr  <=>  ẑ/z* < thr and z* < thr·ẑ (no division).
         for k in 0..5 {
-            cnt[k] += (ratio < thr[k]) as usize;
+            cnt[k] += ((r < thr[k]) & (zg < thr[k] * z)) as usize;
         }
     }
     let n = d.len() as f64;
@@ -362,16 +383,18 @@ pub fn evaluate_valid(v: &ValidPixels, opts: &PairOptions) -> PairMetrics {
         scale: None,
         scale_shift: None,
     };
-    let mut scratch = Vec::new();
-    for &a in &opts.alignments {
-        let p = fit(a, &v.d, &v.d_gt, &mut scratch);
-        let m = metrics(&v.z_gt, &v.d_gt, &v.d, p, opts.range);
-        match a {
-            Alignment::None => out.none = Some(m),
-            Alignment::Scale => out.scale = Some(m),
-            Alignment::ScaleShift => out.scale_shift = Some(m),
+    SCRATCH.with(|sc| {
+        let mut scratch = sc.borrow_mut();
+        for &a in &opts.alignments {
+            let p = fit(a, &v.d, &v.d_gt, &mut scratch);
+            let m = metrics(&v.z_gt, &v.d_gt, &v.d, p, opts.range);
+            match a {
+                Alignment::None => out.none = Some(m),
+                Alignment::Scale => out.scale = Some(m),
+                Alignment::ScaleShift => out.scale_shift = Some(m),
+            }
         }
-    }
+    });
     out
 }
 
@@ -385,8 +408,18 @@ pub fn evaluate_pair(
     opts: &PairOptions,
 ) -> Result<PairMetrics> {
     opts.range.validate()?;
-    let v = select_valid(pred, kind, gt_m, mask, opts.invalid_pred)?;
-    Ok(evaluate_valid(&v, opts))
+    WORKSPACE.with(|w| {
+        let mut w = w.borrow_mut();
+        select_valid_into(&mut w, pred, kind, gt_m, mask, opts.invalid_pred)?;
+        Ok(evaluate_valid(&w, opts))
+    })
+}
+
+thread_local! {
+    /// Per-thread buffers of [`evaluate_pair`]: large fresh allocations cost page faults that
+    /// would dominate the evaluation time of an image.
+    static WORKSPACE: std::cell::RefCell<ValidPixels> = std::cell::RefCell::new(ValidPixels::default());
+    static SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Aligned, clamped predicted depth (m) per pixel (NaN outside the valid set) and the fit,

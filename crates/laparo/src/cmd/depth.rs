@@ -1,12 +1,413 @@
-//! `laparo depth ...` (being written).
-use clap::Subcommand;
+//! `laparo depth ...`: RoDEM evaluation of monocular depth estimation (thesis §3.2, App. C).
+//!
+//! * `manifest scaffold|validate`: build a dataset manifest from a folder layout, check it;
+//! * `eval`: evaluate methods over a manifest (results.json, per-image CSV, tables, figures);
+//! * `eval-pair`: one prediction against one GT, printing the metrics of depth_eval_ref.py;
+//! * `bench`: per-image evaluation time against the numpy reference;
+//! * `perturb`, `reproject`: see `depth_tools.rs`.
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use laparo_core::DepthUnit;
+use laparo_depth::align::{Alignment, DepthRange, PredKind};
+use laparo_depth::eval::{evaluate_files, evaluate_manifest, EvalConfig};
+use laparo_depth::manifest::{scaffold, Manifest, ScaffoldOptions};
+use laparo_depth::metrics::{InvalidPredPolicy, PairOptions, METRIC_NAMES};
+use laparo_depth::report;
+use std::path::PathBuf;
 
 #[derive(Subcommand)]
 pub enum DepthCmd {
-    /// Not yet available.
-    Pending,
+    /// Scaffold a dataset manifest from a folder layout, or validate one.
+    #[command(subcommand)]
+    Manifest(ManifestCmd),
+    /// Evaluate methods over a manifest: accuracy (Abs Rel, ..., δ_t) and robustness (mCE, mRR).
+    Eval(EvalArgs),
+    /// Evaluate one prediction against one ground-truth depth map.
+    EvalPair(EvalPairArgs),
+    /// Time the per-image evaluation (3 alignments, 640x480) against the numpy reference.
+    Bench(BenchArgs),
+    /// Seeded synthetic perturbations (smoke, blood, light, blur, lens dirt) of clean RGB images.
+    Perturb(super::depth_tools::PerturbArgs),
+    /// Depth-sensor depth to laparoscope-aligned GT depth (thesis §3.2.6).
+    Reproject(super::depth_tools::ReprojectArgs),
 }
 
-pub fn run(_c: DepthCmd) -> anyhow::Result<()> {
-    anyhow::bail!("laparo depth is not available yet")
+#[derive(Subcommand)]
+pub enum ManifestCmd {
+    /// Write a manifest from `<root>/<scene>/<perturbation>/<level>/{rgb,depth,mask}/` and
+    /// `<root>/predictions/<method>/<scene>/<perturbation>/<level>/` (see the crate README).
+    Scaffold(ScaffoldArgs),
+    /// Check a manifest: structure, and that every listed file exists (all problems at once).
+    Validate(ValidateArgs),
+}
+
+#[derive(Args)]
+pub struct ScaffoldArgs {
+    /// Dataset root folder.
+    #[arg(long)]
+    pub root: PathBuf,
+    /// Unit of the GT depth files (m or mm).
+    #[arg(long)]
+    pub gt_unit: DepthUnit,
+    /// Methods whose predictions are depth (the others are taken as disparity).
+    #[arg(long, value_delimiter = ',')]
+    pub depth_methods: Vec<String>,
+    /// Predictions folder, relative to the root.
+    #[arg(long, default_value = "predictions")]
+    pub predictions: String,
+    /// Output manifest (.toml or .json); default `<root>/manifest.toml`.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Overwrite an existing manifest.
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Args)]
+pub struct ValidateArgs {
+    /// Manifest file (.toml or .json).
+    pub manifest: PathBuf,
+    /// Only check the predictions of these methods.
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Vec<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args)]
+pub struct EvalArgs {
+    /// Manifest file (.toml or .json).
+    #[arg(long)]
+    pub manifest: PathBuf,
+    /// Methods to evaluate (default: all in the manifest).
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Vec<String>,
+    /// Alignment: none, s, st or all (comma-separated list allowed).
+    #[arg(long, default_value = "all")]
+    pub alignment: String,
+    /// Baseline method of mCE (eq. 3.3); default: the manifest's, else the first method.
+    #[arg(long)]
+    pub baseline: Option<String>,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Invalid predictions on valid GT pixels: far (disparity 0), exclude, or error.
+    #[arg(long, default_value = "far")]
+    pub invalid_pred: InvalidPredPolicy,
+    /// Frames (ids) drawn as colour error maps (default: the manifest's error_map_frames).
+    #[arg(long, value_delimiter = ',')]
+    pub error_maps: Vec<String>,
+    /// Alignment of the error maps.
+    #[arg(long, default_value = "st")]
+    pub error_map_alignment: Alignment,
+    /// Skip radar charts and error maps.
+    #[arg(long)]
+    pub no_figures: bool,
+}
+
+#[derive(Args)]
+pub struct EvalPairArgs {
+    /// Prediction (npy, npz, pfm, tif, png16).
+    #[arg(long)]
+    pub pred: PathBuf,
+    /// Ground-truth depth (npy, npz, pfm, tif, png16); 0 / non-finite = invalid.
+    #[arg(long)]
+    pub gt: PathBuf,
+    /// What the prediction holds.
+    #[arg(long, default_value = "disparity")]
+    pub pred_kind: PredKind,
+    /// Unit of the GT values.
+    #[arg(long, default_value = "m")]
+    pub gt_unit: DepthUnit,
+    /// ROI mask (8-bit image, non-zero = evaluated; or a float map, non-zero = evaluated).
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// Alignments: none, s, st or all.
+    #[arg(long, default_value = "all")]
+    pub alignment: String,
+    /// Near clamp of aligned depth (m).
+    #[arg(long, default_value_t = 0.01)]
+    pub depth_min: f64,
+    /// Far clamp of aligned depth (m).
+    #[arg(long, default_value_t = 0.5)]
+    pub depth_max: f64,
+    /// Invalid predictions on valid GT pixels: far (disparity 0), exclude, or error.
+    #[arg(long, default_value = "far")]
+    pub invalid_pred: InvalidPredPolicy,
+    /// Print one JSON object (keys of depth_eval_ref.py).
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Image width (px).
+    #[arg(long, default_value_t = 640)]
+    pub width: usize,
+    /// Image height (px).
+    #[arg(long, default_value_t = 480)]
+    pub height: usize,
+    /// Repetitions (the minimum and the median are reported).
+    #[arg(long, default_value_t = 20)]
+    pub reps: usize,
+    /// Python interpreter with numpy, to time ../shared/bench/depth_eval_ref.py on the same input.
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// Path of depth_eval_ref.py.
+    #[arg(long, default_value = "../shared/bench/depth_eval_ref.py")]
+    pub reference: PathBuf,
+    /// Write the figures as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+pub fn run(c: DepthCmd) -> Result<()> {
+    match c {
+        DepthCmd::Manifest(ManifestCmd::Scaffold(a)) => run_scaffold(a),
+        DepthCmd::Manifest(ManifestCmd::Validate(a)) => run_validate(a),
+        DepthCmd::Eval(a) => run_eval(a),
+        DepthCmd::EvalPair(a) => run_eval_pair(a),
+        DepthCmd::Bench(a) => run_bench(a),
+        DepthCmd::Perturb(a) => super::depth_tools::perturb(a),
+        DepthCmd::Reproject(a) => super::depth_tools::reproject(a),
+    }
+}
+
+fn run_scaffold(a: ScaffoldArgs) -> Result<()> {
+    let out = a.out.clone().unwrap_or_else(|| a.root.join("manifest.toml"));
+    if out.exists() && !a.force {
+        bail!("{} exists (use --force to overwrite)", out.display());
+    }
+    let opts = ScaffoldOptions { gt_unit: a.gt_unit, depth_methods: a.depth_methods, predictions_dir: a.predictions };
+    let mut m = scaffold(&a.root, &opts)?;
+    // Paths in the manifest are relative to the root; keep them valid from the output folder.
+    let out_dir = out.parent().map(|p| p.to_path_buf()).unwrap_or_default();
+    let root_abs = std::fs::canonicalize(&a.root).with_context(|| a.root.display().to_string())?;
+    let out_abs = if out_dir.as_os_str().is_empty() {
+        std::env::current_dir()?
+    } else {
+        std::fs::canonicalize(&out_dir).unwrap_or(out_dir.clone())
+    };
+    if root_abs != out_abs {
+        for f in &mut m.frames {
+            f.rgb = root_abs.join(&f.rgb);
+            f.gt = root_abs.join(&f.gt);
+            f.mask = f.mask.as_ref().map(|p| root_abs.join(p));
+        }
+        for me in &mut m.methods {
+            me.predictions = root_abs.join(&me.predictions).display().to_string();
+        }
+    }
+    m.write(&out)?;
+    let m = Manifest::read(&out)?;
+    let rep = m.validate(None);
+    eprintln!(
+        "wrote {}: {} frames, {} methods, {} sequences",
+        out.display(),
+        m.frames.len(),
+        m.methods.len(),
+        m.sequences.len()
+    );
+    print_report(&rep);
+    if !rep.ok() {
+        eprintln!("edit the manifest, then run: laparo depth manifest validate {}", out.display());
+    }
+    Ok(())
+}
+
+fn print_report(rep: &laparo_depth::manifest::ValidationReport) {
+    for w in &rep.warnings {
+        eprintln!("warning: {w}");
+    }
+    for p in &rep.problems {
+        eprintln!("problem: {p}");
+    }
+    eprintln!(
+        "{} frames, {} methods, {} files checked: {} problem(s), {} warning(s)",
+        rep.n_frames,
+        rep.n_methods,
+        rep.n_files_checked,
+        rep.problems.len(),
+        rep.warnings.len()
+    );
+}
+
+fn run_validate(a: ValidateArgs) -> Result<()> {
+    let m = Manifest::read(&a.manifest)?;
+    let rep = m.validate(if a.methods.is_empty() { None } else { Some(&a.methods) });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rep)?);
+    } else {
+        print_report(&rep);
+    }
+    if !rep.ok() {
+        bail!("{}: {} problem(s)", a.manifest.display(), rep.problems.len());
+    }
+    Ok(())
+}
+
+fn run_eval(a: EvalArgs) -> Result<()> {
+    let m = Manifest::read(&a.manifest)?;
+    let alignments = Alignment::parse_list(&a.alignment)?;
+    let methods: Vec<String> =
+        if a.methods.is_empty() { m.methods.iter().map(|x| x.name.clone()).collect() } else { a.methods.clone() };
+    let baseline = a
+        .baseline
+        .clone()
+        .or_else(|| m.baseline.clone())
+        .or_else(|| methods.first().cloned())
+        .context("no method to evaluate")?;
+    if !methods.contains(&baseline) {
+        bail!("baseline '{baseline}' is not among the evaluated methods ({})", methods.join(", "));
+    }
+    let error_maps = if a.error_maps.is_empty() { m.error_map_frames.clone() } else { a.error_maps.clone() };
+    if let Some(bad) = error_maps.iter().find(|id| !m.frames.iter().any(|f| &f.id == *id)) {
+        bail!("--error-maps: '{bad}' is not a frame id of {}", a.manifest.display());
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    report::remove_stale_results(&a.out)?;
+    let cfg = EvalConfig { methods, alignments, invalid_pred: a.invalid_pred };
+    let pb = ProgressBar::new(m.frames.len() as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} evaluating [{bar:40}] {pos}/{len} frames ({per_sec}, eta {eta})")
+            .unwrap()
+            .progress_chars("=> "),
+    );
+    let t0 = std::time::Instant::now();
+    let out = evaluate_manifest(&m, &cfg, &|n| pb.set_position(n as u64));
+    pb.finish_and_clear();
+    let out = out?;
+    let summary = report::summarize(&out, &baseline)?;
+    let mut written = Vec::new();
+    written.extend(report::write_reports(&a.out, &out, &summary)?);
+    print!("{}", report::terminal_summary(&summary));
+    eprintln!(
+        "{} frames x {} methods in {:.1} s; wrote {} files under {}",
+        out.frames.len(),
+        out.methods.len(),
+        t0.elapsed().as_secs_f64(),
+        written.len(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn run_eval_pair(a: EvalPairArgs) -> Result<()> {
+    let opts = PairOptions {
+        alignments: Alignment::parse_list(&a.alignment)?,
+        range: DepthRange::new(a.depth_min, a.depth_max)?,
+        invalid_pred: a.invalid_pred,
+    };
+    let r = evaluate_files(&a.pred, a.pred_kind, &a.gt, a.gt_unit, a.mask.as_deref(), &opts)?;
+    if a.json {
+        println!("{}", serde_json::to_string(&r)?);
+        return Ok(());
+    }
+    println!("valid pixels: {} (invalid predictions among them: {})", r.n_valid, r.n_invalid_pred);
+    print!("{:12}", "alignment");
+    for n in METRIC_NAMES {
+        print!(" {n:>11}");
+    }
+    println!();
+    for al in Alignment::ALL {
+        if let Some(m) = r.get(al) {
+            print!("{:12}", al.key());
+            for v in m.values() {
+                print!(" {v:>11.5}");
+            }
+            println!();
+        }
+    }
+    Ok(())
+}
+
+const PY_BENCH: &str = r#"
+import json, sys, time
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from depth_eval_ref import evaluate
+pred, gt = np.load(sys.argv[2]), np.load(sys.argv[3])
+reps = int(sys.argv[4])
+r = evaluate(pred, gt)
+ts = []
+for _ in range(reps):
+    t0 = time.perf_counter(); evaluate(pred, gt); ts.append(time.perf_counter() - t0)
+print(json.dumps({"min_ms": min(ts) * 1e3, "median_ms": float(np.median(ts)) * 1e3, "result": r}))
+"#;
+
+fn run_bench(a: BenchArgs) -> Result<()> {
+    use laparo_depth::bench::{synthetic_pair, time_evaluation};
+    let (pred, gt) = synthetic_pair(a.width, a.height, 0);
+    let opts = PairOptions::default();
+    let (t, rust) = time_evaluation(&pred, &gt, &opts, a.reps);
+    println!(
+        "laparo: {}x{} per image (3 alignments): min {:.2} ms, median {:.2} ms on 1 thread; {:.0} images/s on {} threads",
+        a.width, a.height, t.min_ms, t.median_ms, t.images_per_s_parallel, t.threads
+    );
+    let mut out = serde_json::json!({"width": a.width, "height": a.height, "laparo": t});
+    if let Some(py) = &a.python {
+        let dir = tempfile_dir()?;
+        let (pp, gp) = (dir.join("pred.npy"), dir.join("gt.npy"));
+        let img = |v: &Vec<f64>| laparo_core::Image::from_vec(a.width, a.height, 1, v.clone());
+        laparo_core::io::write_npy_f64(&pp, &img(&pred)?)?;
+        laparo_core::io::write_npy_f64(&gp, &img(&gt)?)?;
+        let ref_dir = a.reference.parent().map(|p| p.to_path_buf()).unwrap_or_default();
+        if !a.reference.is_file() {
+            bail!("{}: reference script not found", a.reference.display());
+        }
+        let o = std::process::Command::new(py)
+            .arg("-c")
+            .arg(PY_BENCH)
+            .arg(&ref_dir)
+            .arg(&pp)
+            .arg(&gp)
+            .arg(a.reps.to_string())
+            .output()
+            .with_context(|| format!("running {}", py.display()))?;
+        let _ = std::fs::remove_dir_all(&dir);
+        if !o.status.success() {
+            bail!("{} failed: {}", py.display(), String::from_utf8_lossy(&o.stderr));
+        }
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).context("reading the reference's output")?;
+        let np_min = v["min_ms"].as_f64().unwrap_or(f64::NAN);
+        let np_med = v["median_ms"].as_f64().unwrap_or(f64::NAN);
+        // Agreement of the two on this input.
+        let mut worst: f64 = 0.0;
+        let rj = serde_json::to_value(&rust)?;
+        for al in ["none", "scale", "scale_shift"] {
+            for k in METRIC_NAMES {
+                let (x, y) = (rj[al][k].as_f64().unwrap_or(f64::NAN), v["result"][al][k].as_f64().unwrap_or(f64::NAN));
+                worst = worst.max((x - y).abs() / y.abs().max(1e-12));
+            }
+        }
+        let np_ips = 1e3 / np_min;
+        println!("numpy depth_eval_ref.py: min {np_min:.2} ms, median {np_med:.2} ms per image (1 thread)");
+        println!(
+            "ratio (numpy / laparo): single-thread latency {:.1}x (min), {:.1}x (median); throughput {:.1}x ({:.0} vs {:.0} images/s)",
+            np_min / t.min_ms,
+            np_med / t.median_ms,
+            t.images_per_s_parallel / np_ips,
+            t.images_per_s_parallel,
+            np_ips
+        );
+        println!("max relative difference of all metrics vs the reference: {worst:.2e}");
+        out["numpy"] = serde_json::json!({"min_ms": np_min, "median_ms": np_med});
+        out["ratio_latency_min"] = serde_json::json!(np_min / t.min_ms);
+        out["ratio_throughput"] = serde_json::json!(t.images_per_s_parallel / np_ips);
+        out["max_rel_diff"] = serde_json::json!(worst);
+    } else {
+        eprintln!("(pass --python /path/to/python-with-numpy to time depth_eval_ref.py on the same input)");
+    }
+    if let Some(j) = &a.json {
+        laparo_core::atomic::write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn tempfile_dir() -> Result<PathBuf> {
+    let d = std::env::temp_dir().join(format!("laparo-depth-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&d).with_context(|| d.display().to_string())?;
+    Ok(d)
 }
