@@ -11,3 +11,6 @@ pub mod augment;
 pub mod cats_params;
 pub mod dataset;
 pub mod synthetic;
+
+// Middlebury calib.txt reader (stereo calibration statistics / evaluation).
+pub mod middlebury;
