@@ -11,6 +11,7 @@
 //!   left image to the disparity GT, then add Δx_right").
 //! - `Exact`: p = A_L⁻¹(p'), p_R = (p_x − d(p), p_y), p'_R = A_R(p_R), d' = p'_x − p'_R,x; the
 //!   vertical residual p'_R,y − p'_y is reported (0 for a rectified result).
+use crate::warp_kernels::{bilinear_row, nearest_row_f32};
 use laparo_core::image::Mask;
 use laparo_core::se3::{euler_zyx, rotation_zyx};
 use laparo_core::{Distortion, Image, Intrinsics};
@@ -285,6 +286,36 @@ impl CameraMap {
         }
     }
 
+    /// f32 coefficients of row `y` of H⁻¹: x_s = (a0 x + c0) / (a2 x + c2), y_s = (a1 x + c1) / (a2 x + c2).
+    #[inline]
+    fn row_coeffs(&self, y: usize) -> ([f32; 3], [f32; 3]) {
+        let (h, yf) = (&self.h_inv, y as f64);
+        (
+            [h[(0, 0)] as f32, h[(1, 0)] as f32, h[(2, 0)] as f32],
+            [
+                (h[(0, 1)] * yf + h[(0, 2)]) as f32,
+                (h[(1, 1)] * yf + h[(1, 2)]) as f32,
+                (h[(2, 1)] * yf + h[(2, 2)]) as f32,
+            ],
+        )
+    }
+
+    /// Source coordinates of augmented row `y` in f32 structure-of-arrays form (fast path).
+    #[inline]
+    fn row_sources_f32(&self, y: usize, sx: &mut [f32], sy: &mut [f32]) {
+        let yf = y as f64;
+        if self.is_homography() {
+            let (a, c) = self.row_coeffs(y);
+            crate::warp_kernels::homography_row(a, c, sx, sy);
+        } else {
+            for (x, (a, b)) in sx.iter_mut().zip(sy.iter_mut()).enumerate() {
+                let (u, v) = self.inverse(x as f64, yf).unwrap_or((f64::NAN, f64::NAN));
+                *a = u as f32;
+                *b = v as f32;
+            }
+        }
+    }
+
     /// Source coordinates of every augmented pixel (row-major, NaN when undefined).
     pub fn source_coords(&self) -> Vec<(f64, f64)> {
         let mut out = vec![(0.0, 0.0); self.width * self.height];
@@ -300,14 +331,22 @@ impl CameraMap {
         let mut out = Image::filled(w, h, c, 0u8);
         let mut mask = Image::filled(w, h, 1, false);
         out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks_mut(w)).enumerate().for_each_init(
-            || vec![(0.0, 0.0); w],
-            |buf, (y, (orow, mrow))| {
-                self.row_sources(y, buf);
+            || (vec![0f32; w], vec![0f32; w]),
+            |(sx, sy), (y, (orow, mrow))| {
+                let (d, iw, ih) = (&img.data[..], img.width, img.height);
+                if c == 3 && self.is_homography() {
+                    let (a, cc) = self.row_coeffs(y);
+                    if crate::warp_kernels::homography_bilinear_rgb_row(a, cc, d, iw, ih, orow, mrow) {
+                        return;
+                    }
+                }
+                self.row_sources_f32(y, sx, sy);
                 match c {
-                    1 => bilinear_row::<1>(img, buf, orow, mrow),
-                    3 => bilinear_row::<3>(img, buf, orow, mrow),
-                    4 => bilinear_row::<4>(img, buf, orow, mrow),
-                    _ => bilinear_row_dyn(img, buf, orow, mrow),
+                    1 => bilinear_row::<1>(d, iw, ih, sx, sy, orow, mrow),
+                    2 => bilinear_row::<2>(d, iw, ih, sx, sy, orow, mrow),
+                    3 => bilinear_row::<3>(d, iw, ih, sx, sy, orow, mrow),
+                    4 => bilinear_row::<4>(d, iw, ih, sx, sy, orow, mrow),
+                    _ => bilinear_row_dyn(img, sx, sy, orow, mrow),
                 }
             },
         );
@@ -315,22 +354,35 @@ impl CameraMap {
     }
 
     /// Nearest-neighbour warp of a float map (disparity): invalid where the source is outside
-    /// the image or not finite; invalid output pixels are `fill`.
+    /// the image or not finite; invalid output pixels are `fill`. Source positions round half up.
     pub fn warp_nearest_f32(&self, img: &Image<f32>, fill: f32) -> Result<Warped<f32>, AugmentError> {
         self.check_size(img.width, img.height, "float map")?;
         let (w, h, c) = (self.width, self.height, img.channels);
-        let mut out = Image::filled(w, h, c, fill);
+        // One channel: the row kernels write every pixel, so start from (cheap, calloc'd) zeros.
+        let mut out = Image::filled(w, h, c, if c == 1 { 0.0 } else { fill });
         let mut mask = Image::filled(w, h, 1, false);
-        let (wf, hf) = (img.width as f64 - 0.5, img.height as f64 - 0.5);
         out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks_mut(w)).enumerate().for_each_init(
-            || vec![(0.0, 0.0); w],
-            |buf, (y, (orow, mrow))| {
-                self.row_sources(y, buf);
-                for (x, &(sx, sy)) in buf.iter().enumerate() {
-                    // Round half up (x + 0.5 floor); the window [-0.5, w - 0.5) covers the image.
-                    if sx >= -0.5 && sy >= -0.5 && sx < wf && sy < hf {
-                        let ix = (sx + 0.5) as usize;
-                        let iy = (sy + 0.5) as usize;
+            || (vec![0f32; w], vec![0f32; w]),
+            |(sx, sy), (y, (orow, mrow))| {
+                if c == 1 && self.is_homography() {
+                    let (a, cc) = self.row_coeffs(y);
+                    if crate::warp_kernels::homography_nearest_f32_row(
+                        a, cc, &img.data, img.width, img.height, fill, orow, mrow,
+                    ) {
+                        return;
+                    }
+                }
+                self.row_sources_f32(y, sx, sy);
+                if c == 1 {
+                    nearest_row_f32(&img.data, img.width, img.height, fill, sx, sy, orow, mrow);
+                    return;
+                }
+                let (wf, hf) = (img.width as f32 - 0.5, img.height as f32 - 0.5);
+                for x in 0..w {
+                    let (fx, fy) = (sx[x], sy[x]);
+                    if fx >= -0.5 && fy >= -0.5 && fx < wf && fy < hf {
+                        let ix = ((fx + 0.5) as usize).min(img.width - 1);
+                        let iy = ((fy + 0.5) as usize).min(img.height - 1);
                         let src = &img.data[(iy * img.width + ix) * c..(iy * img.width + ix) * c + c];
                         if src.iter().all(|v| v.is_finite()) {
                             orow[x * c..x * c + c].copy_from_slice(src);
@@ -361,40 +413,10 @@ impl CameraMap {
     }
 }
 
-#[inline(always)]
-fn bilinear_row<const C: usize>(img: &Image<u8>, src: &[(f64, f64)], orow: &mut [u8], mrow: &mut [bool]) {
-    let (w, h) = (img.width, img.height);
-    let (xmax, ymax) = ((w - 1) as f64, (h - 1) as f64);
-    let stride = w * C;
-    let d = &img.data;
-    for (x, &(sx, sy)) in src.iter().enumerate() {
-        if !(sx >= 0.0 && sy >= 0.0 && sx <= xmax && sy <= ymax) {
-            continue;
-        }
-        let x0 = (sx as usize).min(w.saturating_sub(2));
-        let y0 = (sy as usize).min(h.saturating_sub(2));
-        let ax = (sx - x0 as f64) as f32;
-        let ay = (sy - y0 as f64) as f32;
-        let dx = if w > 1 { C } else { 0 };
-        let dy = if h > 1 { stride } else { 0 };
-        let i00 = y0 * stride + x0 * C;
-        let (bx, by) = (1.0 - ax, 1.0 - ay);
-        let o = &mut orow[x * C..x * C + C];
-        for ch in 0..C {
-            let p00 = d[i00 + ch] as f32;
-            let p10 = d[i00 + dx + ch] as f32;
-            let p01 = d[i00 + dy + ch] as f32;
-            let p11 = d[i00 + dy + dx + ch] as f32;
-            let v = (p00 * bx + p10 * ax) * by + (p01 * bx + p11 * ax) * ay;
-            o[ch] = (v + 0.5) as u8;
-        }
-        mrow[x] = true;
-    }
-}
-
-fn bilinear_row_dyn(img: &Image<u8>, src: &[(f64, f64)], orow: &mut [u8], mrow: &mut [bool]) {
+fn bilinear_row_dyn(img: &Image<u8>, sxs: &[f32], sys: &[f32], orow: &mut [u8], mrow: &mut [bool]) {
     let c = img.channels;
-    for (x, &(sx, sy)) in src.iter().enumerate() {
+    for (x, (&sx, &sy)) in sxs.iter().zip(sys).enumerate() {
+        let (sx, sy) = (sx as f64, sy as f64);
         let mut ok = true;
         for ch in 0..c {
             match img.sample_bilinear(sx, sy, ch) {

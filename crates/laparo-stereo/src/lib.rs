@@ -11,6 +11,7 @@ pub mod augment;
 pub mod cats_params;
 pub mod dataset;
 pub mod synthetic;
+mod warp_kernels;
 
 // Middlebury calib.txt reader (stereo calibration statistics / evaluation).
 pub mod middlebury;

@@ -1,12 +1,384 @@
-//! `laparo cats ...` (being written).
-use clap::Subcommand;
+//! `laparo cats ...`: CATS camera augmentation of stereo datasets (thesis §3.3.3–3.3.5).
+//!
+//! - `augment`: a whole dataset (SceneFlow, Middlebury, generic layouts), parallel, resumable,
+//!   deterministic per (seed, sample) whatever the thread count.
+//! - `apply`: re-apply a sidecar or hand-written parameters to one sample.
+//! - `config`: print / write the thesis configuration (Table 3.6 row, Δx_right ~ U(−100, 0)).
+//! - `bench`: warp timings on the same input and homography as `../shared/bench/warp_ref.py`.
+//! - `stats`: calibration statistics (see `cats_stats.rs`).
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use laparo_core::{io, Distortion, Image, Intrinsics};
+use laparo_stereo::augment::{augment_stereo, CameraAugmentation, GtRule};
+use laparo_stereo::cats_params::CatsConfig;
+use laparo_stereo::dataset::{self, Layout};
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
 
 #[derive(Subcommand)]
 pub enum CatsCmd {
-    /// Not yet available.
-    Pending,
+    /// Augment a whole stereo dataset (PNG + PFM in; PNG + PFM + JSON sidecar out).
+    Augment(AugmentArgs),
+    /// Re-apply augmentation parameters (sidecar or hand-written JSON) to one sample.
+    Apply(ApplyArgs),
+    /// Print or write the thesis CATS configuration (TOML).
+    Config(ConfigArgs),
+    /// Benchmark the warps against OpenCV warpPerspective (../shared/bench/warp_ref.py).
+    Bench(BenchArgs),
+    /// Statistics of real stereo calibrations (Table 3.6) and a fitted CATS config.
+    Stats(super::cats_stats::StatsArgs),
 }
 
-pub fn run(_c: CatsCmd) -> anyhow::Result<()> {
-    anyhow::bail!("laparo cats is not available yet")
+/// Arguments of `laparo cats augment`.
+#[derive(Args)]
+pub struct AugmentArgs {
+    /// Dataset root.
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Dataset layout: sceneflow, middlebury or generic (left/, right/, disp/).
+    #[arg(long)]
+    pub layout: Layout,
+    /// Output root (mirrors the input tree; sidecars `<id>.cats.json`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// CATS configuration (TOML); the thesis' (Table 3.6 SCARED+StMIS) when absent.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Random seed; each sample's generator is seeded from (seed, sample id).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Disparity GT rule: exact (correspondences through both cameras) or thesis (§3.3.5).
+    #[arg(long, default_value = "exact")]
+    pub gt_rule: GtRule,
+    /// Process at most this many samples (after skipping finished ones).
+    #[arg(long)]
+    pub limit: Option<usize>,
+    /// Redo samples that already have a sidecar.
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// Arguments of `laparo cats apply`.
+#[derive(Args)]
+pub struct ApplyArgs {
+    /// Parameters: a `cats augment` sidecar or hand-written JSON (see README).
+    #[arg(long)]
+    pub params: PathBuf,
+    /// Left image.
+    #[arg(long)]
+    pub left: PathBuf,
+    /// Right image.
+    #[arg(long)]
+    pub right: PathBuf,
+    /// Left disparity GT (PFM, npy, npz, TIFF; x_R = x − d).
+    #[arg(long)]
+    pub disp: Option<PathBuf>,
+    /// Right disparity GT (x_L = x + d).
+    #[arg(long)]
+    pub disp_right: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Disparity GT rule.
+    #[arg(long, default_value = "exact")]
+    pub gt_rule: GtRule,
+}
+
+/// Arguments of `laparo cats config`.
+#[derive(Args)]
+pub struct ConfigArgs {
+    /// Table 3.6 row: SCARED, StereoMIS, RIS2017 or SCARED+StMIS.
+    #[arg(long, default_value = "SCARED+StMIS")]
+    pub row: String,
+    /// Write here instead of printing.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Arguments of `laparo cats bench`.
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Image to warp (resized to WIDTH×HEIGHT).
+    #[arg(long)]
+    pub image: PathBuf,
+    #[arg(long, default_value_t = 960)]
+    pub width: usize,
+    #[arg(long, default_value_t = 540)]
+    pub height: usize,
+    #[arg(long, default_value_t = 20)]
+    pub runs: usize,
+    /// Threads for laparo (rayon) and OpenCV.
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+    /// Python with numpy + opencv-python-headless: run the peer script in the same session.
+    #[arg(long)]
+    pub peer_python: Option<PathBuf>,
+    /// The peer script.
+    #[arg(long, default_value = "../shared/bench/warp_ref.py")]
+    pub peer_script: PathBuf,
+}
+
+pub fn run(c: CatsCmd) -> Result<()> {
+    match c {
+        CatsCmd::Augment(a) => run_augment(a),
+        CatsCmd::Apply(a) => run_apply(a),
+        CatsCmd::Config(a) => run_config(a),
+        CatsCmd::Bench(a) => run_bench(a),
+        CatsCmd::Stats(a) => super::cats_stats::run_stats(a),
+    }
+}
+
+fn load_config(path: &Option<PathBuf>) -> Result<CatsConfig> {
+    match path {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            CatsConfig::from_toml_str(&text).with_context(|| format!("{}", p.display()))
+        }
+        None => Ok(CatsConfig::thesis("SCARED+StMIS")?),
+    }
+}
+
+fn run_augment(a: AugmentArgs) -> Result<()> {
+    let config = load_config(&a.config)?;
+    let samples = dataset::discover(&a.input, a.layout)?;
+    let total = samples.len();
+    let todo: Vec<_> = samples
+        .into_iter()
+        .filter(|f| a.overwrite || !dataset::is_done(f, &a.input, &a.out))
+        .take(a.limit.unwrap_or(usize::MAX))
+        .collect();
+    eprintln!(
+        "{total} samples in {}, {} to do ({} already finished); seed {}, GT rule {:?}, {} threads",
+        a.input.display(),
+        todo.len(),
+        total - todo.len().min(total),
+        a.seed,
+        a.gt_rule,
+        rayon::current_num_threads()
+    );
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let pb = ProgressBar::new(todo.len() as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {per_sec} eta {eta} {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let failures = Mutex::new(Vec::new());
+    let done = AtomicUsize::new(0);
+    let t0 = Instant::now();
+    todo.par_iter().for_each(|f| {
+        match dataset::augment_sample(f, &a.input, &a.out, a.layout, &config, a.seed, a.gt_rule) {
+            Ok(_) => {
+                done.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) => failures.lock().expect("not poisoned").push(format!("{}: {e}", f.id)),
+        }
+        pb.inc(1);
+    });
+    pb.finish_and_clear();
+    let failures = failures.into_inner().expect("not poisoned");
+    eprintln!(
+        "augmented {} samples in {:.1} s into {}",
+        done.load(Ordering::Relaxed),
+        t0.elapsed().as_secs_f64(),
+        a.out.display()
+    );
+    if !failures.is_empty() {
+        for f in &failures {
+            eprintln!("failed: {f}");
+        }
+        bail!("{} of {} samples failed (finished samples are kept; re-run to resume)", failures.len(), todo.len());
+    }
+    Ok(())
+}
+
+fn run_apply(a: ApplyArgs) -> Result<()> {
+    let files = dataset::SampleFiles {
+        id: "sample".into(),
+        left: a.left.clone(),
+        right: a.right.clone(),
+        disp_left: a.disp.clone(),
+        disp_right: a.disp_right.clone(),
+        calib: None,
+    };
+    let s = dataset::load_sample(&files)?;
+    let text = std::fs::read_to_string(&a.params).with_context(|| format!("reading {}", a.params.display()))?;
+    let p =
+        dataset::parse_params(&text, s.left.width, s.left.height).with_context(|| format!("{}", a.params.display()))?;
+    for (side, k) in [("left", &p.left.k), ("right", &p.right.k)] {
+        if (k.width, k.height) != (s.left.width, s.left.height) {
+            bail!(
+                "{}: {side} camera is {}x{} but the images are {}x{}",
+                a.params.display(),
+                k.width,
+                k.height,
+                s.left.width,
+                s.left.height
+            );
+        }
+    }
+    let out = augment_stereo(&s, &p, a.gt_rule)?;
+    let d = &a.out;
+    std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    io::write_png(d.join("left.png"), &out.left.image)?;
+    io::write_png(d.join("right.png"), &out.right.image)?;
+    io::write_png(d.join("valid_left.png"), &out.left.valid.map(|b| if b { 255 } else { 0 }))?;
+    io::write_png(d.join("valid_right.png"), &out.right.valid.map(|b| if b { 255 } else { 0 }))?;
+    for (name, disp) in [("disp_left", &out.disp_left), ("disp_right", &out.disp_right)] {
+        if let Some(dd) = disp {
+            io::write_pfm(d.join(format!("{name}.pfm")), &dd.disparity)?;
+            if let Some(v) = &dd.vertical_residual {
+                io::write_pfm(d.join(format!("{name}_vertical_residual.pfm")), v)?;
+            }
+        }
+    }
+    let canonical = serde_json::json!({
+        "gt_rule": a.gt_rule,
+        "params": p,
+        "homography_left": rows(&p.left.homography()),
+        "homography_right": rows(&p.right.homography()),
+    });
+    laparo_core::atomic::write_atomic(&d.join("params.json"), serde_json::to_string_pretty(&canonical)?.as_bytes())?;
+    println!("wrote {}", d.display());
+    Ok(())
+}
+
+fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]]
+}
+
+fn run_config(a: ConfigArgs) -> Result<()> {
+    let c = CatsConfig::thesis(&a.row)?;
+    let text = c.to_toml_string();
+    match a.out {
+        Some(p) => {
+            laparo_core::atomic::write_atomic(&p, text.as_bytes())?;
+            println!("wrote {}", p.display());
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
+}
+
+/// Area-average resize (like OpenCV INTER_AREA for downscaling; bilinear when upscaling).
+fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
+    let (sx, sy) = (img.width as f64 / w as f64, img.height as f64 / h as f64);
+    let mut out = Image::filled(w, h, img.channels, 0u8);
+    for y in 0..h {
+        for x in 0..w {
+            for c in 0..img.channels {
+                let v = if sx >= 1.0 && sy >= 1.0 {
+                    let (x0, x1) = ((x as f64 * sx) as usize, (((x + 1) as f64 * sx).ceil() as usize).min(img.width));
+                    let (y0, y1) = ((y as f64 * sy) as usize, (((y + 1) as f64 * sy).ceil() as usize).min(img.height));
+                    let mut s = 0.0;
+                    for yy in y0..y1 {
+                        for xx in x0..x1 {
+                            s += img.get(xx, yy, c) as f64;
+                        }
+                    }
+                    s / ((x1 - x0) * (y1 - y0)) as f64
+                } else {
+                    let u = ((x as f64 + 0.5) * sx - 0.5).clamp(0.0, (img.width - 1) as f64);
+                    let v = ((y as f64 + 0.5) * sy - 0.5).clamp(0.0, (img.height - 1) as f64);
+                    img.sample_bilinear(u, v, c).unwrap_or(0.0)
+                };
+                out.set(x, y, c, (v + 0.5) as u8);
+            }
+        }
+    }
+    out
+}
+
+fn time_min_median(runs: usize, mut f: impl FnMut()) -> (f64, f64) {
+    f();
+    let mut ts: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    ts.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
+    (ts[0], ts[ts.len() / 2])
+}
+
+fn run_bench(a: BenchArgs) -> Result<()> {
+    let img = resize(&io::read_rgb8(&a.image)?.to_rgb(), a.width, a.height);
+    // The same camera and homography as warp_ref.py: f = 0.9 w, c = (w/2, h/2), Euler Z-Y-X
+    // (0.3, 0.2, 0.02) deg → R = Rz(0.3) Ry(0.2) Rx(0.02), K_rel shift −60 px.
+    let (w, h) = (a.width as f64, a.height as f64);
+    let k = Intrinsics::new(0.9 * w, 0.9 * w, w / 2.0, h / 2.0, a.width, a.height)?;
+    let aug = CameraAugmentation::from_euler_deg(
+        k,
+        Distortion::default(),
+        [0.02, 0.2, 0.3],
+        Matrix3::new(1.0, 0.0, -60.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+        Distortion::default(),
+    );
+    let map = aug.map()?;
+    // A uniform(0, 100) float map (xorshift; content does not matter for timing).
+    let mut st = 0x2545F4914F6CDD1Du64;
+    let fmap = Image::from_vec(
+        a.width,
+        a.height,
+        1,
+        (0..a.width * a.height)
+            .map(|_| {
+                st ^= st << 13;
+                st ^= st >> 7;
+                st ^= st << 17;
+                (st >> 40) as f32 / (1u64 << 24) as f32 * 100.0
+            })
+            .collect(),
+    )?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build()?;
+    let (rgb, f32n) = pool.install(|| -> Result<_> {
+        let rgb = time_min_median(a.runs, || {
+            std::hint::black_box(map.warp_bilinear_u8(&img).expect("sizes match"));
+        });
+        let f32n = time_min_median(a.runs, || {
+            std::hint::black_box(map.warp_nearest_f32(&fmap, f32::INFINITY).expect("sizes match"));
+        });
+        Ok((rgb, f32n))
+    })?;
+    let mut out = serde_json::json!({
+        "laparo": env!("CARGO_PKG_VERSION"), "threads": a.threads, "size": [a.width, a.height],
+        "H": rows(&map.h),
+        "rgb_u8_bilinear": {"min_ms": rgb.0, "median_ms": rgb.1},
+        "f32_nearest": {"min_ms": f32n.0, "median_ms": f32n.1},
+    });
+    if let Some(py) = &a.peer_python {
+        let o = std::process::Command::new(py)
+            .arg(&a.peer_script)
+            .arg(&a.image)
+            .args(["--width", &a.width.to_string(), "--height", &a.height.to_string()])
+            .args(["--runs", &a.runs.to_string(), "--threads", &a.threads.to_string()])
+            .output()
+            .with_context(|| format!("running {} {}", py.display(), a.peer_script.display()))?;
+        if !o.status.success() {
+            bail!("peer script failed: {}", String::from_utf8_lossy(&o.stderr));
+        }
+        let peer: serde_json::Value = serde_json::from_slice(&o.stdout).context("parsing the peer's JSON")?;
+        let ratio = |key: &str, ours: f64| peer[key]["min_ms"].as_f64().map(|p| p / ours);
+        out["opencv"] = peer.clone();
+        out["speedup_vs_opencv_min"] = serde_json::json!({
+            "rgb_u8_bilinear": ratio("rgb_u8_bilinear", rgb.0),
+            "f32_nearest": ratio("f32_nearest", f32n.0),
+        });
+        // Same homography on both sides (the peer prints its H).
+        if let Some(ph) = peer["H"].as_array() {
+            let ph: Vec<f64> =
+                ph.iter().flat_map(|r| r.as_array().into_iter().flatten().filter_map(|v| v.as_f64())).collect();
+            let ours: Vec<f64> = rows(&map.h).concat();
+            let diff = ph.iter().zip(&ours).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            out["max_abs_H_difference"] = serde_json::json!(diff);
+        }
+    }
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
 }
