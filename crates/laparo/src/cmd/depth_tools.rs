@@ -61,7 +61,8 @@ pub struct ReprojectArgs {
     /// Unit of the translation in `--extrinsics` when the file does not state it.
     #[arg(long, default_value = "mm")]
     pub extrinsics_unit: String,
-    /// Laparoscope intrinsics JSON (same format as --sensor-intrinsics), px.
+    /// Laparoscope intrinsics JSON (same format as --sensor-intrinsics), px; an optional
+    /// "dist": [k1, k2, p1, p2, k3, ...] (OpenCV order) gives depth for the distorted image.
     #[arg(long)]
     pub intrinsics: PathBuf,
     /// Output width in px (default: from --intrinsics).
@@ -342,7 +343,19 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     let sp = a.sensor_intrinsics.display().to_string();
     let sensor = rp::intrinsics_from_json(&read_json(&a.sensor_intrinsics, "--sensor-intrinsics")?, &sp)?;
     let lp = a.intrinsics.display().to_string();
-    let mut lap = rp::intrinsics_from_json(&read_json(&a.intrinsics, "--intrinsics")?, &lp)?;
+    let lap_json = read_json(&a.intrinsics, "--intrinsics")?;
+    let mut lap = rp::intrinsics_from_json(&lap_json, &lp)?;
+    // Optional OpenCV-order distortion of the laparoscope image ("dist" or "distortion").
+    let distortion = match lap_json.get("dist").or_else(|| lap_json.get("distortion")) {
+        Some(v) => {
+            let c: Vec<f64> = v
+                .as_array()
+                .and_then(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>())
+                .with_context(|| format!("--intrinsics {lp}: \"dist\" must be a list of numbers"))?;
+            Some(laparo_core::Distortion::from_opencv(&c).with_context(|| format!("--intrinsics {lp}"))?)
+        }
+        None => None,
+    };
     lap.width = a.width.unwrap_or(lap.width);
     lap.height = a.height.unwrap_or(lap.height);
     lap.validate().context("--width/--height")?;
@@ -389,7 +402,7 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
         max_rel_jump: a.max_rel_jump,
         clamp: if a.saturate { ClampMode::Saturate } else { ClampMode::Invalidate },
     };
-    let target = TargetCamera { intrinsics: lap, distortion: None };
+    let target = TargetCamera { intrinsics: lap, distortion };
     let (d, st) = rp::reproject_depth(&depth, &sensor, &t, &target, mask.as_ref(), &params)?;
     if st.valid == 0 {
         bail!(
