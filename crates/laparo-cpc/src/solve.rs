@@ -15,16 +15,19 @@
 //!
 //! The normal equations (λ K + (1−λ) D) p = (1−λ) D P_init are assembled once per mesh (K = Σ w_t M_tᵀM_t,
 //! D diagonal, one shared sparsity pattern with unknowns interleaved [x_0, y_0, x_1, y_1, ...]);
-//! the symbolic sparse Cholesky (faer, AMD ordering) is computed once and every λ costs one numeric
+//! the symbolic sparse Cholesky (faer) is computed once, with a geometric nested-dissection
+//! ordering of the grid (grid lines are vertex separators of the triangulated grid, so the
+//! ordering costs O(n log n) and avoids AMD), and and every λ costs one numeric
 //! factorisation and two triangular solves. The system is block-diagonal over connected components,
 //! so one factorisation solves every component separately.
 use crate::conformal::{triangle_rows, ConformalParams};
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::Side;
+use faer::{Conj, MatMut, Par, Side};
 
 /// Displacements are measured in units of this fraction of √(mesh area).
 pub const DISPLACEMENT_SCALE: f64 = 0.1;
@@ -54,7 +57,7 @@ pub struct CpcSystem {
     tri_rows: Vec<[[f64; 6]; 2]>,
     tri_w: Vec<f64>,
     faces: Vec<[usize; 3]>,
-    symbolic: SymbolicLlt<usize>,
+    symbolic: SymbolicCholesky<usize>,
 }
 
 impl CpcSystem {
@@ -148,7 +151,19 @@ impl CpcSystem {
             }
         }
         let sym = SymbolicSparseColMatRef::new_checked(2 * n, 2 * n, &col_ptr, None, &row_idx);
-        let symbolic = SymbolicLlt::try_new(sym, Side::Lower).map_err(|e| CpcError::Solver(format!("{e:?}")))?;
+        let fwd_v = nested_dissection(mesh);
+        let mut fwd = Vec::with_capacity(2 * n);
+        for &v in &fwd_v {
+            fwd.push(2 * v);
+            fwd.push(2 * v + 1);
+        }
+        let mut inv = vec![0usize; 2 * n];
+        for (k, &o) in fwd.iter().enumerate() {
+            inv[o] = k;
+        }
+        let perm = PermRef::new_checked(&fwd, &inv, 2 * n);
+        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
+            .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
         Ok(CpcSystem {
             n_vertices: n,
             col_ptr,
@@ -185,16 +200,13 @@ impl CpcSystem {
         for (u, &pos) in self.diag_pos.iter().enumerate() {
             vals[pos] += (1.0 - lambda) * self.disp_w[u / 2];
         }
-        let sym = SymbolicSparseColMatRef::new_checked(2 * self.n_vertices, 2 * self.n_vertices, &self.col_ptr, None, &self.row_idx);
-        let mat = SparseColMatRef::new(sym, &vals);
-        let llt = Llt::try_new_with_symbolic(self.symbolic.clone(), mat, Side::Lower)
-            .map_err(|e| CpcError::Solver(format!("Cholesky failed for lambda = {lambda}: {e:?}")))?;
         let mut rhs: Vec<f64> = Vec::with_capacity(2 * self.n_vertices);
         for (v, p) in self.p_init.iter().enumerate() {
             rhs.push((1.0 - lambda) * self.disp_w[v] * p[0]);
             rhs.push((1.0 - lambda) * self.disp_w[v] * p[1]);
         }
-        llt.solve_in_place(faer::ColMut::from_slice_mut(&mut rhs));
+        self.factor_solve(&vals, &mut rhs)
+            .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
         if rhs.iter().any(|v| !v.is_finite()) {
             return Err(CpcError::Solver(format!("non-finite solution for lambda = {lambda}")));
         }
@@ -228,7 +240,7 @@ impl CpcSystem {
     }
 
     /// The symbolic Cholesky factorisation of the shared pattern.
-    pub fn symbolic(&self) -> &SymbolicLlt<usize> {
+    pub fn symbolic(&self) -> &SymbolicCholesky<usize> {
         &self.symbolic
     }
 
@@ -271,9 +283,15 @@ impl CpcSystem {
         let n = 2 * self.n_vertices;
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let mat = SparseColMatRef::new(sym, vals);
-        let llt = Llt::try_new_with_symbolic(self.symbolic.clone(), mat, Side::Lower)
-            .map_err(|e| CpcError::Solver(format!("Cholesky failed: {e:?}")))?;
-        llt.solve_in_place(faer::ColMut::from_slice_mut(rhs));
+        let par = Par::Seq;
+        let mut l_vals = vec![0.0f64; self.symbolic.len_val()];
+        let mut mem = MemBuffer::new(self.symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+        let llt = self
+            .symbolic
+            .factorize_numeric_llt(&mut l_vals, mat, Side::Lower, Default::default(), par, MemStack::new(&mut mem), Default::default())
+            .map_err(|e| CpcError::Solver(format!("Cholesky failed (matrix not positive definite?): {e:?}")))?;
+        let mut mem2 = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, par));
+        llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(rhs, n, 1), par, MemStack::new(&mut mem2));
         Ok(())
     }
 
@@ -281,4 +299,44 @@ impl CpcSystem {
     pub fn displacement_weights(&self) -> &[f64] {
         &self.disp_w
     }
+}
+
+/// Geometric nested-dissection order of the mesh vertices (old index at each new position):
+/// split the grid box along its longer side by one grid line (a vertex separator of the
+/// triangulated grid), order both halves recursively, then the separator.
+pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
+    let s = mesh.grid_step_px as f64;
+    let gc: Vec<[i64; 2]> = mesh.p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
+    let mut ids: Vec<usize> = (0..mesh.n_vertices()).collect();
+    let mut out = Vec::with_capacity(ids.len());
+    fn rec(ids: &mut [usize], gc: &[[i64; 2]], out: &mut Vec<usize>) {
+        if ids.len() <= 48 {
+            out.extend_from_slice(ids);
+            return;
+        }
+        let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
+        for &v in ids.iter() {
+            for k in 0..2 {
+                lo[k] = lo[k].min(gc[v][k]);
+                hi[k] = hi[k].max(gc[v][k]);
+            }
+        }
+        let ax = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
+        if hi[ax] == lo[ax] {
+            out.extend_from_slice(ids);
+            return;
+        }
+        let mid = (lo[ax] + hi[ax]) / 2;
+        ids.sort_unstable_by_key(|&v| (gc[v][ax] != mid, gc[v][ax] > mid));
+        // now: [separator | left | right]
+        let n_sep = ids.iter().take_while(|&&v| gc[v][ax] == mid).count();
+        let n_left = ids[n_sep..].iter().take_while(|&&v| gc[v][ax] < mid).count();
+        let sep: Vec<usize> = ids[..n_sep].to_vec();
+        let (left, right) = ids[n_sep..].split_at_mut(n_left);
+        rec(left, gc, out);
+        rec(right, gc, out);
+        out.extend_from_slice(&sep);
+    }
+    rec(&mut ids, &gc, &mut out);
+    out
 }

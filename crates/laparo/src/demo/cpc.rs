@@ -1,8 +1,83 @@
-//! Demo section: cpc (being written).
+//! Demo section "cpc" (Conformal Perspective Correction, thesis Ch. 4): a bumpy, organ-like
+//! (non-developable) surface rendered at 58° from the camera is flattened by CPC. Shows the
+//! original and warped images side by side, the λ sweep with the fitted Gompertz/exponential model
+//! and the selected ℓ (§4.5.4, like Fig. 4.12c), and warps at several λ (like Fig. 4.11).
 use super::DemoSection;
 use anyhow::Result;
+use laparo_core::camera::Intrinsics;
+use laparo_core::io;
+use laparo_cpc::pipeline::LambdaChoice;
+use laparo_cpc::scene::{self, SceneSpec, Surface, Texture, SCENE_PY_BUMPS};
+use laparo_cpc::{cpc_warp, CpcParams};
+use serde_json::json;
+use std::fmt::Write as _;
 use std::path::Path;
 
-pub fn section(_out: &Path) -> Result<DemoSection> {
-    Ok(DemoSection { title: "cpc".into(), html: "<p>This section is being written.</p>".into(), summary: serde_json::Value::Null })
+pub fn section(out: &Path) -> Result<DemoSection> {
+    let dir = out.join("cpc");
+    std::fs::create_dir_all(&dir)?;
+    let texture = scene::photo_or_procedural("retina.jpg", 7);
+    let tex_name = match &texture {
+        Texture::Photo(_) => "retina.jpg photograph (../shared/data/textures)",
+        _ => "procedural texture (shared photographs absent)",
+    };
+    let spec = SceneSpec {
+        intrinsics: Intrinsics::new(500.0, 500.0, 320.0, 240.0, 640, 480)?,
+        surface: Surface::Bumpy { rcurv_mm: 150.0, bumps: SCENE_PY_BUMPS.to_vec() },
+        half_mm: 55.0,
+        pose: scene::tilted_pose_xy(58.0, 12.0, 100.0),
+        texture,
+        march_step_mm: 0.25,
+    };
+    let sc = spec.render()?;
+    io::write_png(dir.join("original.png"), &sc.image)?;
+    let mut params = CpcParams::default();
+    params.lambda = CpcParams::auto_lambda();
+    let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &params)?;
+    io::write_png(dir.join("warped_auto.png"), &r.warped)?;
+    let sweep = r.sweep.as_ref().expect("auto λ gives a sweep");
+    sweep.plot_png(&dir.join("lambda_sweep.png"))?;
+    laparo_core::atomic::write_atomic(&dir.join("lambda_sweep.csv"), sweep.to_csv().as_bytes())?;
+    // Fig. 4.11-like strip: warps at several λ.
+    let mut strip = String::new();
+    let mut rows = Vec::new();
+    for &l in &[0.0, 0.5, 0.9, 0.99, 0.999] {
+        let mut p = CpcParams::default();
+        p.lambda = LambdaChoice::Fixed(l);
+        let rl = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &p)?;
+        let name = format!("warped_l{}.png", (l * 1000.0).round() as i64);
+        io::write_png(dir.join(&name), &rl.warped)?;
+        write!(
+            strip,
+            "<figure><img src=\"cpc/{name}\" width=\"230\"><figcaption>λ = {l}: angle err {:.2}°, δ_area {:.3}</figcaption></figure>",
+            rl.stats.angle_error_deg_after, rl.stats.delta_area
+        )?;
+        rows.push(json!({"lambda": l, "angle_error_deg": rl.stats.angle_error_deg_after, "delta_area": rl.stats.delta_area, "n_flipped": rl.stats.n_flipped}));
+    }
+    let s = &r.stats;
+    let html = format!(
+        "<p>A bumpy, non-developable organ-like surface ({tex_name}) seen at 58° tilt, 12° yaw, rendered by ray casting \
+(640×480, f = 500 px). CPC meshes the ROI with a {step} px grid ({nv} vertices, {nt} triangles), flattens it with the convex \
+least-displacement formulation (eq. 4.11) and warps the image piecewise-affinely. λ is selected automatically (§4.5.4): \
+ℓ = <b>{ell:.3}</b>. The mean corner-angle difference to the 3D mesh drops from {a0:.2}° to {a1:.2}°, with δ_area = {da:.3} \
+and {nf} flipped triangles (whole pipeline {tot:.0} ms incl. the {nl}-λ sweep).</p>\n\
+<figure><img src=\"cpc/original.png\" width=\"480\"><figcaption>original</figcaption></figure>\
+<figure><img src=\"cpc/warped_auto.png\" width=\"480\"><figcaption>CPC warp at ℓ = {ell:.3}</figcaption></figure>\n\
+<figure><img src=\"cpc/lambda_sweep.png\" width=\"600\"><figcaption>δ_area(λ) (eq. 4.13), fitted model (eq. 4.14) and ℓ</figcaption></figure>\n\
+<p>Warps for several λ (as in Fig. 4.11): λ = 0 is the identity; as λ → 1 the warp becomes conformal and the scale drifts.</p>\n{strip}",
+        step = s.mesh.grid_step_px,
+        nv = s.n_vertices,
+        nt = s.n_triangles,
+        ell = sweep.ell,
+        a0 = s.angle_error_deg_before,
+        a1 = s.angle_error_deg_after,
+        da = s.delta_area,
+        nf = s.n_flipped,
+        tot = s.timings_ms.values().sum::<f64>(),
+        nl = sweep.points.len(),
+    );
+    let summary = json!({
+        "ell": sweep.ell, "fit": sweep.fit, "stats": s, "lambda_strip": rows, "texture": tex_name,
+    });
+    Ok(DemoSection { title: "CPC: conformal perspective correction (Ch. 4)".into(), html, summary })
 }
