@@ -395,3 +395,222 @@ pub fn remove_stale_results(dir: &Path) -> Result<()> {
     }
     Ok(())
 }
+
+// ---------------------------------------------------------------------------------------------
+// Figures: radar charts (Fig. 3.4) and colour error maps (Fig. C.1).
+
+use crate::eval::{load_gt, read_prediction};
+use crate::manifest::Manifest;
+use crate::metrics::aligned_depth_map;
+use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::image::Image;
+use laparo_core::plot::PlotResult;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+/// A file-name-safe version of `s` (`/` and other separators become `_`).
+pub fn file_stem(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' }).collect()
+}
+
+/// One radar panel: per-perturbation CE and RR for one error metric.
+struct RadarPanel {
+    title: String,
+    axes: Vec<String>,
+    ce: Vec<Option<f64>>,
+    rr: Vec<Option<f64>>,
+}
+
+fn radar_panels(r: &MethodRobustness) -> Vec<RadarPanel> {
+    ErrorMetric::ALL
+        .iter()
+        .map(|&e| RadarPanel {
+            title: format!("E = {}", e.title()),
+            axes: r.perturbations.iter().map(|p| perturbation_title(&p.perturbation)).collect(),
+            ce: r.perturbations.iter().map(|p| p.ce.get(e)).collect(),
+            rr: r.perturbations.iter().map(|p| p.rr.get(e)).collect(),
+        })
+        .collect()
+}
+
+fn draw_radar<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, panels: &[RadarPanel]) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let (w, h) = root.dim_in_pixel();
+    root.draw(&Text::new(title.to_string(), (12, 8), ("sans-serif", 20).into_font()))?;
+    let areas = root.margin(36, 0, 0, 0).split_evenly((1, panels.len().max(1)));
+    let ce_col = RGBColor(214, 39, 40);
+    let rr_col = RGBColor(31, 119, 180);
+    for (area, p) in areas.iter().zip(panels) {
+        let (aw, ah) = area.dim_in_pixel();
+        let (cx, cy) = (aw as f64 / 2.0, ah as f64 / 2.0 + 10.0);
+        let radius = (aw.min(ah) as f64 / 2.0 - 70.0).max(20.0);
+        let vmax = p.ce.iter().chain(&p.rr).flatten().fold(1.2f64, |a, &b| if b.is_finite() { a.max(b) } else { a });
+        let rmax = (vmax * 1.1 * 4.0).ceil() / 4.0;
+        area.draw(&Text::new(p.title.clone(), (10, 4), ("sans-serif", 16).into_font()))?;
+        let n = p.axes.len().max(1);
+        let pt = |k: usize, v: f64| -> (i32, i32) {
+            let a = -std::f64::consts::FRAC_PI_2 + 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+            let r = radius * (v / rmax).clamp(0.0, 1.0);
+            ((cx + r * a.cos()).round() as i32, (cy + r * a.sin()).round() as i32)
+        };
+        // Rings (with the value 1 highlighted: CE = 1 is the baseline, RR = 1 no degradation).
+        let mut ring = 0.25;
+        while ring <= rmax + 1e-9 {
+            let pts: Vec<(i32, i32)> = (0..=72)
+                .map(|i| {
+                    let a = 2.0 * std::f64::consts::PI * i as f64 / 72.0;
+                    let r = radius * ring / rmax;
+                    ((cx + r * a.cos()).round() as i32, (cy + r * a.sin()).round() as i32)
+                })
+                .collect();
+            let style = if (ring - 1.0).abs() < 1e-9 {
+                BLACK.mix(0.6).stroke_width(1)
+            } else {
+                BLACK.mix(0.15).stroke_width(1)
+            };
+            area.draw(&PathElement::new(pts, style))?;
+            if ((ring * 2.0).round() - ring * 2.0).abs() < 1e-9 {
+                let (x, y) = (cx as i32 + 3, (cy - radius * ring / rmax) as i32 - 12);
+                area.draw(&Text::new(
+                    format!("{ring:.1}"),
+                    (x, y),
+                    ("sans-serif", 11).into_font().color(&BLACK.mix(0.6)),
+                ))?;
+            }
+            ring += 0.25;
+        }
+        for (k, name) in p.axes.iter().enumerate() {
+            area.draw(&PathElement::new(vec![pt(k, 0.0), pt(k, rmax)], BLACK.mix(0.3)))?;
+            let (x, y) = pt(k, rmax * 1.12);
+            let lab = format!(
+                "{name} ({}/{})",
+                p.ce[k].map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into()),
+                p.rr[k].map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into())
+            );
+            let tw = (lab.chars().count() as i32 * 6) / 2;
+            area.draw(&Text::new(lab, (x - tw, y - 6), ("sans-serif", 12).into_font()))?;
+        }
+        for (vals, col) in [(&p.ce, ce_col), (&p.rr, rr_col)] {
+            let mut pts: Vec<(i32, i32)> = vals.iter().enumerate().map(|(k, v)| pt(k, v.unwrap_or(0.0))).collect();
+            if pts.len() > 2 {
+                area.draw(&Polygon::new(pts.clone(), col.mix(0.15)))?;
+            }
+            pts.push(pts[0]);
+            area.draw(&PathElement::new(pts.clone(), col.stroke_width(2)))?;
+            for q in &pts {
+                area.draw(&Circle::new(*q, 3, col.filled()))?;
+            }
+        }
+        let ly = ah as i32 - 22;
+        area.draw(&Rectangle::new([(10, ly), (24, ly + 10)], ce_col.filled()))?;
+        area.draw(&Text::new("perturbation error CE (eq. 3.3)", (28, ly - 2), ("sans-serif", 12).into_font()))?;
+        area.draw(&Rectangle::new([(aw as i32 / 2 + 10, ly), (aw as i32 / 2 + 24, ly + 10)], rr_col.filled()))?;
+        area.draw(&Text::new(
+            "resilience rate RR (eq. 3.4)",
+            (aw as i32 / 2 + 28, ly - 2),
+            ("sans-serif", 12).into_font(),
+        ))?;
+    }
+    let _ = (w, h);
+    Ok(())
+}
+
+/// Radar chart of one method under one alignment as PNG and SVG (thesis Fig. 3.4): per
+/// perturbation (averaged over scenes) CE and RR, for E = Abs Rel and E = 1 − δ0.25. Axis labels
+/// read "name (CE/RR)".
+pub fn write_radar(dir: &Path, r: &MethodRobustness, alignment: Alignment) -> Result<Vec<PathBuf>> {
+    let panels = radar_panels(r);
+    let title = format!("{} — {} (baseline {})", r.method, alignment.title(), r.baseline);
+    let stem = format!("{}_{}", file_stem(&r.method), alignment.key());
+    let (w, h) = (1100u32, 560u32);
+    let png = dir.join(format!("{stem}.png"));
+    laparo_core::plot::draw_png(&png, w, h, |root| draw_radar(&root, &title, &panels))?;
+    let svg = dir.join(format!("{stem}.svg"));
+    laparo_core::plot::draw_svg(&svg, w, h, |root| draw_radar(&root, &title, &panels))?;
+    Ok(vec![png, svg])
+}
+
+/// Colour error maps (thesis Fig. C.1) of one frame for every method: `z* − ẑ` in mm after
+/// `alignment` (red: prediction shallower than the GT, blue: deeper), one symmetric colour range
+/// per frame (98th percentile of |error| over the methods) with a colour bar; plus the RGB image.
+pub fn write_error_maps(
+    dir: &Path,
+    manifest: &Manifest,
+    out: &EvalOutput,
+    frame_id: &str,
+    alignment: Alignment,
+) -> Result<Vec<PathBuf>> {
+    let f = out.frames.iter().find(|f| f.id == frame_id).ok_or_else(|| {
+        DepthError::invalid("error-map frame", format!("'{frame_id}' is not a frame of the manifest"))
+    })?;
+    let spec = &manifest.frames[f.index];
+    let gt = load_gt(&f.gt, f.gt_unit, f.mask.as_deref())?;
+    let opts = crate::metrics::PairOptions { alignments: vec![alignment], ..out.options.clone() };
+    let mut maps = Vec::new();
+    for m in &out.methods {
+        let pp = manifest.prediction_path(m, f, spec);
+        let pred = read_prediction(&pp)?;
+        if pred.size() != gt.gt_m.size() {
+            return Err(DepthError::file(&pp, "size mismatch with the ground truth"));
+        }
+        let (z, _) = aligned_depth_map(
+            &pred.data,
+            m.kind,
+            &gt.gt_m.data,
+            gt.mask.as_ref().map(|k| k.data.as_slice()),
+            alignment,
+            &opts,
+        )
+        .map_err(|e| DepthError::file(&pp, e.to_string()))?;
+        let err: Vec<f64> = z.iter().zip(&gt.gt_m.data).map(|(zh, zg)| (zg - zh) * 1000.0).collect();
+        maps.push((m.name.clone(), err));
+    }
+    let mut abs: Vec<f64> =
+        maps.iter().flat_map(|(_, e)| e.iter().filter(|v| v.is_finite()).map(|v| v.abs())).collect();
+    abs.sort_by(f64::total_cmp);
+    let a =
+        abs.get(((abs.len() as f64 * 0.98) as usize).min(abs.len().saturating_sub(1))).copied().unwrap_or(1.0).max(0.5);
+    let stem = file_stem(frame_id);
+    let mut written = Vec::new();
+    if f.rgb.is_file() {
+        let rgb = laparo_core::io::read_rgb8(&f.rgb)?;
+        let p = dir.join(format!("{stem}_rgb.png"));
+        laparo_core::io::write_png(&p, &rgb)?;
+        written.push(p);
+    }
+    for (name, err) in maps {
+        let img = Image { width: gt.gt_m.width, height: gt.gt_m.height, channels: 1, data: err };
+        // Turbo: low (blue) = prediction deeper than the GT, high (red) = shallower.
+        let col = colorize(&img, -a, a, Colormap::Turbo);
+        let fig = with_colorbar(&col, -a, a, Colormap::Turbo, "z* - z_pred [mm]");
+        let p = dir.join(format!("{stem}_{}_{}.png", file_stem(&name), alignment.key()));
+        laparo_core::io::write_png(&p, &fig)?;
+        written.push(p);
+    }
+    Ok(written)
+}
+
+/// Radar charts for every method and alignment under `dir/radar/`, and error maps of
+/// `error_map_frames` under `dir/error_maps/`.
+pub fn write_figures(
+    dir: &Path,
+    manifest: &Manifest,
+    out: &EvalOutput,
+    summary: &Summary,
+    error_map_frames: &[String],
+    error_alignment: Alignment,
+) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for al in &summary.alignments {
+        for r in &al.robustness {
+            written.extend(write_radar(&dir.join("radar"), r, al.alignment)?);
+        }
+    }
+    for id in error_map_frames {
+        written.extend(write_error_maps(&dir.join("error_maps"), manifest, out, id, error_alignment)?);
+    }
+    Ok(written)
+}

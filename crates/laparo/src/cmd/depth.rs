@@ -281,6 +281,9 @@ fn run_eval(a: EvalArgs) -> Result<()> {
     let out = out?;
     let summary = report::summarize(&out, &baseline)?;
     let mut written = Vec::new();
+    if !a.no_figures {
+        written.extend(report::write_figures(&a.out, &m, &out, &summary, &error_maps, a.error_map_alignment)?);
+    }
     written.extend(report::write_reports(&a.out, &out, &summary)?);
     print!("{}", report::terminal_summary(&summary));
     eprintln!(
