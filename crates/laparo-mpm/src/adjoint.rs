@@ -37,19 +37,53 @@ pub struct GradientResult<const D: usize> {
     pub warnings: Vec<Warning>,
 }
 
-/// Simulate the scene and return L and ∂L/∂(v₀, x₀, C₀, E, ν) by reverse-mode differentiation.
+/// Node data of one step's grid kept for the reverse pass (the sparse layout is rebuilt from the
+/// particle checkpoint, the P2G scatter is not redone).
+#[derive(Default)]
+struct GridCheckpoint<const D: usize> {
+    mass: Vec<f64>,
+    vel: Vec<Vector<D>>,
+    wall_mask: Vec<u8>,
+}
+
+/// Buffers of [`simulate_with_gradient_in`], reusable across calls (e.g. the iterations of a
+/// registration) to avoid re-allocating the checkpoints.
+#[derive(Default)]
+pub struct GradientWorkspace<const D: usize> {
+    states: Vec<ParticleState<D>>,
+    grids: Vec<GridCheckpoint<D>>,
+}
+
+impl<const D: usize> GradientWorkspace<D> {
+    /// Empty workspace.
+    pub fn new() -> Self {
+        GradientWorkspace { states: Vec::new(), grids: Vec::new() }
+    }
+}
+
+/// Simulate the scene and return L and ∂L/∂(v₀, x₀, C₀, F₀, E, ν) by reverse-mode differentiation.
 pub fn simulate_with_gradient<const D: usize, L: Loss<D> + ?Sized>(
+    scene: &Scene<D>,
+    loss: &L,
+) -> Result<GradientResult<D>, MpmError> {
+    simulate_with_gradient_in(&mut GradientWorkspace::new(), scene, loss)
+}
+
+/// [`simulate_with_gradient`] reusing the checkpoint buffers of `ws`.
+pub fn simulate_with_gradient_in<const D: usize, L: Loss<D> + ?Sized>(
+    ws: &mut GradientWorkspace<D>,
     scene: &Scene<D>,
     loss: &L,
 ) -> Result<GradientResult<D>, MpmError> {
     scene.validate()?;
     match scene.material.model {
-        Model::NeoHookean => run(&NeoHookean, scene, loss),
-        Model::FixedCorotated => run(&FixedCorotated, scene, loss),
+        Model::NeoHookean => run(ws, &NeoHookean, scene, loss),
+        Model::FixedCorotated => run(ws, &FixedCorotated, scene, loss),
     }
 }
 
 fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
+    ws: &mut GradientWorkspace<D>,
     model: &M,
     scene: &Scene<D>,
     loss: &L,
@@ -58,9 +92,23 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let t = scene.steps;
     let (mu, la) = scene.material.lame();
     let mut stepper = Stepper::new(scene);
-    // ---- forward with checkpoints of every step's particle state ----
-    let mut states: Vec<ParticleState<D>> = Vec::with_capacity(t + 1);
-    states.push(ParticleState::initial(scene));
+    // ---- forward with checkpoints of every step's particle state and grid nodes ----
+    let init = ParticleState::initial(scene);
+    ws.states.truncate(t + 1);
+    for st in ws.states.iter_mut() {
+        st.x.clone_from(&init.x);
+        st.v.clone_from(&init.v);
+        st.c.clone_from(&init.c);
+        st.f.clone_from(&init.f);
+    }
+    while ws.states.len() < t + 1 {
+        ws.states.push(init.clone());
+    }
+    ws.grids.truncate(t);
+    while ws.grids.len() < t {
+        ws.grids.push(GridCheckpoint::default());
+    }
+    let states = &mut ws.states;
     let mut loss_grads: Vec<Option<Vec<Vector<D>>>> = vec![None; t + 1];
     let mut total = 0.0;
     let mut observe = |s: usize, st: &ParticleState<D>, total: &mut f64| -> Result<(), MpmError> {
@@ -77,9 +125,12 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     };
     observe(0, &states[0], &mut total)?;
     for s in 0..t {
-        let mut next = states[s].clone();
-        stepper.step(model, scene, &states[s], &mut next, s)?;
-        states.push(next);
+        let (head, tail) = states.split_at_mut(s + 1);
+        stepper.step(model, scene, &head[s], &mut tail[0], s)?;
+        let g = &mut ws.grids[s];
+        g.mass.clone_from(&stepper.grid.mass);
+        g.vel.clone_from(&stepper.grid.vel);
+        g.wall_mask.clone_from(&stepper.grid.wall_mask);
         observe(s + 1, &states[s + 1], &mut total)?;
     }
     // ---- reverse pass ----
@@ -102,14 +153,28 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let (mut mu_bar, mut la_bar) = (0.0, 0.0);
     for s in (0..t).rev() {
         let cur = &states[s];
-        stepper.to_grid(model, scene, cur, s)?;
+        let next = &states[s + 1];
+        let gc = &ws.grids[s];
+        stepper.grid.build(&cur.x, s)?;
         let nodes = stepper.grid.n_nodes();
+        debug_assert_eq!(nodes, gc.mass.len());
         vel_bar.clear();
         vel_bar.resize(nodes, Vector::<D>::zeros());
         mass_bar.clear();
         mass_bar.resize(nodes, 0.0);
-        g2p_adjoint(&stepper.grid, scene, &cur.x, &x_bar, &v_bar, &c_bar, &mut vel_bar, &mut x_bar_g2p);
-        grid_update_adjoint(&stepper.grid, scene, &mut vel_bar, &mut mass_bar);
+        g2p_adjoint(
+            &stepper.grid,
+            scene,
+            &gc.vel,
+            &cur.x,
+            &next.v,
+            &x_bar,
+            &v_bar,
+            &c_bar,
+            &mut vel_bar,
+            &mut x_bar_g2p,
+        );
+        grid_update_adjoint(scene, &gc.mass, &gc.vel, &gc.wall_mask, &mut vel_bar, &mut mass_bar);
         p2g_adjoint(
             model,
             mu,
@@ -120,8 +185,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
             &cur.v,
             &cur.c,
             &cur.f,
-            &stepper.f_next,
-            &stepper.affine,
+            &next.f,
             &vel_bar,
             &mass_bar,
             &f_bar,
@@ -150,7 +214,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
         }
     }
     let (d_e, d_nu) = lame_vjp(scene.material.youngs_modulus, scene.material.poisson_ratio, mu_bar, la_bar);
-    let final_state = states.pop().expect("at least the initial state");
+    let final_state = states[t].clone();
     Ok(GradientResult {
         loss: total,
         d_velocities: v_bar,

@@ -1,8 +1,8 @@
 //! Grid-to-particle transfer (eq. 5.7) with the APIC affine matrix C and advection x += Δt v.
 use crate::error::MpmError;
-use crate::linalg::{stencil_len, Matrix, Vector};
+use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, stencil_offset, SparseGrid};
+use crate::sparse_grid::{bspline, for_stencil, SparseGrid};
 use rayon::prelude::*;
 
 /// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
@@ -34,18 +34,15 @@ pub fn gather<const D: usize>(
             let st = &grid.stencil[p];
             let mut nv = Vector::<D>::zeros();
             let mut nc = Matrix::<D>::zeros();
-            for k in 0..stencil_len(D) {
-                let o = stencil_offset::<D>(k);
-                let mut weight = 1.0;
+            for_stencil::<D>(&w, |k, o, weight| {
                 let mut dpos = Vector::<D>::zeros();
                 for d in 0..D {
-                    weight *= w[d][o[d]];
                     dpos[d] = o[d] as f64 - fx[d];
                 }
                 let gv = grid.vel[st[k] as usize];
                 nv += gv * weight;
                 nc += gv * dpos.transpose() * (4.0 * weight * inv_dx);
-            }
+            });
             *vn = nv;
             *cn = nc;
             *xn = x[p] + nv * dt;

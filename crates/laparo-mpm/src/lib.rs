@@ -23,7 +23,7 @@ pub mod scene;
 pub mod simulate;
 pub mod sparse_grid;
 
-pub use adjoint::{simulate_with_gradient, GradientResult};
+pub use adjoint::{simulate_with_gradient, simulate_with_gradient_in, GradientResult, GradientWorkspace};
 pub use cfl::{cfl_dt, Warning};
 pub use constitutive::{lame, ConstitutiveModel};
 pub use error::MpmError;

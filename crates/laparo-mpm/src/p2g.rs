@@ -2,9 +2,9 @@
 //! stress, and the colour-partitioned APIC/MLS scatter of mass and momentum.
 use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
-use crate::linalg::{stencil_len, Matrix, Vector};
+use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, stencil_offset, SparseGrid, SyncPtr};
+use crate::sparse_grid::{bspline, for_stencil, SparseGrid, SyncPtr};
 use rayon::prelude::*;
 
 /// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
@@ -83,12 +83,9 @@ pub fn scatter<const D: usize>(
         }
         let a = affine[p];
         let st = &g.stencil[p];
-        for k in 0..stencil_len(D) {
-            let o = stencil_offset::<D>(k);
-            let mut weight = 1.0;
+        for_stencil::<D>(&w, |k, o, weight| {
             let mut dpos = Vector::<D>::zeros();
             for d in 0..D {
-                weight *= w[d][o[d]];
                 dpos[d] = (o[d] as f64 - fx[d]) * dx;
             }
             let i = st[k] as usize;
@@ -97,6 +94,6 @@ pub fn scatter<const D: usize>(
                 *mom.at(i) += (mv + a * dpos) * weight;
                 *mass.at(i) += weight * m;
             }
-        }
+        });
     });
 }

@@ -133,3 +133,52 @@ impl TaichiFixture {
         })
     }
 }
+
+/// The RODS box problem of the DiffTaichi scripts (`mpm2d_rods.py` / `mpm3d_rods.py`): a lattice of
+/// `counts` particles at spacing Δx/2 centred in the unit domain, E = 4.1, ν = 0.49, ρ = 1, sticky
+/// walls of 3 nodes, ε = 1e-10, and the landmark loss pulling the two "lips" apart by ±0.01 in x.
+/// Initial velocities: the smooth stretching/shearing field of `scripts/check_mpm_taichi.sh`.
+pub fn rods_scene<const D: usize>(
+    counts: [usize; D],
+    n_grid: usize,
+    steps: usize,
+    dt: f64,
+) -> (Scene<D>, LandmarkLoss<D>) {
+    let grid = GridSpec::unit(n_grid);
+    let spacing = grid.dx / 2.0;
+    let lo = Vector::<D>::from_fn(|d, _| 0.5 - counts[d] as f64 * spacing / 2.0);
+    let hi = Vector::<D>::from_fn(|d, _| lo[d] + counts[d] as f64 * spacing);
+    let pos = crate::scene::box_lattice(lo, hi, spacing);
+    let material = Material { model: Model::NeoHookean, youngs_modulus: 4.1, poisson_ratio: 0.49, density: 1.0 };
+    let mut scene = Scene::new(pos, spacing.powi(D as i32), material, grid, dt, steps);
+    scene.mass_epsilon = 1e-10;
+    let n = scene.n_particles() as f64;
+    let c = scene.positions.iter().fold(Vector::<D>::zeros(), |a, b| a + b) / n;
+    for p in 0..scene.positions.len() {
+        let r = scene.positions[p] - c;
+        let mut v = Vector::<D>::zeros();
+        v[0] = 8.0 * r[0] + 2.0 * r[1];
+        v[1] = -3.0 * r[0] + 0.3 * (40.0 * r[0]).sin();
+        if D == 3 {
+            v[2] = 1.5 * r[1] - 2.0 * r[2];
+        }
+        scene.velocities[p] = v;
+    }
+    let (nx, ny) = (counts[0], counts[1]);
+    let nl = 25.min(ny);
+    let (il, ir) = (nx / 2 - 1, nx / 2);
+    let pidx = |i: usize, j: usize| if D == 2 { i * ny + j } else { (i * ny + j) * counts[D - 1] + counts[D - 1] - 1 };
+    let js: Vec<usize> = (0..nl).map(|q| if D == 2 { ny - 1 - q } else { q * ny / nl }).collect();
+    let mut indices: Vec<usize> = js.iter().map(|&j| pidx(il, j)).collect();
+    indices.extend(js.iter().map(|&j| pidx(ir, j)));
+    let targets = indices
+        .iter()
+        .enumerate()
+        .map(|(k, &p)| {
+            let mut t = scene.positions[p];
+            t[0] += if k < nl { -0.01 } else { 0.01 };
+            t
+        })
+        .collect();
+    (scene, LandmarkLoss { indices, targets })
+}

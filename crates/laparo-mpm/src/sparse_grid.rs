@@ -7,7 +7,7 @@
 //! is fixed (colour by colour, particles in sorted order): results are bit-identical whatever the
 //! number of threads.
 use crate::error::MpmError;
-use crate::linalg::{stencil_len, Vector};
+use crate::linalg::Vector;
 use crate::scene::GridSpec;
 use rayon::prelude::*;
 
@@ -78,6 +78,9 @@ pub struct SparseGrid<const D: usize> {
     /// Per node: which velocity components the wall condition zeroed (bit d), for the adjoint.
     pub wall_mask: Vec<u8>,
     keys: Vec<u64>,
+    counts: Vec<u32>,
+    distinct: Vec<u32>,
+    pnbr: Vec<([u32; 8], [i32; D])>,
 }
 
 /// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
@@ -114,6 +117,9 @@ impl<const D: usize> SparseGrid<D> {
             vel: Vec::new(),
             wall_mask: Vec::new(),
             keys: Vec::new(),
+            counts: vec![0; blocks_per_axis.pow(D as u32)],
+            distinct: Vec::new(),
+            pnbr: Vec::new(),
         }
     }
 
@@ -172,18 +178,35 @@ impl<const D: usize> SparseGrid<D> {
         if bad != usize::MAX {
             return Err(MpmError::OutsideDomain { particle: bad, step });
         }
-        // Sort particles by base block (key, particle) — unique keys, so the order is deterministic.
+        // Counting sort of the particles by base block (stable: particle index order within a block).
         self.keys.clear();
-        for (p, b) in self.base.iter().enumerate() {
-            let mut c = [0usize; D];
-            for d in 0..D {
-                c[d] = (b[d] as usize) >> BLOCK_SHIFT;
+        self.distinct.clear();
+        for b in self.base.iter() {
+            let c: [usize; D] = std::array::from_fn(|d| (b[d] as usize) >> BLOCK_SHIFT);
+            let k = self.block_key(&c);
+            if self.counts[k] == 0 {
+                self.distinct.push(k as u32);
             }
-            self.keys.push(((self.block_key(&c) as u64) << 32) | p as u64);
+            self.counts[k] += 1;
+            self.keys.push(k as u64);
         }
-        self.keys.sort_unstable();
+        self.distinct.sort_unstable();
+        let mut offset = 0u32;
+        for &k in &self.distinct {
+            let c = self.counts[k as usize];
+            self.counts[k as usize] = offset;
+            offset += c;
+        }
         self.order.clear();
-        self.order.extend(self.keys.iter().map(|k| (*k & 0xffff_ffff) as u32));
+        self.order.resize(n, 0);
+        for p in 0..n {
+            let k = self.keys[p] as usize;
+            self.order[self.counts[k] as usize] = p as u32;
+            self.counts[k] += 1;
+        }
+        for &k in &self.distinct {
+            self.counts[k as usize] = 0;
+        }
         // Reset the block table, then activate blocks in order of first touch.
         for b in &self.blocks {
             let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
@@ -192,19 +215,16 @@ impl<const D: usize> SparseGrid<D> {
         }
         self.blocks.clear();
         self.pblocks.clear();
+        self.pnbr.clear();
         for c in self.colors.iter_mut() {
             c.clear();
         }
-        let mut i = 0;
-        while i < n {
-            let key = self.keys[i] >> 32;
-            let mut j = i + 1;
-            while j < n && self.keys[j] >> 32 == key {
-                j += 1;
-            }
-            let b0 = self.base[(self.keys[i] & 0xffff_ffff) as usize];
+        let mut start = 0usize;
+        for &key in &self.distinct {
+            let b0 = self.base[self.order[start] as usize];
             let c0: [usize; D] = std::array::from_fn(|d| (b0[d] as usize) >> BLOCK_SHIFT);
-            for nb in 0..(1usize << D) {
+            let mut nbr = [0u32; 8];
+            for (nb, slot) in nbr.iter_mut().enumerate().take(1 << D) {
                 let c: [usize; D] = std::array::from_fn(|d| c0[d] + ((nb >> d) & 1));
                 if c.iter().all(|&v| v < self.blocks_per_axis) {
                     let k = self.block_key(&c);
@@ -212,36 +232,51 @@ impl<const D: usize> SparseGrid<D> {
                         self.table[k] = self.blocks.len() as u32;
                         self.blocks.push(std::array::from_fn(|d| c[d] as u32));
                     }
+                    *slot = self.table[k];
                 }
+            }
+            let mut end = start;
+            while end < n && self.keys[self.order[end] as usize] == key as u64 {
+                end += 1;
             }
             let colour: usize = (0..D).map(|d| (c0[d] & 1) << d).sum();
             self.colors[colour].push(self.pblocks.len() as u32);
-            self.pblocks.push(ParticleBlock { start: i as u32, end: j as u32 });
-            i = j;
+            self.pblocks.push(ParticleBlock { start: start as u32, end: end as u32 });
+            self.pnbr.push((nbr, c0.map(|v| (v * BLOCK) as i32)));
+            start = end;
         }
-        // Node indices of every particle's stencil.
+        // Node indices of every particle's stencil, from its block's neighbour blocks.
         let nn = block_nodes(D);
-        let bpa = self.blocks_per_axis;
-        let table = &self.table;
         self.stencil.resize(n, [0u32; 27]);
-        self.stencil.par_iter_mut().zip(self.base.par_iter()).for_each(|(st, b)| {
-            for (k, slot) in st.iter_mut().enumerate().take(stencil_len(D)) {
-                let mut bk = 0usize;
-                let mut local = 0usize;
+        let st_ptr = SyncPtr(self.stencil.as_mut_ptr());
+        let (order, base, pnbr) = (&self.order, &self.base, &self.pnbr);
+        self.pblocks.par_iter().zip(pnbr.par_iter()).for_each(|(blk, (nbr, origin))| {
+            for &p in &order[blk.start as usize..blk.end as usize] {
+                let b = &base[p as usize];
+                // SAFETY: each particle belongs to exactly one particle block.
+                let st = unsafe { st_ptr.at(p as usize) };
+                let mut sel = [[0usize; 3]; D];
+                let mut loc = [[0usize; 3]; D];
                 let mut stride = 1usize;
-                let mut rem = k;
-                let mut o = [0usize; D];
-                for d in (0..D).rev() {
-                    o[d] = rem % 3;
-                    rem /= 3;
-                }
                 for d in 0..D {
-                    let node = b[d] as usize + o[d];
-                    bk = bk * bpa + (node >> BLOCK_SHIFT);
-                    local += (node & (BLOCK - 1)) * stride;
+                    for o in 0..3 {
+                        let l = (b[d] - origin[d]) as usize + o;
+                        sel[d][o] = (l >> BLOCK_SHIFT) << d;
+                        loc[d][o] = (l & (BLOCK - 1)) * stride;
+                    }
                     stride *= BLOCK;
                 }
-                *slot = (table[bk] as usize * nn + local) as u32;
+                let mut k = 0;
+                for_stencil_offsets::<D>(|o| {
+                    let mut s = 0;
+                    let mut l = 0;
+                    for d in 0..D {
+                        s += sel[d][o[d]];
+                        l += loc[d][o[d]];
+                    }
+                    st[k] = (nbr[s] as usize * nn + l) as u32;
+                    k += 1;
+                });
             }
         });
         let nodes = self.blocks.len() * nn;
@@ -300,4 +335,45 @@ pub fn stencil_offset<const D: usize>(k: usize) -> [usize; D] {
         rem /= 3;
     }
     o
+}
+
+/// Visit the 3^D stencil nodes of a particle in stencil order (axis 0 slowest) with their offsets
+/// and weights w = Π_d w[d][o_d]; the loops are fully unrolled for D = 2, 3.
+#[inline(always)]
+pub fn for_stencil<const D: usize>(w: &[[f64; 3]; D], mut f: impl FnMut(usize, &[usize; D], f64)) {
+    let a1 = 1usize.min(D - 1);
+    if D == 2 {
+        let mut k = 0;
+        for i in 0..3 {
+            for j in 0..3 {
+                let mut o = [0usize; D];
+                o[0] = i;
+                o[D - 1] = j;
+                f(k, &o, w[0][i] * w[D - 1][j]);
+                k += 1;
+            }
+        }
+    } else {
+        let mut k = 0;
+        for i in 0..3 {
+            for j in 0..3 {
+                let wij = w[0][i] * w[a1][j];
+                for l in 0..3 {
+                    let mut o = [0usize; D];
+                    o[0] = i;
+                    o[a1] = j;
+                    o[D - 1] = l;
+                    f(k, &o, wij * w[D - 1][l]);
+                    k += 1;
+                }
+            }
+        }
+    }
+}
+
+/// Visit the 3^D stencil offsets in stencil order (axis 0 slowest).
+#[inline(always)]
+pub fn for_stencil_offsets<const D: usize>(mut f: impl FnMut(&[usize; D])) {
+    let w = [[0.0; 3]; D];
+    for_stencil::<D>(&w, |_, o, _| f(o));
 }

@@ -1,19 +1,21 @@
 //! Adjoint of the G2P transfer and advection.
 //!
 //! Forward: v' = Σ w_i v_i, C' = 4/Δx Σ w_i v_i (o_i − fx)ᵀ, x' = x + Δt v', with fx = x/Δx − base.
-//! Reverse: v̄' ← v̄' + Δt x̄'; v̄_i += w_i v̄' + 4/Δx w_i C̄' (o_i − fx) (coloured scatter);
-//! w̄_i = v̄'·v_i + 4/Δx v_iᵀ C̄' (o_i − fx); f̄x = Σ (w̄_i ∂w_i/∂fx − 4/Δx w_i C̄'ᵀ v_i); x̄ = x̄' + f̄x/Δx.
-use crate::linalg::{stencil_len, Matrix, Vector};
+//! Reverse: v̄' ← v̄' + Δt x̄'; u_i = v̄' + 4/Δx C̄' (o_i − fx); v̄_i += w_i u_i (coloured scatter);
+//! w̄_i = v_i·u_i; f̄x = Σ_i w̄_i ∂w_i/∂fx − 4/Δx C̄'ᵀ v' (using Σ w_i v_i = v'); x̄ = x̄' + f̄x/Δx.
+use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, stencil_offset, SparseGrid, SyncPtr};
+use crate::sparse_grid::{bspline, for_stencil, SparseGrid, SyncPtr};
 
-/// Returns nothing; fills `vel_bar` (node velocity adjoint, must be zeroed, one per node) and
-/// `x_bar` (the G2P part of the position adjoint of the step's input).
+/// Fills `vel_bar` (node-velocity adjoint, zeroed, one per node of `grid`) and `x_bar` (the G2P part
+/// of the position adjoint of the step input). `vel`: the step's node velocities; `v_next`: v'.
 #[allow(clippy::too_many_arguments)]
 pub fn g2p_adjoint<const D: usize>(
     grid: &SparseGrid<D>,
     scene: &Scene<D>,
+    vel: &[Vector<D>],
     x: &[Vector<D>],
+    v_next: &[Vector<D>],
     x_bar_next: &[Vector<D>],
     v_bar_next: &[Vector<D>],
     c_bar_next: &[Matrix<D>],
@@ -32,26 +34,21 @@ pub fn g2p_adjoint<const D: usize>(
             return;
         }
         let vb = v_bar_next[p] + x_bar_next[p] * dt;
-        let cb = c_bar_next[p];
+        let cb4 = c_bar_next[p] * (4.0 * inv_dx);
         let (fx, w, dw) = bspline(&x[p], &grid.base[p], inv_dx);
         let st = &grid.stencil[p];
-        let mut fxb = Vector::<D>::zeros();
-        for k in 0..stencil_len(D) {
-            let o = stencil_offset::<D>(k);
-            let mut weight = 1.0;
+        let mut fxb = -(cb4.transpose() * v_next[p]);
+        for_stencil::<D>(&w, |k, o, weight| {
             let mut dpos = Vector::<D>::zeros();
             for d in 0..D {
-                weight *= w[d][o[d]];
                 dpos[d] = o[d] as f64 - fx[d];
             }
             let i = st[k] as usize;
-            let gv = grid.vel[i];
-            let cb_dpos = cb * dpos;
+            let u = vb + cb4 * dpos;
             unsafe {
-                *vb_ptr.at(i) += vb * weight + cb_dpos * (4.0 * weight * inv_dx);
+                *vb_ptr.at(i) += u * weight;
             }
-            let wbar = vb.dot(&gv) + 4.0 * inv_dx * gv.dot(&cb_dpos);
-            fxb -= cb.transpose() * gv * (4.0 * weight * inv_dx);
+            let wbar = vel[i].dot(&u);
             for d in 0..D {
                 let mut dwd = dw[d][o[d]];
                 for e in 0..D {
@@ -61,7 +58,7 @@ pub fn g2p_adjoint<const D: usize>(
                 }
                 fxb[d] += wbar * dwd;
             }
-        }
+        });
         *xb = x_bar_next[p] + fxb * inv_dx;
     });
 }

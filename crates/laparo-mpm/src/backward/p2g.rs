@@ -3,13 +3,13 @@
 //! Forward: m_i += w_i m, (m v)_i += w_i (m v + Δt f + A dpos_i), dpos_i = (o_i − fx) Δx,
 //! A = s τ(F') + m C, F' = (I + Δt C) F, s = −Δt V 4/Δx².
 //! Reverse: v̄ = m Σ w_i p̄_i; Ā = Σ w_i p̄_i dpos_iᵀ; w̄_i = p̄_i·(m v + Δt f + A dpos_i) + m̄_i m;
-//! f̄x = Σ (w̄_i ∂w_i/∂fx − Δx w_i Aᵀ p̄_i); τ̄ = s Ā; F̄' += ∂τ/∂F'ᵀ τ̄; C̄ = m Ā + Δt F̄' Fᵀ;
+//! f̄x = Σ w̄_i ∂w_i/∂fx − Δx Aᵀ Σ w_i p̄_i; τ̄ = s Ā; F̄' += ∂τ/∂F'ᵀ τ̄; C̄ = m Ā + Δt F̄' Fᵀ;
 //! F̄ = (I + Δt C)ᵀ F̄'; (μ̄, λ̄) from the constitutive VJP.
 use crate::constitutive::ConstitutiveModel;
-use crate::linalg::{stencil_len, Matrix, Vector};
+use crate::linalg::{Matrix, Vector};
 use crate::p2g::stress_scale;
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, stencil_offset, SparseGrid};
+use crate::sparse_grid::{bspline, for_stencil, SparseGrid};
 use rayon::prelude::*;
 
 /// Adjoints of one particle's step input.
@@ -30,7 +30,8 @@ pub struct ParticleAdjoint<const D: usize> {
 }
 
 /// Per-particle adjoint of P2G. `mom_bar`, `mass_bar`: node adjoints from the grid-update adjoint;
-/// `f_bar_next`: F̄ of the step output; `f_next`, `affine`: recomputed forward quantities.
+/// `f_bar_next`: F̄ of the step output; `f_next`: F of the step output (checkpoint). The stress and
+/// the affine matrix A are recomputed here.
 #[allow(clippy::too_many_arguments)]
 pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
     model: &M,
@@ -43,7 +44,6 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
     c: &[Matrix<D>],
     f: &[Matrix<D>],
     f_next: &[Matrix<D>],
-    affine: &[Matrix<D>],
     mom_bar: &[Vector<D>],
     mass_bar: &[f64],
     f_bar_next: &[Matrix<D>],
@@ -55,7 +55,9 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
     out.par_iter_mut().enumerate().with_min_len(64).for_each(|(p, o_adj)| {
         let (fx, w, dw) = bspline(&x[p], &grid.base[p], inv_dx);
         let m = scene.masses[p];
-        let a = affine[p];
+        let scale = stress_scale(scene, p);
+        let tau = model.kirchhoff(&f_next[p], mu, lambda).unwrap_or_else(Matrix::<D>::zeros);
+        let a = tau * scale + c[p] * m;
         let mut mv = v[p] * m;
         if !scene.external_forces.is_empty() {
             mv += scene.external_forces[p] * dt;
@@ -64,12 +66,9 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
         let mut sum_wp = Vector::<D>::zeros();
         let mut ab = Matrix::<D>::zeros();
         let mut fxb = Vector::<D>::zeros();
-        for k in 0..stencil_len(D) {
-            let o = stencil_offset::<D>(k);
-            let mut weight = 1.0;
+        for_stencil::<D>(&w, |k, o, weight| {
             let mut dpos = Vector::<D>::zeros();
             for d in 0..D {
-                weight *= w[d][o[d]];
                 dpos[d] = (o[d] as f64 - fx[d]) * dx;
             }
             let i = st[k] as usize;
@@ -77,7 +76,6 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
             let wpb = pb * weight;
             sum_wp += wpb;
             ab += wpb * dpos.transpose();
-            fxb -= a.transpose() * wpb * dx;
             let wbar = pb.dot(&(mv + a * dpos)) + mass_bar[i] * m;
             for d in 0..D {
                 let mut dwd = dw[d][o[d]];
@@ -88,8 +86,9 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
                 }
                 fxb[d] += wbar * dwd;
             }
-        }
-        let tau_bar = ab * stress_scale(scene, p);
+        });
+        fxb -= a.transpose() * sum_wp * dx;
+        let tau_bar = ab * scale;
         let (fnb_tau, mub, lab) = model.kirchhoff_vjp(&f_next[p], mu, lambda, &tau_bar);
         let fnb = f_bar_next[p] + fnb_tau;
         *o_adj = ParticleAdjoint {
