@@ -542,13 +542,12 @@ impl BlockParser<'_> {
     /// The value after `key:` (or `-`) on line `no`, whose block children are indented more
     /// than `indent`.
     fn parse_value(&mut self, rest: &str, indent: usize, no: usize, in_map: bool) -> Result<FsNode> {
-        let (tag, rest) = if rest.starts_with("!!") {
-            match rest.find(char::is_whitespace) {
-                Some(p) => (Some(&rest[2..p]), rest[p..].trim()),
-                None => (Some(&rest[2..]), ""),
-            }
-        } else {
-            (None, rest)
+        let (tag, rest) = match rest.strip_prefix("!!") {
+            Some(tagged) => match tagged.find(char::is_whitespace) {
+                Some(p) => (Some(&tagged[..p]), tagged[p..].trim()),
+                None => (Some(tagged), ""),
+            },
+            None => (None, rest),
         };
         let node = if rest.is_empty() {
             match self.lines.get(self.i) {

@@ -14,6 +14,7 @@ pub mod error;
 pub mod homography;
 pub mod image;
 pub mod io;
+pub mod mesh;
 pub mod plot;
 pub mod se3;
 
