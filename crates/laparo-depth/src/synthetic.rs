@@ -406,7 +406,7 @@ pub fn organ_sequence(
 /// absolute luminance change between observed and clean image, ×`4`, clipped) and mean disparity
 /// `q̄`, the method "sees" `q̃ = (1 − f) q + f q̄` with flattening `f = flatten + sensitivity·D`
 /// (networks tend to flatten bumpy organs, thesis App. C.1), multiplied by `1 + ε`, where `ε` is
-/// smooth low-frequency noise plus white noise of relative amplitude `noise_rel·(1 + 2·sensitivity·D)`.
+/// smooth low-frequency noise (amplitude a) plus white noise (0.1 a), a = `noise_rel·(1 + 2·sensitivity·D)`.
 /// The output is `scale·q̃ + shift` (disparity) or `scale/q̃ + shift` (depth).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SyntheticMethod {
@@ -517,7 +517,7 @@ impl SyntheticMethod {
                 let d = deg[i] as f64;
                 let f = (self.flatten + self.sensitivity * d).min(1.0);
                 let amp = self.noise_rel * (1.0 + 2.0 * self.sensitivity * d);
-                let eps = amp * (2.0 * (smooth.at(x as f64, y as f64) as f64 - 0.5) + 0.3 * r.gen_range(-1.0..1.0));
+                let eps = amp * (2.0 * (smooth.at(x as f64, y as f64) as f64 - 0.5) + 0.1 * r.gen_range(-1.0..1.0));
                 let qt = ((1.0 - f) * q[i] + f * qbar) * (1.0 + eps);
                 *o = match self.kind {
                     PredKind::Disparity => self.scale * qt + self.shift,

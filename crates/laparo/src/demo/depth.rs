@@ -8,9 +8,8 @@ use anyhow::{Context, Result};
 use laparo_core::colormap::{colorize, with_colorbar, Colormap};
 use laparo_core::Image;
 use laparo_depth::align::Alignment;
-use laparo_depth::eval::{evaluate_manifest, EvalConfig, EvalOutput};
+use laparo_depth::eval::{evaluate_manifest, EvalConfig};
 use laparo_depth::manifest::{perturbation_title, FrameSpec, Manifest, MethodSpec, SequenceSpec};
-use laparo_depth::metrics::{aligned_depth_map, PairOptions};
 use laparo_depth::perturb::{self as pt, Perturbation};
 use laparo_depth::report::{self, Summary};
 use laparo_depth::synthetic::{self as syn, Gesture, SyntheticMethod};
@@ -191,26 +190,6 @@ fn tables_html(summary: &Summary, methods: &[SyntheticMethod]) -> String {
     s
 }
 
-/// Error map (thesis Fig. C.1): z* − ẑ in mm after s&t alignment, Turbo colours
-/// (blue: prediction deeper than GT, red: shallower), with a colour bar.
-fn error_map(out: &EvalOutput, f: &DemoFrame, method: &SyntheticMethod, work: &Path) -> Result<(Image<u8>, f64)> {
-    let pp = work.join(pred_path(&method.name, &f.spec.id));
-    let pred = laparo_core::io::read_npy(&pp)?;
-    let opts = PairOptions {
-        alignments: vec![Alignment::ScaleShift],
-        range: out.options.range,
-        invalid_pred: out.options.invalid_pred,
-    };
-    let (aligned, _) = aligned_depth_map(&pred.data, method.kind, &f.gt.data, None, Alignment::ScaleShift, &opts)
-        .with_context(|| format!("aligning {}", pp.display()))?;
-    let err: Vec<f64> = aligned.iter().zip(&f.gt.data).map(|(a, g)| (g - a) * 1e3).collect();
-    let img = Image::from_vec(W, H, 1, err)?;
-    let lim =
-        laparo_core::colormap::percentile_range(&img.map(f64::abs), 0.0, 98.0).map(|r| r.1).unwrap_or(1.0).max(0.5);
-    let c = colorize(&img, -lim, lim, Colormap::Turbo);
-    Ok((with_colorbar(&c, -lim, lim, Colormap::Turbo, "z* - z (mm)"), lim))
-}
-
 /// The demo section.
 pub fn section(out: &Path) -> Result<DemoSection> {
     let dir = out.join("depth");
@@ -224,7 +203,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     let manifest = Manifest::read(&mp)?;
     let eval = evaluate_manifest(&manifest, &EvalConfig::default(), &|_| {})?;
     let summary = report::summarize(&eval, BASELINE)?;
-    let written = report::write_reports(&dir, &eval, &summary)?;
+    report::write_reports(&dir, &eval, &summary)?;
 
     // Figures.
     laparo_core::io::write_png(dir.join("clean.png"), &clean_rgb)?;
@@ -276,26 +255,20 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     let cols: Vec<String> = ["clean", "severity 1", "severity 2", "severity 3"].map(String::from).to_vec();
     laparo_core::io::write_png(dir.join("perturbations.png"), &pt::contact_sheet(&rows, &cols, 200)?)?;
 
-    // Error maps of the most and least robust method on defocus severity 3 (like Fig. C.2).
+    // Radar charts (Fig. 3.4) under s&t alignment, and error maps (Fig. C.1/C.2) of every method
+    // on defocus severity 3, drawn by the evaluation's report module.
     let st = summary.alignments.iter().find(|a| a.alignment == Alignment::ScaleShift).context("s&t summary")?;
-    let mut by_mce: Vec<(f64, &str)> =
-        st.robustness.iter().map(|r| (r.mce.abs_rel.unwrap_or(f64::INFINITY), r.method.as_str())).collect();
-    by_mce.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut radar = Vec::new();
+    for r in &st.robustness {
+        let files = report::write_radar(&dir.join("radar"), r, Alignment::ScaleShift)?;
+        radar.extend(files.into_iter().filter(|p| p.extension().is_some_and(|e| e == "png")));
+    }
     let target = frames
         .iter()
         .find(|f| f.spec.scene == scene0 && f.spec.perturbation == "defocus" && f.spec.severity == Some(3))
         .context("defocus s3 frame")?;
-    let mut err_figs = Vec::new();
-    for (i, (_, name)) in [by_mce[0], by_mce[by_mce.len() - 1]].iter().enumerate() {
-        let m = methods.iter().find(|m| m.name == *name).context("method")?;
-        let (img, lim) = error_map(&eval, target, m, &work)?;
-        let file = format!("error_map_{i}.png");
-        laparo_core::io::write_png(dir.join(&file), &img)?;
-        err_figs.push((file, m.name.clone(), lim));
-    }
-
-    // Radar charts from the evaluation report, if the report module draws them.
-    let radar: Vec<PathBuf> = written.iter().filter(|p| p.extension().is_some_and(|e| e == "png")).cloned().collect();
+    let err_figs =
+        report::write_error_maps(&dir.join("error_maps"), &manifest, &eval, &target.spec.id, Alignment::ScaleShift)?;
 
     std::fs::remove_dir_all(&work).with_context(|| format!("removing {}", work.display()))?;
 
@@ -327,16 +300,19 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         drop = rstats.triangles_dropped_jump
     );
     html.push_str(&tables_html(&summary, &methods));
+    html.push_str("<h4>Robustness per perturbation, s&amp;t-alignment (cf. Fig. 3.4): CE (red) and RR (blue)</h4>\n");
     for p in &radar {
         let rel = p.strip_prefix(out).unwrap_or(p).display().to_string();
-        let _ = write!(html, "<figure><img src=\"{rel}\" width=\"480\"><figcaption>{rel}</figcaption></figure>\n");
+        let _ = writeln!(html, "<figure><img src=\"{rel}\" width=\"560\"></figure>");
     }
-    for (file, name, lim) in &err_figs {
-        let _ = write!(
-            html,
-            "<figure><img src=\"depth/{file}\" width=\"400\"><figcaption>{name}, defocus severity 3, s&amp;t-aligned error \
-             z*−ẑ (mm, ±{lim:.1}; blue = predicted deeper)</figcaption></figure>\n"
-        );
+    html.push_str(
+        "<h4>Error maps z*−ẑ (mm) after s&amp;t alignment, defocus severity 3 (cf. Fig. C.2): \
+         blue = prediction deeper than GT, red = shallower</h4>\n",
+    );
+    for p in &err_figs {
+        let rel = p.strip_prefix(out).unwrap_or(p).display().to_string();
+        let cap = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let _ = writeln!(html, "<figure><img src=\"{rel}\" width=\"300\"><figcaption>{cap}</figcaption></figure>");
     }
     let _ = write!(
         html,
