@@ -41,10 +41,10 @@ pub struct FsMatrix {
 impl FsMatrix {
     /// A single-channel f64 matrix (`dt: d`).
     pub fn new(rows: usize, cols: usize, data: Vec<f64>) -> Result<Self> {
-        if data.len() != rows * cols {
+        if rows.checked_mul(cols) != Some(data.len()) {
             return Err(CoreError::SizeMismatch(format!(
                 "matrix {rows}x{cols} needs {} values, got {}",
-                rows * cols,
+                rows as u128 * cols as u128,
                 data.len()
             )));
         }
@@ -591,12 +591,13 @@ impl BlockParser<'_> {
             d => d.numbers().ok_or_else(|| self.err(no, "opencv-matrix 'data' is not a list of numbers"))?,
         };
         let channels = channels_of(&dt);
-        if data.len() != rows * cols * channels {
+        let n = rows.checked_mul(cols).and_then(|v| v.checked_mul(channels));
+        if n != Some(data.len()) {
             return Err(self.err(
                 no,
                 format!(
                     "opencv-matrix {rows}x{cols} ({dt}) needs {} values, 'data' has {}",
-                    rows * cols * channels,
+                    rows as u128 * cols as u128 * channels as u128,
                     data.len()
                 ),
             ));
@@ -1283,6 +1284,7 @@ vals: [ 1, -2.5e-3, .Inf ]\nnested:\n   a: 1\n   b: [ x, \"y z\" ]\nitems:\n   -
     }
 
     #[test]
+    #[allow(clippy::excessive_precision)]
     fn real_ris2017_calibration() {
         let p = data_dir().join("ris2017_kidney_ghattab_camera2.yml");
         if !p.exists() {
@@ -1303,6 +1305,7 @@ vals: [ 1, -2.5e-3, .Inf ]\nnested:\n   a: 1\n   b: [ x, \"y z\" ]\nitems:\n   -
     }
 
     #[test]
+    #[allow(clippy::excessive_precision)]
     fn real_questionable_stereo_calib_pair() {
         let d = data_dir().join("questionable");
         let (i, e) = (d.join("dvrk_student_intrinsics.yml"), d.join("dvrk_student_extrinsics.yml"));

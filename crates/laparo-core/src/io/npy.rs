@@ -46,8 +46,46 @@ fn shape_to_image(path: &Path, what: &str, shape: &[usize], data: Vec<f64>) -> R
     Image::from_vec(w, h, c, data).map_err(|e| CoreError::format(path, format!("{what}{e}")))
 }
 
+/// Check, before ndarray-npy allocates, that the data announced by the header (shape × item
+/// size) is present, so a corrupt header cannot request a huge allocation.
+fn check_npy_length(bytes: &[u8]) -> std::result::Result<(), String> {
+    if bytes.len() < 10 || !bytes.starts_with(b"\x93NUMPY") {
+        return Ok(()); // ndarray-npy reports the bad magic
+    }
+    let (hlen, start) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        _ if bytes.len() >= 12 => (u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize, 12),
+        _ => return Ok(()),
+    };
+    let Some(header) = bytes.get(start..start + hlen) else {
+        return Err("truncated: header is cut short".into());
+    };
+    let header = String::from_utf8_lossy(header);
+    let field = |key: &str| header.find(key).map(|i| &header[i + key.len()..]);
+    let Some(shape) = field("'shape'") else { return Ok(()) };
+    let Some(open) = shape.find('(') else { return Ok(()) };
+    let Some(close) = shape.find(')') else { return Ok(()) };
+    let mut count: u128 = 1;
+    for d in shape[open + 1..close].split(',').map(str::trim).filter(|d| !d.is_empty()) {
+        let Ok(d) = d.trim_end_matches('L').parse::<u128>() else { return Ok(()) };
+        count = count.saturating_mul(d);
+    }
+    let item: u128 = field("'descr'")
+        .and_then(|d| d.split('\'').nth(1))
+        .map(|d| d.chars().rev().take_while(|c| c.is_ascii_digit()).collect::<String>())
+        .and_then(|digits| digits.chars().rev().collect::<String>().parse().ok())
+        .unwrap_or(1);
+    let need = count.saturating_mul(item);
+    let have = (bytes.len() - (start + hlen)) as u128;
+    if need > have {
+        return Err(format!("truncated: the header announces {need} bytes of data, the file has {have}"));
+    }
+    Ok(())
+}
+
 /// Decode `.npy` bytes into an image; `what` prefixes messages (e.g. the array name in a .npz).
 fn npy_bytes_to_image(bytes: &[u8], path: &Path, what: &str) -> Result<Image<f64>> {
+    check_npy_length(bytes).map_err(|m| CoreError::format(path, format!("{what}{m}")))?;
     macro_rules! attempt {
         ($t:ty, $conv:expr) => {
             match ArrayD::<$t>::read_npy(bytes) {
@@ -128,7 +166,7 @@ pub fn read_npz(path: impl AsRef<Path>, name: Option<&str>) -> Result<Image<f64>
     };
     let mut entry = zip.by_index(index).map_err(|e| CoreError::format(path, format!("cannot open array: {e}")))?;
     let what = format!("array '{}': ", entry.name().strip_suffix(".npy").unwrap_or(entry.name()));
-    let mut bytes = Vec::with_capacity(entry.size() as usize);
+    let mut bytes = Vec::with_capacity((entry.size() as usize).min(1 << 26));
     entry.read_to_end(&mut bytes).map_err(|e| CoreError::format(path, format!("{what}cannot decompress: {e}")))?;
     npy_bytes_to_image(&bytes, path, &what)
 }
@@ -252,7 +290,7 @@ mod tests {
         // unsupported dtype: complex128
         let hdr = "{'descr': '<c16', 'fortran_order': False, 'shape': (1, 1), }";
         let mut h = hdr.to_string();
-        while (10 + h.len() + 1) % 64 != 0 {
+        while !(10 + h.len() + 1).is_multiple_of(64) {
             h.push(' ');
         }
         h.push('\n');

@@ -73,7 +73,7 @@ pub fn read_msh_mixed(path: impl AsRef<Path>) -> Result<MixedMesh> {
                 }
                 let (no2, c) = *lines.get(i + 1).ok_or_else(|| err(no, "truncated node block".into()))?;
                 let n = int(no2, c)? as usize;
-                m.vertices.reserve(n);
+                m.vertices.reserve(n.min(lines.len()));
                 for k in 0..n {
                     let (nl, row) = *lines
                         .get(i + 2 + k)

@@ -186,9 +186,9 @@ pub fn read_ply_with_colors(path: impl AsRef<Path>) -> Result<(TriMesh, Option<V
             if xi.is_none() || yi.is_none() || zi.is_none() {
                 return Err(bad("vertex element without x, y, z".into()));
             }
-            vertices.reserve(e.count);
+            vertices.reserve(e.count.min(bytes.len()));
             if ri.is_some() && gi.is_some() && bi.is_some() {
-                colors = Some(Vec::with_capacity(e.count));
+                colors = Some(Vec::with_capacity(e.count.min(bytes.len())));
             }
         }
         let mut vals = vec![0f64; e.props.len()];

@@ -99,6 +99,12 @@ pub fn read_stl(path: impl AsRef<Path>) -> Result<TriMesh> {
         if in_loop {
             return Err(CoreError::format(path, "truncated ascii STL: facet without 'endloop'"));
         }
+        if !text.lines().any(|l| l.trim_start().starts_with("endsolid")) {
+            return Err(CoreError::format(path, "truncated ascii STL: no 'endsolid'"));
+        }
+    }
+    if faces.is_empty() {
+        return Err(CoreError::format(path, "STL without triangles"));
     }
     check_read(path, &w.vertices, &faces)?;
     Ok(TriMesh { vertices: w.vertices, faces })

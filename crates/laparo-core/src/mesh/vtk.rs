@@ -86,7 +86,7 @@ pub fn read_vtk_mixed(path: impl AsRef<Path>) -> Result<MixedMesh> {
                 "POINTS" => {
                     let n = t.usize("point count")?;
                     t.next("point data type")?;
-                    m.vertices.reserve(n);
+                    m.vertices.reserve(n.min(rest.len()));
                     for k in 0..n {
                         let w = format!("coordinates of point {k}");
                         m.vertices.push(Vector3::new(t.f64(&w)?, t.f64(&w)?, t.f64(&w)?));
