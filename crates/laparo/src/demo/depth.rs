@@ -165,7 +165,7 @@ fn tables_html(summary: &Summary, methods: &[SyntheticMethod]) -> String {
             "<h4>{} — accuracy (mean over all frames) and robustness (baseline {})</h4>\n<table><tr><th>method</th><th>output</th>\
              <th>Abs Rel ↓</th><th>δ<sub>0.25</sub> ↑</th><th>δ<sub>1</sub> ↑</th><th>clean Abs Rel ↓</th><th>mCE (Abs Rel) ↓</th>\
              <th>mRR (Abs Rel) ↑</th><th>clean 1−δ<sub>0.25</sub> ↓</th><th>mCE (1−δ<sub>0.25</sub>) ↓</th><th>mRR (1−δ<sub>0.25</sub>) ↑</th></tr>\n",
-            al.alignment.title(),
+            al.alignment.title().replace('&', "&amp;"),
             summary.baseline
         );
         for (mm, r) in al.means.iter().zip(&al.robustness) {
