@@ -73,12 +73,19 @@ impl Problem<'_> {
 }
 
 /// Refine `p0` (the convex solution for `lambda`) by minimising eq. 4.9.
-pub fn refine(sys: &CpcSystem, mesh: &CpcMesh, p0: &[[f64; 2]], lambda: f64, params: &EquiarealParams) -> Result<Refined> {
+pub fn refine(
+    sys: &CpcSystem,
+    mesh: &CpcMesh,
+    p0: &[[f64; 2]],
+    lambda: f64,
+    params: &EquiarealParams,
+) -> Result<Refined> {
     validate_lambda(lambda)?;
     if p0.len() != mesh.n_vertices() {
         return Err(CpcError::SizeMismatch(format!("{} positions for {} vertices", p0.len(), mesh.n_vertices())));
     }
-    let area0: Vec<f64> = mesh.faces.iter().map(|f| signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]])).collect();
+    let area0: Vec<f64> =
+        mesh.faces.iter().map(|f| signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]])).collect();
     let a_tot: f64 = area0.iter().sum();
     let pb = Problem { sys, mesh, lambda, area0, a_tot };
     let mut p = p0.to_vec();
@@ -128,7 +135,8 @@ pub fn refine(sys: &CpcSystem, mesh: &CpcMesh, p0: &[[f64; 2]], lambda: f64, par
                 mu *= 10.0;
                 continue;
             }
-            let cand: Vec<[f64; 2]> = p.iter().enumerate().map(|(i, q)| [q[0] + step[2 * i], q[1] + step[2 * i + 1]]).collect();
+            let cand: Vec<[f64; 2]> =
+                p.iter().enumerate().map(|(i, q)| [q[0] + step[2 * i], q[1] + step[2 * i + 1]]).collect();
             let c2 = pb.cost(&cand);
             if c2.is_finite() && c2 < cost {
                 let rel = (cost - c2) / cost.max(1e-300);

@@ -10,8 +10,8 @@
 //! starts (hand-written: 3 unknowns, a few hundred evaluations; no optimisation crate needed).
 //! The reported (a2, c2) use the convention c2 = 0 (a2 = K).
 use crate::error::{CpcError, Result};
-use crate::metrics;
 use crate::mesh::CpcMesh;
+use crate::metrics;
 use crate::solve::CpcSystem;
 use serde::Serialize;
 

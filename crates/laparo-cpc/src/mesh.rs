@@ -120,7 +120,10 @@ impl CpcMesh {
             return Err(CpcError::invalid("grid step", "must be at least 1 px"));
         }
         if !(params.max_rel_depth_jump > 0.0) {
-            return Err(CpcError::invalid("max relative depth jump", format!("{} (must be > 0)", params.max_rel_depth_jump)));
+            return Err(CpcError::invalid(
+                "max relative depth jump",
+                format!("{} (must be > 0)", params.max_rel_depth_jump),
+            ));
         }
         if let Some(a) = params.max_view_angle_deg {
             if !(a > 0.0 && a <= 90.0) {
@@ -167,7 +170,10 @@ impl CpcMesh {
                     let x = t.map(|(a, b)| node_x(a, b));
                     let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
                     let area2 = n.norm();
-                    let lmax = (x[1] - x[0]).norm_squared().max((x[2] - x[1]).norm_squared()).max((x[0] - x[2]).norm_squared());
+                    let lmax = (x[1] - x[0])
+                        .norm_squared()
+                        .max((x[2] - x[1]).norm_squared())
+                        .max((x[0] - x[2]).norm_squared());
                     if !(area2.is_finite() && area2 > params.min_shape_quality * lmax) {
                         rep.dropped_degenerate += 1;
                         continue;

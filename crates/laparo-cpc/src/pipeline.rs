@@ -95,7 +95,13 @@ fn ms(t: Instant) -> f64 {
 }
 
 /// Run CPC on one frame: `image` (any channels), metric `depth`, intrinsics `k`, ROI `roi`.
-pub fn cpc_warp(image: &Image<u8>, depth: &DepthMap, k: &Intrinsics, roi: &Mask, params: &CpcParams) -> Result<CpcResult> {
+pub fn cpc_warp(
+    image: &Image<u8>,
+    depth: &DepthMap,
+    k: &Intrinsics,
+    roi: &Mask,
+    params: &CpcParams,
+) -> Result<CpcResult> {
     if image.width != depth.width || image.height != depth.height {
         return Err(CpcError::SizeMismatch(format!(
             "image is {}x{}, depth is {}x{}",

@@ -357,7 +357,11 @@ impl SceneSpec {
                 }
                 let tt = 0.5 * (lo + hi);
                 let p = o + d * tt;
-                return if p.x.abs() <= self.half_mm && p.y.abs() <= self.half_mm { Some((tt, p.x, p.y)) } else { None };
+                return if p.x.abs() <= self.half_mm && p.y.abs() <= self.half_mm {
+                    Some((tt, p.x, p.y))
+                } else {
+                    None
+                };
             }
             if tb >= t1 {
                 return None;

@@ -162,8 +162,9 @@ impl CpcSystem {
             inv[o] = k;
         }
         let perm = PermRef::new_checked(&fwd, &inv, 2 * n);
-        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
-            .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
+        let symbolic =
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
+                .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
         Ok(CpcSystem {
             n_vertices: n,
             col_ptr,
@@ -205,8 +206,7 @@ impl CpcSystem {
             rhs.push((1.0 - lambda) * self.disp_w[v] * p[0]);
             rhs.push((1.0 - lambda) * self.disp_w[v] * p[1]);
         }
-        self.factor_solve(&vals, &mut rhs)
-            .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
+        self.factor_solve(&vals, &mut rhs).map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
         if rhs.iter().any(|v| !v.is_finite()) {
             return Err(CpcError::Solver(format!("non-finite solution for lambda = {lambda}")));
         }
@@ -288,10 +288,23 @@ impl CpcSystem {
         let mut mem = MemBuffer::new(self.symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
         let llt = self
             .symbolic
-            .factorize_numeric_llt(&mut l_vals, mat, Side::Lower, Default::default(), par, MemStack::new(&mut mem), Default::default())
+            .factorize_numeric_llt(
+                &mut l_vals,
+                mat,
+                Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
             .map_err(|e| CpcError::Solver(format!("Cholesky failed (matrix not positive definite?): {e:?}")))?;
         let mut mem2 = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, par));
-        llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(rhs, n, 1), par, MemStack::new(&mut mem2));
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            par,
+            MemStack::new(&mut mem2),
+        );
         Ok(())
     }
 
@@ -306,7 +319,8 @@ impl CpcSystem {
 /// triangulated grid), order both halves recursively, then the separator.
 pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
     let s = mesh.grid_step_px as f64;
-    let gc: Vec<[i64; 2]> = mesh.p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
+    let gc: Vec<[i64; 2]> =
+        mesh.p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
     let mut ids: Vec<usize> = (0..mesh.n_vertices()).collect();
     let mut out = Vec::with_capacity(ids.len());
     fn rec(ids: &mut [usize], gc: &[[i64; 2]], out: &mut Vec<usize>) {

@@ -161,18 +161,31 @@ fn bumpy_bowl_default_settings_flip_no_triangle() {
         Some(p) => {
             let d = laparo_core::io::read_npz(&p, Some("depth")).unwrap();
             let depth = DepthMap::from_image(&d, DepthUnit::Mm).unwrap().to_unit(DepthUnit::Mm);
-            let depth = DepthMap::new(d.width, d.height, DepthUnit::Mm, depth.data.iter().map(|&z| if z.is_finite() { z } else { f64::NAN }).collect()).unwrap();
+            let depth = DepthMap::new(
+                d.width,
+                d.height,
+                DepthUnit::Mm,
+                depth.data.iter().map(|&z| if z.is_finite() { z } else { f64::NAN }).collect(),
+            )
+            .unwrap();
             let roi = depth.valid_mask();
             scenes.push(("scene.npz", roi, depth));
         }
-        None => eprintln!("SKIP part: ../shared/bench/cpc_ref/scene.npz absent (run scene.py there); using the Rust port only"),
+        None => eprintln!(
+            "SKIP part: ../shared/bench/cpc_ref/scene.npz absent (run scene.py there); using the Rust port only"
+        ),
     }
     for (name, roi, depth) in scenes {
         let mesh = CpcMesh::build(&roi, &depth, &spec.intrinsics, &MeshParams::default()).unwrap();
         let sys = CpcSystem::assemble(&mesh, &ConformalParams::default()).unwrap();
         let p = sys.solve(pipeline::DEFAULT_LAMBDA).unwrap();
         let flips = metrics::n_flipped(&p, &mesh.faces);
-        eprintln!("{name}: {} px ROI, {} triangles, {} grazing dropped, flips {flips}", roi.count(), mesh.n_triangles(), mesh.report.dropped_grazing);
+        eprintln!(
+            "{name}: {} px ROI, {} triangles, {} grazing dropped, flips {flips}",
+            roi.count(),
+            mesh.n_triangles(),
+            mesh.report.dropped_grazing
+        );
         assert_eq!(flips, 0, "{name}");
     }
 }
@@ -202,7 +215,10 @@ fn point_round_trip_and_image_consistency() {
         // Image consistency at keypoints: warped image (bilinear, inside the valid area) vs original.
         let (qx, qy) = (q[0], q[1]);
         let (x0, y0) = (qx.floor() as usize, qy.floor() as usize);
-        if x0 + 1 < w.width && y0 + 1 < w.height && [(0, 0), (1, 0), (0, 1), (1, 1)].iter().all(|&(a, b)| r.mask.get(x0 + a, y0 + b, 0)) {
+        if x0 + 1 < w.width
+            && y0 + 1 < w.height
+            && [(0, 0), (1, 0), (0, 1), (1, 1)].iter().all(|&(a, b)| r.mask.get(x0 + a, y0 + b, 0))
+        {
             let back = w.warped_to_original(qx, qy).unwrap();
             for c in 0..3 {
                 let a = r.warped.sample_bilinear(qx, qy, c).unwrap();

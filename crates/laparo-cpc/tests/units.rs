@@ -16,7 +16,8 @@ fn m_t_vanishes_exactly_on_similar_triangles() {
     // translation): eq. 4.5 must hold; a sheared image must not satisfy it.
     let r = Rotation3::from_euler_angles(0.4, -0.7, 0.2);
     let loc = [[0.0, 0.0], [3.0, 0.5], [1.0, 2.0]];
-    let x3: Vec<Vector3<f64>> = loc.iter().map(|p| r * Vector3::new(p[0], p[1], 0.0) + Vector3::new(1.0, 2.0, 50.0)).collect();
+    let x3: Vec<Vector3<f64>> =
+        loc.iter().map(|p| r * Vector3::new(p[0], p[1], 0.0) + Vector3::new(1.0, 2.0, 50.0)).collect();
     // 2D: the in-plane coordinates expressed in the basis (r·e_x, r·e_y) with n = r·e_z. The 2D
     // image orientation must agree with n pointing away from the camera (n·A > 0).
     let n = r * Vector3::z();
@@ -104,7 +105,8 @@ fn locate_initial_gives_exact_barycentrics() {
         let (t, w) = m.locate_initial(u, v).unwrap();
         assert!(w.iter().all(|&x| x >= -1e-12) && (w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         let f = m.faces[t];
-        let q: Vec<f64> = (0..2).map(|c| w[0] * m.p_init[f[0]][c] + w[1] * m.p_init[f[1]][c] + w[2] * m.p_init[f[2]][c]).collect();
+        let q: Vec<f64> =
+            (0..2).map(|c| w[0] * m.p_init[f[0]][c] + w[1] * m.p_init[f[1]][c] + w[2] * m.p_init[f[2]][c]).collect();
         assert!((q[0] - u).abs() < 1e-12 && (q[1] - v).abs() < 1e-12);
     }
     assert!(m.locate_initial(36.0, 3.0).is_none(), "beyond the last grid line (35)");
@@ -146,7 +148,11 @@ fn gompertz_exp_fit_recovers_a_synthetic_transition() {
         let (mut lo, mut hi) = (1e-9, 200.0);
         for _ in 0..200 {
             let mid = 0.5 * (lo + hi);
-            if (mid * span).exp_m1() / mid < target { lo = mid } else { hi = mid }
+            if (mid * span).exp_m1() / mid < target {
+                lo = mid
+            } else {
+                hi = mid
+            }
         }
         let b2 = 0.5 * (lo + hi);
         let k = dg * (-b2 * g0.ell).exp() / b2;
@@ -193,7 +199,10 @@ fn equiareal_refinement_lowers_eq_4_9() {
     let r = refine(&sys, &mesh, &p0, lambda, &EquiarealParams::default()).unwrap();
     let da0 = metrics::delta_area(&p0, &mesh.p_init, &mesh.faces);
     let da1 = metrics::delta_area(&r.p, &mesh.p_init, &mesh.faces);
-    eprintln!("equiareal: cost {:.3e} -> {:.3e} in {} it, δ_area {da0:.4} -> {da1:.4}", r.cost_before, r.cost_after, r.iterations);
+    eprintln!(
+        "equiareal: cost {:.3e} -> {:.3e} in {} it, δ_area {da0:.4} -> {da1:.4}",
+        r.cost_before, r.cost_after, r.iterations
+    );
     assert!(r.cost_after < r.cost_before);
     assert!(da1 < da0, "the refinement must reduce the area distortion");
     // Gradient check of eq. 4.9 at the refined point: a small step along any vertex does not lower it much.

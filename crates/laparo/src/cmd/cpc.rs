@@ -151,8 +151,8 @@ pub fn run(c: CpcCmd) -> Result<()> {
 
 fn read_intrinsics(path: &Path) -> Result<Intrinsics> {
     let s = std::fs::read_to_string(path).with_context(|| format!("reading intrinsics {}", path.display()))?;
-    let k: Intrinsics =
-        serde_json::from_str(&s).with_context(|| format!("{}: expected {{fx, fy, cx, cy, width, height}}", path.display()))?;
+    let k: Intrinsics = serde_json::from_str(&s)
+        .with_context(|| format!("{}: expected {{fx, fy, cx, cy, width, height}}", path.display()))?;
     k.validate().with_context(|| format!("intrinsics {}", path.display()))?;
     Ok(k)
 }
@@ -172,7 +172,8 @@ struct Inputs {
 }
 
 fn load_inputs(a: &InputArgs) -> Result<Inputs> {
-    let depth = io::read_depth(&a.depth, a.depth_unit).with_context(|| format!("reading depth {}", a.depth.display()))?;
+    let depth =
+        io::read_depth(&a.depth, a.depth_unit).with_context(|| format!("reading depth {}", a.depth.display()))?;
     let k = read_intrinsics(&a.intrinsics)?;
     let roi = match &a.mask {
         Some(p) => read_mask(p)?,
@@ -242,9 +243,16 @@ fn warp(a: WarpArgs) -> Result<()> {
     write_atomic(&out.join("stats.json"), serde_json::to_string_pretty(&stats)?.as_bytes())?;
     let s = &r.stats;
     if s.mesh.component_triangles.len() > 1 {
-        eprintln!("note: the mesh has {} connected components (triangles: {:?}); each is solved on its own", s.n_components, s.mesh.component_triangles);
+        eprintln!(
+            "note: the mesh has {} connected components (triangles: {:?}); each is solved on its own",
+            s.n_components, s.mesh.component_triangles
+        );
     }
-    let dropped = s.mesh.dropped_invalid_depth + s.mesh.dropped_depth_jump + s.mesh.dropped_degenerate + s.mesh.dropped_grazing + s.mesh.dropped_small_components;
+    let dropped = s.mesh.dropped_invalid_depth
+        + s.mesh.dropped_depth_jump
+        + s.mesh.dropped_degenerate
+        + s.mesh.dropped_grazing
+        + s.mesh.dropped_small_components;
     if dropped > 0 {
         eprintln!(
             "note: dropped {dropped} triangles ({} invalid depth, {} depth jump, {} degenerate, {} grazing, {} small components)",
@@ -330,7 +338,12 @@ fn bench(a: BenchArgs) -> Result<()> {
     let (image, depth, roi, source) = match &a.scene_npz {
         Some(p) => {
             let d = io::read_npz(p, Some("depth")).with_context(|| format!("reading depth from {}", p.display()))?;
-            let depth = DepthMap::new(d.width, d.height, DepthUnit::Mm, d.data.iter().map(|&z| if z.is_finite() { z } else { f64::NAN }).collect())?;
+            let depth = DepthMap::new(
+                d.width,
+                d.height,
+                DepthUnit::Mm,
+                d.data.iter().map(|&z| if z.is_finite() { z } else { f64::NAN }).collect(),
+            )?;
             let img = io::read_npz(p, Some("img")).with_context(|| format!("reading img from {}", p.display()))?;
             let image = img.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8);
             let roi = depth.valid_mask();
@@ -342,8 +355,14 @@ fn bench(a: BenchArgs) -> Result<()> {
         }
     };
     let k = spec.intrinsics;
-    println!("bumpy bowl 640x480 ({source}), ROI {} px ({:.1} %), λ = {}, median of {} repeats, {} rayon threads",
-        roi.count(), 100.0 * roi.count() as f64 / (640.0 * 480.0), a.lambda, a.repeats, rayon::current_num_threads());
+    println!(
+        "bumpy bowl 640x480 ({source}), ROI {} px ({:.1} %), λ = {}, median of {} repeats, {} rayon threads",
+        roi.count(),
+        100.0 * roi.count() as f64 / (640.0 * 480.0),
+        a.lambda,
+        a.repeats,
+        rayon::current_num_threads()
+    );
     let pb = ProgressBar::new((a.steps.len() * a.repeats) as u64);
     pb.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} {msg}").unwrap());
     let mut rows = Vec::new();
@@ -390,13 +409,34 @@ fn bench(a: BenchArgs) -> Result<()> {
         rows.push(row);
     }
     pb.finish_and_clear();
-    println!("{:>5} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>7} {:>6}", "step", "verts", "tris", "mesh ms", "asm ms", "solve ms", "warp ms", "total ms", "sweep20 ms", "angle°", "flips");
+    println!(
+        "{:>5} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>7} {:>6}",
+        "step",
+        "verts",
+        "tris",
+        "mesh ms",
+        "asm ms",
+        "solve ms",
+        "warp ms",
+        "total ms",
+        "sweep20 ms",
+        "angle°",
+        "flips"
+    );
     for r in &rows {
         println!(
             "{:>5} {:>8} {:>8} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>11.1} {:>7.3} {:>6}",
-            r["grid_step_px"], r["n_vertices"], r["n_triangles"], r["ms_mesh"].as_f64().unwrap(), r["ms_assemble"].as_f64().unwrap(),
-            r["ms_solve"].as_f64().unwrap(), r["ms_warp"].as_f64().unwrap(), r["ms_total"].as_f64().unwrap(), r["ms_sweep20"].as_f64().unwrap(),
-            r["angle_error_deg_after"].as_f64().unwrap(), r["n_flipped"]
+            r["grid_step_px"],
+            r["n_vertices"],
+            r["n_triangles"],
+            r["ms_mesh"].as_f64().unwrap(),
+            r["ms_assemble"].as_f64().unwrap(),
+            r["ms_solve"].as_f64().unwrap(),
+            r["ms_warp"].as_f64().unwrap(),
+            r["ms_total"].as_f64().unwrap(),
+            r["ms_sweep20"].as_f64().unwrap(),
+            r["angle_error_deg_after"].as_f64().unwrap(),
+            r["n_flipped"]
         );
     }
     if let Some(p) = &a.json {
