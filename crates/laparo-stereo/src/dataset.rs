@@ -634,4 +634,47 @@ mod tests {
         let e = read_middlebury_calib(&p, 10, 10).unwrap_err().to_string();
         assert!(e.contains("calib.txt") && e.contains("cam0"), "{e}");
     }
+
+    #[test]
+    fn discover_layouts() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = dir.path();
+        let touch = |p: &str| {
+            let p = r.join(p);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"").unwrap();
+        };
+        for f in [
+            "frames_cleanpass/TRAIN/A/0000/left/0006.png",
+            "frames_cleanpass/TRAIN/A/0000/right/0006.png",
+            "disparity/TRAIN/A/0000/left/0006.pfm",
+            "frames_cleanpass/TRAIN/A/0000/left/0007.png",
+            "frames_cleanpass/TRAIN/A/0000/right/0007.png",
+        ] {
+            touch(f);
+        }
+        let s = discover(r, Layout::SceneFlow).unwrap();
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].id, "frames_cleanpass/TRAIN/A/0000/left/0006");
+        assert_eq!(s[0].disp_left.as_deref(), Some(r.join("disparity/TRAIN/A/0000/left/0006.pfm").as_path()));
+        assert!(s[0].disp_right.is_none() && s[1].disp_left.is_none());
+        let o = output_paths(&s[0], r, Path::new("/out"));
+        assert_eq!(o.disp_left.unwrap(), Path::new("/out/disparity/TRAIN/A/0000/left/0006.pfm"));
+        assert_eq!(o.sidecar, Path::new("/out/frames_cleanpass/TRAIN/A/0000/left/0006.cats.json"));
+        // A left image without its right partner is an error naming the file.
+        touch("frames_cleanpass/TRAIN/A/0000/left/0008.png");
+        let e = discover(r, Layout::SceneFlow).unwrap_err().to_string();
+        assert!(e.contains("0008.png") && e.contains("right"), "{e}");
+
+        let m = tempfile::tempdir().unwrap();
+        for f in ["Piano/im0.png", "Piano/im1.png", "Piano/disp0GT.pfm", "Piano/calib.txt"] {
+            let p = m.path().join(f);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"").unwrap();
+        }
+        let s = discover(m.path(), Layout::Middlebury).unwrap();
+        assert_eq!((s.len(), s[0].id.as_str()), (1, "Piano/im0"));
+        assert!(s[0].disp_left.as_ref().unwrap().ends_with("disp0GT.pfm") && s[0].calib.is_some());
+        assert!(discover(m.path(), Layout::Generic).unwrap_err().to_string().contains("left"));
+    }
 }

@@ -237,3 +237,37 @@ fn bad_parameters_are_rejected_with_names() {
     let e = augment_image(&small, &b).unwrap_err().to_string();
     assert!(e.contains("49x40"), "{e}");
 }
+
+#[test]
+fn occlusion_masks_follow_their_camera() {
+    // Masks are warped by nearest neighbour with their own camera's map: for a pure shift of the
+    // right camera, the right mask moves with the right image and the left one stays.
+    let (w, h) = (40, 30);
+    let kk = k(w, h);
+    let mask = Image::from_vec(w, h, 1, (0..w * h).map(|i| (i % w) < 10).collect()).unwrap();
+    let s = StereoSample {
+        left: random_image(w, h, 3, 1),
+        right: random_image(w, h, 3, 2),
+        disp_left: None,
+        disp_right: None,
+        occ_left: Some(mask.clone()),
+        occ_right: Some(mask.clone()),
+    };
+    let p = StereoAugmentation {
+        left: CameraAugmentation::identity(kk),
+        right: CameraAugmentation::from_euler_deg(
+            kk,
+            Distortion::default(),
+            [0.0; 3],
+            Matrix3::new(1.0, 0.0, 5.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+            Distortion::default(),
+        ),
+        dx_right_px: -5.0,
+    };
+    let o = augment_stereo(&s, &p, GtRule::Thesis).unwrap();
+    assert_eq!(o.occ_left.unwrap(), mask);
+    let r = o.occ_right.unwrap();
+    for x in 0..w {
+        assert_eq!(r.get(x, 7, 0), (5..15).contains(&x), "x = {x}");
+    }
+}

@@ -142,3 +142,40 @@ fn thesis_rule_is_exact_to_first_order_when_cameras_rotate_together() {
     let (epe, _, n) = laparo_stereo::augment::disparity_difference(&a, &b);
     assert!(n > 1000 && epe < 0.2, "EPE(thesis, exact) {epe} px over {n} px");
 }
+
+#[test]
+fn right_disparity_exact_rule_matches_rendered_truth() {
+    // Right-view GT (x_L = x_R + d_R) through both augmentations, against the rendered truth:
+    // ray of the augmented right pixel → scene point → augmented left camera.
+    let (w, h) = (320, 180);
+    let k = Intrinsics::new(350.0, 350.0, 159.5, 89.5, w, h).unwrap();
+    let scene = Scene::default();
+    let s = scene.stereo_sample(&k, B, 1);
+    let p = CatsConfig::thesis("RIS2017").unwrap().sample(
+        &mut sample_rng(5, "r"),
+        &k,
+        &Distortion::default(),
+        &k,
+        &Distortion::default(),
+    );
+    let out = augment_stereo(&s, &p, GtRule::Exact).unwrap();
+    let d = out.disp_right.unwrap();
+    let (kl, kr) = (p.left.k_out().unwrap(), p.right.k_out().unwrap());
+    let mut errs = Vec::new();
+    for y in (0..h).step_by(3) {
+        for x in (0..w).step_by(3) {
+            if !d.valid.get(x, y, 0) {
+                continue;
+            }
+            let (xn, yn) = kr.pixel_to_normalized(x as f64, y as f64);
+            let c = Vector3::new(B, 0.0, 0.0);
+            let Some((_, pt)) = scene.intersect(&c, &(p.right.r().transpose() * Vector3::new(xn, yn, 1.0))) else {
+                continue;
+            };
+            let (u, _) = kl.project(&(p.left.r() * pt)).unwrap();
+            errs.push((d.disparity.get(x, y, 0) as f64 - (u - x as f64)).abs());
+        }
+    }
+    let p90 = percentile(&mut errs, 0.9);
+    assert!(errs.len() > 3000 && p90 < 0.01, "right exact rule p90 {p90} px over {} px", errs.len());
+}
