@@ -7,7 +7,10 @@ use std::path::{Path, PathBuf};
 /// The temporary sibling used while `path` is being written (same folder, so rename is atomic).
 pub fn temp_path(path: &Path) -> PathBuf {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = format!(".{name}.{}.tmp", std::process::id());
+    // pid + a process-wide counter: concurrent writers (threads or processes) never share a temp.
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = format!(".{name}.{}.{n}.tmp", std::process::id());
     path.with_file_name(tmp)
 }
 

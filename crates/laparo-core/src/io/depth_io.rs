@@ -9,7 +9,7 @@
 //! | `.png` | 16-bit integer, **no scaling**: the value is the depth in the caller's unit; 0 = invalid | exact | uint16 **millimetres**, rounded, 0 = invalid |
 use crate::depth::{DepthMap, DepthUnit};
 use crate::error::{CoreError, Result};
-use crate::image::Image;
+use crate::image::{Image, Mask};
 use std::path::Path;
 
 /// Read a single- or multi-channel float map (depth, disparity, ...) by extension:
@@ -44,6 +44,32 @@ pub fn write_float_map(path: impl AsRef<Path>, img: &Image<f64>) -> Result<()> {
             format!("cannot write a float map as '{other}' (expected npy, npz, pfm, tif or tiff)"),
         )),
     }
+}
+
+/// Read a validity / region-of-interest mask: image files (png, jpg, tif, ...) are true where
+/// channel 0 is non-zero; `npy`/`npz`/`pfm` where the value is finite and non-zero. Multi-channel
+/// float maps are rejected.
+pub fn read_mask(path: impl AsRef<Path>) -> Result<Mask> {
+    let path = path.as_ref();
+    let (w, h, data) = match super::extension(path).as_str() {
+        "npy" | "npz" | "pfm" => {
+            let m = read_float_map(path)?;
+            if m.channels != 1 {
+                return Err(CoreError::format(path, format!("mask has {} channels, expected 1", m.channels)));
+            }
+            (m.width, m.height, m.data.iter().map(|v| v.is_finite() && *v != 0.0).collect())
+        }
+        _ => {
+            let m = super::read_png16(path)?;
+            (m.width, m.height, m.data.chunks_exact(m.channels).map(|p| p[0] != 0).collect())
+        }
+    };
+    Ok(Image { width: w, height: h, channels: 1, data })
+}
+
+/// Write a mask as an 8-bit gray PNG (true = 255, false = 0), atomically.
+pub fn write_mask_png(path: impl AsRef<Path>, mask: &Mask) -> Result<()> {
+    super::write_png(path, &mask.map(|b| if b { 255u8 } else { 0 }))
 }
 
 /// Read a depth map stored in `unit` (see the module table). Zero, negative and non-finite
@@ -130,6 +156,20 @@ mod tests {
         let far = DepthMap::new(1, 1, DepthUnit::M, vec![70.0]).unwrap();
         assert!(write_depth(dir.path().join("far.png"), &far).unwrap_err().to_string().contains("far.png"));
         assert!(!dir.path().join("far.png").exists());
+    }
+
+    #[test]
+    fn mask_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = Image::from_vec(3, 2, 1, vec![true, false, true, false, false, true]).unwrap();
+        let p = dir.path().join("m.png");
+        write_mask_png(&p, &m).unwrap();
+        assert_eq!(read_mask(&p).unwrap(), m);
+        assert_eq!(super::super::read_image(&p).unwrap().data, vec![255, 0, 255, 0, 0, 255]);
+        let q = dir.path().join("m.npy");
+        let f = Image::from_vec(3, 2, 1, vec![1.0, 0.0, 0.5, f64::NAN, 0.0, -2.0]).unwrap();
+        super::super::write_npy_f64(&q, &f).unwrap();
+        assert_eq!(read_mask(&q).unwrap().data, vec![true, false, true, false, false, true]);
     }
 
     #[test]

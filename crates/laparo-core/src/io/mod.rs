@@ -7,6 +7,7 @@
 //! | NumPy `.npy` / `.npz` | [`read_npy`], [`read_npz`] | [`write_npy_f32`], [`write_npy_f64`], [`write_npz_f64`] | f32/f64/u8/u16/i32/i64/bool, C or Fortran order |
 //! | PFM | [`read_pfm`] | [`write_pfm`] | rows bottom-to-top on disk, top row first in memory |
 //! | float TIFF | [`read_tiff_f32`] | [`write_tiff_f32`] | 32-bit float gray (or RGB) |
+//! | masks | [`read_mask`] | [`write_mask_png`] | non-zero = true; PNG 0/255 |
 //!
 //! Every error names the file. Every writer is atomic (temporary sibling + rename).
 mod depth_io;
@@ -15,7 +16,7 @@ mod pfm;
 mod png;
 mod tiff;
 
-pub use depth_io::{read_depth, read_float_map, write_depth, write_float_map};
+pub use depth_io::{read_depth, read_float_map, read_mask, write_depth, write_float_map, write_mask_png};
 pub use npy::{read_npy, read_npz, read_npz_names, write_npy_f32, write_npy_f64, write_npz_f64};
 pub use pfm::{read_pfm, write_pfm};
 pub use png::{read_image, read_png16, read_rgb8, write_jpeg, write_png, write_png16};

@@ -307,6 +307,26 @@ mod tests {
     }
 
     #[test]
+    fn npy_big_endian_by_hand() {
+        // '>f8' shape (1, 2): values 1.5 and -3.0 stored big-endian.
+        let hdr = "{'descr': '>f8', 'fortran_order': False, 'shape': (1, 2), }";
+        let mut h = hdr.to_string();
+        while !(10 + h.len() + 1).is_multiple_of(64) {
+            h.push(' ');
+        }
+        h.push('\n');
+        let mut f = b"\x93NUMPY\x01\x00".to_vec();
+        f.extend_from_slice(&(h.len() as u16).to_le_bytes());
+        f.extend_from_slice(h.as_bytes());
+        f.extend_from_slice(&1.5f64.to_be_bytes());
+        f.extend_from_slice(&(-3.0f64).to_be_bytes());
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("be.npy");
+        std::fs::write(&p, &f).unwrap();
+        assert_eq!(read_npy(&p).unwrap().data, vec![1.5, -3.0]);
+    }
+
+    #[test]
     fn npz_round_trip_and_names() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.npz");
