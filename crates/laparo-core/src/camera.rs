@@ -197,16 +197,34 @@ impl Distortion {
         (xd, yd)
     }
 
-    /// Jacobian of [`Self::distort_normalized`] by central differences of the closed form
-    /// (used only to drive Newton's method; accuracy of the result is checked on the residual).
+    /// Analytic Jacobian [[∂x_d/∂x, ∂x_d/∂y], [∂y_d/∂x, ∂y_d/∂y]] of
+    /// [`Self::distort_normalized`] (drives Newton's method in undistortion).
     #[inline]
     fn jacobian(&self, x: f64, y: f64) -> [[f64; 2]; 2] {
-        let h = 1e-7;
-        let (a, b) = self.distort_normalized(x + h, y);
-        let (c, d) = self.distort_normalized(x - h, y);
-        let (e, f) = self.distort_normalized(x, y + h);
-        let (g, k) = self.distort_normalized(x, y - h);
-        [[(a - c) / (2.0 * h), (e - g) / (2.0 * h)], [(b - d) / (2.0 * h), (f - k) / (2.0 * h)]]
+        let r2 = x * x + y * y;
+        let r4 = r2 * r2;
+        let n = 1.0 + self.k1 * r2 + self.k2 * r4 + self.k3 * r4 * r2;
+        let d = 1.0 + self.k4 * r2 + self.k5 * r4 + self.k6 * r4 * r2;
+        let dn = self.k1 + 2.0 * self.k2 * r2 + 3.0 * self.k3 * r4;
+        let dd = self.k4 + 2.0 * self.k5 * r2 + 3.0 * self.k6 * r4;
+        let radial = n / d;
+        // d(radial)/d(r²)
+        let dr = (dn * d - n * dd) / (d * d);
+        let xx = radial
+            + 2.0 * x * x * dr
+            + 2.0 * self.p1 * y
+            + 6.0 * self.p2 * x
+            + 2.0 * self.s1 * x
+            + 4.0 * self.s2 * r2 * x;
+        let xy = 2.0 * x * y * dr + 2.0 * self.p1 * x + 2.0 * self.p2 * y + 2.0 * self.s1 * y + 4.0 * self.s2 * r2 * y;
+        let yx = 2.0 * x * y * dr + 2.0 * self.p1 * x + 2.0 * self.p2 * y + 2.0 * self.s3 * x + 4.0 * self.s4 * r2 * x;
+        let yy = radial
+            + 2.0 * y * y * dr
+            + 6.0 * self.p1 * y
+            + 2.0 * self.p2 * x
+            + 2.0 * self.s3 * y
+            + 4.0 * self.s4 * r2 * y;
+        [[xx, xy], [yx, yy]]
     }
 
     /// Undistort normalised coordinates by Newton iterations on the forward model
@@ -303,6 +321,28 @@ mod tests {
             }
         }
         assert!(worst < 1e-6, "worst round trip {worst} px");
+    }
+
+    #[test]
+    fn analytic_jacobian_matches_finite_differences() {
+        let d = Distortion::from_opencv(&[
+            -0.3, 0.12, 0.002, -0.001, 0.05, 0.01, -0.02, 0.03, 0.001, -0.002, 0.003, 0.0005,
+        ])
+        .unwrap();
+        for &(x, y) in &[(0.1, -0.2), (-0.4, 0.3), (0.0, 0.0), (0.5, 0.5)] {
+            let j = d.jacobian(x, y);
+            let h = 1e-6;
+            let (a, b) = d.distort_normalized(x + h, y);
+            let (c, e) = d.distort_normalized(x - h, y);
+            let (f, g) = d.distort_normalized(x, y + h);
+            let (k, l) = d.distort_normalized(x, y - h);
+            let fd = [[(a - c) / (2.0 * h), (f - k) / (2.0 * h)], [(b - e) / (2.0 * h), (g - l) / (2.0 * h)]];
+            for r in 0..2 {
+                for c in 0..2 {
+                    assert!((j[r][c] - fd[r][c]).abs() < 1e-7, "J[{r}][{c}] at ({x},{y}): {} vs {}", j[r][c], fd[r][c]);
+                }
+            }
+        }
     }
 
     #[test]
