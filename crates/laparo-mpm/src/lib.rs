@@ -18,8 +18,10 @@ pub mod loss;
 pub mod neo_hookean;
 pub mod p2g;
 pub mod reference;
+pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod scene_file;
 pub mod simulate;
 pub mod sparse_grid;
 
