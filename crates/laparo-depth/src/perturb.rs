@@ -270,6 +270,12 @@ impl Blob {
             tint: rng.gen_range(0.85..1.1),
         }
     }
+    /// True when (x, y) is certainly farther than `cut` relative radii from the centre
+    /// (cheap test before the angle-dependent radius).
+    fn beyond(&self, x: f64, y: f64, r: f64, cut: f64) -> bool {
+        let rmax = r * self.r_factor * (1.0 + self.harm.iter().map(|h| h.0).sum::<f64>()) * cut;
+        (x - self.cx).powi(2) + (y - self.cy).powi(2) > rmax * rmax
+    }
     /// Distance from the centre relative to the (angle-dependent) radius, and the angle.
     fn rel_dist(&self, x: f64, y: f64, r: f64) -> (f64, f64) {
         let (dx, dy) = (x - self.cx, y - self.cy);
@@ -322,6 +328,9 @@ pub fn apply(img: &Image<u8>, kind: Perturbation, severity: u8, seed: u64) -> Re
             src.map_pixels(|x, y, p| {
                 let (mut alpha, mut spec, mut tint) = (0f32, 0f32, 1f32);
                 for b in &blobs[..n] {
+                    if b.beyond(x as f64, y as f64, r, 1.05) {
+                        continue;
+                    }
                     let (d, th) = b.rel_dist(x as f64, y as f64, r);
                     if d > 1.05 {
                         continue;
@@ -386,6 +395,9 @@ pub fn apply(img: &Image<u8>, kind: Perturbation, severity: u8, seed: u64) -> Re
                 let mut keep = 1f32; // Π (1 − α_i)
                 let mut col = [0f32; 3];
                 for (b, c) in spots[..n].iter().zip(&colours) {
+                    if b.beyond(x as f64, y as f64, sig, 4.0) {
+                        continue;
+                    }
                     let (d, _) = b.rel_dist(x as f64, y as f64, sig);
                     if d > 4.0 {
                         continue;
