@@ -12,3 +12,4 @@ pub mod manifest;
 pub mod eval;
 pub mod report;
 pub mod bench;
+pub mod fastmath;
