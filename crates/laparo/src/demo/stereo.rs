@@ -10,7 +10,9 @@ use laparo_core::colormap::{colorize, with_colorbar, Colormap};
 use laparo_core::se3::rotation_zyx;
 use laparo_core::{io, Distortion, Image, Intrinsics};
 use laparo_stereo::augment::{augment_stereo, disparity_difference, AugmentedDisparity, GtRule, StereoAugmentation};
-use laparo_stereo::calib_stats::{calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6_markdown};
+use laparo_stereo::calib_stats::{
+    calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6_markdown, MeanStd,
+};
 use laparo_stereo::cats_params::{sample_rng, CatsConfig, Dist, TABLE_3_6};
 use laparo_stereo::synthetic::{default_camera, Scene};
 use std::fmt::Write as _;
@@ -131,8 +133,12 @@ fn synthesised_table(n: usize) -> Result<(String, serde_json::Value)> {
     let mut rng = sample_rng(SEED, "calibrations");
     let mut normal = |m: f64, s: f64| Dist::normal(m, s).sample(&mut rng);
     let mut stats = Vec::new();
+    let mut drawn: Vec<Vec<f64>> = vec![Vec::new(); 6];
     for _ in 0..n {
         let e: Vec<f64> = row.iter().map(|&(m, s)| normal(m, s)).collect();
+        for (d, v) in drawn.iter_mut().zip(&e) {
+            d.push(*v);
+        }
         let rl = rotation_zyx(e[0].to_radians(), e[1].to_radians(), e[2].to_radians());
         let rr = rotation_zyx(e[3].to_radians(), e[4].to_radians(), e[5].to_radians());
         let (r, t_mm) = stereo_extrinsics_from_rotations(&rl, &rr, 4.2);
@@ -159,13 +165,23 @@ fn synthesised_table(n: usize) -> Result<(String, serde_json::Value)> {
             a.mean = m;
             a.std = sd;
         }
-        t.n = 0;
         t
     };
+    let mut sample = s.clone();
+    for (i, d) in drawn.iter().enumerate() {
+        let m = MeanStd::of(d);
+        if i < 3 {
+            sample.left_euler_deg[i] = m;
+        } else {
+            sample.right_euler_deg[i - 3] = m;
+        }
+    }
     let md = table_3_6_markdown(&[
-        ("thesis Table 3.6, SCARED+StMIS (drawn from)".to_string(), thesis),
-        (format!("recovered by calib_stats from {n} synthesised calibrations"), s.clone()),
-    ]);
+        ("thesis Table 3.6, SCARED+StMIS (the Gaussians)".to_string(), thesis),
+        ("angles drawn for the synthesised calibrations".to_string(), sample),
+        ("recovered by calib_stats from the calibrations (R, T, K)".to_string(), s.clone()),
+    ])
+    .replace("(the Gaussians) | 40 |", "(the Gaussians) | – |");
     Ok((md, serde_json::to_value(&s)?))
 }
 
@@ -343,7 +359,8 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         html,
         "<h3>Table 3.6 from calibrations</h3><p>Forty SCARED-like calibrations are synthesised with camera rotations drawn \
          from the thesis' SCARED+StMIS Gaussians; <code>laparo_stereo::calib_stats</code> (the library behind <code>laparo cats \
-         stats</code>) recovers each camera's rotation from the ideal rectified frame (μ, σ in degrees):</p>\n{}",
+         stats</code>) recovers each camera's rotation from the ideal rectified frame (μ, σ in degrees) from R, T alone; it agrees \
+         with the drawn angles to the printed precision.</p>\n{}",
         md_table_to_html(&table_md)
     );
     let summary = serde_json::json!({
