@@ -58,6 +58,8 @@ pub struct CpcSystem {
     tri_w: Vec<f64>,
     faces: Vec<[usize; 3]>,
     symbolic: SymbolicCholesky<usize>,
+    /// Assembly timings (ms): [weights and M_t, sparse pattern and values, ordering + symbolic Cholesky].
+    pub assembly_ms: [f64; 3],
 }
 
 impl CpcSystem {
@@ -67,6 +69,7 @@ impl CpcSystem {
         if !(th.is_finite() && th > 0.0 && th < std::f64::consts::PI) {
             return Err(CpcError::invalid("theta", format!("{th} rad (must be in (0, π))")));
         }
+        let t0 = std::time::Instant::now();
         let n = mesh.n_vertices();
         let m = mesh.n_triangles();
         if m == 0 {
@@ -103,6 +106,7 @@ impl CpcSystem {
             tri_rows.push(rows);
             tri_w.push(area[t] / (e2 * a_tot));
         }
+        let t1 = std::time::Instant::now();
         // Vertex adjacency (including self), sorted.
         let mut nbr: Vec<Vec<usize>> = vec![Vec::with_capacity(8); n];
         for f in &mesh.faces {
@@ -150,6 +154,7 @@ impl CpcSystem {
                 }
             }
         }
+        let t2 = std::time::Instant::now();
         let sym = SymbolicSparseColMatRef::new_checked(2 * n, 2 * n, &col_ptr, None, &row_idx);
         let fwd_v = nested_dissection(mesh);
         let mut fwd = Vec::with_capacity(2 * n);
@@ -177,6 +182,11 @@ impl CpcSystem {
             tri_w,
             faces: mesh.faces.clone(),
             symbolic,
+            assembly_ms: [
+                (t1 - t0).as_secs_f64() * 1e3,
+                (t2 - t1).as_secs_f64() * 1e3,
+                t2.elapsed().as_secs_f64() * 1e3,
+            ],
         })
     }
 

@@ -255,19 +255,34 @@ impl Warp {
         let mut out = Image::filled(self.width, self.height, ch, 0u8);
         let mut mask = Image::filled(self.width, self.height, 1, false);
         let (wmax, hmax) = ((image.width - 1) as f64, (image.height - 1) as f64);
+        let (iw, ih) = (image.width, image.height);
+        let src = &image.data;
         out.data.par_chunks_mut(self.width * ch).zip(mask.data.par_chunks_mut(self.width)).enumerate().for_each(
             |(y, (row, mrow))| {
                 for x in 0..self.width {
-                    if let Some(q) = self.backward_pixel(x, y) {
-                        // Clamp round-off just outside the pixel-centre hull.
-                        let qx = q[0].clamp(0.0, wmax);
-                        let qy = q[1].clamp(0.0, hmax);
-                        for c in 0..ch {
-                            let v = image.sample_bilinear(qx, qy, c).unwrap_or(0.0);
-                            row[x * ch + c] = v.round().clamp(0.0, 255.0) as u8;
-                        }
-                        mrow[x] = true;
+                    let Some(q) = self.backward_pixel(x, y) else { continue };
+                    // Clamp round-off just outside the pixel-centre hull; bilinear weights shared by
+                    // all channels (exact at integer positions).
+                    let qx = q[0].clamp(0.0, wmax);
+                    let qy = q[1].clamp(0.0, hmax);
+                    // qx, qy ≥ 0: truncation is floor (and avoids a libm call per pixel).
+                    let x0 = (qx as usize).min(iw.saturating_sub(2));
+                    let y0 = (qy as usize).min(ih.saturating_sub(2));
+                    let x1 = (x0 + 1).min(iw - 1);
+                    let y1 = (y0 + 1).min(ih - 1);
+                    let (ax, ay) = (qx - x0 as f64, qy - y0 as f64);
+                    let (i00, i10, i01, i11) =
+                        ((y0 * iw + x0) * ch, (y0 * iw + x1) * ch, (y1 * iw + x0) * ch, (y1 * iw + x1) * ch);
+                    for c in 0..ch {
+                        let (v00, v10, v01, v11) =
+                            (src[i00 + c] as f64, src[i10 + c] as f64, src[i01 + c] as f64, src[i11 + c] as f64);
+                        let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
+                        let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
+                        let v = if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay };
+                        // v ∈ [0, 255]: v + 0.5 truncated is round-half-up.
+                        row[x * ch + c] = (v + 0.5) as u8;
                     }
+                    mrow[x] = true;
                 }
             },
         );

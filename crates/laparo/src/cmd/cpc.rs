@@ -324,6 +324,10 @@ fn render_scene(a: SceneArgs) -> Result<()> {
     Ok(())
 }
 
+fn vmin(v: &[f64]) -> f64 {
+    v.iter().cloned().fold(f64::INFINITY, f64::min)
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap());
     v[v.len() / 2]
@@ -369,6 +373,7 @@ fn bench(a: BenchArgs) -> Result<()> {
     for &s in &a.steps {
         let mp = MeshParams { grid_step_px: s, ..MeshParams::default() };
         let (mut tm, mut ta, mut ts, mut tw, mut tt, mut t20) = (vec![], vec![], vec![], vec![], vec![], vec![]);
+        let (mut ta0, mut ta1, mut ta2) = (vec![], vec![], vec![]);
         let mut last = None;
         for _ in 0..a.repeats {
             pb.set_message(format!("step {s} px"));
@@ -383,6 +388,9 @@ fn bench(a: BenchArgs) -> Result<()> {
             let (wi, _) = w.warp_image(&image)?;
             let t4 = Instant::now();
             tm.push((t1 - t0).as_secs_f64() * 1e3);
+            ta0.push(sys.assembly_ms[0]);
+            ta1.push(sys.assembly_ms[1]);
+            ta2.push(sys.assembly_ms[2]);
             ta.push((t2 - t1).as_secs_f64() * 1e3);
             ts.push((t3 - t2).as_secs_f64() * 1e3);
             tw.push((t4 - t3).as_secs_f64() * 1e3);
@@ -400,7 +408,10 @@ fn bench(a: BenchArgs) -> Result<()> {
         let (mesh, sys, p) = last.unwrap();
         let row = json!({
             "grid_step_px": s, "n_vertices": mesh.n_vertices(), "n_triangles": mesh.n_triangles(), "n_unknowns": sys.n_unknowns(), "nnz": sys.nnz(),
-            "ms_mesh": median(tm), "ms_assemble": median(ta), "ms_solve": median(ts), "ms_warp": median(tw), "ms_total": median(tt),
+            "min_ms_mesh": vmin(&tm), "min_ms_assemble": vmin(&ta), "min_ms_solve": vmin(&ts), "min_ms_warp": vmin(&tw), "min_ms_total": vmin(&tt),
+            "min_ms_sweep20": vmin(&t20),
+            "ms_mesh": median(tm), "ms_assemble": median(ta),
+            "ms_assemble_terms": median(ta0), "ms_assemble_pattern": median(ta1), "ms_assemble_symbolic": median(ta2), "ms_solve": median(ts), "ms_warp": median(tw), "ms_total": median(tt),
             "ms_sweep20": median(t20),
             "angle_error_deg_before": metrics::angle_error_deg(&mesh.p_init, &mesh.x3d, &mesh.faces),
             "angle_error_deg_after": metrics::angle_error_deg(&p, &mesh.x3d, &mesh.faces),
