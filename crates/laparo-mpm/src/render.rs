@@ -60,3 +60,27 @@ pub fn ply_bytes(x: &[Vector<3>], v: &[Vector<3>], j: &[f64]) -> Vec<u8> {
     }
     s.into_bytes()
 }
+
+/// Line chart of an optimisation's loss per iteration (log-scale y), saved as PNG.
+pub fn plot_loss_curve(
+    path: &std::path::Path,
+    losses: &[f64],
+    title: &str,
+) -> Result<(), laparo_core::error::CoreError> {
+    use plotters::prelude::*;
+    let lo = losses.iter().cloned().fold(f64::INFINITY, f64::min).max(1e-300);
+    let hi = losses.iter().cloned().fold(0.0, f64::max).max(lo * 1.0001);
+    let n = losses.len().max(2);
+    laparo_core::plot::draw_png(path, 640, 400, |root| {
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0f64..(n - 1) as f64, (lo * 0.9..hi * 1.1).log_scale())?;
+        chart.configure_mesh().x_desc("iteration").y_desc("loss").draw()?;
+        chart.draw_series(LineSeries::new(losses.iter().enumerate().map(|(i, l)| (i as f64, *l)), &BLUE))?;
+        chart.draw_series(losses.iter().enumerate().map(|(i, l)| Circle::new((i as f64, *l), 3, BLUE.filled())))?;
+        Ok(())
+    })
+}
