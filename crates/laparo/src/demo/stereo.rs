@@ -359,7 +359,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         html,
         "<h3>Table 3.6 from calibrations</h3><p>Forty SCARED-like calibrations are synthesised with camera rotations drawn \
          from the thesis' SCARED+StMIS Gaussians; <code>laparo_stereo::calib_stats</code> (the library behind <code>laparo cats \
-         stats</code>) recovers each camera's rotation from the ideal rectified frame (μ, σ in degrees) from R, T alone and recovers the drawn angles \
+         stats</code>) computes each camera's rotation from the ideal rectified frame (μ, σ in degrees) from R, T alone and recovers the drawn angles \
          to within 1e-3 degrees.</p>\n{}",
         md_table_to_html(&table_md)
     );
