@@ -314,15 +314,39 @@ impl Rectification {
     }
 
     /// The inverse map of camera `s`: for every rectified pixel, its source image position
-    /// (NaN when undefined). Computed in parallel over rows.
+    /// (f32 like OpenCV's `CV_32FC1` maps; NaN when the ray goes behind the camera). The ray
+    /// `R_sᵀ K'⁻¹ (u, v, 1)` is affine in u, so each row is built incrementally; parallel over rows.
     pub fn remap_table(&self, s: Side) -> RemapTable {
-        let (w, h) = (self.k1.width, self.k1.height);
-        let mut xy = vec![[f64::NAN; 2]; w * h];
+        let (k, d, r, kn) = self.side(s);
+        let (w, h) = (kn.width, kn.height);
+        let rt = r.transpose();
+        // K'⁻¹ (u, v, 1) = ((u − c'x − skew·yn)/f'x, (v − c'y)/f'y, 1), skew = 0 for rectified cameras.
+        let du = rt * Vector3::new(1.0 / kn.fx, 0.0, 0.0);
+        let rational = d.k4 != 0.0 || d.k5 != 0.0 || d.k6 != 0.0;
+        let mut xy = vec![[f32::NAN; 2]; w * h];
         xy.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let (x0n, y0n) = kn.pixel_to_normalized(0.0, y as f64);
+            let r0 = rt * Vector3::new(x0n, y0n, 1.0);
             for (x, out) in row.iter_mut().enumerate() {
-                if let Some((a, b)) = self.source_point(s, x as f64, y as f64) {
-                    *out = [a, b];
+                let q = r0 + du * x as f64;
+                if q.z <= 0.0 {
+                    continue;
                 }
+                let iz = 1.0 / q.z;
+                let (xn, yn) = (q.x * iz, q.y * iz);
+                let (xd, yd) = if rational {
+                    d.distort_normalized(xn, yn)
+                } else {
+                    let r2 = xn * xn + yn * yn;
+                    let radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
+                    let xy2 = 2.0 * xn * yn;
+                    (
+                        xn * radial + d.p1 * xy2 + d.p2 * (r2 + 2.0 * xn * xn) + d.s1 * r2 + d.s2 * r2 * r2,
+                        yn * radial + d.p1 * (r2 + 2.0 * yn * yn) + d.p2 * xy2 + d.s3 * r2 + d.s4 * r2 * r2,
+                    )
+                };
+                let (u, v) = k.normalized_to_pixel(xd, yd);
+                *out = [u as f32, v as f32];
             }
         });
         RemapTable { width: w, height: h, xy }
@@ -449,7 +473,7 @@ pub struct RemapTable {
     pub width: usize,
     pub height: usize,
     /// Row-major `[x, y]` source positions (px).
-    pub xy: Vec<[f64; 2]>,
+    pub xy: Vec<[f32; 2]>,
 }
 
 /// Bilinear weights at (x, y) inside the hull of pixel centres of a `w`×`h` image:
@@ -459,38 +483,80 @@ fn bilinear_setup(x: f64, y: f64, w: usize, h: usize) -> Option<(usize, usize, u
     if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
         return None;
     }
-    let x0 = (x.floor() as usize).min(w.saturating_sub(2));
-    let y0 = (y.floor() as usize).min(h.saturating_sub(2));
+    // x, y >= 0 here, so truncation is floor (and avoids a libm call without SSE4.1).
+    let x0 = (x as usize).min(w.saturating_sub(2));
+    let y0 = (y as usize).min(h.saturating_sub(2));
     let x1 = (x0 + 1).min(w - 1);
     let y1 = (y0 + 1).min(h - 1);
     Some((x0, y0, x1, y1, x - x0 as f64, y - y0 as f64))
 }
 
-/// Remap an 8-bit image through `table` with bilinear sampling (rounded; 0 and mask false
-/// where the source position is outside the image or undefined). Parallel over rows.
+/// Fractional bits of the fixed-point bilinear weights of [`remap_bilinear_u8`] (OpenCV uses 5).
+const WEIGHT_BITS: u32 = 11;
+
+/// One output row of [`remap_bilinear_u8`] for `C` channels: fixed-point weights with
+/// [`WEIGHT_BITS`] fractional bits per axis (products fit in u32: 255 · 2^22 < 2^32).
+#[inline(always)]
+fn remap_row_u8<const C: usize>(img: &Image<u8>, xy: &[[f32; 2]], row: &mut [u8], mrow: &mut [bool]) {
+    let (w, h) = (img.width, img.height);
+    let (wm, hm) = ((w - 1) as f32, (h - 1) as f32);
+    let stride = w * C;
+    let data = &img.data[..];
+    let one = (1u32 << WEIGHT_BITS) as f32;
+    let dx = if w > 1 { C } else { 0 };
+    let dy = if h > 1 { stride } else { 0 };
+    let round = 1u32 << (2 * WEIGHT_BITS - 1);
+    for ((&[sx, sy], o), m) in xy.iter().zip(row.chunks_exact_mut(C)).zip(mrow.iter_mut()) {
+        if !(sx >= 0.0 && sy >= 0.0 && sx <= wm && sy <= hm) {
+            continue;
+        }
+        let x0 = (sx as usize).min(w.saturating_sub(2));
+        let y0 = (sy as usize).min(h.saturating_sub(2));
+        let ax = ((sx - x0 as f32) * one + 0.5) as u32;
+        let ay = ((sy - y0 as f32) * one + 0.5) as u32;
+        let (bx, by) = ((1 << WEIGHT_BITS) - ax, (1 << WEIGHT_BITS) - ay);
+        let (w00, w10, w01, w11) = (bx * by, ax * by, bx * ay, ax * ay);
+        let i00 = y0 * stride + x0 * C;
+        let p00: &[u8; C] = data[i00..i00 + C].try_into().unwrap();
+        let p10: &[u8; C] = data[i00 + dx..i00 + dx + C].try_into().unwrap();
+        let p01: &[u8; C] = data[i00 + dy..i00 + dy + C].try_into().unwrap();
+        let p11: &[u8; C] = data[i00 + dy + dx..i00 + dy + dx + C].try_into().unwrap();
+        for k in 0..C {
+            let v = w00 * p00[k] as u32 + w10 * p10[k] as u32 + w01 * p01[k] as u32 + w11 * p11[k] as u32;
+            o[k] = ((v + round) >> (2 * WEIGHT_BITS)) as u8;
+        }
+        *m = true;
+    }
+}
+
+/// Remap an 8-bit image through `table` with bilinear sampling (fixed-point weights with 11
+/// fractional bits per axis, rounded; within 0.5 grey level + 2⁻¹¹·255 of the exact bilinear
+/// value). 0 and mask false where the source position is outside the hull of pixel centres or
+/// undefined. Parallel over rows.
 pub fn remap_bilinear_u8(img: &Image<u8>, table: &RemapTable) -> (Image<u8>, Mask) {
     let (w, c) = (table.width, img.channels);
     let mut out = Image::filled(table.width, table.height, c, 0u8);
     let mut mask = Image::filled(table.width, table.height, 1, false);
     out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks_mut(w)).enumerate().for_each(|(y, (row, mrow))| {
-        for x in 0..w {
-            let [sx, sy] = table.xy[y * w + x];
-            if let Some((x0, y0, x1, y1, ax, ay)) = bilinear_setup(sx, sy, img.width, img.height) {
-                let (w00, w10, w01, w11) = ((1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay);
-                let (i00, i10, i01, i11) = (
-                    (y0 * img.width + x0) * c,
-                    (y0 * img.width + x1) * c,
-                    (y1 * img.width + x0) * c,
-                    (y1 * img.width + x1) * c,
-                );
-                for k in 0..c {
-                    let v = w00 * img.data[i00 + k] as f64
-                        + w10 * img.data[i10 + k] as f64
-                        + w01 * img.data[i01 + k] as f64
-                        + w11 * img.data[i11 + k] as f64;
-                    row[x * c + k] = v.round().clamp(0.0, 255.0) as u8;
+        let xy = &table.xy[y * w..(y + 1) * w];
+        match c {
+            1 => remap_row_u8::<1>(img, xy, row, mrow),
+            3 => remap_row_u8::<3>(img, xy, row, mrow),
+            4 => remap_row_u8::<4>(img, xy, row, mrow),
+            2 => remap_row_u8::<2>(img, xy, row, mrow),
+            _ => {
+                for (x, &[sx, sy]) in xy.iter().enumerate() {
+                    if let Some((x0, y0, x1, y1, ax, ay)) = bilinear_setup(sx as f64, sy as f64, img.width, img.height)
+                    {
+                        for k in 0..c {
+                            let g = |xx: usize, yy: usize| img.data[(yy * img.width + xx) * c + k] as f64;
+                            let v = (1.0 - ay) * ((1.0 - ax) * g(x0, y0) + ax * g(x1, y0))
+                                + ay * ((1.0 - ax) * g(x0, y1) + ax * g(x1, y1));
+                            row[x * c + k] = (v + 0.5) as u8;
+                        }
+                        mrow[x] = true;
+                    }
                 }
-                mrow[x] = true;
             }
         }
     });
@@ -505,7 +571,7 @@ pub fn remap_bilinear_f64(img: &Image<f64>, table: &RemapTable) -> Image<f64> {
     out.data.par_chunks_mut(w * c).enumerate().for_each(|(y, row)| {
         for x in 0..w {
             let [sx, sy] = table.xy[y * w + x];
-            if let Some((x0, y0, x1, y1, ax, ay)) = bilinear_setup(sx, sy, img.width, img.height) {
+            if let Some((x0, y0, x1, y1, ax, ay)) = bilinear_setup(sx as f64, sy as f64, img.width, img.height) {
                 for k in 0..c {
                     let g = |xx: usize, yy: usize| img.data[(yy * img.width + xx) * c + k];
                     let mut acc = 0.0;
@@ -679,10 +745,38 @@ mod tests {
         let r0 = Rectification::new(&c, RectifyOptions::default()).unwrap();
         assert!((r0.k1.fx - 1000.0).abs() < 1e-9, "{}", r0.k1.fx);
         let t = r0.remap_table(Side::Left);
-        assert!(t
-            .xy
-            .iter()
-            .enumerate()
-            .all(|(i, p)| (p[0] - (i % 640) as f64).abs() < 1e-9 && (p[1] - (i / 640) as f64).abs() < 1e-9));
+        assert!(t.xy.iter().enumerate().all(|(i, p)| {
+            (p[0] as f64 - (i % 640) as f64).abs() < 1e-4 && (p[1] as f64 - (i / 640) as f64).abs() < 1e-4
+        }));
+    }
+
+    #[test]
+    fn fixed_point_remap_matches_exact_bilinear() {
+        let (w, h) = (37, 23);
+        let data: Vec<u8> = (0..w * h * 3).map(|i| ((i * 7919) % 256) as u8).collect();
+        let img = Image::from_vec(w, h, 3, data).unwrap();
+        let mut xy = Vec::new();
+        for i in 0..500 {
+            let t = i as f32 * 0.618;
+            xy.push([(t * 3.7) % (w as f32 + 2.0) - 1.0, (t * 1.3) % (h as f32 + 2.0) - 1.0]);
+        }
+        xy.push([f32::NAN, 3.0]);
+        let table = RemapTable { width: xy.len(), height: 1, xy: xy.clone() };
+        let (out, mask) = remap_bilinear_u8(&img, &table);
+        for (x, p) in xy.iter().enumerate() {
+            for c in 0..3 {
+                match img.sample_bilinear(p[0] as f64, p[1] as f64, c) {
+                    Some(v) => {
+                        assert!(mask.data[x]);
+                        assert!((out.get(x, 0, c) as f64 - v).abs() <= 0.5 + 255.0 / 2048.0, "{p:?}: {v}");
+                    }
+                    None => assert!(!mask.data[x] && out.get(x, 0, c) == 0),
+                }
+            }
+        }
+        // Integer positions copy exactly.
+        let ident =
+            RemapTable { width: w, height: h, xy: (0..w * h).map(|i| [(i % w) as f32, (i / w) as f32]).collect() };
+        assert_eq!(remap_bilinear_u8(&img, &ident).0, img);
     }
 }

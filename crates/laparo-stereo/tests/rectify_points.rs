@@ -95,7 +95,10 @@ fn alpha_zero_every_rectified_pixel_has_a_source_alpha_one_keeps_every_source_pi
     for side in [Side::Left, Side::Right] {
         let t = r0.remap_table(side);
         let (w, h) = (1279.0 + 0.5, 1023.0 + 0.5);
-        let bad = t.xy.iter().filter(|p| !(p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= w && p[1] <= h)).count();
+        let bad =
+            t.xy.iter()
+                .filter(|p| !(p[0] as f64 >= -0.5 && p[1] as f64 >= -0.5 && p[0] as f64 <= w && p[1] as f64 <= h))
+                .count();
         // The inner rectangle is found from border samples every 8 px: allow a sub-pixel sliver.
         assert!(bad as f64 / t.xy.len() as f64 <= 1e-3, "{side:?}: {bad} rectified pixels without source");
     }
@@ -170,4 +173,28 @@ fn rectified_image_of_a_plane_matches_along_rows() {
     // Texture period ~ 7 mm ≈ 120 px: bilinear resampling twice + 8-bit rounding stays well below 1 grey level (a 1-px row error costs ~1.5).
     eprintln!("plane test: mean |L(x) - R(x - d)| = {mae:.3} grey levels over {n} px (d = {d:.3} px)");
     assert!(n > 500_000 && mae < 0.6, "mean |L(x) − R(x − d)| = {mae} grey levels over {n} px");
+}
+
+#[test]
+fn remap_table_matches_the_exact_inverse_map() {
+    // Brown–Conrady (fast path) and rational (general path) distortion.
+    let mut c = pair();
+    for rational in [false, true] {
+        if rational {
+            c.left_dist.k4 = 0.05;
+            c.left_dist.k6 = -0.01;
+        }
+        let rect = Rectification::new(&c, RectifyOptions { alpha: -1.0, align_principal_points: true }).unwrap();
+        let t = rect.remap_table(Side::Left);
+        let mut worst = 0.0f64;
+        for y in (0..1024).step_by(7) {
+            for x in (0..1280).step_by(5) {
+                let (a, b) = rect.source_point(Side::Left, x as f64, y as f64).unwrap();
+                let p = t.xy[y * 1280 + x];
+                worst = worst.max((p[0] as f64 - a).abs().max((p[1] as f64 - b).abs()));
+            }
+        }
+        // f32 storage: ~1e-4 px at 1280 px.
+        assert!(worst < 5e-4, "rational = {rational}: table differs from source_point by {worst} px");
+    }
 }
