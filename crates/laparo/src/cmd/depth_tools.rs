@@ -431,3 +431,123 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use laparo_depth::synthetic::organ_scene;
+
+    fn perturb_args(input: &Path, out: &Path, gt: Option<&Path>) -> PerturbArgs {
+        PerturbArgs {
+            input: input.to_path_buf(),
+            out: out.to_path_buf(),
+            kinds: vec!["smoke".into(), "lens_dirtiness".into()],
+            severities: vec![3, 1],
+            seed: 4,
+            gt: gt.map(Path::to_path_buf),
+            gt_unit: "m".into(),
+            scene: Some("organ".into()),
+            overwrite: false,
+        }
+    }
+
+    #[test]
+    fn perturb_writes_resumes_and_emits_a_valid_manifest() {
+        let dir = tempfile::tempdir().unwrap();
+        let (inp, gt, out) = (dir.path().join("rgb"), dir.path().join("gt"), dir.path().join("bench"));
+        for (i, name) in ["a", "b"].iter().enumerate() {
+            let sc = organ_scene(64, 48, i as u64).unwrap();
+            laparo_core::io::write_png(inp.join(format!("{name}.png")), &sc.rgb).unwrap();
+            laparo_core::io::write_depth(gt.join(format!("{name}.npy")), &sc.depth).unwrap();
+        }
+        perturb(perturb_args(&inp, &out, Some(&gt))).unwrap();
+        let p = perturbed_path(&out, Perturbation::LensDirt, 3, "b");
+        assert!(p.is_file());
+        assert!(!perturbed_path(&out, Perturbation::Smoke, 2, "a").exists());
+        // Same output as the library call with the documented seed rule.
+        let img = laparo_core::io::read_image(inp.join("b.png")).unwrap();
+        let want = pt::apply(&img, Perturbation::LensDirt, 3, pt::item_seed(4, "b", Perturbation::LensDirt)).unwrap();
+        assert_eq!(laparo_core::io::read_image(&p).unwrap(), want);
+        // Resume: an existing output is not rewritten.
+        std::fs::write(&p, b"sentinel").unwrap();
+        perturb(perturb_args(&inp, &out, Some(&gt))).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"sentinel");
+        let mut a = perturb_args(&inp, &out, Some(&gt));
+        a.overwrite = true;
+        perturb(a).unwrap();
+        assert_eq!(laparo_core::io::read_image(&p).unwrap(), want);
+        // The manifest lists 2 clean + 2 x 2 x 2 perturbed frames and validates except for methods.
+        let m = Manifest::read(out.join("manifest.toml")).unwrap();
+        assert_eq!(m.frames.len(), 2 + 8);
+        let rep = m.validate(None);
+        assert_eq!(rep.problems, vec!["no method to evaluate ([[methods]] is empty)".to_string()], "{rep:?}");
+        let r = m.resolve().unwrap();
+        assert!(r.layout.perturbations.iter().any(|p| p == "clean"));
+        assert!(out.join("perturbations.json").is_file());
+    }
+
+    #[test]
+    fn perturb_rejects_bad_arguments() {
+        let dir = tempfile::tempdir().unwrap();
+        let inp = dir.path().join("x.png");
+        laparo_core::io::write_png(&inp, &organ_scene(32, 24, 0).unwrap().rgb).unwrap();
+        let out = dir.path().join("o");
+        let mut a = perturb_args(&inp, &out, None);
+        a.kinds = vec!["fog".into()];
+        assert!(format!("{:#}", perturb(a).unwrap_err()).contains("fog"));
+        let mut a = perturb_args(&inp, &out, None);
+        a.severities = vec![4];
+        assert!(perturb(a).is_err());
+        let a = perturb_args(&dir.path().join("missing"), &out, None);
+        assert!(format!("{:#}", perturb(a).unwrap_err()).contains("missing"));
+        let a = perturb_args(&inp, &out, Some(&dir.path().join("nogt")));
+        assert!(perturb(a).is_err());
+        assert!(!out.exists(), "no output folder is created for rejected arguments");
+    }
+
+    #[test]
+    fn reproject_cli_round_trip_and_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        // Sensor sees a wall at 150 mm; laparoscope 20 mm closer, same intrinsics.
+        let depth = laparo_core::DepthMap::new(40, 30, DepthUnit::Mm, vec![150.0; 1200]).unwrap();
+        laparo_core::io::write_depth(d.join("s.npy"), &depth).unwrap();
+        std::fs::write(d.join("k.json"), r#"{"fx": 50, "fy": 50, "cx": 19.5, "cy": 14.5, "width": 40, "height": 30}"#)
+            .unwrap();
+        std::fs::write(d.join("t.json"), r#"{"T": [[1,0,0,0],[0,1,0,0],[0,0,1,-0.02],[0,0,0,1]], "unit": "m"}"#)
+            .unwrap();
+        let args = |out: &str| ReprojectArgs {
+            depth: d.join("s.npy"),
+            depth_unit: "mm".into(),
+            sensor_intrinsics: d.join("k.json"),
+            extrinsics: d.join("t.json"),
+            extrinsics_unit: "mm".into(),
+            intrinsics: d.join("k.json"),
+            width: None,
+            height: None,
+            tool_mask: None,
+            min_depth_m: 0.01,
+            max_depth_m: 0.5,
+            saturate: false,
+            max_rel_jump: 0.05,
+            out_unit: "mm".into(),
+            out: d.join(out),
+        };
+        reproject(args("gt.npy")).unwrap();
+        let g = laparo_core::io::read_depth(d.join("gt.npy"), DepthUnit::Mm).unwrap();
+        assert!(g.data.iter().all(|v| (v - 130.0).abs() < 1e-9), "a closer view of a wall is hole-free");
+        // Tool mask of the wrong size names the file; nothing is written.
+        laparo_core::io::write_png(d.join("mask.png"), &Image::filled(10, 10, 1, 255u8)).unwrap();
+        let mut a = args("bad.npy");
+        a.tool_mask = Some(d.join("mask.png"));
+        assert!(format!("{:#}", reproject(a).unwrap_err()).contains("mask.png"));
+        assert!(!d.join("bad.npy").exists());
+        // Depth in the wrong unit: everything out of range -> error, no output.
+        let mut a = args("bad.npy");
+        a.depth_unit = "m".into();
+        assert!(reproject(a).is_err());
+        assert!(!d.join("bad.npy").exists());
+        std::fs::write(d.join("t.json"), r#"{"R": [[1,0,0],[0,1,0]], "t": [0,0,0]}"#).unwrap();
+        assert!(format!("{:#}", reproject(args("bad.npy")).unwrap_err()).contains("t.json"));
+    }
+}
