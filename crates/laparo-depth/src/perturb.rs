@@ -745,6 +745,22 @@ mod tests {
     }
 
     #[test]
+    fn contact_sheet_places_shrunk_thumbnails() {
+        let a = Image::filled(40, 30, 3, 200u8);
+        let b = Image::filled(40, 30, 1, 10u8);
+        let rows = vec![("A".to_string(), vec![a.clone(), b]), ("B".to_string(), vec![a])];
+        let cols = vec!["one".to_string(), "two".to_string()];
+        let sheet = contact_sheet(&rows, &cols, 20).unwrap();
+        // Layout: 110 px label column, 26 px header, 20×15 thumbnails, 4 px gaps.
+        assert_eq!((sheet.width, sheet.height, sheet.channels), (110 + 2 * 24, 26 + 2 * 19, 3));
+        assert_eq!(sheet.pixel(110 + 10, 26 + 7), &[200, 200, 200]);
+        assert_eq!(sheet.pixel(110 + 24 + 10, 26 + 7), &[10, 10, 10]);
+        // Missing cell of row B stays white.
+        assert_eq!(sheet.pixel(110 + 24 + 10, 26 + 19 + 7), &[255, 255, 255]);
+        assert!(contact_sheet(&[], &cols, 20).is_err());
+    }
+
+    #[test]
     fn bad_inputs_are_errors() {
         let img = textured(16, 16);
         assert!(apply(&img, Perturbation::Smoke, 0, 1).is_err());

@@ -13,6 +13,9 @@
 //! foreground and background are not bridged by "rubber sheets"; disoccluded regions stay
 //! invalid (NaN). Backward warping was not used because the inverse map does not exist where
 //! the two views see different surfaces (occlusion) — it would need exactly this z-buffer.
+//! The sensor depth is taken as undistorted (depth cameras such as the RealSense D435i deliver
+//! rectified depth); the laparoscope may have Brown–Conrady distortion ([`TargetCamera`]), in
+//! which case projected vertices are distorted and triangles stay straight between them.
 //! Finally an optional tool mask is removed and depth is clamped to `[min_depth_m, max_depth_m]`
 //! (1 cm – 50 cm by default, §3.2.6).
 use laparo_core::{CoreError, DepthMap, DepthUnit, Distortion, Image, Intrinsics, Result, Se3};
