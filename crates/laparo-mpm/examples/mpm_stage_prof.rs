@@ -1,12 +1,20 @@
 use laparo_mpm::*;
 use std::time::Instant;
 fn main() {
-    let (scene, _loss) = laparo_mpm::reference::rods_scene::<3>([16, 25, 17], 120, 200, 2e-4);
+    if std::env::args().nth(1).as_deref() == Some("2") {
+        go::<2>([80, 80]);
+    } else {
+        go::<3>([16, 25, 17]);
+    }
+}
+
+fn go<const D: usize>(counts: [usize; D]) {
+    let (scene, _loss) = laparo_mpm::reference::rods_scene::<D>(counts, 120, 200, 2e-4);
     let mut cur = ParticleState::initial(&scene);
     let n = scene.n_particles();
-    let mut grid = sparse_grid::SparseGrid::<3>::new(scene.grid);
-    let mut aff = vec![Matrix::<3>::zeros(); n];
-    let mut fnext = vec![Matrix::<3>::zeros(); n];
+    let mut grid = sparse_grid::SparseGrid::<D>::new(scene.grid);
+    let mut aff = vec![Matrix::<D>::zeros(); n];
+    let mut fnext = vec![Matrix::<D>::zeros(); n];
     let mut next = cur.clone();
     let (mu, la) = scene.material.lame();
     let mut t = [0.0f64; 5];

@@ -94,16 +94,18 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let mut stepper = Stepper::new(scene);
     // ---- forward with checkpoints of every step's particle state and grid nodes ----
     let init = ParticleState::initial(scene);
+    // Only the initial state is copied; later states are fully overwritten by the steps.
     ws.states.truncate(t + 1);
     for st in ws.states.iter_mut() {
-        st.x.clone_from(&init.x);
-        st.v.clone_from(&init.v);
-        st.c.clone_from(&init.c);
-        st.f.clone_from(&init.f);
+        st.x.resize(n, Vector::<D>::zeros());
+        st.v.resize(n, Vector::<D>::zeros());
+        st.c.resize(n, Matrix::<D>::zeros());
+        st.f.resize(n, Matrix::<D>::zeros());
     }
     while ws.states.len() < t + 1 {
         ws.states.push(init.clone());
     }
+    ws.states[0].clone_from(&init);
     ws.grids.truncate(t);
     while ws.grids.len() < t {
         ws.grids.push(GridCheckpoint::default());

@@ -31,7 +31,7 @@ pub fn gather<const D: usize>(
                 return usize::MAX;
             }
             let (fx, w, _) = bspline(&x[p], &grid.base[p], inv_dx);
-            let st = &grid.stencil[p];
+            let st = grid.stencil_of(p);
             let mut nv = Vector::<D>::zeros();
             let mut nc = Matrix::<D>::zeros();
             for_stencil::<D>(&w, |k, o, weight| {

@@ -82,7 +82,7 @@ pub fn scatter<const D: usize>(
             mv += scene.external_forces[p] * scene.dt;
         }
         let a = affine[p];
-        let st = &g.stencil[p];
+        let st = g.stencil_of(p);
         for_stencil::<D>(&w, |k, o, weight| {
             let mut dpos = Vector::<D>::zeros();
             for d in 0..D {

@@ -67,8 +67,8 @@ pub struct SparseGrid<const D: usize> {
     pub order: Vec<u32>,
     /// Stencil base node per particle.
     pub base: Vec<[i32; D]>,
-    /// The 3^D node indices of every particle's stencil (first 3^D entries used).
-    pub stencil: Vec<[u32; 27]>,
+    /// The 3^D node indices of every particle's stencil (particle p: entries p·3^D ..).
+    pub stencil: Vec<u32>,
     /// Node mass m_i.
     pub mass: Vec<f64>,
     /// Node momentum (m v)_i after P2G; node velocity after the grid update.
@@ -96,6 +96,13 @@ impl<T> SyncPtr<T> {
     pub unsafe fn at(&self, i: usize) -> &mut T {
         &mut *self.0.add(i)
     }
+    /// # Safety
+    /// Range in bounds and not touched by another thread concurrently.
+    #[inline(always)]
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn slice(&self, start: usize, len: usize) -> &mut [T] {
+        std::slice::from_raw_parts_mut(self.0.add(start), len)
+    }
 }
 
 impl<const D: usize> SparseGrid<D> {
@@ -121,6 +128,13 @@ impl<const D: usize> SparseGrid<D> {
             distinct: Vec::new(),
             pnbr: Vec::new(),
         }
+    }
+
+    /// Node indices of particle `p`'s stencil (3^D entries, stencil order).
+    #[inline(always)]
+    pub fn stencil_of(&self, p: usize) -> &[u32] {
+        let sl = crate::linalg::stencil_len(D);
+        &self.stencil[p * sl..(p + 1) * sl]
     }
 
     /// Grid specification.
@@ -247,14 +261,15 @@ impl<const D: usize> SparseGrid<D> {
         }
         // Node indices of every particle's stencil, from its block's neighbour blocks.
         let nn = block_nodes(D);
-        self.stencil.resize(n, [0u32; 27]);
+        let sl = crate::linalg::stencil_len(D);
+        self.stencil.resize(n * sl, 0);
         let st_ptr = SyncPtr(self.stencil.as_mut_ptr());
         let (order, base, pnbr) = (&self.order, &self.base, &self.pnbr);
         self.pblocks.par_iter().zip(pnbr.par_iter()).for_each(|(blk, (nbr, origin))| {
             for &p in &order[blk.start as usize..blk.end as usize] {
                 let b = &base[p as usize];
                 // SAFETY: each particle belongs to exactly one particle block.
-                let st = unsafe { st_ptr.at(p as usize) };
+                let st = unsafe { st_ptr.slice(p as usize * sl, sl) };
                 let mut sel = [[0usize; 3]; D];
                 let mut loc = [[0usize; 3]; D];
                 let mut stride = 1usize;

@@ -36,7 +36,7 @@ pub fn g2p_adjoint<const D: usize>(
         let vb = v_bar_next[p] + x_bar_next[p] * dt;
         let cb4 = c_bar_next[p] * (4.0 * inv_dx);
         let (fx, w, dw) = bspline(&x[p], &grid.base[p], inv_dx);
-        let st = &grid.stencil[p];
+        let st = grid.stencil_of(p);
         let mut fxb = -(cb4.transpose() * v_next[p]);
         for_stencil::<D>(&w, |k, o, weight| {
             let mut dpos = Vector::<D>::zeros();

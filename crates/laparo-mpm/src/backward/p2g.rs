@@ -62,7 +62,7 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
         if !scene.external_forces.is_empty() {
             mv += scene.external_forces[p] * dt;
         }
-        let st = &grid.stencil[p];
+        let st = grid.stencil_of(p);
         let mut sum_wp = Vector::<D>::zeros();
         let mut ab = Matrix::<D>::zeros();
         let mut fxb = Vector::<D>::zeros();
