@@ -2,8 +2,8 @@
 //! flags = 0) on the SCARED ds1-3 calibration (values embedded below were produced by
 //! `stereoRectify(M1, D1, M2, D2, (1280, 1024), R, T, flags, alpha)` from the same numbers).
 //! OpenCV undistorts the corner points in float32, so principal points agree to ~1e-3 px; its
-//! alpha rectangles come from a 9×9 grid (laparo: every 8th border pixel), hence the looser
-//! tolerance on the alpha = 0 / 1 focal lengths. R1, R2 agree to 1e-10 (laparo first projects the
+//! alpha rectangles come from a 9×9 grid (laparo: every 8th border pixel), yet the alpha = 0 / 1
+//! focal lengths also agree to 1e-3 px on this near-distortion-free calibration. R1, R2 agree to 1e-10 (laparo first projects the
 //! file's R, orthonormal to ~1e-9 only, onto SO(3); OpenCV goes through Rodrigues).
 use laparo_core::calib::StereoCalibration;
 use laparo_stereo::rectify::{Rectification, RectifyOptions};
