@@ -219,17 +219,46 @@ struct Line {
     text: String,
 }
 
+/// Quote state while scanning YAML text: handles `"..."` with backslash escapes and `'...'`.
+#[derive(Default)]
+struct QuoteScan {
+    quote: Option<char>,
+    escaped: bool,
+}
+
+impl QuoteScan {
+    /// Feed one character; true if it is outside any quoted string (and not a quote itself).
+    fn outside(&mut self, ch: char) -> bool {
+        match self.quote {
+            Some(_) if self.escaped => {
+                self.escaped = false;
+                false
+            }
+            Some('"') if ch == '\\' => {
+                self.escaped = true;
+                false
+            }
+            Some(q) if ch == q => {
+                self.quote = None;
+                false
+            }
+            Some(_) => false,
+            None if ch == '"' || ch == '\'' => {
+                self.quote = Some(ch);
+                false
+            }
+            None => true,
+        }
+    }
+}
+
 /// Position of a YAML comment `#` (at the start or after whitespace, outside quotes).
 fn comment_start(s: &str) -> Option<usize> {
-    let mut quote: Option<char> = None;
+    let mut q = QuoteScan::default();
     let mut prev_ws = true;
     for (i, ch) in s.char_indices() {
-        match quote {
-            Some(q) if ch == q => quote = None,
-            Some(_) => {}
-            None if ch == '"' || ch == '\'' => quote = Some(ch),
-            None if ch == '#' && prev_ws => return Some(i),
-            None => {}
+        if q.outside(ch) && ch == '#' && prev_ws {
+            return Some(i);
         }
         prev_ws = ch.is_whitespace();
     }
@@ -238,18 +267,15 @@ fn comment_start(s: &str) -> Option<usize> {
 
 /// Bracket depth change of `s` outside quotes.
 fn bracket_balance(s: &str) -> i64 {
-    let mut quote: Option<char> = None;
+    let mut q = QuoteScan::default();
     let mut depth = 0i64;
     for ch in s.chars() {
-        match quote {
-            Some(q) if ch == q => quote = None,
-            Some(_) => {}
-            None => match ch {
-                '"' | '\'' => quote = Some(ch),
+        if q.outside(ch) {
+            match ch {
                 '[' | '{' => depth += 1,
                 ']' | '}' => depth -= 1,
                 _ => {}
-            },
+            }
         }
     }
     depth
@@ -309,22 +335,22 @@ fn logical_lines(text: &str, path: &Path) -> Result<Vec<Line>> {
 
 /// Split `key: rest` at the first `:` followed by whitespace or end of line, outside quotes.
 fn split_key(s: &str) -> Option<(String, &str)> {
-    let bytes = s.as_bytes();
-    let mut quote: Option<u8> = None;
-    for (i, &b) in bytes.iter().enumerate() {
-        match quote {
-            Some(q) if b == q => quote = None,
-            Some(_) => {}
-            None if b == b'"' || b == b'\'' => quote = Some(b),
-            None if b == b'[' || b == b'{' => return None,
-            None if b == b':' && (i + 1 == bytes.len() || bytes[i + 1].is_ascii_whitespace()) => {
+    let mut q = QuoteScan::default();
+    let mut it = s.char_indices().peekable();
+    while let Some((i, ch)) = it.next() {
+        if !q.outside(ch) {
+            continue;
+        }
+        match ch {
+            '[' | '{' => return None,
+            ':' if !matches!(it.peek(), Some((_, n)) if !n.is_whitespace()) => {
                 let key = unquote(s[..i].trim());
                 if key.is_empty() {
                     return None;
                 }
                 return Some((key, s[i + 1..].trim()));
             }
-            None => {}
+            _ => {}
         }
     }
     None
@@ -332,12 +358,30 @@ fn split_key(s: &str) -> Option<(String, &str)> {
 
 fn unquote(s: &str) -> String {
     let b = s.as_bytes();
-    if b.len() >= 2 && ((b[0] == b'"' && b[b.len() - 1] == b'"') || (b[0] == b'\'' && b[b.len() - 1] == b'\'')) {
-        let inner = &s[1..s.len() - 1];
-        if b[0] == b'"' {
-            return inner.replace("\\\"", "\"").replace("\\n", "\n").replace("\\\\", "\\");
+    if b.len() >= 2 && b[0] == b'\'' && b[b.len() - 1] == b'\'' {
+        return s[1..s.len() - 1].replace("''", "'");
+    }
+    if b.len() >= 2 && b[0] == b'"' && b[b.len() - 1] == b'"' {
+        let mut out = String::with_capacity(s.len());
+        let mut chars = s[1..s.len() - 1].chars();
+        while let Some(c) = chars.next() {
+            if c != '\\' {
+                out.push(c);
+                continue;
+            }
+            match chars.next() {
+                Some('n') => out.push('\n'),
+                Some('t') => out.push('\t'),
+                Some('"') => out.push('"'),
+                Some('\\') => out.push('\\'),
+                Some(o) => {
+                    out.push('\\');
+                    out.push(o);
+                }
+                None => out.push('\\'),
+            }
         }
-        return inner.replace("''", "'");
+        return out;
     }
     s.to_string()
 }
@@ -447,10 +491,12 @@ impl FlowParser<'_> {
                 let q = self.s[self.pos];
                 let start = self.pos;
                 self.pos += 1;
-                while self.pos < self.s.len() && !(self.s[self.pos] == q && self.s[self.pos - 1] != b'\\') {
-                    self.pos += 1;
+                while self.pos < self.s.len() && self.s[self.pos] != q {
+                    // backslash escapes inside double quotes
+                    self.pos += if q == b'"' && self.s[self.pos] == b'\\' { 2 } else { 1 };
                 }
                 if self.pos >= self.s.len() {
+                    self.pos = self.s.len();
                     return Err("unterminated quoted string".into());
                 }
                 self.pos += 1;
