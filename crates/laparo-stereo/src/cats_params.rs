@@ -23,9 +23,9 @@
 //! the observable one: `dx_right_px` is the amount **added to every disparity**, so the right
 //! principal point moves by −Δx_right (K_rel,right = [[1, 0, −Δx_right], [0, 1, 0], [0, 0, 1]]).
 //! With U(−100, 0) this gives the negative principal-point offsets of real laparoscopes
-//! (SCARED ds1–3: c_x^L − c_x^R = −97.3 px) and the mix of positive and negative disparities the
-//! thesis aims at (Fig. 3.8). `cats stats` can therefore fit `dx_right_px` directly to
-//! c_x^L − c_x^R of real calibrations.
+//! (SCARED ds1–3: c_x^L − c_x^R = −91.4 px; EndoVis 2017 kidney: −97.3 px) and the mix of
+//! positive and negative disparities the thesis aims at (Fig. 3.8). `cats stats` can therefore
+//! fit `dx_right_px` directly to c_x^L − c_x^R of real calibrations.
 use crate::augment::{CameraAugmentation, StereoAugmentation};
 use laparo_core::{Distortion, Intrinsics};
 use nalgebra::Matrix3;
