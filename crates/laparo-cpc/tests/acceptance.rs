@@ -169,6 +169,18 @@ fn bumpy_bowl_default_settings_flip_no_triangle() {
             )
             .unwrap();
             let roi = depth.valid_mask();
+            // The Rust port renders the same scene: same ROI, same depth (both bisect to ~1e-12 mm).
+            let same_roi = roi.data.iter().zip(&sc.roi.data).filter(|(a, b)| a != b).count();
+            let max_dz = depth
+                .data
+                .iter()
+                .zip(&sc.depth.data)
+                .filter(|(a, b)| a.is_finite() && b.is_finite())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            eprintln!("port vs scene.npz: {same_roi} ROI pixels differ, max |Δz| = {max_dz:.2e} mm");
+            assert!(same_roi <= 20, "ROI differs at {same_roi} pixels");
+            assert!(max_dz < 1e-3, "depth differs by {max_dz} mm");
             scenes.push(("scene.npz", roi, depth));
         }
         None => eprintln!(
