@@ -19,7 +19,7 @@ pub struct PerturbArgs {
     /// Output folder: `<out>/<kind>/<severity>/<stem>.png`.
     #[arg(long)]
     pub out: PathBuf,
-    /// Perturbation kinds: smoke, blood, bright, dark, defocus, motion, dirt.
+    /// Perturbation kinds: smoke, blood, bright, dark, defocus, motion, dirt (or all).
     #[arg(long, value_delimiter = ',', default_value = "smoke,blood,bright,dark,defocus,motion,dirt")]
     pub kinds: Vec<String>,
     /// Severity levels (1..=3).
@@ -157,11 +157,16 @@ pub fn perturbed_path(out: &Path, kind: Perturbation, severity: u8, stem: &str) 
 /// Run `laparo depth perturb`.
 pub fn perturb(a: PerturbArgs) -> Result<()> {
     let inputs = list_inputs(&a.input)?;
-    let kinds: Vec<Perturbation> = a
-        .kinds
-        .iter()
-        .map(|k| k.parse::<Perturbation>().with_context(|| "--kinds".to_string()))
-        .collect::<Result<_>>()?;
+    let mut kinds: Vec<Perturbation> = Vec::new();
+    for k in a.kinds.iter().map(|k| k.trim()).filter(|k| !k.is_empty()) {
+        if k.eq_ignore_ascii_case("all") {
+            kinds.extend(Perturbation::ALL);
+        } else {
+            kinds.push(k.parse::<Perturbation>().context("--kinds")?);
+        }
+    }
+    kinds.sort();
+    kinds.dedup();
     if kinds.is_empty() {
         bail!("--kinds: no perturbation given");
     }
