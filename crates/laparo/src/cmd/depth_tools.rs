@@ -16,7 +16,7 @@ pub struct PerturbArgs {
     /// Clean RGB image (PNG/JPEG/TIFF) or a folder of them (processed in sorted order).
     #[arg(long)]
     pub input: PathBuf,
-    /// Output folder: `<out>/<kind>/<severity>/<stem>.png`.
+    /// Output folder: `<out>/<kind>/s<severity>/<stem>.png`, plus perturbations.json (and manifest.toml with --gt).
     #[arg(long)]
     pub out: PathBuf,
     /// Perturbation kinds: smoke, blood, bright, dark, defocus, motion, dirt (or all).
