@@ -284,6 +284,21 @@ mod tests {
     }
 
     #[test]
+    fn colorbar_degenerate_inputs_do_not_panic() {
+        for (w, h) in [(1, 1), (5, 3), (0, 0), (40, 30)] {
+            let img = Image::filled(w, h, 3, 9u8);
+            for (lo, hi) in [(0.0, 1.0), (2.0, 2.0), (f64::NAN, 1.0), (5.0, -5.0), (0.0, f64::INFINITY)] {
+                let out = with_colorbar(&img, lo, hi, Colormap::Turbo, "x");
+                assert_eq!(out.height, h);
+                assert!(out.width > w);
+                assert_eq!(out.data.len(), out.width * out.height * 3);
+            }
+        }
+        let gray = Image::filled(8, 40, 1, 200u8);
+        assert_eq!(with_colorbar(&gray, 0.0, 1.0, Colormap::Gray, "").pixel(3, 3), &[200, 200, 200]);
+    }
+
+    #[test]
     fn draw_png_and_svg_write_files() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("chart.png");

@@ -121,7 +121,7 @@ fn huge_announced_sizes_are_rejected_without_allocating() {
     let p = dir.path().join("huge.npy");
     let hdr = "{'descr': '<f8', 'fortran_order': False, 'shape': (4000000000, 4000000000), }";
     let mut h = hdr.to_string();
-    while (10 + h.len() + 1) % 64 != 0 {
+    while !(10 + h.len() + 1).is_multiple_of(64) {
         h.push(' ');
     }
     h.push('\n');
