@@ -86,6 +86,7 @@ fn check<const D: usize>(scene: Scene<D>, seed: u64) {
         }
         let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
         let ad: f64 = (0..n).map(|p| g.d_velocities[p].dot(&dir[p])).sum();
+        eprintln!("D={D} {:?} v0 rel {:.2e}", scene.material.model, rel_err(fd, ad));
         assert!(
             rel_err(fd, ad) < 1e-5,
             "D={D} trial {trial} d/dv0: fd {fd:.12e} adjoint {ad:.12e} rel {:.2e}",
@@ -101,6 +102,7 @@ fn check<const D: usize>(scene: Scene<D>, seed: u64) {
         }
         let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
         let ad: f64 = (0..n).map(|p| g.d_positions[p].dot(&dir[p])).sum();
+        eprintln!("D={D} {:?} x0 rel {:.2e}", scene.material.model, rel_err(fd, ad));
         assert!(
             rel_err(fd, ad) < 1e-5,
             "D={D} trial {trial} d/dx0: fd {fd:.12e} adjoint {ad:.12e} rel {:.2e}",
@@ -114,6 +116,7 @@ fn check<const D: usize>(scene: Scene<D>, seed: u64) {
     sp.material.youngs_modulus += h;
     sm.material.youngs_modulus -= h;
     let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
+    eprintln!("D={D} {:?} E rel {:.2e} (stretch {stretch:.2})", scene.material.model, rel_err(fd, g.d_youngs_modulus));
     assert!(rel_err(fd, g.d_youngs_modulus) < 1e-5, "D={D} dE: fd {fd:.12e} adjoint {:.12e}", g.d_youngs_modulus);
     let h = 1e-6;
     let mut sp = scene.clone();
@@ -121,6 +124,7 @@ fn check<const D: usize>(scene: Scene<D>, seed: u64) {
     sp.material.poisson_ratio += h;
     sm.material.poisson_ratio -= h;
     let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
+    eprintln!("D={D} {:?} nu rel {:.2e}", scene.material.model, rel_err(fd, g.d_poisson_ratio));
     assert!(rel_err(fd, g.d_poisson_ratio) < 1e-5, "D={D} dnu: fd {fd:.12e} adjoint {:.12e}", g.d_poisson_ratio);
 }
 
