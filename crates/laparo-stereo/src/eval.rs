@@ -163,7 +163,7 @@ fn validate(pred: &Image<f64>, gt: &Image<f64>, mask: Option<&Mask>, opts: &Eval
 #[inline]
 fn gt_valid(gt: &Image<f64>, mask: Option<&Mask>, opts: &EvalOptions, i: usize) -> bool {
     let g = gt.data[i];
-    g.is_finite() && !(opts.zero_is_invalid && g == 0.0) && mask.map_or(true, |m| m.data[i])
+    g.is_finite() && !(opts.zero_is_invalid && g == 0.0) && mask.is_none_or(|m| m.data[i])
 }
 
 /// Predicted depth (mm) of disparity `d`, far-clamped as documented.
