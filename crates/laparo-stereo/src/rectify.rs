@@ -324,31 +324,46 @@ impl Rectification {
         let du = rt * Vector3::new(1.0 / kn.fx, 0.0, 0.0);
         let rational = d.k4 != 0.0 || d.k5 != 0.0 || d.k6 != 0.0;
         let mut xy = vec![[f32::NAN; 2]; w * h];
-        xy.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let (x0n, y0n) = kn.pixel_to_normalized(0.0, y as f64);
-            let r0 = rt * Vector3::new(x0n, y0n, 1.0);
-            for (x, out) in row.iter_mut().enumerate() {
-                let q = r0 + du * x as f64;
-                if q.z <= 0.0 {
-                    continue;
+        xy.par_chunks_mut(w).enumerate().for_each_init(
+            || (vec![0.0f64; w], vec![0.0f64; w], vec![true; w]),
+            |(xs, ys, front), (y, row)| {
+                let (x0n, y0n) = kn.pixel_to_normalized(0.0, y as f64);
+                let r0 = rt * Vector3::new(x0n, y0n, 1.0);
+                // Pass 1 (branch-free, vectorisable): normalised coordinates of every ray.
+                for (x, ((a, b), f)) in xs.iter_mut().zip(ys.iter_mut()).zip(front.iter_mut()).enumerate() {
+                    let xf = x as f64;
+                    let (qx, qy, qz) = (r0.x + du.x * xf, r0.y + du.y * xf, r0.z + du.z * xf);
+                    let iz = 1.0 / qz;
+                    *a = qx * iz;
+                    *b = qy * iz;
+                    *f = qz > 0.0;
                 }
-                let iz = 1.0 / q.z;
-                let (xn, yn) = (q.x * iz, q.y * iz);
-                let (xd, yd) = if rational {
-                    d.distort_normalized(xn, yn)
+                // Pass 2: distortion and camera matrix.
+                if rational {
+                    for (((o, &a), &b), &f) in row.iter_mut().zip(xs.iter()).zip(ys.iter()).zip(front.iter()) {
+                        if f {
+                            let (xd, yd) = d.distort_normalized(a, b);
+                            let (u, v) = k.normalized_to_pixel(xd, yd);
+                            *o = [u as f32, v as f32];
+                        }
+                    }
                 } else {
-                    let r2 = xn * xn + yn * yn;
-                    let radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
-                    let xy2 = 2.0 * xn * yn;
-                    (
-                        xn * radial + d.p1 * xy2 + d.p2 * (r2 + 2.0 * xn * xn) + d.s1 * r2 + d.s2 * r2 * r2,
-                        yn * radial + d.p1 * (r2 + 2.0 * yn * yn) + d.p2 * xy2 + d.s3 * r2 + d.s4 * r2 * r2,
-                    )
-                };
-                let (u, v) = k.normalized_to_pixel(xd, yd);
-                *out = [u as f32, v as f32];
-            }
-        });
+                    let (k1, k2, k3, p1, p2) = (d.k1, d.k2, d.k3, d.p1, d.p2);
+                    let (s1, s2, s3, s4) = (d.s1, d.s2, d.s3, d.s4);
+                    let (fx, fy, cx, cy, skew) = (k.fx, k.fy, k.cx, k.cy, k.skew);
+                    for (((o, &xn), &yn), &f) in row.iter_mut().zip(xs.iter()).zip(ys.iter()).zip(front.iter()) {
+                        let r2 = xn * xn + yn * yn;
+                        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+                        let xy2 = 2.0 * xn * yn;
+                        let xd = xn * radial + p1 * xy2 + p2 * (r2 + 2.0 * xn * xn) + s1 * r2 + s2 * r2 * r2;
+                        let yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + p2 * xy2 + s3 * r2 + s4 * r2 * r2;
+                        let u = fx * xd + skew * yd + cx;
+                        let v = fy * yd + cy;
+                        *o = if f { [u as f32, v as f32] } else { [f32::NAN; 2] };
+                    }
+                }
+            },
+        );
         RemapTable { width: w, height: h, xy }
     }
 
