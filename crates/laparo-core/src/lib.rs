@@ -3,7 +3,8 @@
 //! Camera models (pinhole intrinsics, Brown–Conrady distortion), rigid transforms (SE(3)),
 //! homographies, image and depth containers, meshes, colour maps and readers/writers for the
 //! formats surgical-vision users exchange (PNG 8/16-bit, JPEG, .npy/.npz, PFM, float TIFF,
-//! OpenCV FileStorage YAML, JSON, OBJ/PLY/STL).
+//! OpenCV FileStorage YAML, JSON, OBJ/PLY/STL, Gmsh .msh, legacy VTK), and PNG/SVG figures with a
+//! bundled font. See the crate README for the format conventions.
 
 pub mod atomic;
 pub mod calib;
