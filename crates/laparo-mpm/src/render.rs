@@ -6,6 +6,7 @@ use laparo_core::image::Image;
 /// Render 2D particles over the square [0, extent]² (y up) into a `size`×`size` RGB image, each
 /// particle a `dot`-pixel square coloured by `values` mapped from [lo, hi] with Turbo; `marks` are
 /// drawn as black crosses (e.g. landmark targets).
+#[allow(clippy::too_many_arguments)]
 pub fn render_particles_2d(
     x: &[Vector<2>],
     values: &[f64],

@@ -125,7 +125,7 @@ fn read_stl(path: &Path, bytes: &[u8]) -> Result<SurfaceMesh, MpmError> {
                 ));
             }
         }
-        if raw.len() % 3 != 0 {
+        if !raw.len().is_multiple_of(3) {
             return Err(err(path, "vertex count not a multiple of 3"));
         }
     }

@@ -72,7 +72,7 @@ impl<const D: usize> Stepper<D> {
     }
 
     /// P2G + grid update of step `s` from state `cur` (F_{s+1} left in `self.f_next`).
-    pub fn to_grid<M: ConstitutiveModel<D>>(
+    pub fn transfer_to_grid<M: ConstitutiveModel<D>>(
         &mut self,
         model: &M,
         scene: &Scene<D>,
@@ -96,7 +96,7 @@ impl<const D: usize> Stepper<D> {
         next: &mut ParticleState<D>,
         s: usize,
     ) -> Result<(), MpmError> {
-        self.to_grid(model, scene, cur, s)?;
+        self.transfer_to_grid(model, scene, cur, s)?;
         std::mem::swap(&mut next.f, &mut self.f_next);
         g2p::gather(&self.grid, scene, &cur.x, &mut next.x, &mut next.v, &mut next.c, s)
     }

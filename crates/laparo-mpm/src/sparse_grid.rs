@@ -93,6 +93,7 @@ impl<T> SyncPtr<T> {
     /// # Safety
     /// `i` in bounds and no other thread touches element `i` concurrently.
     #[inline(always)]
+    #[allow(clippy::mut_from_ref)]
     pub unsafe fn at(&self, i: usize) -> &mut T {
         &mut *self.0.add(i)
     }
