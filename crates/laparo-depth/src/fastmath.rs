@@ -3,6 +3,8 @@
 //! workspace crate offers an inlinable, accurate f64 log; the algorithm is fdlibm's
 //! `__ieee754_log` (error < 1 ulp) without its special-case branches.
 
+#![allow(clippy::excessive_precision)] // fdlibm's published constants, kept verbatim
+
 const LN2_HI: f64 = 6.93147180369123816490e-01;
 const LN2_LO: f64 = 1.90821492927058770002e-10;
 const LG1: f64 = 6.666666666666735130e-01;

@@ -576,8 +576,7 @@ pub fn scaffold(root: &Path, opts: &ScaffoldOptions) -> Result<Manifest> {
     if pred_root.is_dir() {
         for name in sorted_dirs(&pred_root)? {
             let ext = first_map_ext(&pred_root.join(&name)).unwrap_or_else(|| "npy".into());
-            let kind =
-                if opts.depth_methods.iter().any(|m| *m == name) { PredKind::Depth } else { PredKind::Disparity };
+            let kind = if opts.depth_methods.contains(&name) { PredKind::Depth } else { PredKind::Disparity };
             methods.push(MethodSpec {
                 predictions: format!("{}/{name}/{{id}}.{ext}", opts.predictions_dir),
                 name,

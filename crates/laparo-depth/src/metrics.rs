@@ -251,7 +251,7 @@ pub fn select_valid_into(
             let p = pred[i];
             let gt_ok = z.is_finite() && z > 0.0;
             n_gt_valid += gt_ok as usize;
-            let inside = gt_ok && mask.map_or(true, |m| m[i]);
+            let inside = gt_ok && mask.is_none() || mask.is_some_and(|m| m[i]);
             let d = match kind {
                 PredKind::Disparity => p,
                 PredKind::Depth => {
@@ -330,6 +330,7 @@ unsafe fn metrics_avx2(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, ra
 }
 
 #[inline(always)]
+#[allow(clippy::needless_range_loop)]
 fn metrics_lanes(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange) -> Metrics {
     const L: usize = 4;
     let thr: [f64; 5] = DELTA_POWERS.map(|t| 1.25f64.powf(t));
@@ -417,6 +418,7 @@ impl Sums {
     }
 }
 
+#[allow(clippy::needless_range_loop)]
 /// Sequential sums with the libm logarithm (tail of the fast loop, and the reference path).
 fn metrics_sums(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange, thr: [f64; 5]) -> Sums {
     let mut s = Sums { abs: 0.0, sqrel: 0.0, sq: 0.0, e: 0.0, e2: 0.0, cnt: [0; 5] };
