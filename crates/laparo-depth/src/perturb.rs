@@ -517,8 +517,8 @@ fn motion_blur(src: &Rgb, len: f64, angle: f64) -> Rgb {
                 (yb * w + xa) as usize * 3,
                 (yb * w + xb) as usize * 3,
             ];
-            for c in 0..3 {
-                acc[c] += wt[0] * src.d[idx[0] + c]
+            for (c, a) in acc.iter_mut().enumerate() {
+                *a += wt[0] * src.d[idx[0] + c]
                     + wt[1] * src.d[idx[1] + c]
                     + wt[2] * src.d[idx[2] + c]
                     + wt[3] * src.d[idx[3] + c];
@@ -583,8 +583,8 @@ fn shrink(img: &Image<u8>, tw: usize, th: usize) -> Image<u8> {
             let mut acc = [0u32; 3];
             for yy in y0..y1.min(img.height) {
                 for xx in x0..x1.min(img.width) {
-                    for c in 0..3 {
-                        acc[c] += img.get(xx, yy, c) as u32;
+                    for (c, a) in acc.iter_mut().enumerate() {
+                        *a += img.get(xx, yy, c) as u32;
                     }
                 }
             }

@@ -63,7 +63,7 @@ impl ReprojectParams {
                 ),
             ));
         }
-        if !(self.max_rel_jump > 0.0) {
+        if self.max_rel_jump.is_nan() || self.max_rel_jump <= 0.0 {
             return Err(CoreError::invalid("max_rel_jump", format!("{} (must be > 0)", self.max_rel_jump)));
         }
         Ok(())
@@ -154,7 +154,7 @@ pub fn reproject_depth(
             }
             let (x, y) = ((i % sw) as f64, (i / sw) as f64);
             let p = t_ds_to_l * nalgebra::Point3::from(sensor.backproject(x, y, zs));
-            if !(p.z > 0.0) {
+            if p.z.is_nan() || p.z <= 0.0 {
                 return None;
             }
             let (mut xn, mut yn) = (p.x / p.z, p.y / p.z);
@@ -244,7 +244,7 @@ fn edge(ax: f64, ay: f64, bx: f64, by: f64, px: f64, py: f64) -> f64 {
 /// edges and vertices are covered by both neighbours; the z-buffer makes that harmless).
 fn raster_triangle(zbuf: &mut [f64], w: usize, h: usize, a: &Vert, b: &Vert, c: &Vert) {
     let area = edge(a.u, a.v, b.u, b.v, c.u, c.v);
-    if !(area.abs() > 1e-12) {
+    if area.is_nan() || area.abs() <= 1e-12 {
         return;
     }
     const EPS: f64 = 1e-9;

@@ -506,7 +506,7 @@ impl SyntheticMethod {
         }
         let qbar = q.iter().sum::<f64>() / q.len() as f64;
         let deg = degradation_map(clean, observed)?;
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_0f_3e7d);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x005e_ed0f_3e7d);
         let smooth = Fbm::new(&mut rng, w, h, w as f64 / 4.0, 3);
         let row_seed: u64 = rng.gen();
         let mut out = vec![0f64; w * h];
