@@ -251,7 +251,7 @@ pub fn select_valid_into(
             let p = pred[i];
             let gt_ok = z.is_finite() && z > 0.0;
             n_gt_valid += gt_ok as usize;
-            let inside = gt_ok && mask.is_none() || mask.is_some_and(|m| m[i]);
+            let inside = gt_ok && (mask.is_none() || mask.is_some_and(|m| m[i]));
             let d = match kind {
                 PredKind::Disparity => p,
                 PredKind::Depth => {
