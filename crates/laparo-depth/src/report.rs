@@ -533,16 +533,11 @@ pub fn write_radar(dir: &Path, r: &MethodRobustness, alignment: Alignment) -> Re
     Ok(vec![png, svg])
 }
 
-/// Colour error maps (thesis Fig. C.1) of one frame for every method: `z* − ẑ` in mm after
-/// `alignment` (red: prediction shallower than the GT, blue: deeper), one symmetric colour range
-/// per frame (98th percentile of |error| over the methods) with a colour bar; plus the RGB image.
-pub fn write_error_maps(
-    dir: &Path,
-    manifest: &Manifest,
-    out: &EvalOutput,
-    frame_id: &str,
-    alignment: Alignment,
-) -> Result<Vec<PathBuf>> {
+/// Signed depth error `z* − ẑ` (mm) of every method on one frame after `alignment`, and the
+/// frame's RGB image when readable.
+type FrameErrors = (Option<Image<u8>>, Vec<(String, Image<f64>)>);
+
+fn frame_errors(manifest: &Manifest, out: &EvalOutput, frame_id: &str, alignment: Alignment) -> Result<FrameErrors> {
     let f = out.frames.iter().find(|f| f.id == frame_id).ok_or_else(|| {
         DepthError::invalid("error-map frame", format!("'{frame_id}' is not a frame of the manifest"))
     })?;
@@ -566,31 +561,92 @@ pub fn write_error_maps(
         )
         .map_err(|e| DepthError::file(&pp, e.to_string()))?;
         let err: Vec<f64> = z.iter().zip(&gt.gt_m.data).map(|(zh, zg)| (zg - zh) * 1000.0).collect();
-        maps.push((m.name.clone(), err));
+        maps.push((m.name.clone(), Image { width: gt.gt_m.width, height: gt.gt_m.height, channels: 1, data: err }));
     }
-    let mut abs: Vec<f64> =
-        maps.iter().flat_map(|(_, e)| e.iter().filter(|v| v.is_finite()).map(|v| v.abs())).collect();
+    let rgb = match laparo_core::io::read_rgb8(&f.rgb) {
+        Ok(im) if im.size() == gt.gt_m.size() => Some(im),
+        _ => None,
+    };
+    Ok((rgb, maps))
+}
+
+/// Symmetric colour range: 98th percentile of |error| (at least 0.5 mm).
+fn error_range<'a>(maps: impl Iterator<Item = &'a Image<f64>>) -> f64 {
+    let mut abs: Vec<f64> = maps.flat_map(|m| m.data.iter().filter(|v| v.is_finite()).map(|v| v.abs())).collect();
     abs.sort_by(f64::total_cmp);
-    let a =
-        abs.get(((abs.len() as f64 * 0.98) as usize).min(abs.len().saturating_sub(1))).copied().unwrap_or(1.0).max(0.5);
+    abs.get(((abs.len() as f64 * 0.98) as usize).min(abs.len().saturating_sub(1))).copied().unwrap_or(1.0).max(0.5)
+}
+
+const ERROR_LABEL: &str = "z* - z_pred [mm] (red: pred. shallower)";
+
+/// Colour error maps (thesis Fig. C.1) of one frame for every method: `z* − ẑ` in mm after
+/// `alignment` (red: prediction shallower than the GT, blue: deeper), one symmetric colour range
+/// per frame (98th percentile of |error| over the methods) with a colour bar; plus the RGB image.
+pub fn write_error_maps(
+    dir: &Path,
+    manifest: &Manifest,
+    out: &EvalOutput,
+    frame_id: &str,
+    alignment: Alignment,
+) -> Result<Vec<PathBuf>> {
+    let (rgb, maps) = frame_errors(manifest, out, frame_id, alignment)?;
+    let a = error_range(maps.iter().map(|m| &m.1));
     let stem = file_stem(frame_id);
     let mut written = Vec::new();
-    if f.rgb.is_file() {
-        let rgb = laparo_core::io::read_rgb8(&f.rgb)?;
+    if let Some(rgb) = rgb {
         let p = dir.join(format!("{stem}_rgb.png"));
         laparo_core::io::write_png(&p, &rgb)?;
         written.push(p);
     }
     for (name, err) in maps {
-        let img = Image { width: gt.gt_m.width, height: gt.gt_m.height, channels: 1, data: err };
         // Turbo: low (blue) = prediction deeper than the GT, high (red) = shallower.
-        let col = colorize(&img, -a, a, Colormap::Turbo);
-        let fig = with_colorbar(&col, -a, a, Colormap::Turbo, "z* - z_pred [mm]");
+        let fig = with_colorbar(&colorize(&err, -a, a, Colormap::Turbo), -a, a, Colormap::Turbo, ERROR_LABEL);
         let p = dir.join(format!("{stem}_{}_{}.png", file_stem(&name), alignment.key()));
         laparo_core::io::write_png(&p, &fig)?;
         written.push(p);
     }
     Ok(written)
+}
+
+/// Fig. C.1-like grid: one column per frame (RGB on top), one row per method, a common
+/// symmetric colour range and one colour bar. Row order = method order of the evaluation.
+pub fn write_error_grid(
+    path: &Path,
+    manifest: &Manifest,
+    out: &EvalOutput,
+    frame_ids: &[String],
+    alignment: Alignment,
+) -> Result<()> {
+    let cols: Vec<FrameErrors> =
+        frame_ids.iter().map(|id| frame_errors(manifest, out, id, alignment)).collect::<Result<_>>()?;
+    let a = error_range(cols.iter().flat_map(|c| c.1.iter().map(|m| &m.1)));
+    let (tw, th) =
+        cols.iter().flat_map(|c| c.1.iter().map(|m| m.1.size())).fold((1, 1), |x, y| (x.0.max(y.0), x.1.max(y.1)));
+    let gap = 4;
+    let rows = out.methods.len() + 1;
+    let (gw, gh) = (cols.len() * (tw + gap) + gap, rows * (th + gap) + gap);
+    let mut grid = Image::filled(gw, gh, 3, 255u8);
+    let mut blit = |img: &Image<u8>, c: usize, r: usize| {
+        let (x0, y0) = (gap + c * (tw + gap), gap + r * (th + gap));
+        for y in 0..img.height.min(th) {
+            for x in 0..img.width.min(tw) {
+                for k in 0..3 {
+                    grid.set(x0 + x, y0 + y, k, img.get(x, y, k.min(img.channels - 1)));
+                }
+            }
+        }
+    };
+    for (c, (rgb, maps)) in cols.iter().enumerate() {
+        if let Some(rgb) = rgb {
+            blit(rgb, c, 0);
+        }
+        for (r, (_, err)) in maps.iter().enumerate() {
+            blit(&colorize(err, -a, a, Colormap::Turbo), c, r + 1);
+        }
+    }
+    let fig = with_colorbar(&grid, -a, a, Colormap::Turbo, ERROR_LABEL);
+    laparo_core::io::write_png(path, &fig)?;
+    Ok(())
 }
 
 /// Radar charts for every method and alignment under `dir/radar/`, and error maps of
@@ -611,6 +667,20 @@ pub fn write_figures(
     }
     for id in error_map_frames {
         written.extend(write_error_maps(&dir.join("error_maps"), manifest, out, id, error_alignment)?);
+    }
+    if !error_map_frames.is_empty() {
+        // Rows: RGB, then the methods in evaluation order (listed in the file name's sidecar text).
+        let p = dir.join("error_maps").join(format!("grid_{}.png", error_alignment.key()));
+        write_error_grid(&p, manifest, out, error_map_frames, error_alignment)?;
+        let legend = std::iter::once("row 1: RGB".to_string())
+            .chain(out.methods.iter().enumerate().map(|(i, m)| format!("row {}: {}", i + 2, m.name)))
+            .chain(std::iter::once(format!("columns: {}", error_map_frames.join(", "))))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let lp = dir.join("error_maps").join(format!("grid_{}.txt", error_alignment.key()));
+        write_text(&lp, &(legend + "\n"))?;
+        written.push(p);
+        written.push(lp);
     }
     Ok(written)
 }

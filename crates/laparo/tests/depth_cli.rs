@@ -240,7 +240,7 @@ fn scaffold_validate_and_evaluate() {
 }
 
 fn figures(out: &Path) -> Vec<PathBuf> {
-    let mut v = Vec::new();
+    let mut v = vec![out.join("error_maps").join("grid_scale_shift.png")];
     for m in ["good", "base"] {
         v.push(out.join("radar").join(format!("{m}_scale_shift.png")));
         v.push(out.join("radar").join(format!("{m}_scale_shift.svg")));
