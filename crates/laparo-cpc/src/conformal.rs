@@ -71,7 +71,7 @@ pub fn basis_barycentrics(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, 
     let r1 = e1.dot(&q2);
     let r2 = e2.dot(&q2);
     let det = g11 * g22 - g12 * g12;
-    if !(det > 0.0) {
+    if det.is_nan() || det <= 0.0 {
         return None;
     }
     let beta = (g22 * r1 - g12 * r2) / det;

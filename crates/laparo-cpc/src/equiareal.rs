@@ -121,7 +121,7 @@ pub fn refine(
             sys.add_face_block(&mut vals, f, &k6);
         }
         let gnorm: f64 = g.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !(gnorm > 0.0) {
+        if gnorm.is_nan() || gnorm <= 0.0 {
             break;
         }
         let mut accepted = false;

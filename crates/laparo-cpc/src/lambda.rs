@@ -143,8 +143,8 @@ fn nelder_mead(f: &dyn Fn(&[f64; 3]) -> f64, x0: [f64; 3], step: [f64; 3], iters
         s.sort_by(|a, b| a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal));
         let mut c = [0.0; 3];
         for p in &s[..3] {
-            for k in 0..3 {
-                c[k] += p.0[k] / 3.0;
+            for (ck, &pk) in c.iter_mut().zip(&p.0) {
+                *ck += pk / 3.0;
             }
         }
         let worst = s[3];
@@ -171,8 +171,8 @@ fn nelder_mead(f: &dyn Fn(&[f64; 3]) -> f64, x0: [f64; 3], step: [f64; 3], iters
             } else {
                 let best = s[0].0;
                 for p in s.iter_mut().skip(1) {
-                    for k in 0..3 {
-                        p.0[k] = best[k] + 0.5 * (p.0[k] - best[k]);
+                    for (pk, &bk) in p.0.iter_mut().zip(&best) {
+                        *pk = bk + 0.5 * (*pk - bk);
                     }
                     p.1 = f(&p.0);
                 }
@@ -212,7 +212,7 @@ pub fn fit_gompertz_exp(lambdas: &[f64], delta: &[f64]) -> Result<GompertzExpFit
                     continue;
                 }
                 let r = nelder_mead(&cost, x0, [0.5, 0.5, 0.5], 400);
-                if best.as_ref().map_or(true, |b| r.1 < b.1) {
+                if best.as_ref().is_none_or(|b| r.1 < b.1) {
                     best = Some(r);
                 }
             }

@@ -119,7 +119,7 @@ impl CpcMesh {
         if s == 0 {
             return Err(CpcError::invalid("grid step", "must be at least 1 px"));
         }
-        if !(params.max_rel_depth_jump > 0.0) {
+        if params.max_rel_depth_jump.is_nan() || params.max_rel_depth_jump <= 0.0 {
             return Err(CpcError::invalid(
                 "max relative depth jump",
                 format!("{} (must be > 0)", params.max_rel_depth_jump),
@@ -143,7 +143,9 @@ impl CpcMesh {
         let mut rep = MeshReport { grid_step_px: s, ..Default::default() };
         let cos_max = params.max_view_angle_deg.map(|a| a.to_radians().cos());
         // Candidate triangles as grid-node triplets, with their cell and slot.
-        let mut tris: Vec<([(usize, usize); 3], usize, usize)> = Vec::new();
+        /// Grid-node triplet, cell index, slot (0 or 1) within the cell.
+        type CandidateTriangle = ([(usize, usize); 3], usize, usize);
+        let mut tris: Vec<CandidateTriangle> = Vec::new();
         for j in 0..gr.saturating_sub(1) {
             for i in 0..gc.saturating_sub(1) {
                 let cell = j * (gc - 1) + i;

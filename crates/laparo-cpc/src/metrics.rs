@@ -50,7 +50,13 @@ pub fn delta_area(p: &[[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]]) -> 
 
 /// Number of triangles whose flattened orientation is not positive (flipped or collapsed).
 pub fn n_flipped(p: &[[f64; 2]], faces: &[[usize; 3]]) -> usize {
-    faces.iter().filter(|f| !(signed_area(p[f[0]], p[f[1]], p[f[2]]) > 0.0)).count()
+    faces
+        .iter()
+        .filter(|f| {
+            let a = signed_area(p[f[0]], p[f[1]], p[f[2]]);
+            a.is_nan() || a <= 0.0
+        })
+        .count()
 }
 
 /// Mean and maximum vertex displacement |p − P_init| (px).

@@ -242,7 +242,7 @@ impl SceneSpec {
             return Err(CpcError::invalid("scene", "half size and march step must be > 0"));
         }
         if let Surface::Cylinder { radius_mm } = self.surface {
-            if !(self.half_mm < radius_mm) {
+            if self.half_mm.is_nan() || radius_mm.is_nan() || self.half_mm >= radius_mm {
                 return Err(CpcError::invalid("scene", "cylinder radius must exceed the patch half-size"));
             }
         }
@@ -271,7 +271,9 @@ impl SceneSpec {
         let t = self.pose.translation.vector;
         let o = rt * (-t);
         let (w, h) = (k.width, k.height);
-        let rows: Vec<Vec<(f64, [f64; 2], [u8; 3])>> = (0..h)
+        /// One rendered pixel: ray parameter (depth, mm), surface coordinates (mm), RGB.
+        type RenderedPixel = (f64, [f64; 2], [u8; 3]);
+        let rows: Vec<Vec<RenderedPixel>> = (0..h)
             .into_par_iter()
             .map(|v| {
                 (0..w)
@@ -330,7 +332,7 @@ impl SceneSpec {
                 t1 = t1.min(ta.max(tb));
             }
         }
-        if !(t0 < t1) {
+        if t0.is_nan() || t1.is_nan() || t0 >= t1 {
             return None;
         }
         let g = |t: f64| {

@@ -80,7 +80,7 @@ impl CpcSystem {
         let mut a_tot = 0.0;
         for (t, f) in mesh.faces.iter().enumerate() {
             let a = signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
-            if !(a > 0.0) {
+            if a.is_nan() || a <= 0.0 {
                 return Err(CpcError::invalid("mesh", format!("triangle {t} has non-positive image area {a}")));
             }
             area[t] = a;
@@ -257,8 +257,7 @@ impl CpcSystem {
     /// y = K x with K = Σ_t w_t M_tᵀ M_t (interleaved unknowns).
     pub fn conformal_matvec(&self, x: &[f64]) -> Vec<f64> {
         let mut y = vec![0.0; x.len()];
-        for c in 0..x.len() {
-            let xc = x[c];
+        for (c, &xc) in x.iter().enumerate() {
             for k in self.col_ptr[c]..self.col_ptr[c + 1] {
                 y[self.row_idx[k]] += self.conf_vals[k] * xc;
             }

@@ -340,7 +340,7 @@ impl Warp {
             }
             let w = barycentric([x, y], a, bb, c);
             let mn = w[0].min(w[1]).min(w[2]);
-            if mn >= -1e-9 && best.as_ref().map_or(true, |bst| mn > bst.2) {
+            if mn >= -1e-9 && best.as_ref().is_none_or(|bst| mn > bst.2) {
                 best = Some((t as usize, w, mn));
             }
         }

@@ -79,8 +79,7 @@ fn generalised_theta_is_also_conformal_on_the_plane() {
 #[test]
 fn lambda_zero_is_the_identity_warp() {
     let sc = plane60();
-    let mut params = CpcParams::default();
-    params.lambda = LambdaChoice::Fixed(0.0);
+    let params = CpcParams { lambda: LambdaChoice::Fixed(0.0), ..CpcParams::default() };
     let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &params).unwrap();
     assert_eq!(r.warp.p_flat, r.warp.mesh().p_init);
     let (ox, oy) = (r.warp.origin[0], r.warp.origin[1]);
@@ -205,8 +204,7 @@ fn bumpy_bowl_default_settings_flip_no_triangle() {
 #[test]
 fn point_round_trip_and_image_consistency() {
     let (_, sc) = bumpy45();
-    let mut params = CpcParams::default();
-    params.lambda = LambdaChoice::Fixed(0.9);
+    let params = CpcParams { lambda: LambdaChoice::Fixed(0.9), ..CpcParams::default() };
     let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &params).unwrap();
     let w = &r.warp;
     // Deterministic pseudo-random points in the original image.
@@ -290,8 +288,7 @@ fn bad_inputs_are_clear_errors() {
     assert!(msg(cpc_warp(&img, &depth, &neg_k, &roi, &p)).contains("focal"));
     // λ outside [0, 1)
     for l in [1.0, -0.1, 1.5, f64::NAN] {
-        let mut pl = CpcParams::default();
-        pl.lambda = LambdaChoice::Fixed(l);
+        let pl = CpcParams { lambda: LambdaChoice::Fixed(l), ..CpcParams::default() };
         assert!(msg(cpc_warp(&img, &depth, &k, &roi, &pl)).contains("lambda"), "λ = {l}");
     }
     // grid step 0

@@ -151,8 +151,8 @@ impl<const D: usize> SparseGrid<D> {
     #[inline(always)]
     fn block_key(&self, c: &[usize; D]) -> usize {
         let mut k = 0;
-        for d in 0..D {
-            k = k * self.blocks_per_axis + c[d];
+        for &cd in c {
+            k = k * self.blocks_per_axis + cd;
         }
         k
     }
@@ -374,12 +374,12 @@ pub fn for_stencil<const D: usize>(w: &[[f64; 3]; D], mut f: impl FnMut(usize, &
         for i in 0..3 {
             for j in 0..3 {
                 let wij = w[0][i] * w[a1][j];
-                for l in 0..3 {
+                for (l, &wl) in w[D - 1].iter().enumerate() {
                     let mut o = [0usize; D];
                     o[0] = i;
                     o[a1] = j;
                     o[D - 1] = l;
-                    f(k, &o, wij * w[D - 1][l]);
+                    f(k, &o, wij * wl);
                     k += 1;
                 }
             }

@@ -22,7 +22,7 @@ fn stretch_scene<const D: usize>(n_grid: usize, cells: [f64; D], steps: usize, m
         let r = scene.positions[p] - c;
         let mut v = Vector::<D>::zeros();
         v[0] = k * r[0];
-        v[0] += -1.0 * r[1];
+        v[0] -= r[1];
         v[1] += 1.0 * r[0];
         for d in 0..D {
             v[d] += 0.05 * rng.gen_range(-1.0..1.0);
@@ -80,9 +80,9 @@ fn check<const D: usize>(scene: Scene<D>, seed: u64) {
         let h = 1e-5;
         let mut sp = scene.clone();
         let mut sm = scene.clone();
-        for p in 0..n {
-            sp.velocities[p] += dir[p] * h;
-            sm.velocities[p] -= dir[p] * h;
+        for (p, d) in dir.iter().enumerate() {
+            sp.velocities[p] += d * h;
+            sm.velocities[p] -= d * h;
         }
         let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
         let ad: f64 = (0..n).map(|p| g.d_velocities[p].dot(&dir[p])).sum();
@@ -96,9 +96,9 @@ fn check<const D: usize>(scene: Scene<D>, seed: u64) {
         let h = 1e-8;
         let mut sp = scene.clone();
         let mut sm = scene.clone();
-        for p in 0..n {
-            sp.positions[p] += dir[p] * h;
-            sm.positions[p] -= dir[p] * h;
+        for (p, d) in dir.iter().enumerate() {
+            sp.positions[p] += d * h;
+            sm.positions[p] -= d * h;
         }
         let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
         let ad: f64 = (0..n).map(|p| g.d_positions[p].dot(&dir[p])).sum();
@@ -187,18 +187,18 @@ fn gradient_check_intermediate_loss_and_forces_2d() {
     let dir: Vec<Vector<2>> = (0..n).map(|_| Vector::<2>::from_fn(|_, _| rng.gen_range(-1.0..1.0))).collect();
     let h = 1e-5;
     let (mut sp, mut sm) = (scene.clone(), scene.clone());
-    for p in 0..n {
-        sp.velocities[p] += dir[p] * h;
-        sm.velocities[p] -= dir[p] * h;
+    for (p, d) in dir.iter().enumerate() {
+        sp.velocities[p] += d * h;
+        sm.velocities[p] -= d * h;
     }
     let fd = (eval(&sp) - eval(&sm)) / (2.0 * h);
     let ad: f64 = (0..n).map(|p| g.d_velocities[p].dot(&dir[p])).sum();
     assert!(rel_err(fd, ad) < 1e-5, "d/dv0 fd {fd} ad {ad}");
     let h = 1e-8;
     let (mut sp, mut sm) = (scene.clone(), scene.clone());
-    for p in 0..n {
-        sp.positions[p] += dir[p] * h;
-        sm.positions[p] -= dir[p] * h;
+    for (p, d) in dir.iter().enumerate() {
+        sp.positions[p] += d * h;
+        sm.positions[p] -= d * h;
     }
     let fd = (eval(&sp) - eval(&sm)) / (2.0 * h);
     let ad: f64 = (0..n).map(|p| g.d_positions[p].dot(&dir[p])).sum();

@@ -199,7 +199,7 @@ impl CameraAugmentation {
 fn apply_h(h: &Matrix3<f64>, x: f64, y: f64) -> Option<(f64, f64)> {
     let p = h * Vector3::new(x, y, 1.0);
     // Points mapped to or behind the plane at infinity are outside the augmented view.
-    if !(p.z > 1e-12) {
+    if p.z.is_nan() || p.z <= 1e-12 {
         return None;
     }
     Some((p.x / p.z, p.y / p.z))

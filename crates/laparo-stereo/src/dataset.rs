@@ -395,8 +395,8 @@ pub fn is_done(f: &SampleFiles, root: &Path, out: &Path) -> bool {
     serde_json::from_str::<Sidecar>(&text).is_ok()
         && o.left.is_file()
         && o.right.is_file()
-        && o.disp_left.as_ref().map_or(true, |p| p.is_file())
-        && o.disp_right.as_ref().map_or(true, |p| p.is_file())
+        && o.disp_left.as_ref().is_none_or(|p| p.is_file())
+        && o.disp_right.as_ref().is_none_or(|p| p.is_file())
 }
 
 /// Write an augmented sample (images, disparities, masks) and, last, its sidecar; atomic writes.
@@ -544,9 +544,9 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
     let p: ParamsInput = serde_json::from_value(v).map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
     let left = p.left.unwrap_or_default();
     let right = p.right.unwrap_or_default();
-    let cam = |c: &CameraInput,
-               side: &str|
-     -> Result<(Intrinsics, Distortion, Matrix3<f64>, Option<Matrix3<f64>>, Distortion), ConfigError> {
+    /// K, input distortion, rotation R, optional K_rel, output distortion of one camera.
+    type CameraParams = (Intrinsics, Distortion, Matrix3<f64>, Option<Matrix3<f64>>, Distortion);
+    let cam = |c: &CameraInput, side: &str| -> Result<CameraParams, ConfigError> {
         let k = c.k.as_ref().or(p.k.as_ref()).ok_or_else(|| {
             ConfigError::Invalid(format!(
                 "parameters: no intrinsics for the {side} camera (give \"k\" or \"{side}.k\")"

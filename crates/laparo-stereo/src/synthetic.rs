@@ -56,7 +56,7 @@ impl Scene {
                 t1 = t1.min(a.max(b));
             }
         }
-        if hit && t0 <= t1 && t0 > 0.0 && best.map_or(true, |b| t0 < b) {
+        if hit && t0 <= t1 && t0 > 0.0 && best.is_none_or(|b| t0 < b) {
             best = Some(t0);
         }
         best.map(|t| (t, o + dir * t))
@@ -93,16 +93,16 @@ impl Scene {
                         let d = rt * Vector3::new(xn, yn, 1.0);
                         if let Some((_, p)) = self.intersect(c, &d) {
                             let t = Self::texture(&p);
-                            for i in 0..3 {
-                                acc[i] += t[i];
+                            for (a, ti) in acc.iter_mut().zip(t) {
+                                *a += ti;
                             }
                             n += 1.0;
                         }
                     }
                 }
                 if n > 0.0 {
-                    for i in 0..3 {
-                        img.set(x, y, i, (acc[i] / n + 0.5) as u8);
+                    for (i, a) in acc.iter().enumerate() {
+                        img.set(x, y, i, (a / n + 0.5) as u8);
                     }
                 }
                 let (xn, yn) = k.pixel_to_normalized(x as f64, y as f64);

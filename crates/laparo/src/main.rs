@@ -9,7 +9,11 @@ mod cmd;
 mod demo;
 
 #[derive(Parser)]
-#[command(name = "laparo", version, about = "Vision-based surgical guidance: depth robustness, stereo camera augmentation, conformal perspective correction, differentiable MPM registration")]
+#[command(
+    name = "laparo",
+    version,
+    about = "Vision-based surgical guidance: depth robustness, stereo camera augmentation, conformal perspective correction, differentiable MPM registration"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

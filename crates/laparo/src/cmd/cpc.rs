@@ -190,14 +190,16 @@ fn load_inputs(a: &InputArgs) -> Result<Inputs> {
             depth.height
         );
     }
-    let mut params = CpcParams::default();
-    params.mesh = MeshParams {
-        grid_step_px: a.grid_step,
-        max_rel_depth_jump: a.max_depth_jump,
-        max_view_angle_deg: if a.max_view_angle >= 90.0 { None } else { Some(a.max_view_angle) },
-        ..MeshParams::default()
+    let params = CpcParams {
+        mesh: MeshParams {
+            grid_step_px: a.grid_step,
+            max_rel_depth_jump: a.max_depth_jump,
+            max_view_angle_deg: if a.max_view_angle >= 90.0 { None } else { Some(a.max_view_angle) },
+            ..MeshParams::default()
+        },
+        conformal: ConformalParams { theta_rad: a.theta_deg.to_radians(), ..ConformalParams::default() },
+        ..CpcParams::default()
     };
-    params.conformal = ConformalParams { theta_rad: a.theta_deg.to_radians(), ..ConformalParams::default() };
     Ok(Inputs { depth, k, roi, params })
 }
 

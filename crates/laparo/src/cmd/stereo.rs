@@ -304,7 +304,7 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
             .iter()
             .enumerate()
             .map(|(i, &v)| {
-                let ok = v.is_finite() && !(a.zero_invalid && v == 0.0) && mask.as_ref().map_or(true, |m| m.data[i]);
+                let ok = v.is_finite() && !(a.zero_invalid && v == 0.0) && mask.as_ref().is_none_or(|m| m.data[i]);
                 if ok {
                     v
                 } else {

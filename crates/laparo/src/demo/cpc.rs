@@ -31,8 +31,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     };
     let sc = spec.render()?;
     io::write_png(dir.join("original.png"), &sc.image)?;
-    let mut params = CpcParams::default();
-    params.lambda = CpcParams::auto_lambda();
+    let params = CpcParams { lambda: CpcParams::auto_lambda(), ..CpcParams::default() };
     let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &params)?;
     io::write_png(dir.join("warped_auto.png"), &r.warped)?;
     let sweep = r.sweep.as_ref().expect("auto λ gives a sweep");
@@ -42,8 +41,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     let mut strip = String::new();
     let mut rows = Vec::new();
     for &l in &[0.0, 0.5, 0.9, 0.99, 0.999] {
-        let mut p = CpcParams::default();
-        p.lambda = LambdaChoice::Fixed(l);
+        let p = CpcParams { lambda: LambdaChoice::Fixed(l), ..CpcParams::default() };
         let rl = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &p)?;
         let name = format!("warped_l{}.png", (l * 1000.0).round() as i64);
         io::write_png(dir.join(&name), &rl.warped)?;

@@ -49,8 +49,11 @@ fn frame(scene: &str, pert: &str, level: &str, name: &str, severity: Option<u32>
     }
 }
 
+/// Frames, sequences, and the clean RGB image and depth of the first scene.
+type BenchmarkFrames = (Vec<DemoFrame>, Vec<SequenceSpec>, Image<u8>, laparo_core::DepthMap);
+
 /// Build all frames of the synthetic benchmark.
-fn build_frames() -> Result<(Vec<DemoFrame>, Vec<SequenceSpec>, Image<u8>, laparo_core::DepthMap)> {
+fn build_frames() -> Result<BenchmarkFrames> {
     let mut frames = Vec::new();
     let mut seqs = Vec::new();
     let mut first = None;
@@ -289,12 +292,12 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         n_sc = SCENES.len(),
         nf = frames.len()
     );
-    let _ = write!(
+    let _ = writeln!(
         html,
         "<figure><img src=\"depth/reprojected_depth.png\" width=\"400\"><figcaption>GT preparation (§3.2.6): the depth \
          above as depth-sensor data, reprojected into a laparoscope 1.5 cm to the side, rotated 4.6° and with a 1.3× focal \
          length: {valid} valid px ({pct:.1}%), {drop} sensor triangles dropped at depth discontinuities; dark grey = \
-         disoccluded (no sensor measurement), never filled</figcaption></figure>\n",
+         disoccluded (no sensor measurement), never filled</figcaption></figure>",
         valid = rstats.valid,
         pct = 100.0 * rstats.valid as f64 / (W * H) as f64,
         drop = rstats.triangles_dropped_jump
@@ -314,10 +317,10 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         let cap = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let _ = writeln!(html, "<figure><img src=\"{rel}\" width=\"300\"><figcaption>{cap}</figcaption></figure>");
     }
-    let _ = write!(
+    let _ = writeln!(
         html,
         "<p>Full tables (Tables 3.3–3.5 and C.3–C.16 layout): <a href=\"depth/tables.md\">tables.md</a>, \
-         <a href=\"depth/results.json\">results.json</a>, <a href=\"depth/per_image.csv\">per_image.csv</a>.</p>\n"
+         <a href=\"depth/results.json\">results.json</a>, <a href=\"depth/per_image.csv\">per_image.csv</a>.</p>"
     );
 
     let summ = serde_json::json!({

@@ -49,7 +49,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     let mut widest: Option<(usize, f64, ParticleState<2>)> = None;
     let sim = simulate_observed(&scene, |s, st| {
         let w = width(&st.x);
-        if widest.as_ref().map_or(true, |(_, bw, _)| w > *bw) {
+        if widest.as_ref().is_none_or(|(_, bw, _)| w > *bw) {
             widest = Some((s, w, st.clone()));
         }
         Ok(())

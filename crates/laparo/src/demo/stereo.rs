@@ -336,7 +336,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         p.right.euler_deg[1],
         p.right.euler_deg[2]
     );
-    let _ = write!(
+    let _ = writeln!(
         html,
         "<table><tr><th>check</th><th>value</th></tr>\
          <tr><td>photometric MAE, original pair, original GT (grey levels)</td><td>{ph0:.2}</td></tr>\
@@ -346,7 +346,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
          <tr><td>EPE(thesis rule, exact rule) (px), max</td><td>{epe:.3}, {emax:.3} over {n_cmp} px</td></tr>\
          <tr><td>max |vertical residual| (px)</td><td>{vmax:.3}</td></tr>\
          <tr><td>disparity range before → after (px)</td><td>[{:.1}, {:.1}] → [{:.1}, {:.1}], {:.0}% negative</td></tr>\
-         <tr><td>valid fraction augmented left / right</td><td>{:.3} / {:.3}</td></tr></table>\n",
+         <tr><td>valid fraction augmented left / right</td><td>{:.3} / {:.3}</td></tr></table>",
         r0.0,
         r0.1,
         r1.0,
