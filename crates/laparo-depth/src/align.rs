@@ -222,6 +222,7 @@ fn order_key(x: f64) -> u64 {
 
 thread_local! {
     static HIST: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+    static GT_SCRATCH: std::cell::Cell<Vec<f64>> = const { std::cell::Cell::new(Vec::new()) };
 }
 
 /// Median of `v` (not reordered; same value as [`median`]) by one radix-histogram pass on the
@@ -276,8 +277,20 @@ pub fn median_of(v: &[f64], scratch: &mut Vec<f64>) -> f64 {
 /// s-alignment: `s̃ = med(d*) / med(d)` (NaN when `med(d) = 0`, as the reference).
 /// `scratch` is reused to avoid allocation.
 pub fn fit_scale(d: &[f64], d_gt: &[f64], scratch: &mut Vec<f64>) -> AlignParams {
-    let md = median_of(d, scratch);
-    let mg = median_of(d_gt, scratch);
+    // The two medians are independent: one per core for large inputs.
+    let (md, mg) = if d.len() >= 1 << 16 {
+        rayon::join(
+            || median_of(d, scratch),
+            || {
+                let mut own = GT_SCRATCH.with(|c| c.take());
+                let m = median_of(d_gt, &mut own);
+                GT_SCRATCH.with(|c| c.replace(own));
+                m
+            },
+        )
+    } else {
+        (median_of(d, scratch), median_of(d_gt, scratch))
+    };
     let scale = if md != 0.0 { mg / md } else { f64::NAN };
     AlignParams { scale, shift: 0.0 }
 }

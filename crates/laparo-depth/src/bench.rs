@@ -31,15 +31,16 @@ pub struct Timing {
     /// Single-image latency on one thread: minimum and median over the repetitions (ms).
     pub min_ms: f64,
     pub median_ms: f64,
+    /// Single-image latency with every core working on the one image (ms).
+    pub parallel_min_ms: f64,
+    pub parallel_median_ms: f64,
     /// Throughput with rayon over independent images (all cores), images per second.
     pub images_per_s_parallel: f64,
     pub threads: usize,
 }
 
-/// Time `evaluate_pair` on (pred, gt): `reps` single-thread runs, then a parallel batch.
-pub fn time_evaluation(pred: &[f64], gt: &[f64], opts: &PairOptions, reps: usize) -> (Timing, PairMetrics) {
-    let reps = reps.max(1);
-    let first = evaluate_pair(pred, PredKind::Disparity, gt, None, opts).expect("benchmark input is valid");
+/// Minimum and median (ms) of `reps` evaluations of (pred, gt).
+fn latency(pred: &[f64], gt: &[f64], opts: &PairOptions, reps: usize) -> (f64, f64) {
     let mut ts = Vec::with_capacity(reps);
     for _ in 0..reps {
         let t0 = Instant::now();
@@ -48,6 +49,22 @@ pub fn time_evaluation(pred: &[f64], gt: &[f64], opts: &PairOptions, reps: usize
         std::hint::black_box(r);
     }
     ts.sort_by(f64::total_cmp);
+    (ts[0], ts[ts.len() / 2])
+}
+
+/// Time `evaluate_pair` on (pred, gt): `reps` runs on a one-thread pool, `reps` runs with all
+/// threads on one image, then a parallel batch of independent images.
+pub fn time_evaluation(pred: &[f64], gt: &[f64], opts: &PairOptions, reps: usize) -> (Timing, PairMetrics) {
+    let reps = reps.max(1);
+    let first = evaluate_pair(pred, PredKind::Disparity, gt, None, opts).expect("benchmark input is valid");
+    let (min_ms, median_ms) = match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+        Ok(pool) => pool.install(|| {
+            let _ = evaluate_pair(pred, PredKind::Disparity, gt, None, opts); // this pool's buffers
+            latency(pred, gt, opts, reps)
+        }),
+        Err(_) => latency(pred, gt, opts, reps),
+    };
+    let (parallel_min_ms, parallel_median_ms) = latency(pred, gt, opts, reps);
     let threads = rayon::current_num_threads();
     let batch = (reps * threads).max(4);
     let t0 = Instant::now();
@@ -57,5 +74,13 @@ pub fn time_evaluation(pred: &[f64], gt: &[f64], opts: &PairOptions, reps: usize
         .sum();
     std::hint::black_box(n);
     let dt = t0.elapsed().as_secs_f64();
-    (Timing { min_ms: ts[0], median_ms: ts[ts.len() / 2], images_per_s_parallel: batch as f64 / dt, threads }, first)
+    let timing = Timing {
+        min_ms,
+        median_ms,
+        parallel_min_ms,
+        parallel_median_ms,
+        images_per_s_parallel: batch as f64 / dt,
+        threads,
+    };
+    (timing, first)
 }

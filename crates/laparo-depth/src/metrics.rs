@@ -306,34 +306,66 @@ pub fn select_valid_into(
     Ok(())
 }
 
+/// Pixels per chunk of the metric pass. Chunk boundaries are fixed, and the chunk sums are
+/// added in chunk order, so the result is the same bit for bit whatever the thread count.
+const CHUNK: usize = 1 << 15;
+
 /// All metrics of disparity `d` aligned with `p` against GT depth `z_gt` (m), GT disparity
-/// `d_gt = 1/z_gt`. One fused pass over 4 interleaved lanes (vectorisable, inline log); falls
-/// back to [`metrics_reference`] if a depth ratio is outside the normal f64 range.
+/// `d_gt = 1/z_gt` (eqs. 3.1–3.2). Fused passes over 4 interleaved lanes (vectorisable, inline
+/// log) on fixed chunks of [`CHUNK`] pixels, in parallel (rayon) for large inputs; falls back to
+/// [`metrics_reference`] if a depth ratio is outside the normal f64 range.
 pub fn metrics(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange) -> Metrics {
+    use rayon::prelude::*;
     assert!(z_gt.len() == d.len() && d_gt.len() == d.len(), "metrics: slices of different lengths");
+    let thr: [f64; 5] = DELTA_POWERS.map(|t| 1.25f64.powf(t));
+    let chunk_sums = |(zg, (ig, di)): (&[f64], (&[f64], &[f64]))| sums_fast(zg, ig, di, p, range, thr);
+    let parts: Vec<Option<Sums>> = if d.len() >= 2 * CHUNK {
+        z_gt.par_chunks(CHUNK).zip(d_gt.par_chunks(CHUNK).zip(d.par_chunks(CHUNK))).map(chunk_sums).collect()
+    } else {
+        z_gt.chunks(CHUNK).zip(d_gt.chunks(CHUNK).zip(d.chunks(CHUNK))).map(chunk_sums).collect()
+    };
+    let mut total = Sums::ZERO;
+    for part in parts {
+        match part {
+            Some(s) => total.add(&s),
+            None => return metrics_reference(z_gt, d_gt, d, p, range),
+        }
+    }
+    total.finish(d.len(), p)
+}
+
+/// Metric sums of one chunk with the fastest code path of this CPU (`None`: a depth ratio is
+/// outside the normal range, the caller must use the libm path).
+fn sums_fast(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange, thr: [f64; 5]) -> Option<Sums> {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above); the function is otherwise safe.
-            return unsafe { metrics_avx2(z_gt, d_gt, d, p, range) };
+            return unsafe { sums_avx2(z_gt, d_gt, d, p, range, thr) };
         }
     }
-    metrics_lanes(z_gt, d_gt, d, p, range)
+    sums_lanes(z_gt, d_gt, d, p, range, thr)
 }
 
-/// [`metrics_lanes`] compiled for AVX2 (4 f64 lanes per instruction instead of 2). The same
+/// [`sums_lanes`] compiled for AVX2 (4 f64 lanes per instruction instead of 2). The same
 /// IEEE operations in the same order per lane, so the result is bit-identical.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn metrics_avx2(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange) -> Metrics {
-    metrics_lanes(z_gt, d_gt, d, p, range)
+unsafe fn sums_avx2(
+    z_gt: &[f64],
+    d_gt: &[f64],
+    d: &[f64],
+    p: AlignParams,
+    range: DepthRange,
+    thr: [f64; 5],
+) -> Option<Sums> {
+    sums_lanes(z_gt, d_gt, d, p, range, thr)
 }
 
 #[inline(always)]
 #[allow(clippy::needless_range_loop)]
-fn metrics_lanes(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange) -> Metrics {
+fn sums_lanes(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange, thr: [f64; 5]) -> Option<Sums> {
     const L: usize = 4;
-    let thr: [f64; 5] = DELTA_POWERS.map(|t| 1.25f64.powf(t));
     let mut s_abs = [0.0f64; L];
     let mut s_sqrel = [0.0f64; L];
     let mut s_sq = [0.0f64; L];
@@ -366,19 +398,18 @@ fn metrics_lanes(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: D
         }
     }
     if !normal.iter().all(|&b| b) {
-        return metrics_reference(z_gt, d_gt, d, p, range);
+        return None;
     }
     let fold = |a: [f64; L]| (a[0] + a[1]) + (a[2] + a[3]);
     let tail = metrics_sums(&z_gt[body..], &d_gt[body..], &d[body..], p, range, thr);
-    let sums = Sums {
+    Some(Sums {
         abs: fold(s_abs) + tail.abs,
         sqrel: fold(s_sqrel) + tail.sqrel,
         sq: fold(s_sq) + tail.sq,
         e: fold(s_e) + tail.e,
         e2: fold(s_e2) + tail.e2,
         cnt: std::array::from_fn(|k| cnt[k].iter().sum::<u64>() + tail.cnt[k]),
-    };
-    sums.finish(n, p)
+    })
 }
 
 /// [`metrics`] for several alignments of the same prediction.
@@ -397,6 +428,19 @@ struct Sums {
 }
 
 impl Sums {
+    const ZERO: Sums = Sums { abs: 0.0, sqrel: 0.0, sq: 0.0, e: 0.0, e2: 0.0, cnt: [0; 5] };
+
+    fn add(&mut self, o: &Sums) {
+        self.abs += o.abs;
+        self.sqrel += o.sqrel;
+        self.sq += o.sq;
+        self.e += o.e;
+        self.e2 += o.e2;
+        for (c, oc) in self.cnt.iter_mut().zip(o.cnt) {
+            *c += oc;
+        }
+    }
+
     fn finish(&self, n: usize, p: AlignParams) -> Metrics {
         let n = n as f64;
         let me2 = self.e2 / n;
@@ -421,7 +465,7 @@ impl Sums {
 #[allow(clippy::needless_range_loop)]
 /// Sequential sums with the libm logarithm (tail of the fast loop, and the reference path).
 fn metrics_sums(z_gt: &[f64], d_gt: &[f64], d: &[f64], p: AlignParams, range: DepthRange, thr: [f64; 5]) -> Sums {
-    let mut s = Sums { abs: 0.0, sqrel: 0.0, sq: 0.0, e: 0.0, e2: 0.0, cnt: [0; 5] };
+    let mut s = Sums::ZERO;
     for ((&zg, &ig), &di) in z_gt.iter().zip(d_gt).zip(d) {
         let z = p.depth(di, range);
         let diff = zg - z;
@@ -481,10 +525,11 @@ pub fn evaluate_valid(v: &ValidPixels, opts: &PairOptions) -> PairMetrics {
         scale: None,
         scale_shift: None,
     };
-    let params: Vec<AlignParams> = SCRATCH.with(|sc| {
-        let mut scratch = sc.borrow_mut();
-        opts.alignments.iter().map(|&a| fit(a, &v.d, &v.d_gt, &mut scratch)).collect()
-    });
+    // Buffers are taken out of their thread-local cells rather than borrowed: the fits and the
+    // metric passes run rayon jobs, and a waiting thread may steal another image's evaluation.
+    let mut scratch = SCRATCH.with(|c| c.take());
+    let params: Vec<AlignParams> = opts.alignments.iter().map(|&a| fit(a, &v.d, &v.d_gt, &mut scratch)).collect();
+    SCRATCH.with(|c| c.replace(scratch));
     let ms = metrics_multi(&v.z_gt, &v.d_gt, &v.d, &params, opts.range);
     for (&a, m) in opts.alignments.iter().zip(ms) {
         match a {
@@ -506,11 +551,10 @@ pub fn evaluate_pair(
     opts: &PairOptions,
 ) -> Result<PairMetrics> {
     opts.range.validate()?;
-    WORKSPACE.with(|w| {
-        let mut w = w.borrow_mut();
-        select_valid_into(&mut w, pred, kind, gt_m, mask, opts.invalid_pred)?;
-        Ok(evaluate_valid(&w, opts))
-    })
+    let mut w = WORKSPACE.with(|c| c.take());
+    let out = select_valid_into(&mut w, pred, kind, gt_m, mask, opts.invalid_pred).map(|()| evaluate_valid(&w, opts));
+    WORKSPACE.with(|c| c.replace(w));
+    out
 }
 
 thread_local! {
@@ -630,6 +674,30 @@ mod tests {
         let e =
             evaluate_pair(&[1.0, 2.0], PredKind::Disparity, &[0.1, f64::NAN], Some(&[false, true]), &o).unwrap_err();
         assert!(e.to_string().contains("mask"), "{e}");
+    }
+
+    #[test]
+    fn chunked_parallel_metrics_are_thread_count_independent() {
+        // 640×480: several chunks, so the parallel path runs; the reference loop is sequential.
+        let (pred, gt) = crate::bench::synthetic_pair(640, 480, 11);
+        let opts = PairOptions::default();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| evaluate_pair(&pred, PredKind::Disparity, &gt, None, &opts).unwrap())
+        };
+        let (one, two) = (run(1), run(2));
+        assert_eq!(one, two, "results depend on the thread count");
+        let v = select_valid(&pred, PredKind::Disparity, &gt, None, InvalidPredPolicy::Far).unwrap();
+        assert!(v.d.len() > 4 * CHUNK);
+        let mut scratch = Vec::new();
+        for a in [Alignment::None, Alignment::Scale, Alignment::ScaleShift] {
+            let p = fit(a, &v.d, &v.d_gt, &mut scratch);
+            let b = metrics_reference(&v.z_gt, &v.d_gt, &v.d, p, DepthRange::default()).values();
+            let got = one.get(a).unwrap().values();
+            for k in 0..12 {
+                assert!((got[k] - b[k]).abs() <= 1e-12 * b[k].abs().max(1e-9), "{a:?} {k}: {} vs {}", got[k], b[k]);
+            }
+        }
     }
 
     #[test]
