@@ -35,6 +35,16 @@ pub struct DemoSection {
 
 type SectionFn = fn(&Path) -> Result<DemoSection>;
 
+/// `../shared/data/<rel>` beside the repository (looked up from the working directory, then
+/// from the source tree), if present. Demo sections use real data from there when they can and
+/// fall back to built-in data otherwise.
+pub(crate) fn shared_data(rel: &str) -> Option<PathBuf> {
+    [PathBuf::from("../shared/data"), Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")]
+        .into_iter()
+        .map(|d| d.join(rel))
+        .find(|p| p.exists())
+}
+
 /// Run the demo.
 pub fn run(args: DemoArgs) -> Result<()> {
     let out = &args.out;
