@@ -10,7 +10,7 @@ use laparo_core::colormap::{colorize, with_colorbar, Colormap};
 use laparo_core::se3::rotation_zyx;
 use laparo_core::{io, Distortion, Image, Intrinsics};
 use laparo_stereo::augment::{
-    augment_stereo, disparity_difference, AugmentedDisparity, GtRule, StereoAugmentation, StereoSample,
+    augment_stereo, disparity_difference, AugmentedDisparity, AugmentedStereo, GtRule, StereoAugmentation, StereoSample,
 };
 use laparo_stereo::calib_stats::{
     calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6_markdown, MeanStd,
@@ -187,6 +187,57 @@ fn synthesised_table(n: usize) -> Result<(String, serde_json::Value)> {
     Ok((md, serde_json::to_value(&s)?))
 }
 
+/// A sample augmented under both GT rules, with the photometric checks of the transformed GT.
+struct BothRules {
+    exact: AugmentedStereo,
+    thesis: AugmentedStereo,
+    /// Mean |L − R(x − d, y)| of the original pair under the original GT (grey levels).
+    ph_original: f64,
+    /// The same on the augmented pair, exact GT with its vertical residual, (x − d', y + v').
+    ph_exact: f64,
+    /// Exact GT, rows only (x − d', y).
+    ph_exact_row: f64,
+    /// Thesis-rule GT, rows only.
+    ph_thesis: f64,
+    /// EPE between the two rules' disparities, its maximum, and the number of pixels compared.
+    epe: (f64, f64, usize),
+}
+
+impl BothRules {
+    fn new(s: &StereoSample, p: &StereoAugmentation) -> Result<Self> {
+        let exact = augment_stereo(s, p, GtRule::Exact)?;
+        let thesis = augment_stereo(s, p, GtRule::Thesis)?;
+        let d0 = s.disp_left.as_ref().context("source disparity")?;
+        let de = exact.disp_left.as_ref().context("exact disparity")?;
+        let dt = thesis.disp_left.as_ref().context("thesis disparity")?;
+        let vres = de.vertical_residual.as_ref().context("vertical residual")?;
+        let on = |a: &AugmentedStereo, d: &Image<f32>, v: Option<&Image<f32>>| {
+            photometric(&a.left.image, &a.right.image, d, v, Some(&a.left.valid), Some(&a.right.valid))
+        };
+        let ph_exact = on(&exact, &de.disparity, Some(vres));
+        let ph_exact_row = on(&exact, &de.disparity, None);
+        let ph_thesis = on(&thesis, &dt.disparity, None);
+        let epe = disparity_difference(dt, de);
+        let ph_original = photometric(&s.left, &s.right, d0, None, None, None);
+        Ok(BothRules { exact, thesis, ph_original, ph_exact, ph_exact_row, ph_thesis, epe })
+    }
+
+    fn exact_disp(&self) -> &AugmentedDisparity {
+        self.exact.disp_left.as_ref().expect("checked in new")
+    }
+
+    fn thesis_disp(&self) -> &AugmentedDisparity {
+        self.thesis.disp_left.as_ref().expect("checked in new")
+    }
+}
+
+/// Common colour range (px, rounded outwards) of the finite values of disparity maps.
+fn common_range(maps: &[&Image<f32>]) -> (f64, f64) {
+    let finite = maps.iter().flat_map(|m| m.data.iter()).filter(|v| v.is_finite()).map(|&v| v as f64);
+    let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    (lo.floor(), hi.ceil())
+}
+
 /// The real Middlebury 2014 "Motorcycle" pair (741×500, `../shared/data/middlebury-motorcycle`)
 /// augmented with a Table 3.6 draw: before/after images, transformed GT, photometric check.
 /// `None` when the data are absent.
@@ -202,47 +253,22 @@ fn middlebury_subsection(dir: &Path, cfg: &CatsConfig) -> Result<Option<(String,
     let s = StereoSample { left, right, disp_left: Some(disp), disp_right: None, occ_left: None, occ_right: None };
     let p =
         cfg.sample(&mut sample_rng(SEED, "demo/middlebury"), &kl, &Distortion::default(), &kr, &Distortion::default());
-    let exact = augment_stereo(&s, &p, GtRule::Exact)?;
-    let thesis = augment_stereo(&s, &p, GtRule::Thesis)?;
-    let de = exact.disp_left.as_ref().context("exact disparity")?;
-    let dt = thesis.disp_left.as_ref().context("thesis disparity")?;
-    let d0 = s.disp_left.as_ref().context("source disparity")?;
-    let vres = de.vertical_residual.as_ref().context("vertical residual")?;
+    let b = BothRules::new(&s, &p)?;
+    let (d0, de) = (s.disp_left.as_ref().context("source disparity")?, &b.exact_disp().disparity);
     let (w, h) = (s.left.width, s.left.height);
     let before = hcat(&[&with_guides(&s.left, 40), &with_guides(&s.right, 40)], 6);
-    let after = hcat(&[&with_guides(&exact.left.image, 40), &with_guides(&exact.right.image, 40)], 6);
+    let after = hcat(&[&with_guides(&b.exact.left.image, 40), &with_guides(&b.exact.right.image, 40)], 6);
     io::write_png(dir.join("middlebury_pairs.png"), &vcat(&[&before, &after], 6))?;
-    let all: Vec<f64> = d0.data.iter().chain(&de.disparity.data).filter(|v| v.is_finite()).map(|&v| v as f64).collect();
-    let lo = all.iter().cloned().fold(f64::INFINITY, f64::min).floor();
-    let hi = all.iter().cloned().fold(f64::NEG_INFINITY, f64::max).ceil();
+    let (lo, hi) = common_range(&[d0, de]);
     let dmap = |d: &Image<f32>, label: &str| {
         with_colorbar(&colorize(&disp_f64(d), lo, hi, Colormap::Turbo), lo, hi, Colormap::Turbo, label)
     };
     io::write_png(
         dir.join("middlebury_disparity.png"),
-        &hcat(
-            &[&dmap(d0, "original GT disparity (px)"), &dmap(&de.disparity, "CATS-transformed GT, exact rule (px)")],
-            6,
-        ),
+        &hcat(&[&dmap(d0, "original GT disparity (px)"), &dmap(de, "CATS-transformed GT, exact rule (px)")], 6),
     )?;
-    let ph0 = photometric(&s.left, &s.right, d0, None, None, None);
-    let ph_exact = photometric(
-        &exact.left.image,
-        &exact.right.image,
-        &de.disparity,
-        Some(vres),
-        Some(&exact.left.valid),
-        Some(&exact.right.valid),
-    );
-    let ph_thesis = photometric(
-        &thesis.left.image,
-        &thesis.right.image,
-        &dt.disparity,
-        None,
-        Some(&thesis.left.valid),
-        Some(&thesis.right.valid),
-    );
-    let (epe, emax, n_cmp) = disparity_difference(dt, de);
+    let (ph0, ph_exact, ph_thesis) = (b.ph_original, b.ph_exact, b.ph_thesis);
+    let (epe, emax, n_cmp) = b.epe;
     let html = format!(
         "<h3>Real data: Middlebury 2014 Motorcycle</h3><p>The real rectified pair ({w}×{h}, f = {f:.1} px, doffs = 31.09 px) \
          with its ground-truth disparity, augmented by the same CATS configuration (left Euler angles [{:.3}, {:.3}, {:.3}]°, \
@@ -319,26 +345,15 @@ pub fn section(out: &Path) -> Result<DemoSection> {
         }
     }
     let p = p.context("no suitable draw")?;
-    let exact = augment_stereo(&s, &p, GtRule::Exact)?;
-    let thesis = augment_stereo(&s, &p, GtRule::Thesis)?;
-    let de: &AugmentedDisparity = exact.disp_left.as_ref().context("exact disparity")?;
-    let dt: &AugmentedDisparity = thesis.disp_left.as_ref().context("thesis disparity")?;
+    let b = BothRules::new(&s, &p)?;
+    let (exact, de, dt) = (&b.exact, b.exact_disp(), b.thesis_disp());
     let d0 = s.disp_left.as_ref().context("source disparity")?;
 
     // Figures.
     let before = hcat(&[&with_guides(&s.left, 30), &with_guides(&s.right, 30)], 6);
     let after = hcat(&[&with_guides(&exact.left.image, 30), &with_guides(&exact.right.image, 30)], 6);
     io::write_png(dir.join("cats_pairs.png"), &vcat(&[&before, &after], 6))?;
-    let all: Vec<f64> = d0
-        .data
-        .iter()
-        .chain(&de.disparity.data)
-        .chain(&dt.disparity.data)
-        .filter(|v| v.is_finite())
-        .map(|&v| v as f64)
-        .collect();
-    let lo = all.iter().cloned().fold(f64::INFINITY, f64::min).floor();
-    let hi = all.iter().cloned().fold(f64::NEG_INFINITY, f64::max).ceil();
+    let (lo, hi) = common_range(&[d0, &de.disparity, &dt.disparity]);
     let dmap = |d: &Image<f32>, label: &str| {
         with_colorbar(&colorize(&disp_f64(d), lo, hi, Colormap::Turbo), lo, hi, Colormap::Turbo, label)
     };
@@ -385,32 +400,9 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     )?;
 
     // Numbers.
-    let ph0 = photometric(&s.left, &s.right, d0, None, None, None);
-    let ph_exact = photometric(
-        &exact.left.image,
-        &exact.right.image,
-        &de.disparity,
-        Some(vres),
-        Some(&exact.left.valid),
-        Some(&exact.right.valid),
-    );
-    let ph_exact_row = photometric(
-        &exact.left.image,
-        &exact.right.image,
-        &de.disparity,
-        None,
-        Some(&exact.left.valid),
-        Some(&exact.right.valid),
-    );
-    let ph_thesis = photometric(
-        &thesis.left.image,
-        &thesis.right.image,
-        &dt.disparity,
-        None,
-        Some(&thesis.left.valid),
-        Some(&thesis.right.valid),
-    );
-    let (epe, emax, n_cmp) = disparity_difference(dt, de);
+    let (ph0, ph_exact, ph_exact_row, ph_thesis) = (b.ph_original, b.ph_exact, b.ph_exact_row, b.ph_thesis);
+    let (epe, emax, n_cmp) = b.epe;
+    let vres = de.vertical_residual.as_ref().context("vertical residual")?;
     let finite = |d: &Image<f32>| d.data.iter().filter(|v| v.is_finite()).map(|&v| v as f64).collect::<Vec<_>>();
     let (d0v, dev) = (finite(d0), finite(&de.disparity));
     let range = |v: &[f64]| {
