@@ -377,6 +377,8 @@ pub fn homography_bilinear_rgb_row(
 }
 
 /// Fused homography + nearest f32 row (AVX2); writes every pixel. Returns false without AVX2.
+/// (Initialised-slice form of [`homography_nearest_f32_row_uninit`], for the tests.)
+#[cfg(test)]
 #[allow(clippy::too_many_arguments)]
 pub fn homography_nearest_f32_row(
     a: [f32; 3],
