@@ -284,7 +284,7 @@ mod tests {
                 })
                 .collect();
             let deg = [0.3, 5.0, 45.0, 170.0][t % 4] * (2.0 * rnd() - 1.0);
-            let (sn, cs) = (deg as f64).to_radians().sin_cos();
+            let (sn, cs) = deg.to_radians().sin_cos();
             let s = 1.0 + [0.0, 0.001, 0.2, -0.5][(t / 4) % 4] * rnd();
             let p = [0.0, 1e-5, 1e-3, 2e-2][(t / 16) % 4] * (2.0 * rnd() - 1.0);
             let (tx, ty) = ((2.0 * rnd() - 1.0) * w as f64 * 0.3, (2.0 * rnd() - 1.0) * h as f64 * 0.3);
@@ -461,7 +461,7 @@ pub fn safe_span(a: [f32; 3], c: [f32; 3], w: usize, h: usize, n: usize) -> (usi
     let smax = (w.max(h) + 1) as f64;
     let err = (en + smax * ew) / (w_min - ew) * (1.0 + 4.0 * u) + 8.0 * u * smax;
     let m = err + 1e-3 + 8.0 * u * smax;
-    if !(m < 0.25) {
+    if m.is_nan() || m >= 0.25 {
         return NONE;
     }
     let (mut lo, mut hi) = (0.0f64, xm);
@@ -473,7 +473,7 @@ pub fn safe_span(a: [f32; 3], c: [f32; 3], w: usize, h: usize, n: usize) -> (usi
             lo = lo.max(q / p);
         } else if p < 0.0 {
             hi = hi.min(q / p);
-        } else if !(q <= 0.0) {
+        } else if q > 0.0 {
             hi = -1.0;
         }
     };
