@@ -527,9 +527,17 @@ pub fn evaluate_valid(v: &ValidPixels, opts: &PairOptions) -> PairMetrics {
     };
     // Buffers are taken out of their thread-local cells rather than borrowed: the fits and the
     // metric passes run rayon jobs, and a waiting thread may steal another image's evaluation.
-    let mut scratch = SCRATCH.with(|c| c.take());
-    let params: Vec<AlignParams> = opts.alignments.iter().map(|&a| fit(a, &v.d, &v.d_gt, &mut scratch)).collect();
-    SCRATCH.with(|c| c.replace(scratch));
+    use rayon::prelude::*;
+    let params: Vec<AlignParams> = opts
+        .alignments
+        .par_iter()
+        .map(|&a| {
+            let mut scratch = SCRATCH.with(|c| c.take());
+            let p = fit(a, &v.d, &v.d_gt, &mut scratch);
+            SCRATCH.with(|c| c.replace(scratch));
+            p
+        })
+        .collect();
     let ms = metrics_multi(&v.z_gt, &v.d_gt, &v.d, &params, opts.range);
     for (&a, m) in opts.alignments.iter().zip(ms) {
         match a {
