@@ -123,6 +123,11 @@ fn main() {
                 let (_, m) = w.warp_image(&image).unwrap();
                 eprintln!("canvas {}x{}, {} covered", w.width, w.height, m.data.iter().filter(|&&b| b).count());
             }
+            if let Ok(f) = std::env::var("CPC_DUMP") {
+                let b: Vec<u8> =
+                    w.p_flat.iter().flat_map(|q| [q[0].to_le_bytes(), q[1].to_le_bytes()]).flatten().collect();
+                std::fs::write(f, b).unwrap();
+            }
             std::hint::black_box(wi);
             let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
             let v = [

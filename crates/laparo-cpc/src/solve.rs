@@ -20,16 +20,23 @@
 //! ordering costs O(n log n) and avoids AMD), and and every λ costs one numeric
 //! factorisation and two triangular solves. The system is block-diagonal over connected components,
 //! so one factorisation solves every component separately.
-use crate::conformal::{triangle_rows, ConformalParams, RowConvention};
+use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{c64, Conj, MatMut, Par, Side};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex, OnceLock};
+
+/// Parts of at most this many vertices are left undivided by the nested dissection (measured:
+/// 4–8 give the fastest complex supernodal factorisation at 4 px, 48 is 1.3× slower).
+pub const ND_LEAF: usize = 8;
 
 /// Displacements are measured in units of this fraction of √(mesh area).
 pub const DISPLACEMENT_SCALE: f64 = 0.1;
@@ -141,37 +148,19 @@ impl CpcTopology {
             face_pos.push(fp);
         }
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let leaf: usize = std::env::var("CPC_LEAF").ok().and_then(|s| s.parse().ok()).unwrap_or(8);
-        let fwd = nested_dissection_leaf(&mesh.p_init, mesh.grid_step_px, leaf);
+        let fwd = nested_dissection_leaf(&mesh.p_init, mesh.grid_step_px, ND_LEAF);
         let mut inv = vec![0usize; n];
         for (k, &o) in fwd.iter().enumerate() {
             inv[o] = k;
         }
         let perm = PermRef::new_checked(&fwd, &inv, n);
-        let mut params: faer::sparse::linalg::cholesky::CholeskySymbolicParams<'_> = Default::default();
-        params.supernodal_flop_ratio_threshold = faer::sparse::linalg::SupernodalThreshold::FORCE_SUPERNODAL;
-        if let Some(th) = std::env::var("CPC_SN").ok().and_then(|s| s.parse::<f64>().ok()) {
-            params.supernodal_flop_ratio_threshold = faer::sparse::linalg::SupernodalThreshold(th);
-        }
-        if std::env::var("CPC_NORELAX").is_ok() {
-            params.supernodal_params.relax = None;
-        }
-        let relax_env: Vec<(usize, f64)> = std::env::var("CPC_RELAX")
-            .ok()
-            .map(|s| {
-                s.split(';')
-                    .map(|p| {
-                        let mut it = p.split(',');
-                        (it.next().unwrap().parse().unwrap(), it.next().unwrap().parse().unwrap())
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
-        if !relax_env.is_empty() {
-            params.supernodal_params.relax = Some(&relax_env);
-        }
-        let ord =
-            if std::env::var("CPC_AMD").is_ok() { SymmetricOrdering::Amd } else { SymmetricOrdering::Custom(perm) };
+        // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
+        // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        let ord = SymmetricOrdering::Custom(perm);
         let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ord, params)
             .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
         Ok(CpcTopology {
@@ -203,12 +192,13 @@ impl CpcTopology {
     }
 
     /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
-    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64]) -> Result<()> {
+    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize) -> Result<()> {
         let n = self.n;
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let mat = SparseColMatRef::new(sym, vals);
-        // Sequential: on the shared 2-core machine faer's rayon path was not faster (see benchmarks/cpc.md).
-        let par = Par::Seq;
+        // Sequential by default: on the shared, loaded 2-core machine faer's rayon path was not
+        // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
+        let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
         // Reuse the factor buffer and workspace unless another solve holds them.
         let mut guard = self.scratch.try_lock().ok();
         let mut local = None;
@@ -251,6 +241,7 @@ impl CpcTopology {
 #[derive(Default)]
 pub struct CpcSolver {
     topo: Option<Arc<CpcTopology>>,
+    factor_threads: usize,
 }
 
 impl CpcSolver {
@@ -263,9 +254,16 @@ impl CpcSolver {
     /// ([`CpcSystem::topology_reused`] tells which).
     pub fn assemble(&mut self, mesh: &CpcMesh, params: &ConformalParams) -> Result<CpcSystem> {
         let cached = self.topo.as_ref().filter(|t| t.matches(mesh)).cloned();
-        let sys = CpcSystem::assemble_with(mesh, params, cached)?;
+        let mut sys = CpcSystem::assemble_with(mesh, params, cached)?;
+        sys.set_factor_threads(self.factor_threads);
         self.topo = Some(sys.topo.clone());
         Ok(sys)
+    }
+
+    /// Threads of the numeric Cholesky factorisation of the systems it assembles (≤ 1:
+    /// sequential, the default). The result does not depend on it.
+    pub fn set_factor_threads(&mut self, threads: usize) {
+        self.factor_threads = threads;
     }
 
     /// Forget the cached topology.
@@ -303,6 +301,7 @@ pub struct CpcSystem {
     pub assembly_ms: [f64; 3],
     /// Whether the topology (pattern, ordering, symbolic factorisation) came from a [`CpcSolver`] cache.
     pub topology_reused: bool,
+    factor_threads: usize,
 }
 
 /// The real interleaved system [x_0, y_0, x_1, y_1, ...] (built on demand).
@@ -353,11 +352,12 @@ impl CpcSystem {
             *w /= l2 * a_tot;
         }
         // M_t per face (independent per face: parallel, deterministic).
+        let (cos_t, sin_t) = (th.cos(), th.sin());
         let tri_rows: Vec<[[f64; 6]; 2]> = mesh
             .faces
             .par_iter()
             .with_min_len(1024)
-            .map(|f| triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params))
+            .map(|f| triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t))
             .collect::<Option<Vec<_>>>()
             .ok_or_else(|| {
                 let t = mesh
@@ -415,7 +415,14 @@ impl CpcSystem {
             real: OnceLock::new(),
             assembly_ms: [(t1 - t0).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3],
             topology_reused,
+            factor_threads: 1,
         })
+    }
+
+    /// Threads of the numeric Cholesky factorisation (≤ 1: sequential, the default); the
+    /// solution is bitwise identical for any thread count.
+    pub fn set_factor_threads(&mut self, threads: usize) {
+        self.factor_threads = threads;
     }
 
     /// Number of real unknowns (2 per vertex).
@@ -454,7 +461,7 @@ impl CpcSystem {
                     .map(|(p, &w)| c64::new((1.0 - lambda) * w * p[0], (1.0 - lambda) * w * p[1]))
                     .collect();
                 self.topo
-                    .factor_solve(&vals, &mut rhs)
+                    .factor_solve(&vals, &mut rhs, self.factor_threads)
                     .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
                 rhs.iter().map(|z| [z.re, z.im]).collect()
             }
@@ -689,7 +696,7 @@ pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
 
 /// [`nested_dissection`] of grid points `p_init` (px) on a grid of step `grid_step_px`.
 pub fn nested_dissection_points(p_init: &[[f64; 2]], grid_step_px: usize) -> Vec<usize> {
-    nested_dissection_leaf(p_init, grid_step_px, 48)
+    nested_dissection_leaf(p_init, grid_step_px, ND_LEAF)
 }
 
 /// [`nested_dissection_points`] with parts of at most `leaf` vertices left undivided.

@@ -42,11 +42,66 @@ pub struct Warp {
     /// Triangle covering every canvas pixel (or NONE).
     face_id: Vec<u32>,
     /// Bucket grid over the canvas for point location.
-    bucket_px: f64,
-    bucket_cols: usize,
-    bucket_rows: usize,
-    bucket_start: Vec<u32>,
-    bucket_items: Vec<u32>,
+    /// Bucket grid over the canvas for point location, built on first use.
+    buckets: std::sync::OnceLock<Buckets>,
+}
+
+/// Bucket grid over the canvas: the faces whose bounding box meets each cell.
+#[derive(Clone, Debug)]
+struct Buckets {
+    px: f64,
+    cols: usize,
+    rows: usize,
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Buckets {
+    fn build(
+        faces: &[[usize; 3]],
+        canvas: impl Fn(usize) -> [f64; 2],
+        grid_step_px: usize,
+        width: usize,
+        height: usize,
+    ) -> Buckets {
+        let bucket_px = (2 * grid_step_px).max(4) as f64;
+        let bucket_cols = (width as f64 / bucket_px).ceil() as usize + 1;
+        let bucket_rows = (height as f64 / bucket_px).ceil() as usize + 1;
+        let mut counts = vec![0u32; bucket_cols * bucket_rows + 1];
+        let brange = |f: &[usize; 3]| {
+            let (a, b, c) = (canvas(f[0]), canvas(f[1]), canvas(f[2]));
+            let bx0 = (a[0].min(b[0]).min(c[0]) / bucket_px).floor().max(0.0) as usize;
+            let by0 = (a[1].min(b[1]).min(c[1]) / bucket_px).floor().max(0.0) as usize;
+            let bx1 = ((a[0].max(b[0]).max(c[0]) / bucket_px).floor() as usize).min(bucket_cols - 1);
+            let by1 = ((a[1].max(b[1]).max(c[1]) / bucket_px).floor() as usize).min(bucket_rows - 1);
+            (bx0, by0, bx1, by1)
+        };
+        for f in faces {
+            let (bx0, by0, bx1, by1) = brange(f);
+            for by in by0..=by1 {
+                for bx in bx0..=bx1 {
+                    counts[by * bucket_cols + bx + 1] += 1;
+                }
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let bucket_start = counts.clone();
+        let mut fill = counts;
+        let mut bucket_items = vec![0u32; *bucket_start.last().unwrap() as usize];
+        for (t, f) in faces.iter().enumerate() {
+            let (bx0, by0, bx1, by1) = brange(f);
+            for by in by0..=by1 {
+                for bx in bx0..=bx1 {
+                    let b = by * bucket_cols + bx;
+                    bucket_items[fill[b] as usize] = t as u32;
+                    fill[b] += 1;
+                }
+            }
+        }
+        Buckets { px: bucket_px, cols: bucket_cols, rows: bucket_rows, start: bucket_start, items: bucket_items }
+    }
 }
 
 /// Dense coordinate maps of a warp.
@@ -119,7 +174,8 @@ fn bilinear_into(image: &Image<u8>, q: [f64; 2], out: &mut [u8], ch: usize) {
     }
 }
 
-/// Warp one canvas row (`CH` channels known at compile time).
+/// Warp one canvas row (`CH` channels known at compile time; source at least 2×2 pixels). Same
+/// arithmetic as [`bilinear_into`], with the two source rows read as two contiguous slices.
 #[inline(always)]
 fn sample_row<const CH: usize>(
     fid: &[u32],
@@ -129,12 +185,33 @@ fn sample_row<const CH: usize>(
     row: &mut [u8],
     mrow: &mut [bool],
 ) {
+    let (iw, ih) = (image.width, image.height);
+    if iw < 2 || ih < 2 {
+        return sample_row_dyn(fid, inv_aff, image, y, row, mrow, CH);
+    }
+    let src = &image.data;
+    let (wmax, hmax) = ((iw - 1) as f64, (ih - 1) as f64);
+    let yf = y as f64;
     for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(CH)).zip(mrow.iter_mut()).enumerate() {
         if t == NONE {
             continue;
         }
-        let q = inv_apply(&inv_aff[t as usize], [x as f64, y as f64]);
-        bilinear_into(image, q, px, CH);
+        let q = inv_apply(&inv_aff[t as usize], [x as f64, yf]);
+        let qx = q[0].clamp(0.0, wmax);
+        let qy = q[1].clamp(0.0, hmax);
+        let x0 = (qx as usize).min(iw - 2);
+        let y0 = (qy as usize).min(ih - 2);
+        let (ax, ay) = (qx - x0 as f64, qy - y0 as f64);
+        let i0 = (y0 * iw + x0) * CH;
+        let i1 = i0 + iw * CH;
+        let (r0, r1) = (&src[i0..i0 + 2 * CH], &src[i1..i1 + 2 * CH]);
+        for c in 0..CH {
+            let (v00, v10, v01, v11) = (r0[c] as f64, r0[CH + c] as f64, r1[c] as f64, r1[CH + c] as f64);
+            let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
+            let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
+            let v = if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay };
+            px[c] = (v + 0.5) as u8;
+        }
         *m = true;
     }
 }
@@ -247,54 +324,26 @@ impl Warp {
                 let f = mesh.faces[t as usize];
                 let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
                 let (x0, y0, x1, y1) = rows_of[t as usize].expect("listed faces have a row range");
+                // Barycentric test w_k ≥ −eps without divisions: w_b = nb / d, w_c = nc / d,
+                // w_a = (d − nb − nc) / d, so w ≥ −eps ⇔ s·num ≥ −eps·|d| with s = sign(d).
+                let d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+                let sg = if d > 0.0 { 1.0 } else { -1.0 };
+                let tol = -eps * d.abs();
                 for y in y0.max(by0)..=y1.min(by1) {
                     let row = &mut chunk[(y - by0) * width..(y - by0 + 1) * width];
+                    let qy = y as f64 - a[1];
                     for (x, id) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
-                        let w = barycentric([x as f64, y as f64], a, b, c);
-                        if w[0] >= -eps && w[1] >= -eps && w[2] >= -eps {
+                        let qx = x as f64 - a[0];
+                        let nb = qx * (c[1] - a[1]) - qy * (c[0] - a[0]);
+                        let nc = (b[0] - a[0]) * qy - (b[1] - a[1]) * qx;
+                        let na = d - nb - nc;
+                        if sg * na >= tol && sg * nb >= tol && sg * nc >= tol {
                             *id = t;
                         }
                     }
                 }
             }
         });
-        // Buckets for point location (cell ≈ 2 grid steps).
-        let bucket_px = (2 * mesh.grid_step_px).max(4) as f64;
-        let bucket_cols = (width as f64 / bucket_px).ceil() as usize + 1;
-        let bucket_rows = (height as f64 / bucket_px).ceil() as usize + 1;
-        let mut counts = vec![0u32; bucket_cols * bucket_rows + 1];
-        let brange = |f: &[usize; 3]| {
-            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-            let bx0 = (a[0].min(b[0]).min(c[0]) / bucket_px).floor().max(0.0) as usize;
-            let by0 = (a[1].min(b[1]).min(c[1]) / bucket_px).floor().max(0.0) as usize;
-            let bx1 = ((a[0].max(b[0]).max(c[0]) / bucket_px).floor() as usize).min(bucket_cols - 1);
-            let by1 = ((a[1].max(b[1]).max(c[1]) / bucket_px).floor() as usize).min(bucket_rows - 1);
-            (bx0, by0, bx1, by1)
-        };
-        for f in &mesh.faces {
-            let (bx0, by0, bx1, by1) = brange(f);
-            for by in by0..=by1 {
-                for bx in bx0..=bx1 {
-                    counts[by * bucket_cols + bx + 1] += 1;
-                }
-            }
-        }
-        for i in 1..counts.len() {
-            counts[i] += counts[i - 1];
-        }
-        let bucket_start = counts.clone();
-        let mut fill = counts;
-        let mut bucket_items = vec![0u32; *bucket_start.last().unwrap() as usize];
-        for (t, f) in mesh.faces.iter().enumerate() {
-            let (bx0, by0, bx1, by1) = brange(f);
-            for by in by0..=by1 {
-                for bx in bx0..=bx1 {
-                    let b = by * bucket_cols + bx;
-                    bucket_items[fill[b] as usize] = t as u32;
-                    fill[b] += 1;
-                }
-            }
-        }
         Ok(Warp {
             mesh: mesh.clone(),
             p_flat,
@@ -306,11 +355,7 @@ impl Warp {
             inv_aff,
             fwd_lin,
             face_id,
-            bucket_px,
-            bucket_cols,
-            bucket_rows,
-            bucket_start,
-            bucket_items,
+            buckets: std::sync::OnceLock::new(),
         })
     }
 
@@ -414,14 +459,18 @@ impl Warp {
         if !(x.is_finite() && y.is_finite()) {
             return None;
         }
-        let bx = (x / self.bucket_px).floor();
-        let by = (y / self.bucket_px).floor();
-        if bx < 0.0 || by < 0.0 || bx as usize >= self.bucket_cols || by as usize >= self.bucket_rows {
+        // Buckets for point location (cell ≈ 2 grid steps), built on the first query.
+        let bk = self.buckets.get_or_init(|| {
+            Buckets::build(&self.mesh.faces, |v| self.canvas_vertex(v), self.mesh.grid_step_px, self.width, self.height)
+        });
+        let bx = (x / bk.px).floor();
+        let by = (y / bk.px).floor();
+        if bx < 0.0 || by < 0.0 || bx as usize >= bk.cols || by as usize >= bk.rows {
             return None;
         }
-        let b = by as usize * self.bucket_cols + bx as usize;
+        let b = by as usize * bk.cols + bx as usize;
         let mut best: Option<(usize, [f64; 3], f64)> = None;
-        for &t in &self.bucket_items[self.bucket_start[b] as usize..self.bucket_start[b + 1] as usize] {
+        for &t in &bk.items[bk.start[b] as usize..bk.start[b + 1] as usize] {
             let f = self.mesh.faces[t as usize];
             let (a, bb, c) = (self.canvas_vertex(f[0]), self.canvas_vertex(f[1]), self.canvas_vertex(f[2]));
             if signed_area(a, bb, c) == 0.0 {
