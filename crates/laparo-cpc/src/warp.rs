@@ -141,6 +141,17 @@ fn barycentric(q: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> [f64; 3] {
     [1.0 - wb - wc, wb, wc]
 }
 
+/// ⌈v⌉ for v ≥ 0 (0 for negative or NaN v) without a libm call.
+#[inline(always)]
+fn ceil_nonneg(v: f64) -> usize {
+    let t = v.max(0.0) as usize;
+    if (t as f64) < v {
+        t + 1
+    } else {
+        t
+    }
+}
+
 /// q ↦ A + L (q − a) with `af` = [A_x, A_y, a_x, a_y, l00, l01, l10, l11].
 #[inline(always)]
 fn inv_apply(af: &[f64; 8], q: [f64; 2]) -> [f64; 2] {
@@ -292,10 +303,12 @@ impl Warp {
                 rows_of.push(None);
                 continue;
             }
-            let x0 = a[0].min(b[0]).min(c[0]).ceil().max(0.0) as usize;
-            let y0 = a[1].min(b[1]).min(c[1]).ceil().max(0.0) as usize;
-            let x1 = (a[0].max(b[0]).max(c[0]).floor() as usize).min(width - 1);
-            let y1 = (a[1].max(b[1]).max(c[1]).floor() as usize).min(height - 1);
+            // Canvas coordinates are ≥ 0 (origin = floor of the minimum): truncation is floor, and
+            // avoids a libm call per bound.
+            let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
+            let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
+            let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
+            let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
             if y0 > y1 || x0 > x1 {
                 rows_of.push(None);
                 continue;
