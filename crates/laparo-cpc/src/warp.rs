@@ -202,17 +202,19 @@ fn sample_row<const CH: usize>(
     }
     let src = &image.data;
     let (wmax, hmax) = ((iw - 1) as f64, (ih - 1) as f64);
-    let yf = y as f64;
+    let yf = y as i32 as f64;
     for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(CH)).zip(mrow.iter_mut()).enumerate() {
         if t == NONE {
             continue;
         }
-        let q = inv_apply(&inv_aff[t as usize], [x as f64, yf]);
+        // Conversions through i32 (one instruction each; canvas and image sizes fit easily) instead
+        // of usize ↔ f64, which need a multi-instruction sequence for the unsigned 64-bit range.
+        let q = inv_apply(&inv_aff[t as usize], [x as i32 as f64, yf]);
         let qx = q[0].clamp(0.0, wmax);
         let qy = q[1].clamp(0.0, hmax);
-        let x0 = (qx as usize).min(iw - 2);
-        let y0 = (qy as usize).min(ih - 2);
-        let (ax, ay) = (qx - x0 as f64, qy - y0 as f64);
+        let x0 = (qx as i32 as usize).min(iw - 2);
+        let y0 = (qy as i32 as usize).min(ih - 2);
+        let (ax, ay) = (qx - x0 as i32 as f64, qy - y0 as i32 as f64);
         let i0 = (y0 * iw + x0) * CH;
         let i1 = i0 + iw * CH;
         let (r0, r1) = (&src[i0..i0 + 2 * CH], &src[i1..i1 + 2 * CH]);
@@ -344,9 +346,9 @@ impl Warp {
                 let tol = -eps * d.abs();
                 for y in y0.max(by0)..=y1.min(by1) {
                     let row = &mut chunk[(y - by0) * width..(y - by0 + 1) * width];
-                    let qy = y as f64 - a[1];
+                    let qy = y as i32 as f64 - a[1];
                     for (x, id) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
-                        let qx = x as f64 - a[0];
+                        let qx = x as i32 as f64 - a[0];
                         let nb = qx * (c[1] - a[1]) - qy * (c[0] - a[0]);
                         let nc = (b[0] - a[0]) * qy - (b[1] - a[1]) * qx;
                         let na = d - nb - nc;
