@@ -13,13 +13,15 @@
 //! balance by s² when the grid step s changes). The factor 0.1 places the transition of
 //! δ_area(λ) in the middle of [0, 1) (λ ≈ 0.5–0.95) as in the thesis' Fig. 4.11/4.12.
 //!
-//! The normal equations (λ K + (1−λ) D) p = (1−λ) D P_init are assembled once per mesh (K = Σ w_t M_tᵀM_t,
-//! D diagonal, one shared sparsity pattern with unknowns interleaved [x_0, y_0, x_1, y_1, ...]);
-//! the symbolic sparse Cholesky (faer) is computed once, with a geometric nested-dissection
-//! ordering of the grid (grid lines are vertex separators of the triangulated grid, so the
-//! ordering costs O(n log n) and avoids AMD), and and every λ costs one numeric
-//! factorisation and two triangular solves. The system is block-diagonal over connected components,
-//! so one factorisation solves every component separately.
+//! The normal equations (λ K + (1−λ) D) p = (1−λ) D P_init (K = Σ w_t M_tᵀM_t, D diagonal) are
+//! solved in their equivalent complex Hermitian form (one unknown z = x + i y per vertex, see
+//! [`CpcSystem`]), assembled once per mesh on one lower-triangle sparsity pattern; the symbolic
+//! sparse Cholesky (faer, supernodal) is computed once per mesh topology ([`CpcTopology`], reusable
+//! across video frames through [`CpcSolver`]), with a geometric nested-dissection ordering of the
+//! grid (grid lines are vertex separators of the triangulated grid, so the ordering costs
+//! O(n log n) and avoids AMD), and every λ costs one numeric factorisation and two triangular
+//! solves. The system is block-diagonal over connected components, so one factorisation solves
+//! every component separately.
 use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
