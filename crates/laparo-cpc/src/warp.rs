@@ -218,11 +218,14 @@ fn sample_row<const CH: usize>(
         let i0 = (y0 * iw + x0) * CH;
         let i1 = i0 + iw * CH;
         let (r0, r1) = (&src[i0..i0 + 2 * CH], &src[i1..i1 + 2 * CH]);
+        // Branch-free form of `bilinear_into`: with a zero weight v·(1 − 0) + w·0 = v exactly, so
+        // the result is bitwise the same (exact at integer positions).
+        let (bx, by) = (1.0 - ax, 1.0 - ay);
         for c in 0..CH {
             let (v00, v10, v01, v11) = (r0[c] as f64, r0[CH + c] as f64, r1[c] as f64, r1[CH + c] as f64);
-            let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
-            let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
-            let v = if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay };
+            let top = v00 * bx + v10 * ax;
+            let bot = v01 * bx + v11 * ax;
+            let v = top * by + bot * ay;
             px[c] = (v + 0.5) as u8;
         }
         *m = true;
@@ -340,19 +343,25 @@ impl Warp {
                 let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
                 let (x0, y0, x1, y1) = rows_of[t as usize].expect("listed faces have a row range");
                 // Barycentric test w_k ≥ −eps without divisions: w_b = nb / d, w_c = nc / d,
-                // w_a = (d − nb − nc) / d, so w ≥ −eps ⇔ s·num ≥ −eps·|d| with s = sign(d).
-                let d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+                // w_a = (d − nb − nc) / d, so w ≥ −eps ⇔ s·num ≥ −eps·|d| with s = sign(d). The sign
+                // is folded into the edge coefficients (exact) and the row terms are hoisted.
+                let (e1x, e1y) = (b[0] - a[0], b[1] - a[1]);
+                let (e2x, e2y) = (c[0] - a[0], c[1] - a[1]);
+                let d = e1x * e2y - e1y * e2x;
                 let sg = if d > 0.0 { 1.0 } else { -1.0 };
-                let tol = -eps * d.abs();
+                let (cb, rb, cc, rc) = (sg * e2y, sg * e2x, sg * e1y, sg * e1x);
+                let sd = d.abs();
+                let tol = -eps * sd;
                 for y in y0.max(by0)..=y1.min(by1) {
                     let row = &mut chunk[(y - by0) * width..(y - by0 + 1) * width];
                     let qy = y as i32 as f64 - a[1];
+                    let (tb, tc) = (qy * rb, rc * qy);
                     for (x, id) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
                         let qx = x as i32 as f64 - a[0];
-                        let nb = qx * (c[1] - a[1]) - qy * (c[0] - a[0]);
-                        let nc = (b[0] - a[0]) * qy - (b[1] - a[1]) * qx;
-                        let na = d - nb - nc;
-                        if sg * na >= tol && sg * nb >= tol && sg * nc >= tol {
+                        let nb = qx * cb - tb;
+                        let nc = tc - cc * qx;
+                        let na = sd - nb - nc;
+                        if na >= tol && nb >= tol && nc >= tol {
                             *id = t;
                         }
                     }
