@@ -288,11 +288,9 @@ pub struct CpcSystem {
     n_vertices: usize,
     /// Displacement weight a_v / (L² A_tot) of every vertex.
     disp_w: Vec<f64>,
-    p_init: Vec<[f64; 2]>,
     /// M_t of every triangle and its weight w_t = A_t / (|P_b − P_a|² A_tot).
     tri_rows: Vec<[[f64; 6]; 2]>,
     tri_w: Vec<f64>,
-    faces: Vec<[usize; 3]>,
     grid_step_px: usize,
     topo: Arc<CpcTopology>,
     /// λ-free Hermitian conformal matrix H on the topology's lower-triangle pattern (`None` when
@@ -407,10 +405,8 @@ impl CpcSystem {
         Ok(CpcSystem {
             n_vertices: n,
             disp_w,
-            p_init: mesh.p_init.clone(),
             tri_rows,
             tri_w,
-            faces: mesh.faces.clone(),
             grid_step_px: mesh.grid_step_px,
             topo,
             herm_vals,
@@ -447,7 +443,7 @@ impl CpcSystem {
     pub fn solve(&self, lambda: f64) -> Result<Vec<[f64; 2]>> {
         validate_lambda(lambda)?;
         if lambda == 0.0 {
-            return Ok(self.p_init.clone());
+            return Ok(self.topo.p_init.clone());
         }
         let out: Vec<[f64; 2]> = match &self.herm_vals {
             Some(h) => {
@@ -457,6 +453,7 @@ impl CpcSystem {
                     vals[self.topo.col_ptr[c]].re += (1.0 - lambda) * w;
                 }
                 let mut rhs: Vec<c64> = self
+                    .topo
                     .p_init
                     .iter()
                     .zip(&self.disp_w)
@@ -474,7 +471,7 @@ impl CpcSystem {
                     vals[pos] += (1.0 - lambda) * self.disp_w[u / 2];
                 }
                 let mut rhs: Vec<f64> = Vec::with_capacity(2 * self.n_vertices);
-                for (v, p) in self.p_init.iter().enumerate() {
+                for (v, p) in self.topo.p_init.iter().enumerate() {
                     rhs.push((1.0 - lambda) * self.disp_w[v] * p[0]);
                     rhs.push((1.0 - lambda) * self.disp_w[v] * p[1]);
                 }
@@ -491,13 +488,13 @@ impl CpcSystem {
     /// The two terms of eq. 4.11 at `p` (area-weighted means): (conformal, displacement).
     pub fn energies(&self, p: &[[f64; 2]]) -> (f64, f64) {
         let mut ec = 0.0;
-        for (t, f) in self.faces.iter().enumerate() {
+        for (t, f) in self.topo.faces.iter().enumerate() {
             let r = crate::conformal::residual(&self.tri_rows[t], p[f[0]], p[f[1]], p[f[2]]);
             ec += self.tri_w[t] * (r[0] * r[0] + r[1] * r[1]);
         }
         let ed: f64 = p
             .iter()
-            .zip(&self.p_init)
+            .zip(&self.topo.p_init)
             .zip(&self.disp_w)
             .map(|((a, b), w)| w * ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)))
             .sum();
@@ -514,10 +511,10 @@ impl CpcSystem {
             .get_or_init(|| {
                 RealSystem::build(
                     self.n_vertices,
-                    &self.faces,
+                    &self.topo.faces,
                     &self.tri_rows,
                     &self.tri_w,
-                    &self.p_init,
+                    &self.topo.p_init,
                     self.grid_step_px,
                 )
             })
