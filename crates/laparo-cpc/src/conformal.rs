@@ -54,6 +54,17 @@ impl Default for ConformalParams {
 /// Barycentric coordinates (α, β, γ) of Q0, Q1, Q2 w.r.t. triangle ABC (eq. 4.4), for the basis
 /// Q0 = A, Q1 = B, Q2 = A + R_θ(B − A). `None` for a degenerate triangle.
 pub fn basis_barycentrics(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, theta: f64) -> Option<[[f64; 3]; 3]> {
+    basis_barycentrics_cs(a, b, c, theta.cos(), theta.sin())
+}
+
+/// [`basis_barycentrics`] with cos θ and sin θ given.
+fn basis_barycentrics_cs(
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    c: &Vector3<f64>,
+    cos_t: f64,
+    sin_t: f64,
+) -> Option<[[f64; 3]; 3]> {
     let e1 = b - a;
     let e2 = c - a;
     let n = e1.cross(&e2);
@@ -63,7 +74,7 @@ pub fn basis_barycentrics(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>, 
     }
     let n = n / nn;
     // R_θ e1 = cosθ e1 + sinθ (n × e1)   (e1 ⟂ n)
-    let q2 = e1 * theta.cos() + n.cross(&e1) * theta.sin();
+    let q2 = e1 * cos_t + n.cross(&e1) * sin_t;
     // In-plane solve [e1 e2] [β γ]ᵀ = q2 via the Gram matrix.
     let g11 = e1.dot(&e1);
     let g12 = e1.dot(&e2);
@@ -87,12 +98,22 @@ pub fn triangle_rows(
     c: &Vector3<f64>,
     params: &ConformalParams,
 ) -> Option<[[f64; 6]; 2]> {
-    let th = params.theta_rad;
-    let q = basis_barycentrics(a, b, c, th)?;
+    triangle_rows_cs(a, b, c, params, params.theta_rad.cos(), params.theta_rad.sin())
+}
+
+/// [`triangle_rows`] with cos θ and sin θ precomputed (once per mesh instead of once per triangle).
+pub fn triangle_rows_cs(
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    c: &Vector3<f64>,
+    params: &ConformalParams,
+    ct: f64,
+    st: f64,
+) -> Option<[[f64; 6]; 2]> {
+    let q = basis_barycentrics_cs(a, b, c, ct, st)?;
     // d1[j], d2[j]: barycentric differences Δ_1, Δ_2 for vertex j ∈ {a, b, c}.
     let d1 = [q[1][0] - q[0][0], q[1][1] - q[0][1], q[1][2] - q[0][2]];
     let d2 = [q[2][0] - q[0][0], q[2][1] - q[0][1], q[2][2] - q[0][2]];
-    let (ct, st) = (th.cos(), th.sin());
     let mut m = [[0.0; 6]; 2];
     for j in 0..3 {
         match params.convention {

@@ -136,10 +136,18 @@ impl CpcMesh {
         // Grid nodes: in ROI with valid depth?
         let node_in_roi = |i: usize, j: usize| roi.data[(j * s) * w + i * s];
         let node_z = |i: usize, j: usize| depth.data[(j * s) * w + i * s];
-        let node_x = |i: usize, j: usize| {
-            let (u, v) = ((i * s) as f64, (j * s) as f64);
-            k.backproject(u, v, node_z(i, j))
-        };
+        // Back-project every grid node in the ROI once (a node is shared by up to 6 triangles).
+        let node_pos: Vec<Vector3<f64>> = (0..gc * gr)
+            .map(|id| {
+                let (i, j) = (id % gc, id / gc);
+                if node_in_roi(i, j) {
+                    k.backproject((i * s) as f64, (j * s) as f64, node_z(i, j))
+                } else {
+                    Vector3::zeros()
+                }
+            })
+            .collect();
+        let node_x = |i: usize, j: usize| node_pos[j * gc + i];
         let mut rep = MeshReport { grid_step_px: s, ..Default::default() };
         let cos_max = params.max_view_angle_deg.map(|a| a.to_radians().cos());
         // Candidate triangles as grid-node triplets, with their cell and slot.
@@ -212,15 +220,19 @@ impl CpcMesh {
                 }
             }
         }
-        let mut comp_count = std::collections::HashMap::<usize, usize>::new();
+        // Triangle count per root (dense over grid nodes: no hashing).
+        let mut comp_count = vec![0usize; n_nodes];
         let roots: Vec<usize> = tris.iter().map(|(t, _, _)| find(&mut parent, nid(t[0]))).collect();
         for &r in &roots {
-            *comp_count.entry(r).or_default() += 1;
+            comp_count[r] += 1;
         }
-        let mut comps: Vec<(usize, usize)> = comp_count.into_iter().collect();
+        let mut comps: Vec<(usize, usize)> =
+            comp_count.iter().enumerate().filter(|&(_, &c)| c > 0).map(|(r, &c)| (r, c)).collect();
         comps.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
-        let comp_id: std::collections::HashMap<usize, usize> =
-            comps.iter().enumerate().map(|(i, &(r, _))| (r, i)).collect();
+        let mut comp_id = vec![usize::MAX; n_nodes];
+        for (i, &(r, _)) in comps.iter().enumerate() {
+            comp_id[r] = i;
+        }
         let mut node_vertex = vec![usize::MAX; n_nodes];
         let mut mesh = CpcMesh {
             grid_step_px: s,
@@ -234,7 +246,7 @@ impl CpcMesh {
             report: MeshReport::default(),
         };
         for ((t, cell, slot), r) in tris.iter().zip(&roots) {
-            let c = comp_id[r];
+            let c = comp_id[*r];
             if comps[c].1 < params.min_component_triangles {
                 rep.dropped_small_components += 1;
                 continue;

@@ -6,7 +6,7 @@ use crate::error::{CpcError, Result};
 use crate::lambda::{auto_lambda, default_lambda_grid, LambdaSweep};
 use crate::mesh::{CpcMesh, MeshParams, MeshReport};
 use crate::metrics;
-use crate::solve::{validate_lambda, CpcSystem};
+use crate::solve::{validate_lambda, CpcSolver};
 use crate::warp::Warp;
 use laparo_core::camera::Intrinsics;
 use laparo_core::depth::DepthMap;
@@ -102,6 +102,20 @@ pub fn cpc_warp(
     roi: &Mask,
     params: &CpcParams,
 ) -> Result<CpcResult> {
+    cpc_warp_with(&mut CpcSolver::new(), image, depth, k, roi, params)
+}
+
+/// [`cpc_warp`] for the frames of a video: `solver` keeps the mesh topology (sparsity pattern,
+/// ordering, symbolic factorisation, factor buffers) of the previous frame and reuses it when the
+/// new mesh has the same topology (same ROI and kept triangles); the result is the same.
+pub fn cpc_warp_with(
+    solver: &mut CpcSolver,
+    image: &Image<u8>,
+    depth: &DepthMap,
+    k: &Intrinsics,
+    roi: &Mask,
+    params: &CpcParams,
+) -> Result<CpcResult> {
     if image.width != depth.width || image.height != depth.height {
         return Err(CpcError::SizeMismatch(format!(
             "image is {}x{}, depth is {}x{}",
@@ -116,7 +130,7 @@ pub fn cpc_warp(
     let mesh = CpcMesh::build(roi, depth, k, &params.mesh)?;
     timings.insert("mesh".to_string(), ms(t));
     let t = Instant::now();
-    let system = CpcSystem::assemble(&mesh, &params.conformal)?;
+    let system = solver.assemble(&mesh, &params.conformal)?;
     timings.insert("assemble".to_string(), ms(t));
     let mut sweep = None;
     let lambda = match &params.lambda {

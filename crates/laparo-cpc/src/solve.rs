@@ -13,21 +13,32 @@
 //! balance by s² when the grid step s changes). The factor 0.1 places the transition of
 //! δ_area(λ) in the middle of [0, 1) (λ ≈ 0.5–0.95) as in the thesis' Fig. 4.11/4.12.
 //!
-//! The normal equations (λ K + (1−λ) D) p = (1−λ) D P_init are assembled once per mesh (K = Σ w_t M_tᵀM_t,
-//! D diagonal, one shared sparsity pattern with unknowns interleaved [x_0, y_0, x_1, y_1, ...]);
-//! the symbolic sparse Cholesky (faer) is computed once, with a geometric nested-dissection
-//! ordering of the grid (grid lines are vertex separators of the triangulated grid, so the
-//! ordering costs O(n log n) and avoids AMD), and and every λ costs one numeric
-//! factorisation and two triangular solves. The system is block-diagonal over connected components,
-//! so one factorisation solves every component separately.
-use crate::conformal::{triangle_rows, ConformalParams};
+//! The normal equations (λ K + (1−λ) D) p = (1−λ) D P_init (K = Σ w_t M_tᵀM_t, D diagonal) are
+//! solved in their equivalent complex Hermitian form (one unknown z = x + i y per vertex, see
+//! [`CpcSystem`]), assembled once per mesh on one lower-triangle sparsity pattern; the symbolic
+//! sparse Cholesky (faer, supernodal) is computed once per mesh topology ([`CpcTopology`], reusable
+//! across video frames through [`CpcSolver`]), with a geometric nested-dissection ordering of the
+//! grid (grid lines are vertex separators of the triangulated grid, so the ordering costs
+//! O(n log n) and avoids AMD), and every λ costs one numeric factorisation and two triangular
+//! solves. The system is block-diagonal over connected components, so one factorisation solves
+//! every component separately.
+use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{c64, Conj, MatMut, Par, Side};
+use rayon::prelude::*;
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// Parts of at most this many vertices are left undivided by the nested dissection (measured:
+/// 4–8 give the fastest complex supernodal factorisation at 4 px, 48 is 1.3× slower).
+pub const ND_LEAF: usize = 8;
 
 /// Displacements are measured in units of this fraction of √(mesh area).
 pub const DISPLACEMENT_SCALE: f64 = 0.1;
@@ -41,30 +52,274 @@ pub fn validate_lambda(lambda: f64) -> Result<()> {
     Ok(())
 }
 
-/// The assembled CPC system of one mesh, ready to be solved for any λ.
-pub struct CpcSystem {
-    n_vertices: usize,
+/// The pattern and symbolic Cholesky factorisation of one mesh topology (faces, grid positions and
+/// step), shared by every [`CpcSystem`] built on it. Build it once per ROI / mesh topology and
+/// reuse it across the frames of a video through [`CpcSolver`].
+///
+/// The normal matrix is stored as a complex Hermitian n × n matrix (one unknown z_v = x_v + i y_v
+/// per vertex; see [`CpcSystem`]), lower triangle only, in the original vertex order; the
+/// fill-reducing ordering is the geometric nested dissection of the grid.
+pub struct CpcTopology {
+    n: usize,
+    grid_step_px: usize,
+    faces: Vec<[usize; 3]>,
+    p_init: Vec<[f64; 2]>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
-    /// Σ_t w_t M_tᵀ M_t on the shared pattern.
-    conf_vals: Vec<f64>,
-    /// Index of the diagonal entry of every unknown in the value arrays.
-    diag_pos: Vec<usize>,
+    /// Per face, position in the value array of the entry (row f[r], column f[c]) at index 3r + c,
+    /// or `u32::MAX` when that entry lies in the (unstored) upper triangle.
+    face_pos: Vec<[u32; 9]>,
+    symbolic: SymbolicCholesky<usize>,
+    /// Numeric factor values and workspace, reused by consecutive solves.
+    scratch: Mutex<Option<Scratch>>,
+}
+
+struct Scratch {
+    l_vals: Vec<c64>,
+    mem: MemBuffer,
+}
+
+impl CpcTopology {
+    /// Analyse the sparsity pattern of `mesh` (adjacency, nested-dissection ordering, symbolic Cholesky).
+    pub fn new(mesh: &CpcMesh) -> Result<CpcTopology> {
+        let n = mesh.n_vertices();
+        if n == 0 || mesh.faces.is_empty() {
+            return Err(CpcError::invalid("mesh", "has no triangle"));
+        }
+        // Lower-triangle adjacency (rows ≥ column, including the diagonal), at most 8 per vertex on
+        // a triangulated grid (7 in practice); spill to a sorted Vec otherwise.
+        let mut nbr = vec![[u32::MAX; 8]; n];
+        let mut cnt = vec![0u8; n];
+        let mut spill: Vec<(usize, usize)> = Vec::new();
+        for v in 0..n {
+            nbr[v][0] = v as u32;
+            cnt[v] = 1;
+        }
+        for f in &mesh.faces {
+            for &c in f {
+                for &r in f {
+                    if r <= c {
+                        continue;
+                    }
+                    let k = cnt[c] as usize;
+                    if nbr[c][..k].contains(&(r as u32)) {
+                        continue;
+                    }
+                    if k < 8 {
+                        nbr[c][k] = r as u32;
+                        cnt[c] += 1;
+                    } else {
+                        spill.push((c, r));
+                    }
+                }
+            }
+        }
+        spill.sort_unstable();
+        spill.dedup();
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        col_ptr.push(0usize);
+        let mut row_idx = Vec::with_capacity(4 * n);
+        let mut si = 0;
+        let mut tmp: Vec<usize> = Vec::with_capacity(16);
+        for c in 0..n {
+            tmp.clear();
+            tmp.extend(nbr[c][..cnt[c] as usize].iter().map(|&r| r as usize));
+            while si < spill.len() && spill[si].0 == c {
+                if !tmp.contains(&spill[si].1) {
+                    tmp.push(spill[si].1);
+                }
+                si += 1;
+            }
+            tmp.sort_unstable();
+            row_idx.extend_from_slice(&tmp);
+            col_ptr.push(row_idx.len());
+        }
+        let mut face_pos = Vec::with_capacity(mesh.faces.len());
+        for f in &mesh.faces {
+            let mut fp = [u32::MAX; 9];
+            for (rl, &r) in f.iter().enumerate() {
+                for (cl, &c) in f.iter().enumerate() {
+                    if r < c {
+                        continue;
+                    }
+                    let rows = &row_idx[col_ptr[c]..col_ptr[c + 1]];
+                    let k = rows.binary_search(&r).expect("adjacency contains every face pair");
+                    fp[3 * rl + cl] = (col_ptr[c] + k) as u32;
+                }
+            }
+            face_pos.push(fp);
+        }
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let fwd = nested_dissection_leaf(&mesh.p_init, mesh.grid_step_px, ND_LEAF);
+        let mut inv = vec![0usize; n];
+        for (k, &o) in fwd.iter().enumerate() {
+            inv[o] = k;
+        }
+        let perm = PermRef::new_checked(&fwd, &inv, n);
+        // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
+        // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        let ord = SymmetricOrdering::Custom(perm);
+        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ord, params)
+            .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
+        Ok(CpcTopology {
+            n,
+            grid_step_px: mesh.grid_step_px,
+            faces: mesh.faces.clone(),
+            p_init: mesh.p_init.clone(),
+            col_ptr,
+            row_idx,
+            face_pos,
+            symbolic,
+            scratch: Mutex::new(None),
+        })
+    }
+
+    /// Whether `mesh` has this topology (same grid step, vertex positions and faces).
+    pub fn matches(&self, mesh: &CpcMesh) -> bool {
+        self.grid_step_px == mesh.grid_step_px && self.faces == mesh.faces && self.p_init == mesh.p_init
+    }
+
+    /// Number of stored (lower-triangle) entries of the complex normal matrix.
+    pub fn nnz_lower(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    /// Number of (complex) entries of the Cholesky factor.
+    pub fn factor_len(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
+    /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
+    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize) -> Result<()> {
+        let n = self.n;
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let mat = SparseColMatRef::new(sym, vals);
+        // Sequential by default: on the shared, loaded 2-core machine faer's rayon path was not
+        // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
+        let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
+        // Reuse the factor buffer and workspace unless another solve holds them.
+        let mut guard = self.scratch.try_lock().ok();
+        let mut local = None;
+        let slot: &mut Option<Scratch> = match guard.as_deref_mut() {
+            Some(s) => s,
+            None => &mut local,
+        };
+        let sc = slot.get_or_insert_with(|| {
+            let req = self
+                .symbolic
+                .factorize_numeric_llt_scratch::<c64>(par, Default::default())
+                .or(self.symbolic.solve_in_place_scratch::<c64>(1, par));
+            Scratch { l_vals: vec![c64::new(0.0, 0.0); self.symbolic.len_val()], mem: MemBuffer::new(req) }
+        });
+        let llt = self
+            .symbolic
+            .factorize_numeric_llt(
+                &mut sc.l_vals,
+                mat,
+                Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut sc.mem),
+                Default::default(),
+            )
+            .map_err(|e| CpcError::Solver(format!("Cholesky failed (matrix not positive definite?): {e:?}")))?;
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            par,
+            MemStack::new(&mut sc.mem),
+        );
+        Ok(())
+    }
+}
+
+/// Reusable CPC solver state for a video: keeps the [`CpcTopology`] of the last mesh and reuses it
+/// (sparsity pattern, ordering, symbolic factorisation, factor buffers) when the next frame's mesh
+/// has the same topology, e.g. a fixed ROI and the same valid-depth triangles.
+#[derive(Default)]
+pub struct CpcSolver {
+    topo: Option<Arc<CpcTopology>>,
+    factor_threads: usize,
+}
+
+impl CpcSolver {
+    /// A solver with no cached topology.
+    pub fn new() -> CpcSolver {
+        CpcSolver::default()
+    }
+
+    /// Assemble the system of `mesh`, reusing the cached topology when it matches
+    /// ([`CpcSystem::topology_reused`] tells which).
+    pub fn assemble(&mut self, mesh: &CpcMesh, params: &ConformalParams) -> Result<CpcSystem> {
+        let cached = self.topo.as_ref().filter(|t| t.matches(mesh)).cloned();
+        let mut sys = CpcSystem::assemble_with(mesh, params, cached)?;
+        sys.set_factor_threads(self.factor_threads);
+        self.topo = Some(sys.topo.clone());
+        Ok(sys)
+    }
+
+    /// Threads of the numeric Cholesky factorisation of the systems it assembles (≤ 1:
+    /// sequential, the default). The result does not depend on it.
+    pub fn set_factor_threads(&mut self, threads: usize) {
+        self.factor_threads = threads;
+    }
+
+    /// Forget the cached topology.
+    pub fn clear(&mut self) {
+        self.topo = None;
+    }
+}
+
+/// The assembled CPC system of one mesh, ready to be solved for any λ.
+///
+/// With the derived rows of M_t (the default), the two rows of every triangle are
+/// r0 = Σ_j A_j x_j + B_j y_j and r1 = Σ_j B_j x_j − A_j y_j, so r0 − i r1 = Σ_j g_j z_j with
+/// g_j = A_j − i B_j and z_j = x_j + i y_j: |M_t p_t|² = |g_tᵀ z_t|². The normal equations are
+/// then the complex Hermitian positive-definite system (λ H + (1−λ) D) z = (1−λ) D P_init with
+/// H = Σ_t w_t conj(g_t) g_tᵀ — half the unknowns of the real interleaved system and about half
+/// its factorisation flops, with the same solution. The real interleaved form (needed by the
+/// equiareal refinement and by [`RowConvention::AsPrinted`], whose rows lack this structure) is
+/// built on first use.
+pub struct CpcSystem {
+    n_vertices: usize,
     /// Displacement weight a_v / (L² A_tot) of every vertex.
     disp_w: Vec<f64>,
-    p_init: Vec<[f64; 2]>,
     /// M_t of every triangle and its weight w_t = A_t / (|P_b − P_a|² A_tot).
     tri_rows: Vec<[[f64; 6]; 2]>,
     tri_w: Vec<f64>,
-    faces: Vec<[usize; 3]>,
-    symbolic: SymbolicCholesky<usize>,
+    grid_step_px: usize,
+    topo: Arc<CpcTopology>,
+    /// λ-free Hermitian conformal matrix H on the topology's lower-triangle pattern (`None` when
+    /// the rows of M_t lack the complex structure).
+    herm_vals: Option<Vec<c64>>,
+    real: OnceLock<std::result::Result<RealSystem, String>>,
     /// Assembly timings (ms): [weights and M_t, sparse pattern and values, ordering + symbolic Cholesky].
     pub assembly_ms: [f64; 3],
+    /// Whether the topology (pattern, ordering, symbolic factorisation) came from a [`CpcSolver`] cache.
+    pub topology_reused: bool,
+    factor_threads: usize,
+}
+
+/// The real interleaved system [x_0, y_0, x_1, y_1, ...] (built on demand).
+struct RealSystem {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    conf_vals: Vec<f64>,
+    diag_pos: Vec<usize>,
+    symbolic: SymbolicCholesky<usize>,
 }
 
 impl CpcSystem {
     /// Assemble the conformal and displacement terms of `mesh` and analyse the sparsity pattern.
     pub fn assemble(mesh: &CpcMesh, params: &ConformalParams) -> Result<CpcSystem> {
+        CpcSystem::assemble_with(mesh, params, None)
+    }
+
+    fn assemble_with(mesh: &CpcMesh, params: &ConformalParams, topo: Option<Arc<CpcTopology>>) -> Result<CpcSystem> {
         let th = params.theta_rad;
         if !(th.is_finite() && th > 0.0 && th < std::f64::consts::PI) {
             return Err(CpcError::invalid("theta", format!("{th} rad (must be in (0, π))")));
@@ -96,20 +351,278 @@ impl CpcSystem {
         for w in disp_w.iter_mut() {
             *w /= l2 * a_tot;
         }
-        let mut tri_rows = Vec::with_capacity(m);
-        let mut tri_w = Vec::with_capacity(m);
-        for (t, f) in mesh.faces.iter().enumerate() {
-            let rows = triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params)
-                .ok_or_else(|| CpcError::invalid("mesh", format!("3D triangle {t} is degenerate")))?;
-            let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
-            let e2 = (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2);
-            tri_rows.push(rows);
-            tri_w.push(area[t] / (e2 * a_tot));
-        }
+        // M_t per face (independent per face: parallel, deterministic).
+        let (cos_t, sin_t) = (th.cos(), th.sin());
+        let tri_rows: Vec<[[f64; 6]; 2]> = mesh
+            .faces
+            .par_iter()
+            .with_min_len(1024)
+            .map(|f| triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| {
+                let t = mesh
+                    .faces
+                    .iter()
+                    .position(|f| triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params).is_none())
+                    .unwrap_or(0);
+                CpcError::invalid("mesh", format!("3D triangle {t} is degenerate"))
+            })?;
+        let tri_w: Vec<f64> = mesh
+            .faces
+            .iter()
+            .zip(&area)
+            .map(|(f, &a)| {
+                let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
+                let e2 = (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2);
+                a / (e2 * a_tot)
+            })
+            .collect();
         let t1 = std::time::Instant::now();
+        let topology_reused = topo.is_some();
+        let topo = match topo {
+            Some(t) => t,
+            None => Arc::new(CpcTopology::new(mesh)?),
+        };
+        let t2 = std::time::Instant::now();
+        let herm_vals = (params.convention == RowConvention::Derived).then(|| {
+            let mut vals = vec![c64::new(0.0, 0.0); topo.nnz_lower()];
+            for ((mr, &w), fp) in tri_rows.iter().zip(&tri_w).zip(&topo.face_pos) {
+                // g_j = A_j − i B_j with A_j = M[0][2j], B_j = M[0][2j+1].
+                let g = [0, 1, 2].map(|j| c64::new(mr[0][2 * j], -mr[0][2 * j + 1]));
+                for r in 0..3 {
+                    let gr = c64::new(w * g[r].re, -w * g[r].im); // w · conj(g_r)
+                    for c in 0..3 {
+                        let pos = fp[3 * r + c];
+                        if pos != u32::MAX {
+                            vals[pos as usize] += gr * g[c];
+                        }
+                    }
+                }
+            }
+            vals
+        });
+        let t3 = std::time::Instant::now();
+        Ok(CpcSystem {
+            n_vertices: n,
+            disp_w,
+            tri_rows,
+            tri_w,
+            grid_step_px: mesh.grid_step_px,
+            topo,
+            herm_vals,
+            real: OnceLock::new(),
+            assembly_ms: [(t1 - t0).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3],
+            topology_reused,
+            factor_threads: 1,
+        })
+    }
+
+    /// Threads of the numeric Cholesky factorisation (≤ 1: sequential, the default); the
+    /// solution is bitwise identical for any thread count.
+    pub fn set_factor_threads(&mut self, threads: usize) {
+        self.factor_threads = threads;
+    }
+
+    /// Number of real unknowns (2 per vertex).
+    pub fn n_unknowns(&self) -> usize {
+        2 * self.n_vertices
+    }
+
+    /// Non-zeros of the (full, symmetric) real interleaved normal matrix (4 per vertex pair).
+    pub fn nnz(&self) -> usize {
+        4 * (2 * self.topo.nnz_lower() - self.n_vertices)
+    }
+
+    /// The shared topology (pattern and symbolic factorisation of the complex system).
+    pub fn topology(&self) -> &Arc<CpcTopology> {
+        &self.topo
+    }
+
+    /// Minimise eq. 4.11 for `lambda` ∈ [0, 1); returns the flattened vertex positions (px).
+    /// λ = 0 returns P_init exactly.
+    pub fn solve(&self, lambda: f64) -> Result<Vec<[f64; 2]>> {
+        validate_lambda(lambda)?;
+        if lambda == 0.0 {
+            return Ok(self.topo.p_init.clone());
+        }
+        let out: Vec<[f64; 2]> = match &self.herm_vals {
+            Some(h) => {
+                let mut vals: Vec<c64> = h.iter().map(|&v| c64::new(lambda * v.re, lambda * v.im)).collect();
+                for (c, &w) in self.disp_w.iter().enumerate() {
+                    // The diagonal entry is the first stored row of every column.
+                    vals[self.topo.col_ptr[c]].re += (1.0 - lambda) * w;
+                }
+                let mut rhs: Vec<c64> = self
+                    .topo
+                    .p_init
+                    .iter()
+                    .zip(&self.disp_w)
+                    .map(|(p, &w)| c64::new((1.0 - lambda) * w * p[0], (1.0 - lambda) * w * p[1]))
+                    .collect();
+                self.topo
+                    .factor_solve(&vals, &mut rhs, self.factor_threads)
+                    .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
+                rhs.iter().map(|z| [z.re, z.im]).collect()
+            }
+            None => {
+                let real = self.real()?;
+                let mut vals: Vec<f64> = real.conf_vals.iter().map(|&v| lambda * v).collect();
+                for (u, &pos) in real.diag_pos.iter().enumerate() {
+                    vals[pos] += (1.0 - lambda) * self.disp_w[u / 2];
+                }
+                let mut rhs: Vec<f64> = Vec::with_capacity(2 * self.n_vertices);
+                for (v, p) in self.topo.p_init.iter().enumerate() {
+                    rhs.push((1.0 - lambda) * self.disp_w[v] * p[0]);
+                    rhs.push((1.0 - lambda) * self.disp_w[v] * p[1]);
+                }
+                self.factor_solve(&vals, &mut rhs).map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
+                rhs.chunks_exact(2).map(|c| [c[0], c[1]]).collect()
+            }
+        };
+        if out.iter().any(|v| !(v[0].is_finite() && v[1].is_finite())) {
+            return Err(CpcError::Solver(format!("non-finite solution for lambda = {lambda}")));
+        }
+        Ok(out)
+    }
+
+    /// The two terms of eq. 4.11 at `p` (area-weighted means): (conformal, displacement).
+    pub fn energies(&self, p: &[[f64; 2]]) -> (f64, f64) {
+        let mut ec = 0.0;
+        for (t, f) in self.topo.faces.iter().enumerate() {
+            let r = crate::conformal::residual(&self.tri_rows[t], p[f[0]], p[f[1]], p[f[2]]);
+            ec += self.tri_w[t] * (r[0] * r[0] + r[1] * r[1]);
+        }
+        let ed: f64 = p
+            .iter()
+            .zip(&self.topo.p_init)
+            .zip(&self.disp_w)
+            .map(|((a, b), w)| w * ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)))
+            .sum();
+        (ec, ed)
+    }
+
+    /// Per-triangle conformal rows M_t and weights (for the equiareal refinement).
+    pub fn triangle_terms(&self) -> (&[[[f64; 6]; 2]], &[f64]) {
+        (&self.tri_rows, &self.tri_w)
+    }
+
+    fn real(&self) -> Result<&RealSystem> {
+        self.real
+            .get_or_init(|| {
+                RealSystem::build(
+                    self.n_vertices,
+                    &self.topo.faces,
+                    &self.tri_rows,
+                    &self.tri_w,
+                    &self.topo.p_init,
+                    self.grid_step_px,
+                )
+            })
+            .as_ref()
+            .map_err(|e| CpcError::Solver(e.clone()))
+    }
+
+    fn real_or_panic(&self) -> &RealSystem {
+        self.real().expect("symbolic analysis of the real system")
+    }
+
+    /// The shared sparsity pattern of the real interleaved system: (column pointers, row indices,
+    /// diagonal positions). Built on first use.
+    pub fn pattern(&self) -> (&[usize], &[usize], &[usize]) {
+        let r = self.real_or_panic();
+        (&r.col_ptr, &r.row_idx, &r.diag_pos)
+    }
+
+    /// The symbolic Cholesky factorisation of the real interleaved pattern (built on first use).
+    pub fn symbolic(&self) -> &SymbolicCholesky<usize> {
+        &self.real_or_panic().symbolic
+    }
+
+    /// y = K x with K = Σ_t w_t M_tᵀ M_t (interleaved unknowns).
+    pub fn conformal_matvec(&self, x: &[f64]) -> Vec<f64> {
+        let r = self.real_or_panic();
+        let mut y = vec![0.0; x.len()];
+        for (c, &xc) in x.iter().enumerate() {
+            for k in r.col_ptr[c]..r.col_ptr[c + 1] {
+                y[r.row_idx[k]] += r.conf_vals[k] * xc;
+            }
+        }
+        y
+    }
+
+    /// The conformal values K on the shared real pattern.
+    pub fn conformal_values(&self) -> &[f64] {
+        &self.real_or_panic().conf_vals
+    }
+
+    /// Add the 6×6 block `k6` (local unknowns [x_a, y_a, x_b, y_b, x_c, y_c]) of face `f` to
+    /// `vals` (on the shared real pattern).
+    pub fn add_face_block(&self, vals: &mut [f64], f: &[usize; 3], k6: &[[f64; 6]; 6]) {
+        let r = self.real_or_panic();
+        for (cl, &cv) in f.iter().enumerate() {
+            for kc in 0..2 {
+                let col = 2 * cv + kc;
+                let rows = &r.row_idx[r.col_ptr[col]..r.col_ptr[col + 1]];
+                for (rl, &rv) in f.iter().enumerate() {
+                    let pos = rows.binary_search(&(2 * rv)).expect("face pair in pattern");
+                    let base = r.col_ptr[col] + pos;
+                    vals[base] += k6[2 * rl][2 * cl + kc];
+                    vals[base + 1] += k6[2 * rl + 1][2 * cl + kc];
+                }
+            }
+        }
+    }
+
+    /// Factorise the real interleaved matrix with values `vals` on the shared real pattern and
+    /// solve for `rhs` in place.
+    pub fn factor_solve(&self, vals: &[f64], rhs: &mut [f64]) -> Result<()> {
+        let r = self.real()?;
+        let n = 2 * self.n_vertices;
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &r.col_ptr, None, &r.row_idx);
+        let mat = SparseColMatRef::new(sym, vals);
+        let par = Par::Seq;
+        let mut l_vals = vec![0.0f64; r.symbolic.len_val()];
+        let mut mem = MemBuffer::new(r.symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+        let llt = r
+            .symbolic
+            .factorize_numeric_llt(
+                &mut l_vals,
+                mat,
+                Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+            .map_err(|e| CpcError::Solver(format!("Cholesky failed (matrix not positive definite?): {e:?}")))?;
+        let mut mem2 = MemBuffer::new(r.symbolic.solve_in_place_scratch::<f64>(1, par));
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            par,
+            MemStack::new(&mut mem2),
+        );
+        Ok(())
+    }
+
+    /// Displacement weights per vertex.
+    pub fn displacement_weights(&self) -> &[f64] {
+        &self.disp_w
+    }
+}
+
+impl RealSystem {
+    fn build(
+        n: usize,
+        faces: &[[usize; 3]],
+        tri_rows: &[[[f64; 6]; 2]],
+        tri_w: &[f64],
+        p_init: &[[f64; 2]],
+        grid_step_px: usize,
+    ) -> std::result::Result<RealSystem, String> {
         // Vertex adjacency (including self), sorted.
         let mut nbr: Vec<Vec<usize>> = vec![Vec::with_capacity(8); n];
-        for f in &mesh.faces {
+        for f in faces {
             for &i in f {
                 for &j in f {
                     if !nbr[i].contains(&j) {
@@ -138,7 +651,7 @@ impl CpcSystem {
             }
         }
         let mut conf_vals = vec![0.0; row_idx.len()];
-        for (t, f) in mesh.faces.iter().enumerate() {
+        for (t, f) in faces.iter().enumerate() {
             let mr = &tri_rows[t];
             let w = tri_w[t];
             for (cl, &cv) in f.iter().enumerate() {
@@ -154,9 +667,8 @@ impl CpcSystem {
                 }
             }
         }
-        let t2 = std::time::Instant::now();
         let sym = SymbolicSparseColMatRef::new_checked(2 * n, 2 * n, &col_ptr, None, &row_idx);
-        let fwd_v = nested_dissection(mesh);
+        let fwd_v = nested_dissection_points(p_init, grid_step_px);
         let mut fwd = Vec::with_capacity(2 * n);
         for &v in &fwd_v {
             fwd.push(2 * v);
@@ -169,158 +681,8 @@ impl CpcSystem {
         let perm = PermRef::new_checked(&fwd, &inv, 2 * n);
         let symbolic =
             factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
-                .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
-        Ok(CpcSystem {
-            n_vertices: n,
-            col_ptr,
-            row_idx,
-            conf_vals,
-            diag_pos,
-            disp_w,
-            p_init: mesh.p_init.clone(),
-            tri_rows,
-            tri_w,
-            faces: mesh.faces.clone(),
-            symbolic,
-            assembly_ms: [
-                (t1 - t0).as_secs_f64() * 1e3,
-                (t2 - t1).as_secs_f64() * 1e3,
-                t2.elapsed().as_secs_f64() * 1e3,
-            ],
-        })
-    }
-
-    /// Number of unknowns (2 per vertex).
-    pub fn n_unknowns(&self) -> usize {
-        2 * self.n_vertices
-    }
-
-    /// Non-zeros of the (full, symmetric) normal matrix.
-    pub fn nnz(&self) -> usize {
-        self.row_idx.len()
-    }
-
-    /// Minimise eq. 4.11 for `lambda` ∈ [0, 1); returns the flattened vertex positions (px).
-    /// λ = 0 returns P_init exactly.
-    pub fn solve(&self, lambda: f64) -> Result<Vec<[f64; 2]>> {
-        validate_lambda(lambda)?;
-        if lambda == 0.0 {
-            return Ok(self.p_init.clone());
-        }
-        let mut vals: Vec<f64> = self.conf_vals.iter().map(|&v| lambda * v).collect();
-        for (u, &pos) in self.diag_pos.iter().enumerate() {
-            vals[pos] += (1.0 - lambda) * self.disp_w[u / 2];
-        }
-        let mut rhs: Vec<f64> = Vec::with_capacity(2 * self.n_vertices);
-        for (v, p) in self.p_init.iter().enumerate() {
-            rhs.push((1.0 - lambda) * self.disp_w[v] * p[0]);
-            rhs.push((1.0 - lambda) * self.disp_w[v] * p[1]);
-        }
-        self.factor_solve(&vals, &mut rhs).map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
-        if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(CpcError::Solver(format!("non-finite solution for lambda = {lambda}")));
-        }
-        Ok(rhs.chunks_exact(2).map(|c| [c[0], c[1]]).collect())
-    }
-
-    /// The two terms of eq. 4.11 at `p` (area-weighted means): (conformal, displacement).
-    pub fn energies(&self, p: &[[f64; 2]]) -> (f64, f64) {
-        let mut ec = 0.0;
-        for (t, f) in self.faces.iter().enumerate() {
-            let r = crate::conformal::residual(&self.tri_rows[t], p[f[0]], p[f[1]], p[f[2]]);
-            ec += self.tri_w[t] * (r[0] * r[0] + r[1] * r[1]);
-        }
-        let ed: f64 = p
-            .iter()
-            .zip(&self.p_init)
-            .zip(&self.disp_w)
-            .map(|((a, b), w)| w * ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)))
-            .sum();
-        (ec, ed)
-    }
-
-    /// Per-triangle conformal rows M_t and weights (for the equiareal refinement).
-    pub fn triangle_terms(&self) -> (&[[[f64; 6]; 2]], &[f64]) {
-        (&self.tri_rows, &self.tri_w)
-    }
-
-    /// The shared sparsity pattern: (column pointers, row indices, diagonal positions).
-    pub fn pattern(&self) -> (&[usize], &[usize], &[usize]) {
-        (&self.col_ptr, &self.row_idx, &self.diag_pos)
-    }
-
-    /// The symbolic Cholesky factorisation of the shared pattern.
-    pub fn symbolic(&self) -> &SymbolicCholesky<usize> {
-        &self.symbolic
-    }
-
-    /// y = K x with K = Σ_t w_t M_tᵀ M_t (interleaved unknowns).
-    pub fn conformal_matvec(&self, x: &[f64]) -> Vec<f64> {
-        let mut y = vec![0.0; x.len()];
-        for (c, &xc) in x.iter().enumerate() {
-            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                y[self.row_idx[k]] += self.conf_vals[k] * xc;
-            }
-        }
-        y
-    }
-
-    /// The conformal values K on the shared pattern.
-    pub fn conformal_values(&self) -> &[f64] {
-        &self.conf_vals
-    }
-
-    /// Add the 6×6 block `k6` (local unknowns [x_a, y_a, x_b, y_b, x_c, y_c]) of face `f` to
-    /// `vals` (on the shared pattern).
-    pub fn add_face_block(&self, vals: &mut [f64], f: &[usize; 3], k6: &[[f64; 6]; 6]) {
-        for (cl, &cv) in f.iter().enumerate() {
-            for kc in 0..2 {
-                let col = 2 * cv + kc;
-                let rows = &self.row_idx[self.col_ptr[col]..self.col_ptr[col + 1]];
-                for (rl, &rv) in f.iter().enumerate() {
-                    let pos = rows.binary_search(&(2 * rv)).expect("face pair in pattern");
-                    let base = self.col_ptr[col] + pos;
-                    vals[base] += k6[2 * rl][2 * cl + kc];
-                    vals[base + 1] += k6[2 * rl + 1][2 * cl + kc];
-                }
-            }
-        }
-    }
-
-    /// Factorise the matrix with values `vals` on the shared pattern and solve for `rhs` in place.
-    pub fn factor_solve(&self, vals: &[f64], rhs: &mut [f64]) -> Result<()> {
-        let n = 2 * self.n_vertices;
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let mat = SparseColMatRef::new(sym, vals);
-        // Sequential: on the shared 2-core machine faer's rayon path was not faster (19.9–30.8 vs 24.6–25.9 ms at 4 px).
-        let par = Par::Seq;
-        let mut l_vals = vec![0.0f64; self.symbolic.len_val()];
-        let mut mem = MemBuffer::new(self.symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
-        let llt = self
-            .symbolic
-            .factorize_numeric_llt(
-                &mut l_vals,
-                mat,
-                Side::Lower,
-                Default::default(),
-                par,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .map_err(|e| CpcError::Solver(format!("Cholesky failed (matrix not positive definite?): {e:?}")))?;
-        let mut mem2 = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, par));
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            par,
-            MemStack::new(&mut mem2),
-        );
-        Ok(())
-    }
-
-    /// Displacement weights per vertex.
-    pub fn displacement_weights(&self) -> &[f64] {
-        &self.disp_w
+                .map_err(|e| format!("{e:?}"))?;
+        Ok(RealSystem { col_ptr, row_idx, conf_vals, diag_pos, symbolic })
     }
 }
 
@@ -328,13 +690,22 @@ impl CpcSystem {
 /// split the grid box along its longer side by one grid line (a vertex separator of the
 /// triangulated grid), order both halves recursively, then the separator.
 pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
-    let s = mesh.grid_step_px as f64;
-    let gc: Vec<[i64; 2]> =
-        mesh.p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
-    let mut ids: Vec<usize> = (0..mesh.n_vertices()).collect();
+    nested_dissection_points(&mesh.p_init, mesh.grid_step_px)
+}
+
+/// [`nested_dissection`] of grid points `p_init` (px) on a grid of step `grid_step_px`.
+pub fn nested_dissection_points(p_init: &[[f64; 2]], grid_step_px: usize) -> Vec<usize> {
+    nested_dissection_leaf(p_init, grid_step_px, ND_LEAF)
+}
+
+/// [`nested_dissection_points`] with parts of at most `leaf` vertices left undivided.
+pub fn nested_dissection_leaf(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Vec<usize> {
+    let s = grid_step_px as f64;
+    let gc: Vec<[i64; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
+    let mut ids: Vec<usize> = (0..p_init.len()).collect();
     let mut out = Vec::with_capacity(ids.len());
-    fn rec(ids: &mut [usize], gc: &[[i64; 2]], out: &mut Vec<usize>) {
-        if ids.len() <= 48 {
+    fn rec(ids: &mut [usize], gc: &[[i64; 2]], out: &mut Vec<usize>, leaf: usize) {
+        if ids.len() <= leaf {
             out.extend_from_slice(ids);
             return;
         }
@@ -357,10 +728,10 @@ pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
         let n_left = ids[n_sep..].iter().take_while(|&&v| gc[v][ax] < mid).count();
         let sep: Vec<usize> = ids[..n_sep].to_vec();
         let (left, right) = ids[n_sep..].split_at_mut(n_left);
-        rec(left, gc, out);
-        rec(right, gc, out);
+        rec(left, gc, out, leaf);
+        rec(right, gc, out, leaf);
         out.extend_from_slice(&sep);
     }
-    rec(&mut ids, &gc, &mut out);
+    rec(&mut ids, &gc, &mut out, leaf);
     out
 }

@@ -14,6 +14,9 @@ use rayon::prelude::*;
 
 const NONE: u32 = u32::MAX;
 
+/// Canvas rows per rasterisation band (unit of parallel work).
+const RASTER_BAND_ROWS: usize = 16;
+
 /// Largest canvas accepted, as a multiple of the input image area (guards against exploded solutions).
 pub const MAX_CANVAS_FACTOR: usize = 16;
 
@@ -31,18 +34,74 @@ pub struct Warp {
     /// Original image size (px).
     pub src_width: usize,
     pub src_height: usize,
-    /// Per face: affine map canvas → original, [a00, a01, a10, a11] and anchor points (canvas a, original A).
-    inv_lin: Vec<[f64; 4]>,
+    /// Per face: affine map canvas → original, [A_x, A_y, a_x, a_y, l00, l01, l10, l11]: original
+    /// anchor A, canvas anchor a and linear part (q ↦ A + L (q − a)); one cache line per face.
+    inv_aff: Vec<[f64; 8]>,
     /// Per face: affine map original → canvas (linear part).
     fwd_lin: Vec<[f64; 4]>,
     /// Triangle covering every canvas pixel (or NONE).
     face_id: Vec<u32>,
     /// Bucket grid over the canvas for point location.
-    bucket_px: f64,
-    bucket_cols: usize,
-    bucket_rows: usize,
-    bucket_start: Vec<u32>,
-    bucket_items: Vec<u32>,
+    /// Bucket grid over the canvas for point location, built on first use.
+    buckets: std::sync::OnceLock<Buckets>,
+}
+
+/// Bucket grid over the canvas: the faces whose bounding box meets each cell.
+#[derive(Clone, Debug)]
+struct Buckets {
+    px: f64,
+    cols: usize,
+    rows: usize,
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Buckets {
+    fn build(
+        faces: &[[usize; 3]],
+        canvas: impl Fn(usize) -> [f64; 2],
+        grid_step_px: usize,
+        width: usize,
+        height: usize,
+    ) -> Buckets {
+        let bucket_px = (2 * grid_step_px).max(4) as f64;
+        let bucket_cols = (width as f64 / bucket_px).ceil() as usize + 1;
+        let bucket_rows = (height as f64 / bucket_px).ceil() as usize + 1;
+        let mut counts = vec![0u32; bucket_cols * bucket_rows + 1];
+        let brange = |f: &[usize; 3]| {
+            let (a, b, c) = (canvas(f[0]), canvas(f[1]), canvas(f[2]));
+            let bx0 = (a[0].min(b[0]).min(c[0]) / bucket_px).floor().max(0.0) as usize;
+            let by0 = (a[1].min(b[1]).min(c[1]) / bucket_px).floor().max(0.0) as usize;
+            let bx1 = ((a[0].max(b[0]).max(c[0]) / bucket_px).floor() as usize).min(bucket_cols - 1);
+            let by1 = ((a[1].max(b[1]).max(c[1]) / bucket_px).floor() as usize).min(bucket_rows - 1);
+            (bx0, by0, bx1, by1)
+        };
+        for f in faces {
+            let (bx0, by0, bx1, by1) = brange(f);
+            for by in by0..=by1 {
+                for bx in bx0..=bx1 {
+                    counts[by * bucket_cols + bx + 1] += 1;
+                }
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let bucket_start = counts.clone();
+        let mut fill = counts;
+        let mut bucket_items = vec![0u32; *bucket_start.last().unwrap() as usize];
+        for (t, f) in faces.iter().enumerate() {
+            let (bx0, by0, bx1, by1) = brange(f);
+            for by in by0..=by1 {
+                for bx in bx0..=bx1 {
+                    let b = by * bucket_cols + bx;
+                    bucket_items[fill[b] as usize] = t as u32;
+                    fill[b] += 1;
+                }
+            }
+        }
+        Buckets { px: bucket_px, cols: bucket_cols, rows: bucket_rows, start: bucket_start, items: bucket_items }
+    }
 }
 
 /// Dense coordinate maps of a warp.
@@ -82,6 +141,117 @@ fn barycentric(q: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> [f64; 3] {
     [1.0 - wb - wc, wb, wc]
 }
 
+/// ⌈v⌉ for v ≥ 0 (0 for negative or NaN v) without a libm call.
+#[inline(always)]
+fn ceil_nonneg(v: f64) -> usize {
+    let t = v.max(0.0) as usize;
+    if (t as f64) < v {
+        t + 1
+    } else {
+        t
+    }
+}
+
+/// q ↦ A + L (q − a) with `af` = [A_x, A_y, a_x, a_y, l00, l01, l10, l11].
+#[inline(always)]
+fn inv_apply(af: &[f64; 8], q: [f64; 2]) -> [f64; 2] {
+    let d = [q[0] - af[2], q[1] - af[3]];
+    [af[0] + (af[4] * d[0] + af[5] * d[1]), af[1] + (af[6] * d[0] + af[7] * d[1])]
+}
+
+/// Bilinear sample of `image` at original point `q` into `out` (one value per channel).
+#[inline(always)]
+fn bilinear_into(image: &Image<u8>, q: [f64; 2], out: &mut [u8], ch: usize) {
+    let (iw, ih) = (image.width, image.height);
+    let src = &image.data;
+    // Clamp round-off just outside the pixel-centre hull; bilinear weights shared by all channels
+    // (exact at integer positions).
+    let qx = q[0].clamp(0.0, (iw - 1) as f64);
+    let qy = q[1].clamp(0.0, (ih - 1) as f64);
+    // qx, qy ≥ 0: truncation is floor (and avoids a libm call per pixel).
+    let x0 = (qx as usize).min(iw.saturating_sub(2));
+    let y0 = (qy as usize).min(ih.saturating_sub(2));
+    let x1 = (x0 + 1).min(iw - 1);
+    let y1 = (y0 + 1).min(ih - 1);
+    let (ax, ay) = (qx - x0 as f64, qy - y0 as f64);
+    let (i00, i10, i01, i11) = ((y0 * iw + x0) * ch, (y0 * iw + x1) * ch, (y1 * iw + x0) * ch, (y1 * iw + x1) * ch);
+    for (c, o) in out.iter_mut().enumerate().take(ch) {
+        let (v00, v10, v01, v11) = (src[i00 + c] as f64, src[i10 + c] as f64, src[i01 + c] as f64, src[i11 + c] as f64);
+        let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
+        let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
+        let v = if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay };
+        // v ∈ [0, 255]: v + 0.5 truncated is round-half-up.
+        *o = (v + 0.5) as u8;
+    }
+}
+
+/// Warp one canvas row (`CH` channels known at compile time; source at least 2×2 pixels). Same
+/// arithmetic as [`bilinear_into`], with the two source rows read as two contiguous slices.
+#[inline(always)]
+fn sample_row<const CH: usize>(
+    fid: &[u32],
+    inv_aff: &[[f64; 8]],
+    image: &Image<u8>,
+    y: usize,
+    row: &mut [u8],
+    mrow: &mut [bool],
+) {
+    let (iw, ih) = (image.width, image.height);
+    if iw < 2 || ih < 2 {
+        return sample_row_dyn(fid, inv_aff, image, y, row, mrow, CH);
+    }
+    let src = &image.data;
+    let (wmax, hmax) = ((iw - 1) as f64, (ih - 1) as f64);
+    let yf = y as i32 as f64;
+    for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(CH)).zip(mrow.iter_mut()).enumerate() {
+        if t == NONE {
+            continue;
+        }
+        // Conversions through i32 (one instruction each; canvas and image sizes fit easily) instead
+        // of usize ↔ f64, which need a multi-instruction sequence for the unsigned 64-bit range.
+        let q = inv_apply(&inv_aff[t as usize], [x as i32 as f64, yf]);
+        let qx = q[0].clamp(0.0, wmax);
+        let qy = q[1].clamp(0.0, hmax);
+        let x0 = (qx as i32 as usize).min(iw - 2);
+        let y0 = (qy as i32 as usize).min(ih - 2);
+        let (ax, ay) = (qx - x0 as i32 as f64, qy - y0 as i32 as f64);
+        let i0 = (y0 * iw + x0) * CH;
+        let i1 = i0 + iw * CH;
+        let (r0, r1) = (&src[i0..i0 + 2 * CH], &src[i1..i1 + 2 * CH]);
+        // Branch-free form of `bilinear_into`: with a zero weight v·(1 − 0) + w·0 = v exactly, so
+        // the result is bitwise the same (exact at integer positions).
+        let (bx, by) = (1.0 - ax, 1.0 - ay);
+        for c in 0..CH {
+            let (v00, v10, v01, v11) = (r0[c] as f64, r0[CH + c] as f64, r1[c] as f64, r1[CH + c] as f64);
+            let top = v00 * bx + v10 * ax;
+            let bot = v01 * bx + v11 * ax;
+            let v = top * by + bot * ay;
+            px[c] = (v + 0.5) as u8;
+        }
+        *m = true;
+    }
+}
+
+/// [`sample_row`] for any channel count.
+fn sample_row_dyn(
+    fid: &[u32],
+    inv_aff: &[[f64; 8]],
+    image: &Image<u8>,
+    y: usize,
+    row: &mut [u8],
+    mrow: &mut [bool],
+    ch: usize,
+) {
+    for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(ch.max(1))).zip(mrow.iter_mut()).enumerate() {
+        if t == NONE {
+            continue;
+        }
+        let q = inv_apply(&inv_aff[t as usize], [x as f64, y as f64]);
+        bilinear_into(image, q, px, ch);
+        *m = true;
+    }
+}
+
 impl Warp {
     /// Build the warp of `mesh` to the flattened positions `p_flat` (one per vertex).
     pub fn new(mesh: &CpcMesh, p_flat: Vec<[f64; 2]>, src_width: usize, src_height: usize) -> Result<Warp> {
@@ -113,74 +283,91 @@ impl Warp {
         }
         let canvas: Vec<[f64; 2]> = p_flat.iter().map(|p| sub(*p, origin)).collect();
         let m = mesh.n_triangles();
-        let mut inv_lin = Vec::with_capacity(m);
+        let mut inv_aff = Vec::with_capacity(m);
         let mut fwd_lin = Vec::with_capacity(m);
         for f in &mesh.faces {
             let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
             let (pa, pb, pc) = (mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
             let inv = edge_map(sub(pb, pa), sub(pc, pa), sub(b, a), sub(c, a)).unwrap_or([f64::NAN; 4]);
             let fwd = edge_map(sub(b, a), sub(c, a), sub(pb, pa), sub(pc, pa)).unwrap_or([f64::NAN; 4]);
-            inv_lin.push(inv);
+            inv_aff.push([pa[0], pa[1], a[0], a[1], inv[0], inv[1], inv[2], inv[3]]);
             fwd_lin.push(fwd);
         }
-        // Rasterise: canvas pixel → covering triangle.
+        // Rasterise: canvas pixel → covering triangle (the last face in index order wins on shared
+        // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
+        // row range meets it, so the result does not depend on the thread count.
         let mut face_id = vec![NONE; width * height];
         let eps = 1e-9;
+        let band = RASTER_BAND_ROWS;
+        let n_bands = height.div_ceil(band);
+        let mut rows_of: Vec<Option<(usize, usize, usize, usize)>> = Vec::with_capacity(m);
+        let mut band_count = vec![0usize; n_bands + 1];
         for (t, f) in mesh.faces.iter().enumerate() {
             let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-            if signed_area(a, b, c) == 0.0 || inv_lin[t][0].is_nan() {
+            if signed_area(a, b, c) == 0.0 || inv_aff[t][4].is_nan() {
+                rows_of.push(None);
                 continue;
             }
-            let x0 = a[0].min(b[0]).min(c[0]).ceil().max(0.0) as usize;
-            let y0 = a[1].min(b[1]).min(c[1]).ceil().max(0.0) as usize;
-            let x1 = (a[0].max(b[0]).max(c[0]).floor() as usize).min(width - 1);
-            let y1 = (a[1].max(b[1]).max(c[1]).floor() as usize).min(height - 1);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let w = barycentric([x as f64, y as f64], a, b, c);
-                    if w[0] >= -eps && w[1] >= -eps && w[2] >= -eps {
-                        face_id[y * width + x] = t as u32;
+            // Canvas coordinates are ≥ 0 (origin = floor of the minimum): truncation is floor, and
+            // avoids a libm call per bound.
+            let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
+            let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
+            let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
+            let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
+            if y0 > y1 || x0 > x1 {
+                rows_of.push(None);
+                continue;
+            }
+            rows_of.push(Some((x0, y0, x1, y1)));
+            for bi in y0 / band..=y1 / band {
+                band_count[bi + 1] += 1;
+            }
+        }
+        for i in 1..band_count.len() {
+            band_count[i] += band_count[i - 1];
+        }
+        let mut band_faces = vec![0u32; band_count[n_bands]];
+        let mut fill = band_count.clone();
+        for (t, r) in rows_of.iter().enumerate() {
+            if let Some((_, y0, _, y1)) = *r {
+                for bi in y0 / band..=y1 / band {
+                    band_faces[fill[bi]] = t as u32;
+                    fill[bi] += 1;
+                }
+            }
+        }
+        face_id.par_chunks_mut(band * width).enumerate().for_each(|(bi, chunk)| {
+            let (by0, by1) = (bi * band, (bi * band + chunk.len() / width).saturating_sub(1));
+            for &t in &band_faces[band_count[bi]..band_count[bi + 1]] {
+                let f = mesh.faces[t as usize];
+                let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+                let (x0, y0, x1, y1) = rows_of[t as usize].expect("listed faces have a row range");
+                // Barycentric test w_k ≥ −eps without divisions: w_b = nb / d, w_c = nc / d,
+                // w_a = (d − nb − nc) / d, so w ≥ −eps ⇔ s·num ≥ −eps·|d| with s = sign(d). The sign
+                // is folded into the edge coefficients (exact) and the row terms are hoisted.
+                let (e1x, e1y) = (b[0] - a[0], b[1] - a[1]);
+                let (e2x, e2y) = (c[0] - a[0], c[1] - a[1]);
+                let d = e1x * e2y - e1y * e2x;
+                let sg = if d > 0.0 { 1.0 } else { -1.0 };
+                let (cb, rb, cc, rc) = (sg * e2y, sg * e2x, sg * e1y, sg * e1x);
+                let sd = d.abs();
+                let tol = -eps * sd;
+                for y in y0.max(by0)..=y1.min(by1) {
+                    let row = &mut chunk[(y - by0) * width..(y - by0 + 1) * width];
+                    let qy = y as i32 as f64 - a[1];
+                    let (tb, tc) = (qy * rb, rc * qy);
+                    for (x, id) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
+                        let qx = x as i32 as f64 - a[0];
+                        let nb = qx * cb - tb;
+                        let nc = tc - cc * qx;
+                        let na = sd - nb - nc;
+                        if na >= tol && nb >= tol && nc >= tol {
+                            *id = t;
+                        }
                     }
                 }
             }
-        }
-        // Buckets for point location (cell ≈ 2 grid steps).
-        let bucket_px = (2 * mesh.grid_step_px).max(4) as f64;
-        let bucket_cols = (width as f64 / bucket_px).ceil() as usize + 1;
-        let bucket_rows = (height as f64 / bucket_px).ceil() as usize + 1;
-        let mut counts = vec![0u32; bucket_cols * bucket_rows + 1];
-        let brange = |f: &[usize; 3]| {
-            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-            let bx0 = (a[0].min(b[0]).min(c[0]) / bucket_px).floor().max(0.0) as usize;
-            let by0 = (a[1].min(b[1]).min(c[1]) / bucket_px).floor().max(0.0) as usize;
-            let bx1 = ((a[0].max(b[0]).max(c[0]) / bucket_px).floor() as usize).min(bucket_cols - 1);
-            let by1 = ((a[1].max(b[1]).max(c[1]) / bucket_px).floor() as usize).min(bucket_rows - 1);
-            (bx0, by0, bx1, by1)
-        };
-        for f in &mesh.faces {
-            let (bx0, by0, bx1, by1) = brange(f);
-            for by in by0..=by1 {
-                for bx in bx0..=bx1 {
-                    counts[by * bucket_cols + bx + 1] += 1;
-                }
-            }
-        }
-        for i in 1..counts.len() {
-            counts[i] += counts[i - 1];
-        }
-        let bucket_start = counts.clone();
-        let mut fill = counts;
-        let mut bucket_items = vec![0u32; *bucket_start.last().unwrap() as usize];
-        for (t, f) in mesh.faces.iter().enumerate() {
-            let (bx0, by0, bx1, by1) = brange(f);
-            for by in by0..=by1 {
-                for bx in bx0..=bx1 {
-                    let b = by * bucket_cols + bx;
-                    bucket_items[fill[b] as usize] = t as u32;
-                    fill[b] += 1;
-                }
-            }
-        }
+        });
         Ok(Warp {
             mesh: mesh.clone(),
             p_flat,
@@ -189,14 +376,10 @@ impl Warp {
             height,
             src_width,
             src_height,
-            inv_lin,
+            inv_aff,
             fwd_lin,
             face_id,
-            bucket_px,
-            bucket_cols,
-            bucket_rows,
-            bucket_start,
-            bucket_items,
+            buckets: std::sync::OnceLock::new(),
         })
     }
 
@@ -214,12 +397,7 @@ impl Warp {
     /// Original coordinates of canvas point `q` through the affine map of face `t`.
     #[inline]
     fn inv_affine(&self, t: usize, q: [f64; 2]) -> [f64; 2] {
-        let f = self.mesh.faces[t];
-        let a = self.canvas_vertex(f[0]);
-        let pa = self.mesh.p_init[f[0]];
-        let l = self.inv_lin[t];
-        let d = sub(q, a);
-        [pa[0] + (l[0] * d[0] + l[1] * d[1]), pa[1] + (l[2] * d[0] + l[3] * d[1])]
+        inv_apply(&self.inv_aff[t], q)
     }
 
     /// Canvas coordinates of original point `q` through the affine map of face `t`.
@@ -254,35 +432,15 @@ impl Warp {
         let ch = image.channels;
         let mut out = Image::filled(self.width, self.height, ch, 0u8);
         let mut mask = Image::filled(self.width, self.height, 1, false);
-        let (wmax, hmax) = ((image.width - 1) as f64, (image.height - 1) as f64);
-        let (iw, ih) = (image.width, image.height);
-        let src = &image.data;
-        out.data.par_chunks_mut(self.width * ch).zip(mask.data.par_chunks_mut(self.width)).enumerate().for_each(
+        let width = self.width;
+        out.data.par_chunks_mut(width * ch).zip(mask.data.par_chunks_mut(width)).enumerate().for_each(
             |(y, (row, mrow))| {
-                for x in 0..self.width {
-                    let Some(q) = self.backward_pixel(x, y) else { continue };
-                    // Clamp round-off just outside the pixel-centre hull; bilinear weights shared by
-                    // all channels (exact at integer positions).
-                    let qx = q[0].clamp(0.0, wmax);
-                    let qy = q[1].clamp(0.0, hmax);
-                    // qx, qy ≥ 0: truncation is floor (and avoids a libm call per pixel).
-                    let x0 = (qx as usize).min(iw.saturating_sub(2));
-                    let y0 = (qy as usize).min(ih.saturating_sub(2));
-                    let x1 = (x0 + 1).min(iw - 1);
-                    let y1 = (y0 + 1).min(ih - 1);
-                    let (ax, ay) = (qx - x0 as f64, qy - y0 as f64);
-                    let (i00, i10, i01, i11) =
-                        ((y0 * iw + x0) * ch, (y0 * iw + x1) * ch, (y1 * iw + x0) * ch, (y1 * iw + x1) * ch);
-                    for c in 0..ch {
-                        let (v00, v10, v01, v11) =
-                            (src[i00 + c] as f64, src[i10 + c] as f64, src[i01 + c] as f64, src[i11 + c] as f64);
-                        let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
-                        let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
-                        let v = if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay };
-                        // v ∈ [0, 255]: v + 0.5 truncated is round-half-up.
-                        row[x * ch + c] = (v + 0.5) as u8;
-                    }
-                    mrow[x] = true;
+                let fid = &self.face_id[y * width..(y + 1) * width];
+                match ch {
+                    1 => sample_row::<1>(fid, &self.inv_aff, image, y, row, mrow),
+                    3 => sample_row::<3>(fid, &self.inv_aff, image, y, row, mrow),
+                    4 => sample_row::<4>(fid, &self.inv_aff, image, y, row, mrow),
+                    _ => sample_row_dyn(fid, &self.inv_aff, image, y, row, mrow, ch),
                 }
             },
         );
@@ -325,14 +483,18 @@ impl Warp {
         if !(x.is_finite() && y.is_finite()) {
             return None;
         }
-        let bx = (x / self.bucket_px).floor();
-        let by = (y / self.bucket_px).floor();
-        if bx < 0.0 || by < 0.0 || bx as usize >= self.bucket_cols || by as usize >= self.bucket_rows {
+        // Buckets for point location (cell ≈ 2 grid steps), built on the first query.
+        let bk = self.buckets.get_or_init(|| {
+            Buckets::build(&self.mesh.faces, |v| self.canvas_vertex(v), self.mesh.grid_step_px, self.width, self.height)
+        });
+        let bx = (x / bk.px).floor();
+        let by = (y / bk.px).floor();
+        if bx < 0.0 || by < 0.0 || bx as usize >= bk.cols || by as usize >= bk.rows {
             return None;
         }
-        let b = by as usize * self.bucket_cols + bx as usize;
+        let b = by as usize * bk.cols + bx as usize;
         let mut best: Option<(usize, [f64; 3], f64)> = None;
-        for &t in &self.bucket_items[self.bucket_start[b] as usize..self.bucket_start[b + 1] as usize] {
+        for &t in &bk.items[bk.start[b] as usize..bk.start[b + 1] as usize] {
             let f = self.mesh.faces[t as usize];
             let (a, bb, c) = (self.canvas_vertex(f[0]), self.canvas_vertex(f[1]), self.canvas_vertex(f[2]));
             if signed_area(a, bb, c) == 0.0 {
