@@ -2,8 +2,8 @@
 use crate::error::MpmError;
 use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, for_stencil, SparseGrid};
-use rayon::prelude::*;
+use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
 /// their position (v = 0, C = 0). Errors when a particle state becomes non-finite.
@@ -18,42 +18,41 @@ pub fn gather<const D: usize>(
 ) -> Result<(), MpmError> {
     let inv_dx = 1.0 / scene.grid.dx;
     let dt = scene.dt;
-    let bad = x_next
-        .par_iter_mut()
-        .zip(v_next.par_iter_mut())
-        .zip(c_next.par_iter_mut())
-        .enumerate()
-        .map(|(p, ((xn, vn), cn))| {
-            if scene.is_fixed(p) {
-                *xn = x[p];
-                *vn = Vector::<D>::zeros();
-                *cn = Matrix::<D>::zeros();
-                return usize::MAX;
+    let xn_ptr = SyncPtr(x_next.as_mut_ptr());
+    let vn_ptr = SyncPtr(v_next.as_mut_ptr());
+    let cn_ptr = SyncPtr(c_next.as_mut_ptr());
+    let bad = AtomicUsize::new(usize::MAX);
+    grid.for_each_particle(|p, nbr| {
+        // SAFETY: every particle is visited once.
+        let (xn, vn, cn) = unsafe { (xn_ptr.at(p), vn_ptr.at(p), cn_ptr.at(p)) };
+        if scene.is_fixed(p) {
+            *xn = x[p];
+            *vn = Vector::<D>::zeros();
+            *cn = Matrix::<D>::zeros();
+            return;
+        }
+        let base = base_of(&x[p], inv_dx);
+        let (fx, w, _) = bspline(&x[p], &base, inv_dx);
+        let st = nbr.nodes(&base);
+        let mut nv = Vector::<D>::zeros();
+        let mut nc = Matrix::<D>::zeros();
+        for_stencil::<D>(&w, |k, o, weight| {
+            let mut dpos = Vector::<D>::zeros();
+            for d in 0..D {
+                dpos[d] = o[d] as f64 - fx[d];
             }
-            let (fx, w, _) = bspline(&x[p], &grid.base[p], inv_dx);
-            let st = grid.stencil_of(p);
-            let mut nv = Vector::<D>::zeros();
-            let mut nc = Matrix::<D>::zeros();
-            for_stencil::<D>(&w, |k, o, weight| {
-                let mut dpos = Vector::<D>::zeros();
-                for d in 0..D {
-                    dpos[d] = o[d] as f64 - fx[d];
-                }
-                let gv = grid.vel[st[k] as usize];
-                nv += gv * weight;
-                nc += gv * dpos.transpose() * (4.0 * weight * inv_dx);
-            });
-            *vn = nv;
-            *cn = nc;
-            *xn = x[p] + nv * dt;
-            if xn.iter().chain(nv.iter()).chain(nc.iter()).all(|v| v.is_finite()) {
-                usize::MAX
-            } else {
-                p
-            }
-        })
-        .min()
-        .unwrap_or(usize::MAX);
+            let gv = grid.vel[st[k] as usize];
+            nv += gv * weight;
+            nc += gv * dpos.transpose() * (4.0 * weight * inv_dx);
+        });
+        *vn = nv;
+        *cn = nc;
+        *xn = x[p] + nv * dt;
+        if !xn.iter().chain(nv.iter()).chain(nc.iter()).all(|v| v.is_finite()) {
+            bad.fetch_min(p, Ordering::Relaxed);
+        }
+    });
+    let bad = bad.into_inner();
     if bad != usize::MAX {
         return Err(MpmError::BlowUp {
             step,

@@ -65,10 +65,10 @@ pub struct SparseGrid<const D: usize> {
     pub colors: Vec<Vec<u32>>,
     /// Particle indices sorted by base block.
     pub order: Vec<u32>,
-    /// Stencil base node per particle.
-    pub base: Vec<[i32; D]>,
-    /// The 3^D node indices of every particle's stencil (particle p: entries p·3^D ..).
-    pub stencil: Vec<u32>,
+    /// Neighbourhood of every particle block (same index as [`Self::pblocks`]).
+    pub pnbr: Vec<BlockNbr<D>>,
+    /// Stencil base node per particle (scratch of [`Self::build`]; kernels recompute it from x).
+    base: Vec<[i32; D]>,
     /// Node mass m_i.
     pub mass: Vec<f64>,
     /// Node momentum (m v)_i after P2G; node velocity after the grid update.
@@ -80,7 +80,47 @@ pub struct SparseGrid<const D: usize> {
     keys: Vec<u64>,
     counts: Vec<u32>,
     distinct: Vec<u32>,
-    pnbr: Vec<([u32; 8], [i32; D])>,
+}
+
+/// The 2^D blocks a particle block's stencils touch: first-node index of each neighbour block
+/// (bit d of the slot = +1 along axis d) and the block's first node coordinate.
+#[derive(Clone, Copy, Debug)]
+pub struct BlockNbr<const D: usize> {
+    /// First node index (block index · 4^D) of neighbour block `slot`.
+    pub first: [u32; 8],
+    /// Global node coordinate of the block's first node.
+    pub origin: [i32; D],
+}
+
+impl<const D: usize> BlockNbr<D> {
+    /// Node indices of the 3^D stencil (stencil order, first 3^D entries) of a particle of this
+    /// block with base node `b`.
+    #[inline(always)]
+    pub fn nodes(&self, b: &[i32; D]) -> [u32; 27] {
+        let mut sel = [[0usize; 3]; D];
+        let mut loc = [[0u32; 3]; D];
+        let mut stride = 1u32;
+        for d in 0..D {
+            let l0 = (b[d] - self.origin[d]) as usize;
+            for o in 0..3 {
+                let l = l0 + o;
+                sel[d][o] = (l >> BLOCK_SHIFT) << d;
+                loc[d][o] = (l & (BLOCK - 1)) as u32 * stride;
+            }
+            stride *= BLOCK as u32;
+        }
+        let mut out = [0u32; 27];
+        for_stencil_offsets::<D>(|k, o| {
+            let mut s = 0;
+            let mut l = 0;
+            for d in 0..D {
+                s += sel[d][o[d]];
+                l += loc[d][o[d]];
+            }
+            out[k] = self.first[s] + l;
+        });
+        out
+    }
 }
 
 /// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
@@ -97,13 +137,6 @@ impl<T> SyncPtr<T> {
     pub unsafe fn at(&self, i: usize) -> &mut T {
         &mut *self.0.add(i)
     }
-    /// # Safety
-    /// Range in bounds and not touched by another thread concurrently.
-    #[inline(always)]
-    #[allow(clippy::mut_from_ref)]
-    pub unsafe fn slice(&self, start: usize, len: usize) -> &mut [T] {
-        std::slice::from_raw_parts_mut(self.0.add(start), len)
-    }
 }
 
 impl<const D: usize> SparseGrid<D> {
@@ -118,8 +151,8 @@ impl<const D: usize> SparseGrid<D> {
             pblocks: Vec::new(),
             colors: vec![Vec::new(); 1 << D],
             order: Vec::new(),
+            pnbr: Vec::new(),
             base: Vec::new(),
-            stencil: Vec::new(),
             mass: Vec::new(),
             mom: Vec::new(),
             vel: Vec::new(),
@@ -127,15 +160,7 @@ impl<const D: usize> SparseGrid<D> {
             keys: Vec::new(),
             counts: vec![0; blocks_per_axis.pow(D as u32)],
             distinct: Vec::new(),
-            pnbr: Vec::new(),
         }
-    }
-
-    /// Node indices of particle `p`'s stencil (3^D entries, stencil order).
-    #[inline(always)]
-    pub fn stencil_of(&self, p: usize) -> &[u32] {
-        let sl = crate::linalg::stencil_len(D);
-        &self.stencil[p * sl..(p + 1) * sl]
     }
 
     /// Grid specification.
@@ -222,18 +247,15 @@ impl<const D: usize> SparseGrid<D> {
         for &k in &self.distinct {
             self.counts[k as usize] = 0;
         }
-        // Reset the block table, then activate blocks in order of first touch.
-        for b in &self.blocks {
-            let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
-            let k = self.block_key(&c);
-            self.table[k] = INACTIVE;
-        }
+        // Activate blocks in order of first touch (the block table is all INACTIVE between builds).
         self.blocks.clear();
         self.pblocks.clear();
         self.pnbr.clear();
+        self.colors.resize(1 << D, Vec::new());
         for c in self.colors.iter_mut() {
             c.clear();
         }
+        let nn = block_nodes(D) as u32;
         let mut start = 0usize;
         for &key in &self.distinct {
             let b0 = self.base[self.order[start] as usize];
@@ -247,7 +269,7 @@ impl<const D: usize> SparseGrid<D> {
                         self.table[k] = self.blocks.len() as u32;
                         self.blocks.push(std::array::from_fn(|d| c[d] as u32));
                     }
-                    *slot = self.table[k];
+                    *slot = self.table[k] * nn;
                 }
             }
             let mut end = start;
@@ -257,45 +279,15 @@ impl<const D: usize> SparseGrid<D> {
             let colour: usize = (0..D).map(|d| (c0[d] & 1) << d).sum();
             self.colors[colour].push(self.pblocks.len() as u32);
             self.pblocks.push(ParticleBlock { start: start as u32, end: end as u32 });
-            self.pnbr.push((nbr, c0.map(|v| (v * BLOCK) as i32)));
+            self.pnbr.push(BlockNbr { first: nbr, origin: c0.map(|v| (v * BLOCK) as i32) });
             start = end;
         }
-        // Node indices of every particle's stencil, from its block's neighbour blocks.
-        let nn = block_nodes(D);
-        let sl = crate::linalg::stencil_len(D);
-        self.stencil.resize(n * sl, 0);
-        let st_ptr = SyncPtr(self.stencil.as_mut_ptr());
-        let (order, base, pnbr) = (&self.order, &self.base, &self.pnbr);
-        self.pblocks.par_iter().zip(pnbr.par_iter()).for_each(|(blk, (nbr, origin))| {
-            for &p in &order[blk.start as usize..blk.end as usize] {
-                let b = &base[p as usize];
-                // SAFETY: each particle belongs to exactly one particle block.
-                let st = unsafe { st_ptr.slice(p as usize * sl, sl) };
-                let mut sel = [[0usize; 3]; D];
-                let mut loc = [[0usize; 3]; D];
-                let mut stride = 1usize;
-                for d in 0..D {
-                    for o in 0..3 {
-                        let l = (b[d] - origin[d]) as usize + o;
-                        sel[d][o] = (l >> BLOCK_SHIFT) << d;
-                        loc[d][o] = (l & (BLOCK - 1)) * stride;
-                    }
-                    stride *= BLOCK;
-                }
-                let mut k = 0;
-                for_stencil_offsets::<D>(|o| {
-                    let mut s = 0;
-                    let mut l = 0;
-                    for d in 0..D {
-                        s += sel[d][o[d]];
-                        l += loc[d][o[d]];
-                    }
-                    st[k] = (nbr[s] as usize * nn + l) as u32;
-                    k += 1;
-                });
-            }
-        });
-        let nodes = self.blocks.len() * nn;
+        for b in &self.blocks {
+            let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
+            let k = self.block_key(&c);
+            self.table[k] = INACTIVE;
+        }
+        let nodes = self.blocks.len() * nn as usize;
         self.mass.clear();
         self.mass.resize(nodes, 0.0);
         self.mom.clear();
@@ -307,18 +299,69 @@ impl<const D: usize> SparseGrid<D> {
         Ok(())
     }
 
-    /// Run `f(particle)` for every particle, colour by colour, same-colour blocks in parallel.
-    /// `f` may write to the stencil nodes of its particle (disjoint across a colour).
-    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize) + Sync) {
+    /// Run `f(particle, its block's neighbourhood)` for every particle, colour by colour,
+    /// same-colour blocks in parallel. `f` may write to the stencil nodes of its particle (disjoint
+    /// across a colour).
+    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
         for colour in &self.colors {
             colour.par_iter().for_each(|&pb| {
                 let blk = self.pblocks[pb as usize];
+                let nbr = &self.pnbr[pb as usize];
                 for &p in &self.order[blk.start as usize..blk.end as usize] {
-                    f(p as usize);
+                    f(p as usize, nbr);
                 }
             });
         }
     }
+
+    /// Run `f(particle, its block's neighbourhood)` for every particle, blocks in parallel (for
+    /// gathers: `f` must only write to per-particle data).
+    pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
+        self.pblocks.par_iter().zip(self.pnbr.par_iter()).for_each(|(blk, nbr)| {
+            for &p in &self.order[blk.start as usize..blk.end as usize] {
+                f(p as usize, nbr);
+            }
+        });
+    }
+
+    /// Move the particle layout (sort order, blocks, colours) and node results (mass, velocity,
+    /// wall mask) of this step into `cp`, taking `cp`'s buffers in exchange (no copy).
+    pub fn swap_checkpoint(&mut self, cp: &mut GridCheckpoint<D>) {
+        std::mem::swap(&mut self.order, &mut cp.order);
+        std::mem::swap(&mut self.pblocks, &mut cp.pblocks);
+        std::mem::swap(&mut self.colors, &mut cp.colors);
+        std::mem::swap(&mut self.pnbr, &mut cp.pnbr);
+        std::mem::swap(&mut self.mass, &mut cp.mass);
+        std::mem::swap(&mut self.vel, &mut cp.vel);
+        std::mem::swap(&mut self.wall_mask, &mut cp.wall_mask);
+    }
+}
+
+/// What the reverse pass needs of one step's grid: the particle layout (so the sparse grid is not
+/// rebuilt) and the node masses, velocities and wall masks (so P2G is not redone).
+#[derive(Default)]
+pub struct GridCheckpoint<const D: usize> {
+    /// Particle indices sorted by base block.
+    pub order: Vec<u32>,
+    /// Particle blocks.
+    pub pblocks: Vec<ParticleBlock>,
+    /// Particle-block indices per colour.
+    pub colors: Vec<Vec<u32>>,
+    /// Neighbourhood per particle block.
+    pub pnbr: Vec<BlockNbr<D>>,
+    /// Node masses.
+    pub mass: Vec<f64>,
+    /// Node velocities after the grid update.
+    pub vel: Vec<Vector<D>>,
+    /// Wall masks.
+    pub wall_mask: Vec<u8>,
+}
+
+/// Stencil base node floor(x/Δx − ½) (same arithmetic as [`particle_base`], without the range check
+/// that [`SparseGrid::build`] made).
+#[inline(always)]
+pub fn base_of<const D: usize>(x: &Vector<D>, inv_dx: f64) -> [i32; D] {
+    std::array::from_fn(|d| (x[d] * inv_dx - 0.5) as i32)
 }
 
 /// Quadratic B-spline weights (eq. 5.6's N) of a particle: fx = x/Δx − base ∈ [0.5, 1.5), and per
@@ -389,7 +432,7 @@ pub fn for_stencil<const D: usize>(w: &[[f64; 3]; D], mut f: impl FnMut(usize, &
 
 /// Visit the 3^D stencil offsets in stencil order (axis 0 slowest).
 #[inline(always)]
-pub fn for_stencil_offsets<const D: usize>(mut f: impl FnMut(&[usize; D])) {
+pub fn for_stencil_offsets<const D: usize>(mut f: impl FnMut(usize, &[usize; D])) {
     let w = [[0.0; 3]; D];
-    for_stencil::<D>(&w, |_, o, _| f(o));
+    for_stencil::<D>(&w, |k, o, _| f(k, o));
 }
