@@ -1,6 +1,6 @@
 //! Grid-to-particle transfer (eq. 5.7) with the APIC affine matrix C and advection x += Δt v.
 use crate::error::MpmError;
-use crate::linalg::{Matrix, Vector};
+use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
 use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -48,7 +48,7 @@ pub fn gather<const D: usize>(
         *vn = nv;
         *cn = nc;
         *xn = x[p] + nv * dt;
-        if !xn.iter().chain(nv.iter()).chain(nc.iter()).all(|v| v.is_finite()) {
+        if !(all_finite(xn.as_slice()) && all_finite(nv.as_slice()) && all_finite(nc.as_slice())) {
             bad.fetch_min(p, Ordering::Relaxed);
         }
     });

@@ -3,7 +3,7 @@
 //! the particles.
 use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
-use crate::linalg::{Matrix, Vector};
+use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
 use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -32,7 +32,7 @@ pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
     let nf = (Matrix::<D>::identity() + c * scene.dt) * f;
     *f_next = nf;
     match model.kirchhoff(&nf, mu, lambda) {
-        Some(tau) if tau.iter().all(|v| v.is_finite()) => Some(tau * stress_scale(scene, p) + c * scene.masses[p]),
+        Some(tau) if all_finite(tau.as_slice()) => Some(tau * stress_scale(scene, p) + c * scene.masses[p]),
         _ => None,
     }
 }

@@ -357,11 +357,16 @@ pub struct GridCheckpoint<const D: usize> {
     pub wall_mask: Vec<u8>,
 }
 
-/// Stencil base node floor(x/Δx − ½) (same arithmetic as [`particle_base`], without the range check
-/// that [`SparseGrid::build`] made).
+/// Stencil base node floor(x/Δx − ½) (same arithmetic as [`particle_base`]) of a particle that
+/// [`SparseGrid::build`] accepted (so the value is in [0, n_grid − 2)).
 #[inline(always)]
 pub fn base_of<const D: usize>(x: &Vector<D>, inv_dx: f64) -> [i32; D] {
-    std::array::from_fn(|d| (x[d] * inv_dx - 0.5) as i32)
+    std::array::from_fn(|d| {
+        let q = x[d] * inv_dx - 0.5;
+        debug_assert!(q >= 0.0 && q < i32::MAX as f64);
+        // SAFETY: q is finite and in [0, n_grid − 2) for every particle of a built grid.
+        unsafe { q.to_int_unchecked::<i32>() }
+    })
 }
 
 /// Quadratic B-spline weights (eq. 5.6's N) of a particle: fx = x/Δx − base ∈ [0.5, 1.5), and per
