@@ -34,17 +34,22 @@ pub fn gather<const D: usize>(
         let base = base_of(&x[p], inv_dx);
         let (fx, w, _) = bspline(&x[p], &base, inv_dx);
         let st = nbr.nodes(&base);
-        let mut nv = Vector::<D>::zeros();
-        let mut nc = Matrix::<D>::zeros();
+        // v' = Σ w v_i; C' = 4/Δx Σ w v_i (o − fx)ᵀ = 4/Δx Σ_d (Σ_o (o − fx_d) S_d[o]) e_dᵀ with
+        // S_d[o] = Σ_{nodes with o_d = o} w v_i.
+        let mut sums = [[Vector::<D>::zeros(); 3]; D];
         for_stencil::<D>(&w, |k, o, weight| {
-            let mut dpos = Vector::<D>::zeros();
+            let gw = grid.vel[st[k] as usize] * weight;
             for d in 0..D {
-                dpos[d] = o[d] as f64 - fx[d];
+                sums[d][o[d]] += gw;
             }
-            let gv = grid.vel[st[k] as usize];
-            nv += gv * weight;
-            nc += gv * dpos.transpose() * (4.0 * weight * inv_dx);
         });
+        let nv = sums[0][0] + sums[0][1] + sums[0][2];
+        let mut nc = Matrix::<D>::zeros();
+        for d in 0..D {
+            let col =
+                (sums[d][0] * (0.0 - fx[d]) + sums[d][1] * (1.0 - fx[d]) + sums[d][2] * (2.0 - fx[d])) * (4.0 * inv_dx);
+            nc.set_column(d, &col);
+        }
         *vn = nv;
         *cn = nc;
         *xn = x[p] + nv * dt;

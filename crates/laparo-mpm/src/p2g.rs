@@ -5,7 +5,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, SparseGrid, SyncPtr};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
@@ -76,15 +76,14 @@ pub fn scatter<const D: usize, M: ConstitutiveModel<D>>(
             mv += scene.external_forces[p] * scene.dt;
         }
         let st = nbr.nodes(&base);
+        // mv + A (o − fx) Δx per node from per-axis terms.
+        let terms = affine_terms(&mv, &a, &fx, dx);
         for_stencil::<D>(&w, |k, o, weight| {
-            let mut dpos = Vector::<D>::zeros();
-            for d in 0..D {
-                dpos[d] = (o[d] as f64 - fx[d]) * dx;
-            }
             let i = st[k] as usize;
+            let q = affine_at(&terms, o);
             // SAFETY: same-colour particle blocks touch disjoint nodes (see sparse_grid).
             unsafe {
-                *mom.at(i) += (mv + a * dpos) * weight;
+                *mom.at(i) += q * weight;
                 *mass.at(i) += weight * m;
             }
         });

@@ -7,7 +7,7 @@
 //! is fixed (colour by colour, particles in sorted order): results are bit-identical whatever the
 //! number of threads.
 use crate::error::MpmError;
-use crate::linalg::Vector;
+use crate::linalg::{Matrix, Vector};
 use crate::scene::GridSpec;
 use rayon::prelude::*;
 
@@ -201,27 +201,19 @@ impl<const D: usize> SparseGrid<D> {
         let spec = self.spec;
         let n = x.len();
         self.base.resize(n, [0; D]);
-        let bad = self
-            .base
-            .par_iter_mut()
-            .zip(x.par_iter())
-            .enumerate()
-            .map(|(p, (b, xp))| match particle_base(xp, &spec) {
-                Some(v) => {
-                    *b = v;
-                    usize::MAX
-                }
-                None => p,
-            })
-            .min()
-            .unwrap_or(usize::MAX);
-        if bad != usize::MAX {
-            return Err(MpmError::OutsideDomain { particle: bad, step });
-        }
-        // Counting sort of the particles by base block (stable: particle index order within a block).
+        // Base nodes and counting sort of the particles by base block (stable: particle index order
+        // within a block); one sequential pass (cheaper than a parallel pass for a few 10⁴ particles).
         self.keys.clear();
         self.distinct.clear();
-        for b in self.base.iter() {
+        for (p, xp) in x.iter().enumerate() {
+            let Some(b) = particle_base(xp, &spec) else {
+                for &k in &self.distinct {
+                    self.counts[k as usize] = 0;
+                }
+                self.distinct.clear();
+                return Err(MpmError::OutsideDomain { particle: p, step });
+            };
+            self.base[p] = b;
             let c: [usize; D] = std::array::from_fn(|d| (b[d] as usize) >> BLOCK_SHIFT);
             let k = self.block_key(&c);
             if self.counts[k] == 0 {
@@ -387,6 +379,50 @@ pub fn bspline<const D: usize>(
         dw[d] = [f - 1.5, -2.0 * (f - 1.0), f - 0.5];
     }
     (fx, w, dw)
+}
+
+/// Per-axis terms of an affine function of the node offset, u(o) = c + M (o − fx) s = c + Σ_d
+/// M[:, d] (o_d − fx_d) s: entry [d][o] is M[:, d] (o − fx_d) s, with `c` folded into axis 0. A node's
+/// value is then [`affine_at`]: D − 1 vector additions instead of a matrix–vector product.
+#[inline(always)]
+pub fn affine_terms<const D: usize>(c: &Vector<D>, m: &Matrix<D>, fx: &Vector<D>, s: f64) -> [[Vector<D>; 3]; D] {
+    let mut t = [[Vector::<D>::zeros(); 3]; D];
+    for d in 0..D {
+        let col = m.column(d).into_owned();
+        for o in 0..3 {
+            t[d][o] = col * ((o as f64 - fx[d]) * s);
+            if d == 0 {
+                t[d][o] += c;
+            }
+        }
+    }
+    t
+}
+
+/// Value at stencil offset `o` of the affine function whose [`affine_terms`] are `t`.
+#[inline(always)]
+pub fn affine_at<const D: usize>(t: &[[Vector<D>; 3]; D], o: &[usize; D]) -> Vector<D> {
+    let mut u = t[0][o[0]];
+    for d in 1..D {
+        u += t[d][o[d]];
+    }
+    u
+}
+
+/// ∂w/∂fx_d of a stencil node: dw_d[o_d] Π_{e≠d} w_e[o_e].
+#[inline(always)]
+pub fn weight_grad<const D: usize>(w: &[[f64; 3]; D], dw: &[[f64; 3]; D], o: &[usize; D]) -> Vector<D> {
+    let mut g = Vector::<D>::zeros();
+    for d in 0..D {
+        let mut v = dw[d][o[d]];
+        for e in 0..D {
+            if e != d {
+                v *= w[e][o[e]];
+            }
+        }
+        g[d] = v;
+    }
+    g
 }
 
 /// Offset of stencil entry `k` along axis `d` (axis 0 slowest).

@@ -9,7 +9,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::linalg::{Matrix, Vector};
 use crate::p2g::stress_scale;
 use crate::scene::Scene;
-use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad, SparseGrid, SyncPtr};
 
 /// Adjoint arrays of the particle state, updated in place by [`p2g_adjoint`] from those of the
 /// step output to those of the step input.
@@ -58,40 +58,39 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
         let (fx, w, dw) = bspline(&x[p], &base, inv_dx);
         let m = scene.masses[p];
         let scale = stress_scale(scene, p);
-        let tau = model.kirchhoff(&f_next[p], mu, lambda).unwrap_or_else(Matrix::<D>::zeros);
-        let a = tau * scale + c[p] * m;
         let mut mv = v[p] * m;
         if !scene.external_forces.is_empty() {
             mv += scene.external_forces[p] * dt;
         }
         let st = nbr.nodes(&base);
-        let mut sum_wp = Vector::<D>::zeros();
-        let mut ab = Matrix::<D>::zeros();
-        let mut fxb = Vector::<D>::zeros();
-        for_stencil::<D>(&w, |k, o, weight| {
-            let mut dpos = Vector::<D>::zeros();
-            for d in 0..D {
-                dpos[d] = (o[d] as f64 - fx[d]) * dx;
-            }
-            let i = st[k] as usize;
-            let pb = mom_bar[i];
-            let wpb = pb * weight;
-            sum_wp += wpb;
-            ab += wpb * dpos.transpose();
-            let wbar = pb.dot(&(mv + a * dpos)) + mass_bar[i] * m;
-            for d in 0..D {
-                let mut dwd = dw[d][o[d]];
-                for e in 0..D {
-                    if e != d {
-                        dwd *= w[e][o[e]];
-                    }
+        let (fnb_tau, mub, lab, (sum_wp, ab, fxb)) = model.kirchhoff_then_vjp(&f_next[p], mu, lambda, |tau| {
+            let a = tau * scale + c[p] * m;
+            // mv + A dpos_i from per-axis terms; Σ w p̄_i and Σ w p̄_i dpos_iᵀ from the per-axis
+            // sums S_d[o] = Σ_{nodes with o_d = o} w p̄_i.
+            let terms = affine_terms(&mv, &a, &fx, dx);
+            let mut sums = [[Vector::<D>::zeros(); 3]; D];
+            let mut fxb = Vector::<D>::zeros();
+            for_stencil::<D>(&w, |k, o, weight| {
+                let i = st[k] as usize;
+                let pb = mom_bar[i];
+                let wpb = pb * weight;
+                for d in 0..D {
+                    sums[d][o[d]] += wpb;
                 }
-                fxb[d] += wbar * dwd;
+                let wbar = pb.dot(&affine_at(&terms, o)) + mass_bar[i] * m;
+                fxb += weight_grad(&w, &dw, o) * wbar;
+            });
+            let sum_wp = sums[0][0] + sums[0][1] + sums[0][2];
+            let mut ab = Matrix::<D>::zeros();
+            for d in 0..D {
+                let col = sums[d][0] * ((0.0 - fx[d]) * dx)
+                    + sums[d][1] * ((1.0 - fx[d]) * dx)
+                    + sums[d][2] * ((2.0 - fx[d]) * dx);
+                ab.set_column(d, &col);
             }
+            fxb -= a.transpose() * sum_wp * dx;
+            (ab * scale, (sum_wp, ab, fxb))
         });
-        fxb -= a.transpose() * sum_wp * dx;
-        let tau_bar = ab * scale;
-        let (fnb_tau, mub, lab) = model.kirchhoff_vjp(&f_next[p], mu, lambda, &tau_bar);
         // SAFETY: every particle is visited once and only its own entries are touched.
         unsafe {
             let fb = fb_ptr.at(p);
