@@ -1,5 +1,5 @@
 //! Quick timing of the RODS box problem without the CLI (development aid): `cargo run --release
-//! -p laparo-mpm --example mpm_bench_quick -- DIM REPEATS`. Besides wall times it prints the
+//! -p laparo-mpm --example mpm_bench_quick -- DIM REPEATS [THREADS [STEPS]]`. Besides wall times it prints the
 //! process CPU time per forward+backward iteration (less sensitive to a loaded machine).
 use laparo_mpm::reference::rods_scene;
 use laparo_mpm::*;
@@ -14,8 +14,8 @@ fn cpu_s() -> f64 {
     (t(11) + t(12)) / 100.0
 }
 
-fn run<const D: usize>(counts: [usize; D], reps: usize) {
-    let (scene, loss) = rods_scene::<D>(counts, 120, 200, 2e-4);
+fn run<const D: usize>(counts: [usize; D], reps: usize, steps: usize) {
+    let (scene, loss) = rods_scene::<D>(counts, 120, steps, 2e-4);
     let mut fwd = Vec::new();
     let mut fb = Vec::new();
     let mut ws = GradientWorkspace::new();
@@ -51,13 +51,14 @@ fn run<const D: usize>(counts: [usize; D], reps: usize) {
 fn main() {
     let a: Vec<usize> = std::env::args().skip(1).map(|s| s.parse().unwrap()).collect();
     let reps = a.get(1).copied().unwrap_or(3);
+    let steps = a.get(3).copied().unwrap_or(200);
     // As `laparo mpm bench`: run inside the pool (THREADS, 0 = all cores).
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.get(2).copied().unwrap_or(0)).build().unwrap();
     pool.install(|| {
         if a.first().copied().unwrap_or(3) == 2 {
-            run::<2>([80, 80], reps)
+            run::<2>([80, 80], reps, steps)
         } else {
-            run::<3>([16, 25, 17], reps)
+            run::<3>([16, 25, 17], reps, steps)
         }
     })
 }
