@@ -20,6 +20,7 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
         .zip(wall_mask.par_chunks_mut(nn))
         .zip(mass.par_chunks(nn).zip(mom.par_chunks(nn)))
         .enumerate()
+        .with_min_len(16)
         .for_each(|(b, ((vel, mask), (mass, mom)))| {
             for l in 0..nn {
                 let denom = mass[l] + eps;

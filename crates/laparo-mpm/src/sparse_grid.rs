@@ -296,7 +296,8 @@ impl<const D: usize> SparseGrid<D> {
     /// across a colour).
     pub(crate) fn for_each_coloured(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
         for colour in &self.colors {
-            colour.par_iter().for_each(|&pb| {
+            let min_len = colour.len().div_ceil(4 * rayon::current_num_threads()).max(1);
+            colour.par_iter().with_min_len(min_len).for_each(|&pb| {
                 let blk = self.pblocks[pb as usize];
                 let nbr = &self.pnbr[pb as usize];
                 for &p in &self.order[blk.start as usize..blk.end as usize] {
@@ -309,7 +310,8 @@ impl<const D: usize> SparseGrid<D> {
     /// Run `f(particle, its block's neighbourhood)` for every particle, blocks in parallel (for
     /// gathers: `f` must only write to per-particle data).
     pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
-        self.pblocks.par_iter().zip(self.pnbr.par_iter()).for_each(|(blk, nbr)| {
+        let min_len = self.pblocks.len().div_ceil(4 * rayon::current_num_threads()).max(1);
+        self.pblocks.par_iter().zip(self.pnbr.par_iter()).with_min_len(min_len).for_each(|(blk, nbr)| {
             for &p in &self.order[blk.start as usize..blk.end as usize] {
                 f(p as usize, nbr);
             }
