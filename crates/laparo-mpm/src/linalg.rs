@@ -21,6 +21,7 @@ pub const fn stencil_len(d: usize) -> usize {
 /// Whether every entry is finite (x − x is 0 for finite x and NaN otherwise; one branch instead of
 /// one per entry).
 #[inline(always)]
+#[allow(clippy::eq_op)]
 pub fn all_finite(v: &[f64]) -> bool {
     let mut s = 0.0;
     for &x in v {

@@ -389,12 +389,12 @@ pub fn bspline<const D: usize>(
 #[inline(always)]
 pub fn affine_terms<const D: usize>(c: &Vector<D>, m: &Matrix<D>, fx: &Vector<D>, s: f64) -> [[Vector<D>; 3]; D] {
     let mut t = [[Vector::<D>::zeros(); 3]; D];
-    for d in 0..D {
+    for (d, td) in t.iter_mut().enumerate() {
         let col = m.column(d).into_owned();
-        for o in 0..3 {
-            t[d][o] = col * ((o as f64 - fx[d]) * s);
+        for (o, tdo) in td.iter_mut().enumerate() {
+            *tdo = col * ((o as f64 - fx[d]) * s);
             if d == 0 {
-                t[d][o] += c;
+                *tdo += c;
             }
         }
     }
