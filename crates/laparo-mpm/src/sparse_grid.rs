@@ -80,6 +80,8 @@ pub struct SparseGrid<const D: usize> {
     pub order: Vec<u32>,
     /// Neighbourhood of every particle block (same index as [`Self::pblocks`]).
     pub pnbr: Vec<BlockNbr<D>>,
+    /// Particle block of every particle (by particle index).
+    pub pblock_of: Vec<u32>,
     /// Stencil base node per particle (scratch of [`Self::build`]; kernels recompute it from x).
     base: Vec<[i32; D]>,
     /// Node mass m_i.
@@ -165,6 +167,7 @@ impl<const D: usize> SparseGrid<D> {
             colors: vec![Vec::new(); 1 << D],
             order: Vec::new(),
             pnbr: Vec::new(),
+            pblock_of: Vec::new(),
             base: Vec::new(),
             mass: Vec::new(),
             mom: Vec::new(),
@@ -261,6 +264,7 @@ impl<const D: usize> SparseGrid<D> {
             c.clear();
         }
         let nn = block_nodes(D) as u32;
+        self.pblock_of.resize(n, 0);
         let mut start = 0usize;
         let ca = coloured_axes(D);
         let mut prev_prefix = [usize::MAX; D];
@@ -293,6 +297,9 @@ impl<const D: usize> SparseGrid<D> {
                 _ => self.colors[colour].push([pb, pb + 1]),
             }
             prev_prefix = prefix;
+            for &p in &self.order[start..end] {
+                self.pblock_of[p as usize] = pb;
+            }
             self.pblocks.push(ParticleBlock { start: start as u32, end: end as u32 });
             self.pnbr.push(BlockNbr { first: nbr, origin: c0.map(|v| (v * BLOCK) as i32) });
             start = end;
@@ -335,14 +342,14 @@ impl<const D: usize> SparseGrid<D> {
         }
     }
 
-    /// Run `f(particle, its block's neighbourhood)` for every particle, blocks in parallel (for
-    /// gathers: `f` must only write to per-particle data).
+    /// Run `f(particle, its block's neighbourhood)` for every particle, in particle-index order
+    /// (contiguous chunks in parallel: the per-particle arrays are streamed sequentially). For
+    /// gathers: `f` must only write to per-particle data.
     pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
-        let min_len = self.pblocks.len().div_ceil(4 * rayon::current_num_threads()).max(1);
-        self.pblocks.par_iter().zip(self.pnbr.par_iter()).with_min_len(min_len).for_each(|(blk, nbr)| {
-            for &p in &self.order[blk.start as usize..blk.end as usize] {
-                f(p as usize, nbr);
-            }
+        let n = self.pblock_of.len();
+        let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+        self.pblock_of.par_iter().enumerate().with_min_len(min_len).for_each(|(p, &pb)| {
+            f(p, &self.pnbr[pb as usize]);
         });
     }
 
@@ -353,6 +360,7 @@ impl<const D: usize> SparseGrid<D> {
         std::mem::swap(&mut self.pblocks, &mut cp.pblocks);
         std::mem::swap(&mut self.colors, &mut cp.colors);
         std::mem::swap(&mut self.pnbr, &mut cp.pnbr);
+        std::mem::swap(&mut self.pblock_of, &mut cp.pblock_of);
         std::mem::swap(&mut self.mass, &mut cp.mass);
         std::mem::swap(&mut self.vel, &mut cp.vel);
         std::mem::swap(&mut self.wall_mask, &mut cp.wall_mask);
@@ -371,6 +379,8 @@ pub struct GridCheckpoint<const D: usize> {
     pub colors: Vec<Vec<[u32; 2]>>,
     /// Neighbourhood per particle block.
     pub pnbr: Vec<BlockNbr<D>>,
+    /// Particle block of every particle.
+    pub pblock_of: Vec<u32>,
     /// Node masses.
     pub mass: Vec<f64>,
     /// Node velocities after the grid update.
