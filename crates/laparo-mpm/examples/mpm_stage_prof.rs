@@ -13,6 +13,7 @@ fn go<const D: usize>(counts: [usize; D]) {
     let mut cur = ParticleState::initial(&scene);
     let mut grid = sparse_grid::SparseGrid::<D>::new(scene.grid);
     let mut next = cur.clone();
+    let mut aff = Vec::new();
     let (mu, la) = scene.material.lame();
     let mut t = [0.0f64; 5];
     for s in 0..200 {
@@ -20,7 +21,8 @@ fn go<const D: usize>(counts: [usize; D]) {
         grid.build(&cur.x, s).unwrap();
         let t1 = Instant::now();
         let t2 = t1;
-        p2g::scatter(&NeoHookean, mu, la, &mut grid, &scene, &cur.x, &cur.v, &cur.c, &cur.f, &mut next.f, s).unwrap();
+        p2g::scatter(&NeoHookean, mu, la, &mut grid, &scene, &cur.x, &cur.v, &cur.c, &cur.f, &mut next.f, &mut aff, s)
+            .unwrap();
         let t3 = Instant::now();
         grid_update::update(&mut grid, &scene);
         let t4 = Instant::now();

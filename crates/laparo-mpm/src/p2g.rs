@@ -1,12 +1,12 @@
 //! Particle-to-grid transfer (eq. 5.6): deformation-gradient update F ← (I + Δt C) F, Kirchhoff
-//! stress, and the colour-partitioned APIC/MLS scatter of mass and momentum, fused in one pass over
-//! the particles.
+//! stress (one pass in particle order), and the colour-partitioned APIC/MLS scatter of mass and
+//! momentum.
 use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
 use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, SparseGrid, SyncPtr};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use rayon::prelude::*;
 
 /// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
 #[inline(always)]
@@ -37,7 +37,8 @@ pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
     }
 }
 
-/// P2G of eq. 5.6: F_{t+1} = (I + Δt C) F into `f_next`, A_p from the stress, then the scatter
+/// P2G of eq. 5.6: F_{t+1} = (I + Δt C) F into `f_next` and A_p from the stress (one pass in
+/// particle-index order, streaming the particle arrays), then the coloured scatter
 /// m_i += w_ip m_p, (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)). Errors on an inverted or
 /// non-finite F (reported for the lowest particle index, whatever the thread count).
 #[allow(clippy::too_many_arguments)]
@@ -52,43 +53,55 @@ pub fn scatter<const D: usize, M: ConstitutiveModel<D>>(
     c: &[Matrix<D>],
     f: &[Matrix<D>],
     f_next: &mut [Matrix<D>],
+    affine: &mut Vec<Matrix<D>>,
     step: usize,
 ) -> Result<(), MpmError> {
     let dx = scene.grid.dx;
     let inv_dx = 1.0 / dx;
-    let mass = SyncPtr(grid.mass.as_mut_ptr());
-    let mom = SyncPtr(grid.mom.as_mut_ptr());
-    let fn_ptr = SyncPtr(f_next.as_mut_ptr());
-    let bad = AtomicUsize::new(usize::MAX);
-    let g = &*grid;
-    g.for_each_coloured(|p, nbr| {
-        // SAFETY: every particle is visited once.
-        let fnext = unsafe { fn_ptr.at(p) };
-        let Some(a) = particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p) else {
-            bad.fetch_min(p, Ordering::Relaxed);
-            return;
-        };
-        let base = base_of(&x[p], inv_dx);
-        let (fx, w, _) = bspline(&x[p], &base, inv_dx);
-        let m = scene.masses[p];
-        let mut mv = v[p] * m;
-        if !scene.external_forces.is_empty() {
-            mv += scene.external_forces[p] * scene.dt;
-        }
-        let st = nbr.nodes(&base);
-        // mv + A (o − fx) Δx per node from per-axis terms.
-        let terms = affine_terms(&mv, &a, &fx, dx);
-        for_stencil::<D>(&w, |k, o, weight| {
-            let i = st[k] as usize;
-            let q = affine_at(&terms, o);
-            // SAFETY: same-colour particle blocks touch disjoint nodes (see sparse_grid).
-            unsafe {
-                *mom.at(i) += q * weight;
-                *mass.at(i) += weight * m;
+    let n = x.len();
+    affine.resize(n, Matrix::<D>::zeros());
+    let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let bad = f_next
+        .par_iter_mut()
+        .zip(affine.par_iter_mut())
+        .enumerate()
+        .with_min_len(min_len)
+        .map(|(p, (fnext, a))| match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p) {
+            Some(v) => {
+                *a = v;
+                usize::MAX
             }
+            None => p,
+        })
+        .min()
+        .unwrap_or(usize::MAX);
+    if bad == usize::MAX {
+        let mass = SyncPtr(grid.mass.as_mut_ptr());
+        let mom = SyncPtr(grid.mom.as_mut_ptr());
+        let affine = &*affine;
+        let g = &*grid;
+        g.for_each_coloured(|p, nbr| {
+            let base = base_of(&x[p], inv_dx);
+            let (fx, w, _) = bspline(&x[p], &base, inv_dx);
+            let m = scene.masses[p];
+            let mut mv = v[p] * m;
+            if !scene.external_forces.is_empty() {
+                mv += scene.external_forces[p] * scene.dt;
+            }
+            let st = nbr.nodes(&base);
+            // mv + A (o − fx) Δx per node from per-axis terms.
+            let terms = affine_terms(&mv, &affine[p], &fx, dx);
+            for_stencil::<D>(&w, |k, o, weight| {
+                let i = st[k] as usize;
+                let q = affine_at(&terms, o);
+                // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
+                unsafe {
+                    *mom.at(i) += q * weight;
+                    *mass.at(i) += weight * m;
+                }
+            });
         });
-    });
-    let bad = bad.into_inner();
+    }
     if bad != usize::MAX {
         let j = crate::linalg::det(&f_next[bad]);
         return Err(MpmError::BlowUp {

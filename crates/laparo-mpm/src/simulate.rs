@@ -57,11 +57,12 @@ pub struct Simulation<const D: usize> {
 /// Reusable buffers of one time step.
 pub(crate) struct Stepper<const D: usize> {
     pub grid: SparseGrid<D>,
+    pub affine: Vec<Matrix<D>>,
 }
 
 impl<const D: usize> Stepper<D> {
     pub fn new(scene: &Scene<D>) -> Self {
-        Stepper { grid: SparseGrid::new(scene.grid) }
+        Stepper { grid: SparseGrid::new(scene.grid), affine: Vec::new() }
     }
 
     /// One full step `cur` → `next`: sparse-grid build, P2G (F update, stress and scatter), grid
@@ -76,7 +77,20 @@ impl<const D: usize> Stepper<D> {
     ) -> Result<(), MpmError> {
         let (mu, la) = scene.material.lame();
         self.grid.build(&cur.x, s)?;
-        p2g::scatter(model, mu, la, &mut self.grid, scene, &cur.x, &cur.v, &cur.c, &cur.f, &mut next.f, s)?;
+        p2g::scatter(
+            model,
+            mu,
+            la,
+            &mut self.grid,
+            scene,
+            &cur.x,
+            &cur.v,
+            &cur.c,
+            &cur.f,
+            &mut next.f,
+            &mut self.affine,
+            s,
+        )?;
         grid_update::update(&mut self.grid, scene);
         g2p::gather(&self.grid, scene, &cur.x, &mut next.x, &mut next.v, &mut next.c, s)
     }
