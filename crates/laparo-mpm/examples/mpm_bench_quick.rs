@@ -1,39 +1,64 @@
 //! Quick timing of the RODS box problem without the CLI (development aid): `cargo run --release
-//! -p laparo-mpm --example mpm_bench_quick -- DIM REPEATS`.
+//! -p laparo-mpm --example mpm_bench_quick -- DIM REPEATS [THREADS [STEPS]]`. Besides wall times it prints the
+//! process CPU time per forward+backward iteration (less sensitive to a loaded machine).
 use laparo_mpm::reference::rods_scene;
 use laparo_mpm::*;
 use std::time::Instant;
 
-fn run<const D: usize>(counts: [usize; D], reps: usize) {
-    let (scene, loss) = rods_scene::<D>(counts, 120, 200, 2e-4);
+/// Process CPU time (user + system) in seconds, from /proc/self/stat (10 ms ticks).
+fn cpu_s() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let rest = s.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let t = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (t(11) + t(12)) / 100.0
+}
+
+fn run<const D: usize>(counts: [usize; D], reps: usize, steps: usize) {
+    let (scene, loss) = rods_scene::<D>(counts, 120, steps, 2e-4);
     let mut fwd = Vec::new();
     let mut fb = Vec::new();
     let mut ws = GradientWorkspace::new();
+    let (mut cpu_f, mut cpu_fb) = (0.0, 0.0);
+    let mut g = None;
     for _ in 0..reps {
-        let t = Instant::now();
+        let (t, c) = (Instant::now(), cpu_s());
         simulate(&scene).unwrap();
         fwd.push(t.elapsed().as_secs_f64());
-        let t = Instant::now();
-        simulate_with_gradient_in(&mut ws, &scene, &loss).unwrap();
+        cpu_f += cpu_s() - c;
+        let (t, c) = (Instant::now(), cpu_s());
+        g = Some(simulate_with_gradient_in(&mut ws, &scene, &loss).unwrap());
         fb.push(t.elapsed().as_secs_f64());
+        cpu_fb += cpu_s() - c;
     }
     fwd.sort_by(f64::total_cmp);
     fb.sort_by(f64::total_cmp);
+    let g = g.unwrap();
+    let checksum: f64 = g.d_velocities.iter().map(|v| v.sum()).sum::<f64>() + g.d_youngs_modulus;
     println!(
-        "{D}D forward min {:.3} med {:.3}  fwd+bwd min {:.3} med {:.3}",
+        "{D}D forward min {:.3} med {:.3} cpu {:.3}  fwd+bwd min {:.3} med {:.3} cpu {:.3}  loss {:e} grad checksum {:e}",
         fwd[0],
         fwd[reps / 2],
+        cpu_f / reps as f64,
         fb[0],
-        fb[reps / 2]
+        fb[reps / 2],
+        cpu_fb / reps as f64,
+        g.loss,
+        checksum
     );
 }
 
 fn main() {
     let a: Vec<usize> = std::env::args().skip(1).map(|s| s.parse().unwrap()).collect();
     let reps = a.get(1).copied().unwrap_or(3);
-    if a.first().copied().unwrap_or(3) == 2 {
-        run::<2>([80, 80], reps)
-    } else {
-        run::<3>([16, 25, 17], reps)
-    }
+    let steps = a.get(3).copied().unwrap_or(200);
+    // As `laparo mpm bench`: run inside the pool (THREADS, 0 = all cores).
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.get(2).copied().unwrap_or(0)).build().unwrap();
+    pool.install(|| {
+        if a.first().copied().unwrap_or(3) == 2 {
+            run::<2>([80, 80], reps, steps)
+        } else {
+            run::<3>([16, 25, 17], reps, steps)
+        }
+    })
 }

@@ -11,33 +11,30 @@ fn main() {
 fn go<const D: usize>(counts: [usize; D]) {
     let (scene, _loss) = laparo_mpm::reference::rods_scene::<D>(counts, 120, 200, 2e-4);
     let mut cur = ParticleState::initial(&scene);
-    let n = scene.n_particles();
     let mut grid = sparse_grid::SparseGrid::<D>::new(scene.grid);
-    let mut aff = vec![Matrix::<D>::zeros(); n];
-    let mut fnext = vec![Matrix::<D>::zeros(); n];
     let mut next = cur.clone();
+    let mut aff = Vec::new();
     let (mu, la) = scene.material.lame();
     let mut t = [0.0f64; 5];
     for s in 0..200 {
         let t0 = Instant::now();
         grid.build(&cur.x, s).unwrap();
         let t1 = Instant::now();
-        p2g::particle_stress(&NeoHookean, mu, la, &scene, &cur.c, &cur.f, &mut fnext, &mut aff, s).unwrap();
-        let t2 = Instant::now();
-        p2g::scatter(&mut grid, &scene, &cur.x, &cur.v, &aff);
+        let t2 = t1;
+        p2g::scatter(&NeoHookean, mu, la, &mut grid, &scene, &cur.x, &cur.v, &cur.c, &cur.f, &mut next.f, &mut aff, s)
+            .unwrap();
         let t3 = Instant::now();
         grid_update::update(&mut grid, &scene);
         let t4 = Instant::now();
         g2p::gather(&grid, &scene, &cur.x, &mut next.x, &mut next.v, &mut next.c, s).unwrap();
         let t5 = Instant::now();
-        std::mem::swap(&mut next.f, &mut fnext);
         std::mem::swap(&mut cur, &mut next);
         for (i, (a, b)) in [(t0, t1), (t1, t2), (t2, t3), (t3, t4), (t4, t5)].iter().enumerate() {
             t[i] += (*b - *a).as_secs_f64();
         }
     }
     println!(
-        "build {:.3} stress {:.3} scatter {:.3} grid {:.3} g2p {:.3}  nodes {}",
+        "build {:.3} (stress fused) {:.3} p2g {:.3} grid {:.3} g2p {:.3}  nodes {}",
         t[0],
         t[1],
         t[2],

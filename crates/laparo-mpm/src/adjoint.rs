@@ -1,6 +1,6 @@
 //! `simulate_with_gradient`: forward pass with per-step particle checkpoints, then the hand-derived
 //! reverse pass, recomputing each step's grid from its checkpoint (as DiffTaichi's diffmpm does).
-use crate::backward::{g2p::g2p_adjoint, grid_update::grid_update_adjoint, p2g::p2g_adjoint, p2g::ParticleAdjoint};
+use crate::backward::{g2p::g2p_adjoint, grid_update::grid_update_adjoint, p2g::p2g_adjoint, p2g::StateAdjoint};
 use crate::cfl::{self, Warning};
 use crate::constitutive::{lame_vjp, ConstitutiveModel};
 use crate::error::MpmError;
@@ -8,6 +8,7 @@ use crate::linalg::{Matrix, Vector};
 use crate::loss::Loss;
 use crate::scene::{Model, Scene};
 use crate::simulate::{ParticleState, Stepper};
+use crate::sparse_grid::GridCheckpoint;
 use crate::{fixed_corotated::FixedCorotated, neo_hookean::NeoHookean};
 
 /// Loss value and its exact gradient with respect to the scene's inputs.
@@ -35,15 +36,6 @@ pub struct GradientResult<const D: usize> {
     pub final_state: ParticleState<D>,
     /// Non-fatal warnings (CFL).
     pub warnings: Vec<Warning>,
-}
-
-/// Node data of one step's grid kept for the reverse pass (the sparse layout is rebuilt from the
-/// particle checkpoint, the P2G scatter is not redone).
-#[derive(Default)]
-struct GridCheckpoint<const D: usize> {
-    mass: Vec<f64>,
-    vel: Vec<Vector<D>>,
-    wall_mask: Vec<u8>,
 }
 
 /// Buffers of [`simulate_with_gradient_in`], reusable across calls (e.g. the iterations of a
@@ -129,10 +121,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     for s in 0..t {
         let (head, tail) = states.split_at_mut(s + 1);
         stepper.step(model, scene, &head[s], &mut tail[0], s)?;
-        let g = &mut ws.grids[s];
-        g.mass.clone_from(&stepper.grid.mass);
-        g.vel.clone_from(&stepper.grid.vel);
-        g.wall_mask.clone_from(&stepper.grid.wall_mask);
+        stepper.grid.swap_checkpoint(&mut ws.grids[s]);
         observe(s + 1, &states[s + 1], &mut total)?;
     }
     // ---- reverse pass ----
@@ -143,45 +132,28 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let mut x_bar_g2p = vec![Vector::<D>::zeros(); n];
     let mut vel_bar: Vec<Vector<D>> = Vec::new();
     let mut mass_bar: Vec<f64> = Vec::new();
-    let zero_adj = ParticleAdjoint {
-        x: Vector::zeros(),
-        v: Vector::zeros(),
-        c: Matrix::zeros(),
-        f: Matrix::zeros(),
-        mu: 0.0,
-        lambda: 0.0,
-    };
-    let mut adj = vec![zero_adj; n];
+    let mut lame_bar = vec![(0.0, 0.0); n];
     let (mut mu_bar, mut la_bar) = (0.0, 0.0);
     for s in (0..t).rev() {
         let cur = &states[s];
         let next = &states[s + 1];
-        let gc = &ws.grids[s];
-        stepper.grid.build(&cur.x, s)?;
-        let nodes = stepper.grid.n_nodes();
-        debug_assert_eq!(nodes, gc.mass.len());
+        // The layout and node data of step s, moved into the stepper's grid for the adjoint kernels
+        // (and moved back afterwards so that the workspace keeps its buffers).
+        stepper.grid.swap_checkpoint(&mut ws.grids[s]);
+        let grid = &stepper.grid;
+        let nodes = grid.mass.len();
         vel_bar.clear();
         vel_bar.resize(nodes, Vector::<D>::zeros());
         mass_bar.clear();
         mass_bar.resize(nodes, 0.0);
-        g2p_adjoint(
-            &stepper.grid,
-            scene,
-            &gc.vel,
-            &cur.x,
-            &next.v,
-            &x_bar,
-            &v_bar,
-            &c_bar,
-            &mut vel_bar,
-            &mut x_bar_g2p,
-        );
-        grid_update_adjoint(scene, &gc.mass, &gc.vel, &gc.wall_mask, &mut vel_bar, &mut mass_bar);
+        g2p_adjoint(grid, scene, &grid.vel, &cur.x, &next.v, &x_bar, &v_bar, &c_bar, &mut vel_bar, &mut x_bar_g2p);
+        grid_update_adjoint(scene, &grid.mass, &grid.vel, &grid.wall_mask, &mut vel_bar, &mut mass_bar);
+        let lg = loss_grads[s].take();
         p2g_adjoint(
             model,
             mu,
             la,
-            &stepper.grid,
+            grid,
             scene,
             &cur.x,
             &cur.v,
@@ -190,22 +162,15 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
             &next.f,
             &vel_bar,
             &mass_bar,
-            &f_bar,
-            &mut adj,
+            &x_bar_g2p,
+            lg.as_deref(),
+            StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: &mut lame_bar },
         );
-        let lg = loss_grads[s].take();
-        for p in 0..n {
-            let a = &adj[p];
-            x_bar[p] = x_bar_g2p[p] + a.x;
-            if let Some(g) = &lg {
-                x_bar[p] += g[p];
-            }
-            v_bar[p] = a.v;
-            c_bar[p] = a.c;
-            f_bar[p] = a.f;
-            // Fixed summation order: deterministic whatever the thread count.
-            mu_bar += a.mu;
-            la_bar += a.lambda;
+        stepper.grid.swap_checkpoint(&mut ws.grids[s]);
+        // Fixed summation order: deterministic whatever the thread count.
+        for &(m, l) in &lame_bar {
+            mu_bar += m;
+            la_bar += l;
         }
     }
     if t == 0 {

@@ -10,6 +10,25 @@ pub trait ConstitutiveModel<const D: usize>: Sync + Send {
     fn kirchhoff(&self, f: &Matrix<D>, mu: f64, lambda: f64) -> Option<Matrix<D>>;
     /// Reverse mode of [`Self::kirchhoff`]: given G = ∂L/∂τ return (∂L/∂F, ∂L/∂μ, ∂L/∂λ).
     fn kirchhoff_vjp(&self, f: &Matrix<D>, mu: f64, lambda: f64, g: &Matrix<D>) -> (Matrix<D>, f64, f64);
+    /// τ(F) (zero when F is inverted), then `body(τ)` → (G = ∂L/∂τ, r), then the VJP of G: returns
+    /// (∂L/∂F, ∂L/∂μ, ∂L/∂λ, r). Same values as [`Self::kirchhoff`] + [`Self::kirchhoff_vjp`]; a
+    /// model may override it to share work (J, ln J) between the two.
+    #[inline(always)]
+    fn kirchhoff_then_vjp<R>(
+        &self,
+        f: &Matrix<D>,
+        mu: f64,
+        lambda: f64,
+        body: impl FnOnce(&Matrix<D>) -> (Matrix<D>, R),
+    ) -> (Matrix<D>, f64, f64, R)
+    where
+        Self: Sized,
+    {
+        let tau = self.kirchhoff(f, mu, lambda).unwrap_or_else(Matrix::<D>::zeros);
+        let (g, r) = body(&tau);
+        let (gf, gmu, gla) = self.kirchhoff_vjp(f, mu, lambda, &g);
+        (gf, gmu, gla, r)
+    }
 }
 
 /// Lamé parameters (μ, λ) from Young's modulus E and Poisson's ratio ν (eq. 5.4).
@@ -60,6 +79,24 @@ mod tests {
         check_vjp(&NeoHookean, f2);
         check_vjp(&FixedCorotated, f3);
         check_vjp(&FixedCorotated, f2);
+    }
+
+    #[test]
+    fn kirchhoff_then_vjp_matches_separate_calls() {
+        let f = Matrix::<3>::new(1.4, 0.3, -0.1, 0.2, 0.8, 0.4, -0.3, 0.1, 1.2);
+        let f2 = Matrix::<2>::new(1.5, 0.4, -0.2, 0.7);
+        let (mu, la) = (1.3, 4.7);
+        fn check<const D: usize, M: ConstitutiveModel<D>>(m: &M, f: Matrix<D>, mu: f64, la: f64) {
+            let g = |t: &Matrix<D>| t * t.transpose() * 0.3 + Matrix::<D>::identity();
+            let tau = m.kirchhoff(&f, mu, la).unwrap();
+            let (gf, gmu, gla) = m.kirchhoff_vjp(&f, mu, la, &g(&tau));
+            let (gf2, gmu2, gla2, t2) = m.kirchhoff_then_vjp(&f, mu, la, |t| (g(t), *t));
+            assert_eq!((gf, gmu, gla, tau), (gf2, gmu2, gla2, t2));
+        }
+        check(&NeoHookean, f, mu, la);
+        check(&NeoHookean, f2, mu, la);
+        check(&FixedCorotated, f, mu, la);
+        check(&FixedCorotated, f2, mu, la);
     }
 
     #[test]

@@ -1,9 +1,9 @@
 //! Grid-to-particle transfer (eq. 5.7) with the APIC affine matrix C and advection x += Δt v.
 use crate::error::MpmError;
-use crate::linalg::{Matrix, Vector};
+use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, for_stencil, SparseGrid};
-use rayon::prelude::*;
+use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
 /// their position (v = 0, C = 0). Errors when a particle state becomes non-finite.
@@ -18,42 +18,46 @@ pub fn gather<const D: usize>(
 ) -> Result<(), MpmError> {
     let inv_dx = 1.0 / scene.grid.dx;
     let dt = scene.dt;
-    let bad = x_next
-        .par_iter_mut()
-        .zip(v_next.par_iter_mut())
-        .zip(c_next.par_iter_mut())
-        .enumerate()
-        .map(|(p, ((xn, vn), cn))| {
-            if scene.is_fixed(p) {
-                *xn = x[p];
-                *vn = Vector::<D>::zeros();
-                *cn = Matrix::<D>::zeros();
-                return usize::MAX;
+    let xn_ptr = SyncPtr(x_next.as_mut_ptr());
+    let vn_ptr = SyncPtr(v_next.as_mut_ptr());
+    let cn_ptr = SyncPtr(c_next.as_mut_ptr());
+    let bad = AtomicUsize::new(usize::MAX);
+    grid.for_each_particle(|p, nbr| {
+        // SAFETY: every particle is visited once.
+        let (xn, vn, cn) = unsafe { (xn_ptr.at(p), vn_ptr.at(p), cn_ptr.at(p)) };
+        if scene.is_fixed(p) {
+            *xn = x[p];
+            *vn = Vector::<D>::zeros();
+            *cn = Matrix::<D>::zeros();
+            return;
+        }
+        let base = base_of(&x[p], inv_dx);
+        let (fx, w, _) = bspline(&x[p], &base, inv_dx);
+        let st = nbr.nodes(&base);
+        // v' = Σ w v_i; C' = 4/Δx Σ w v_i (o − fx)ᵀ = 4/Δx Σ_d (Σ_o (o − fx_d) S_d[o]) e_dᵀ with
+        // S_d[o] = Σ_{nodes with o_d = o} w v_i.
+        let mut sums = [[Vector::<D>::zeros(); 3]; D];
+        for_stencil::<D>(&w, |k, o, weight| {
+            let gw = grid.vel[st[k] as usize] * weight;
+            for d in 0..D {
+                sums[d][o[d]] += gw;
             }
-            let (fx, w, _) = bspline(&x[p], &grid.base[p], inv_dx);
-            let st = grid.stencil_of(p);
-            let mut nv = Vector::<D>::zeros();
-            let mut nc = Matrix::<D>::zeros();
-            for_stencil::<D>(&w, |k, o, weight| {
-                let mut dpos = Vector::<D>::zeros();
-                for d in 0..D {
-                    dpos[d] = o[d] as f64 - fx[d];
-                }
-                let gv = grid.vel[st[k] as usize];
-                nv += gv * weight;
-                nc += gv * dpos.transpose() * (4.0 * weight * inv_dx);
-            });
-            *vn = nv;
-            *cn = nc;
-            *xn = x[p] + nv * dt;
-            if xn.iter().chain(nv.iter()).chain(nc.iter()).all(|v| v.is_finite()) {
-                usize::MAX
-            } else {
-                p
-            }
-        })
-        .min()
-        .unwrap_or(usize::MAX);
+        });
+        let nv = sums[0][0] + sums[0][1] + sums[0][2];
+        let mut nc = Matrix::<D>::zeros();
+        for d in 0..D {
+            let col =
+                (sums[d][0] * (0.0 - fx[d]) + sums[d][1] * (1.0 - fx[d]) + sums[d][2] * (2.0 - fx[d])) * (4.0 * inv_dx);
+            nc.set_column(d, &col);
+        }
+        *vn = nv;
+        *cn = nc;
+        *xn = x[p] + nv * dt;
+        if !(all_finite(xn.as_slice()) && all_finite(nv.as_slice()) && all_finite(nc.as_slice())) {
+            bad.fetch_min(p, Ordering::Relaxed);
+        }
+    });
+    let bad = bad.into_inner();
     if bad != usize::MAX {
         return Err(MpmError::BlowUp {
             step,

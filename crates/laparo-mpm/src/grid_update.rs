@@ -20,7 +20,24 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
         .zip(wall_mask.par_chunks_mut(nn))
         .zip(mass.par_chunks(nn).zip(mom.par_chunks(nn)))
         .enumerate()
+        .with_min_len(16)
         .for_each(|(b, ((vel, mask), (mass, mom)))| {
+            // Blocks away from the wall layers (most of them) skip the per-node wall tests.
+            let interior = walls == WallKind::None
+                || blocks[b].iter().all(|&c| {
+                    let lo = c as usize * crate::sparse_grid::BLOCK;
+                    lo >= th && lo + crate::sparse_grid::BLOCK - 1 + th <= n_grid
+                });
+            if interior {
+                for l in 0..nn {
+                    let denom = mass[l] + eps;
+                    let mut v = if denom > 0.0 { mom[l] * (1.0 / denom) } else { Vector::<D>::zeros() };
+                    v += gravity * dt;
+                    vel[l] = v;
+                    mask[l] = 0;
+                }
+                return;
+            }
             for l in 0..nn {
                 let denom = mass[l] + eps;
                 let mut v = if denom > 0.0 { mom[l] * (1.0 / denom) } else { Vector::<D>::zeros() };

@@ -18,6 +18,18 @@ pub const fn stencil_len(d: usize) -> usize {
     n
 }
 
+/// Whether every entry is finite (x − x is 0 for finite x and NaN otherwise; one branch instead of
+/// one per entry).
+#[inline(always)]
+#[allow(clippy::eq_op)]
+pub fn all_finite(v: &[f64]) -> bool {
+    let mut s = 0.0;
+    for &x in v {
+        s += x - x;
+    }
+    s == 0.0
+}
+
 /// Determinant J = det F (D = 2 or 3).
 #[inline(always)]
 pub fn det<const D: usize>(m: &Matrix<D>) -> f64 {

@@ -37,4 +37,34 @@ impl<const D: usize> ConstitutiveModel<D> for NeoHookean {
         let gla = j.ln() * tr;
         (gf, gmu, gla)
     }
+
+    #[inline(always)]
+    fn kirchhoff_then_vjp<R>(
+        &self,
+        f: &Matrix<D>,
+        mu: f64,
+        lambda: f64,
+        body: impl FnOnce(&Matrix<D>) -> (Matrix<D>, R),
+    ) -> (Matrix<D>, f64, f64, R) {
+        // The expressions of `kirchhoff` and `kirchhoff_vjp` with J, ln J and F Fᵀ computed once.
+        let j = det(f);
+        let lj = j.ln();
+        let ff_t = f * f.transpose();
+        let tau = if j <= 0.0 || !j.is_finite() {
+            Matrix::<D>::zeros()
+        } else {
+            let mut tau = (ff_t - Matrix::<D>::identity()) * mu;
+            let l = lambda * lj;
+            for d in 0..D {
+                tau[(d, d)] += l;
+            }
+            tau
+        };
+        let (g, r) = body(&tau);
+        let tr = g.trace();
+        let gf = (g + g.transpose()) * f * mu + cofactor(f) * (lambda * tr / j);
+        let gmu = g.component_mul(&ff_t).sum() - tr;
+        let gla = lj * tr;
+        (gf, gmu, gla, r)
+    }
 }

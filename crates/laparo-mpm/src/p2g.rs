@@ -1,10 +1,11 @@
 //! Particle-to-grid transfer (eq. 5.6): deformation-gradient update F ← (I + Δt C) F, Kirchhoff
-//! stress, and the colour-partitioned APIC/MLS scatter of mass and momentum.
+//! stress (one pass in particle order), and the colour-partitioned APIC/MLS scatter of mass and
+//! momentum.
 use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
-use crate::linalg::{Matrix, Vector};
+use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, SparseGrid, SyncPtr};
 use rayon::prelude::*;
 
 /// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
@@ -15,37 +16,92 @@ pub fn stress_scale<const D: usize>(scene: &Scene<D>, p: usize) -> f64 {
 }
 
 /// Per-particle part of P2G: F_{t+1} = (I + Δt C_t) F_t and the affine momentum matrix
-/// A_p = −Δt V_p 4/Δx² τ(F_{t+1}) + m_p C_t. Errors on an inverted or non-finite F (blow-up).
+/// A_p = −Δt V_p 4/Δx² τ(F_{t+1}) + m_p C_t; `None` on an inverted or non-finite F (blow-up).
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
     model: &M,
     mu: f64,
     lambda: f64,
     scene: &Scene<D>,
+    c: &Matrix<D>,
+    f: &Matrix<D>,
+    f_next: &mut Matrix<D>,
+    p: usize,
+) -> Option<Matrix<D>> {
+    let nf = (Matrix::<D>::identity() + c * scene.dt) * f;
+    *f_next = nf;
+    match model.kirchhoff(&nf, mu, lambda) {
+        Some(tau) if all_finite(tau.as_slice()) => Some(tau * stress_scale(scene, p) + c * scene.masses[p]),
+        _ => None,
+    }
+}
+
+/// P2G of eq. 5.6: F_{t+1} = (I + Δt C) F into `f_next` and A_p from the stress (one pass in
+/// particle-index order, streaming the particle arrays), then the coloured scatter
+/// m_i += w_ip m_p, (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)). Errors on an inverted or
+/// non-finite F (reported for the lowest particle index, whatever the thread count).
+#[allow(clippy::too_many_arguments)]
+pub fn scatter<const D: usize, M: ConstitutiveModel<D>>(
+    model: &M,
+    mu: f64,
+    lambda: f64,
+    grid: &mut SparseGrid<D>,
+    scene: &Scene<D>,
+    x: &[Vector<D>],
+    v: &[Vector<D>],
     c: &[Matrix<D>],
     f: &[Matrix<D>],
     f_next: &mut [Matrix<D>],
-    affine: &mut [Matrix<D>],
+    affine: &mut Vec<Matrix<D>>,
     step: usize,
 ) -> Result<(), MpmError> {
-    let dt = scene.dt;
+    let dx = scene.grid.dx;
+    let inv_dx = 1.0 / dx;
+    let n = x.len();
+    affine.resize(n, Matrix::<D>::zeros());
+    let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
     let bad = f_next
         .par_iter_mut()
         .zip(affine.par_iter_mut())
         .enumerate()
-        .map(|(p, (fnext, a))| {
-            let nf = (Matrix::<D>::identity() + c[p] * dt) * f[p];
-            *fnext = nf;
-            match model.kirchhoff(&nf, mu, lambda) {
-                Some(tau) if tau.iter().all(|v| v.is_finite()) => {
-                    *a = tau * stress_scale(scene, p) + c[p] * scene.masses[p];
-                    usize::MAX
-                }
-                _ => p,
+        .with_min_len(min_len)
+        .map(|(p, (fnext, a))| match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p) {
+            Some(v) => {
+                *a = v;
+                usize::MAX
             }
+            None => p,
         })
         .min()
         .unwrap_or(usize::MAX);
+    if bad == usize::MAX {
+        let mass = SyncPtr(grid.mass.as_mut_ptr());
+        let mom = SyncPtr(grid.mom.as_mut_ptr());
+        let affine = &*affine;
+        let g = &*grid;
+        g.for_each_coloured(|p, nbr| {
+            let base = base_of(&x[p], inv_dx);
+            let (fx, w, _) = bspline(&x[p], &base, inv_dx);
+            let m = scene.masses[p];
+            let mut mv = v[p] * m;
+            if !scene.external_forces.is_empty() {
+                mv += scene.external_forces[p] * scene.dt;
+            }
+            let st = nbr.nodes(&base);
+            // mv + A (o − fx) Δx per node from per-axis terms.
+            let terms = affine_terms(&mv, &affine[p], &fx, dx);
+            for_stencil::<D>(&w, |k, o, weight| {
+                let i = st[k] as usize;
+                let q = affine_at(&terms, o);
+                // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
+                unsafe {
+                    *mom.at(i) += q * weight;
+                    *mass.at(i) += weight * m;
+                }
+            });
+        });
+    }
     if bad != usize::MAX {
         let j = crate::linalg::det(&f_next[bad]);
         return Err(MpmError::BlowUp {
@@ -59,41 +115,4 @@ pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
         });
     }
     Ok(())
-}
-
-/// Scatter of eq. 5.6: m_i += w_ip m_p, (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)).
-pub fn scatter<const D: usize>(
-    grid: &mut SparseGrid<D>,
-    scene: &Scene<D>,
-    x: &[Vector<D>],
-    v: &[Vector<D>],
-    affine: &[Matrix<D>],
-) {
-    let dx = scene.grid.dx;
-    let inv_dx = 1.0 / dx;
-    let mass = SyncPtr(grid.mass.as_mut_ptr());
-    let mom = SyncPtr(grid.mom.as_mut_ptr());
-    let g = &*grid;
-    g.for_each_coloured(|p| {
-        let (fx, w, _) = bspline(&x[p], &g.base[p], inv_dx);
-        let m = scene.masses[p];
-        let mut mv = v[p] * m;
-        if !scene.external_forces.is_empty() {
-            mv += scene.external_forces[p] * scene.dt;
-        }
-        let a = affine[p];
-        let st = g.stencil_of(p);
-        for_stencil::<D>(&w, |k, o, weight| {
-            let mut dpos = Vector::<D>::zeros();
-            for d in 0..D {
-                dpos[d] = (o[d] as f64 - fx[d]) * dx;
-            }
-            let i = st[k] as usize;
-            // SAFETY: same-colour particle blocks touch disjoint nodes (see sparse_grid).
-            unsafe {
-                *mom.at(i) += (mv + a * dpos) * weight;
-                *mass.at(i) += weight * m;
-            }
-        });
-    });
 }

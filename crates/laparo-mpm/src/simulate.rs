@@ -58,36 +58,15 @@ pub struct Simulation<const D: usize> {
 pub(crate) struct Stepper<const D: usize> {
     pub grid: SparseGrid<D>,
     pub affine: Vec<Matrix<D>>,
-    pub f_next: Vec<Matrix<D>>,
 }
 
 impl<const D: usize> Stepper<D> {
     pub fn new(scene: &Scene<D>) -> Self {
-        let n = scene.n_particles();
-        Stepper {
-            grid: SparseGrid::new(scene.grid),
-            affine: vec![Matrix::<D>::zeros(); n],
-            f_next: vec![Matrix::<D>::zeros(); n],
-        }
+        Stepper { grid: SparseGrid::new(scene.grid), affine: Vec::new() }
     }
 
-    /// P2G + grid update of step `s` from state `cur` (F_{s+1} left in `self.f_next`).
-    pub fn transfer_to_grid<M: ConstitutiveModel<D>>(
-        &mut self,
-        model: &M,
-        scene: &Scene<D>,
-        cur: &ParticleState<D>,
-        s: usize,
-    ) -> Result<(), MpmError> {
-        let (mu, la) = scene.material.lame();
-        self.grid.build(&cur.x, s)?;
-        p2g::particle_stress(model, mu, la, scene, &cur.c, &cur.f, &mut self.f_next, &mut self.affine, s)?;
-        p2g::scatter(&mut self.grid, scene, &cur.x, &cur.v, &self.affine);
-        grid_update::update(&mut self.grid, scene);
-        Ok(())
-    }
-
-    /// One full step `cur` → `next`.
+    /// One full step `cur` → `next`: sparse-grid build, P2G (F update, stress and scatter), grid
+    /// update, G2P.
     pub fn step<M: ConstitutiveModel<D>>(
         &mut self,
         model: &M,
@@ -96,8 +75,23 @@ impl<const D: usize> Stepper<D> {
         next: &mut ParticleState<D>,
         s: usize,
     ) -> Result<(), MpmError> {
-        self.transfer_to_grid(model, scene, cur, s)?;
-        std::mem::swap(&mut next.f, &mut self.f_next);
+        let (mu, la) = scene.material.lame();
+        self.grid.build(&cur.x, s)?;
+        p2g::scatter(
+            model,
+            mu,
+            la,
+            &mut self.grid,
+            scene,
+            &cur.x,
+            &cur.v,
+            &cur.c,
+            &cur.f,
+            &mut next.f,
+            &mut self.affine,
+            s,
+        )?;
+        grid_update::update(&mut self.grid, scene);
         g2p::gather(&self.grid, scene, &cur.x, &mut next.x, &mut next.v, &mut next.c, s)
     }
 }

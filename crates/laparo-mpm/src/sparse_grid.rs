@@ -7,9 +7,21 @@
 //! is fixed (colour by colour, particles in sorted order): results are bit-identical whatever the
 //! number of threads.
 use crate::error::MpmError;
-use crate::linalg::Vector;
+use crate::linalg::{Matrix, Vector};
 use crate::scene::GridSpec;
 use rayon::prelude::*;
+
+/// Number of leading axes along which particle blocks are coloured. In 3D all of them (2³ colours,
+/// a scatter task is one block). In 2D only axis 0: a task is a whole stripe of blocks with the same
+/// axis-0 coordinate (processed in order by one thread), and stripes of equal parity touch disjoint
+/// nodes; 2 colour phases per scatter instead of 4 halve the synchronisations of a small 2D step.
+pub const fn coloured_axes(d: usize) -> usize {
+    if d == 2 {
+        1
+    } else {
+        d
+    }
+}
 
 /// Block side in cells (≥ 3 so that same-colour particle blocks never share a node).
 pub const BLOCK: usize = 4;
@@ -61,14 +73,17 @@ pub struct SparseGrid<const D: usize> {
     pub blocks: Vec<[u32; D]>,
     /// Particle blocks (runs of [`Self::order`]).
     pub pblocks: Vec<ParticleBlock>,
-    /// Particle-block indices per colour (2^D colours).
-    pub colors: Vec<Vec<u32>>,
+    /// Per colour, the tasks of the coloured scatters: ranges [start, end) of particle blocks (see
+    /// [`coloured_axes`]).
+    pub colors: Vec<Vec<[u32; 2]>>,
     /// Particle indices sorted by base block.
     pub order: Vec<u32>,
-    /// Stencil base node per particle.
-    pub base: Vec<[i32; D]>,
-    /// The 3^D node indices of every particle's stencil (particle p: entries p·3^D ..).
-    pub stencil: Vec<u32>,
+    /// Neighbourhood of every particle block (same index as [`Self::pblocks`]).
+    pub pnbr: Vec<BlockNbr<D>>,
+    /// Particle block of every particle (by particle index).
+    pub pblock_of: Vec<u32>,
+    /// Stencil base node per particle (scratch of [`Self::build`]; kernels recompute it from x).
+    base: Vec<[i32; D]>,
     /// Node mass m_i.
     pub mass: Vec<f64>,
     /// Node momentum (m v)_i after P2G; node velocity after the grid update.
@@ -80,7 +95,47 @@ pub struct SparseGrid<const D: usize> {
     keys: Vec<u64>,
     counts: Vec<u32>,
     distinct: Vec<u32>,
-    pnbr: Vec<([u32; 8], [i32; D])>,
+}
+
+/// The 2^D blocks a particle block's stencils touch: first-node index of each neighbour block
+/// (bit d of the slot = +1 along axis d) and the block's first node coordinate.
+#[derive(Clone, Copy, Debug)]
+pub struct BlockNbr<const D: usize> {
+    /// First node index (block index · 4^D) of neighbour block `slot`.
+    pub first: [u32; 8],
+    /// Global node coordinate of the block's first node.
+    pub origin: [i32; D],
+}
+
+impl<const D: usize> BlockNbr<D> {
+    /// Node indices of the 3^D stencil (stencil order, first 3^D entries) of a particle of this
+    /// block with base node `b`.
+    #[inline(always)]
+    pub fn nodes(&self, b: &[i32; D]) -> [u32; 27] {
+        let mut sel = [[0usize; 3]; D];
+        let mut loc = [[0u32; 3]; D];
+        let mut stride = 1u32;
+        for d in 0..D {
+            let l0 = (b[d] - self.origin[d]) as usize;
+            for o in 0..3 {
+                let l = l0 + o;
+                sel[d][o] = (l >> BLOCK_SHIFT) << d;
+                loc[d][o] = (l & (BLOCK - 1)) as u32 * stride;
+            }
+            stride *= BLOCK as u32;
+        }
+        let mut out = [0u32; 27];
+        for_stencil_offsets::<D>(|k, o| {
+            let mut s = 0;
+            let mut l = 0;
+            for d in 0..D {
+                s += sel[d][o[d]];
+                l += loc[d][o[d]];
+            }
+            out[k] = self.first[s] + l;
+        });
+        out
+    }
 }
 
 /// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
@@ -97,13 +152,6 @@ impl<T> SyncPtr<T> {
     pub unsafe fn at(&self, i: usize) -> &mut T {
         &mut *self.0.add(i)
     }
-    /// # Safety
-    /// Range in bounds and not touched by another thread concurrently.
-    #[inline(always)]
-    #[allow(clippy::mut_from_ref)]
-    pub unsafe fn slice(&self, start: usize, len: usize) -> &mut [T] {
-        std::slice::from_raw_parts_mut(self.0.add(start), len)
-    }
 }
 
 impl<const D: usize> SparseGrid<D> {
@@ -118,8 +166,9 @@ impl<const D: usize> SparseGrid<D> {
             pblocks: Vec::new(),
             colors: vec![Vec::new(); 1 << D],
             order: Vec::new(),
+            pnbr: Vec::new(),
+            pblock_of: Vec::new(),
             base: Vec::new(),
-            stencil: Vec::new(),
             mass: Vec::new(),
             mom: Vec::new(),
             vel: Vec::new(),
@@ -127,15 +176,7 @@ impl<const D: usize> SparseGrid<D> {
             keys: Vec::new(),
             counts: vec![0; blocks_per_axis.pow(D as u32)],
             distinct: Vec::new(),
-            pnbr: Vec::new(),
         }
-    }
-
-    /// Node indices of particle `p`'s stencil (3^D entries, stencil order).
-    #[inline(always)]
-    pub fn stencil_of(&self, p: usize) -> &[u32] {
-        let sl = crate::linalg::stencil_len(D);
-        &self.stencil[p * sl..(p + 1) * sl]
     }
 
     /// Grid specification.
@@ -176,27 +217,19 @@ impl<const D: usize> SparseGrid<D> {
         let spec = self.spec;
         let n = x.len();
         self.base.resize(n, [0; D]);
-        let bad = self
-            .base
-            .par_iter_mut()
-            .zip(x.par_iter())
-            .enumerate()
-            .map(|(p, (b, xp))| match particle_base(xp, &spec) {
-                Some(v) => {
-                    *b = v;
-                    usize::MAX
-                }
-                None => p,
-            })
-            .min()
-            .unwrap_or(usize::MAX);
-        if bad != usize::MAX {
-            return Err(MpmError::OutsideDomain { particle: bad, step });
-        }
-        // Counting sort of the particles by base block (stable: particle index order within a block).
+        // Base nodes and counting sort of the particles by base block (stable: particle index order
+        // within a block); one sequential pass (cheaper than a parallel pass for a few 10⁴ particles).
         self.keys.clear();
         self.distinct.clear();
-        for b in self.base.iter() {
+        for (p, xp) in x.iter().enumerate() {
+            let Some(b) = particle_base(xp, &spec) else {
+                for &k in &self.distinct {
+                    self.counts[k as usize] = 0;
+                }
+                self.distinct.clear();
+                return Err(MpmError::OutsideDomain { particle: p, step });
+            };
+            self.base[p] = b;
             let c: [usize; D] = std::array::from_fn(|d| (b[d] as usize) >> BLOCK_SHIFT);
             let k = self.block_key(&c);
             if self.counts[k] == 0 {
@@ -222,19 +255,19 @@ impl<const D: usize> SparseGrid<D> {
         for &k in &self.distinct {
             self.counts[k as usize] = 0;
         }
-        // Reset the block table, then activate blocks in order of first touch.
-        for b in &self.blocks {
-            let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
-            let k = self.block_key(&c);
-            self.table[k] = INACTIVE;
-        }
+        // Activate blocks in order of first touch (the block table is all INACTIVE between builds).
         self.blocks.clear();
         self.pblocks.clear();
         self.pnbr.clear();
+        self.colors.resize(1 << D, Vec::new());
         for c in self.colors.iter_mut() {
             c.clear();
         }
+        let nn = block_nodes(D) as u32;
+        self.pblock_of.resize(n, 0);
         let mut start = 0usize;
+        let ca = coloured_axes(D);
+        let mut prev_prefix = [usize::MAX; D];
         for &key in &self.distinct {
             let b0 = self.base[self.order[start] as usize];
             let c0: [usize; D] = std::array::from_fn(|d| (b0[d] as usize) >> BLOCK_SHIFT);
@@ -247,55 +280,36 @@ impl<const D: usize> SparseGrid<D> {
                         self.table[k] = self.blocks.len() as u32;
                         self.blocks.push(std::array::from_fn(|d| c[d] as u32));
                     }
-                    *slot = self.table[k];
+                    *slot = self.table[k] * nn;
                 }
             }
             let mut end = start;
             while end < n && self.keys[self.order[end] as usize] == key as u64 {
                 end += 1;
             }
-            let colour: usize = (0..D).map(|d| (c0[d] & 1) << d).sum();
-            self.colors[colour].push(self.pblocks.len() as u32);
+            let colour: usize = (0..ca).map(|d| (c0[d] & 1) << d).sum();
+            let pb = self.pblocks.len() as u32;
+            let prefix: [usize; D] = std::array::from_fn(|d| if d < ca { c0[d] } else { 0 });
+            // Blocks are visited in key order, so a task's blocks (same coloured coordinates) are
+            // consecutive; with all axes coloured every block is its own task.
+            match self.colors[colour].last_mut() {
+                Some(task) if ca < D && prefix == prev_prefix => task[1] = pb + 1,
+                _ => self.colors[colour].push([pb, pb + 1]),
+            }
+            prev_prefix = prefix;
+            for &p in &self.order[start..end] {
+                self.pblock_of[p as usize] = pb;
+            }
             self.pblocks.push(ParticleBlock { start: start as u32, end: end as u32 });
-            self.pnbr.push((nbr, c0.map(|v| (v * BLOCK) as i32)));
+            self.pnbr.push(BlockNbr { first: nbr, origin: c0.map(|v| (v * BLOCK) as i32) });
             start = end;
         }
-        // Node indices of every particle's stencil, from its block's neighbour blocks.
-        let nn = block_nodes(D);
-        let sl = crate::linalg::stencil_len(D);
-        self.stencil.resize(n * sl, 0);
-        let st_ptr = SyncPtr(self.stencil.as_mut_ptr());
-        let (order, base, pnbr) = (&self.order, &self.base, &self.pnbr);
-        self.pblocks.par_iter().zip(pnbr.par_iter()).for_each(|(blk, (nbr, origin))| {
-            for &p in &order[blk.start as usize..blk.end as usize] {
-                let b = &base[p as usize];
-                // SAFETY: each particle belongs to exactly one particle block.
-                let st = unsafe { st_ptr.slice(p as usize * sl, sl) };
-                let mut sel = [[0usize; 3]; D];
-                let mut loc = [[0usize; 3]; D];
-                let mut stride = 1usize;
-                for d in 0..D {
-                    for o in 0..3 {
-                        let l = (b[d] - origin[d]) as usize + o;
-                        sel[d][o] = (l >> BLOCK_SHIFT) << d;
-                        loc[d][o] = (l & (BLOCK - 1)) * stride;
-                    }
-                    stride *= BLOCK;
-                }
-                let mut k = 0;
-                for_stencil_offsets::<D>(|o| {
-                    let mut s = 0;
-                    let mut l = 0;
-                    for d in 0..D {
-                        s += sel[d][o[d]];
-                        l += loc[d][o[d]];
-                    }
-                    st[k] = (nbr[s] as usize * nn + l) as u32;
-                    k += 1;
-                });
-            }
-        });
-        let nodes = self.blocks.len() * nn;
+        for b in &self.blocks {
+            let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
+            let k = self.block_key(&c);
+            self.table[k] = INACTIVE;
+        }
+        let nodes = self.blocks.len() * nn as usize;
         self.mass.clear();
         self.mass.resize(nodes, 0.0);
         self.mom.clear();
@@ -307,18 +321,84 @@ impl<const D: usize> SparseGrid<D> {
         Ok(())
     }
 
-    /// Run `f(particle)` for every particle, colour by colour, same-colour blocks in parallel.
-    /// `f` may write to the stencil nodes of its particle (disjoint across a colour).
-    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize) + Sync) {
-        for colour in &self.colors {
-            colour.par_iter().for_each(|&pb| {
-                let blk = self.pblocks[pb as usize];
-                for &p in &self.order[blk.start as usize..blk.end as usize] {
-                    f(p as usize);
+    /// Run `f(particle, its block's neighbourhood)` for every particle, colour by colour,
+    /// same-colour tasks in parallel. `f` may write to the stencil nodes of its particle (disjoint
+    /// across a colour).
+    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
+        for tasks in &self.colors {
+            if tasks.is_empty() {
+                continue;
+            }
+            let min_len = tasks.len().div_ceil(4 * rayon::current_num_threads()).max(1);
+            tasks.par_iter().with_min_len(min_len).for_each(|&[b0, b1]| {
+                for pb in b0 as usize..b1 as usize {
+                    let blk = self.pblocks[pb];
+                    let nbr = &self.pnbr[pb];
+                    for &p in &self.order[blk.start as usize..blk.end as usize] {
+                        f(p as usize, nbr);
+                    }
                 }
             });
         }
     }
+
+    /// Run `f(particle, its block's neighbourhood)` for every particle, in particle-index order
+    /// (contiguous chunks in parallel: the per-particle arrays are streamed sequentially). For
+    /// gathers: `f` must only write to per-particle data.
+    pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
+        let n = self.pblock_of.len();
+        let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+        self.pblock_of.par_iter().enumerate().with_min_len(min_len).for_each(|(p, &pb)| {
+            f(p, &self.pnbr[pb as usize]);
+        });
+    }
+
+    /// Move the particle layout (sort order, blocks, colours) and node results (mass, velocity,
+    /// wall mask) of this step into `cp`, taking `cp`'s buffers in exchange (no copy).
+    pub fn swap_checkpoint(&mut self, cp: &mut GridCheckpoint<D>) {
+        std::mem::swap(&mut self.order, &mut cp.order);
+        std::mem::swap(&mut self.pblocks, &mut cp.pblocks);
+        std::mem::swap(&mut self.colors, &mut cp.colors);
+        std::mem::swap(&mut self.pnbr, &mut cp.pnbr);
+        std::mem::swap(&mut self.pblock_of, &mut cp.pblock_of);
+        std::mem::swap(&mut self.mass, &mut cp.mass);
+        std::mem::swap(&mut self.vel, &mut cp.vel);
+        std::mem::swap(&mut self.wall_mask, &mut cp.wall_mask);
+    }
+}
+
+/// What the reverse pass needs of one step's grid: the particle layout (so the sparse grid is not
+/// rebuilt) and the node masses, velocities and wall masks (so P2G is not redone).
+#[derive(Default)]
+pub struct GridCheckpoint<const D: usize> {
+    /// Particle indices sorted by base block.
+    pub order: Vec<u32>,
+    /// Particle blocks.
+    pub pblocks: Vec<ParticleBlock>,
+    /// Scatter tasks per colour.
+    pub colors: Vec<Vec<[u32; 2]>>,
+    /// Neighbourhood per particle block.
+    pub pnbr: Vec<BlockNbr<D>>,
+    /// Particle block of every particle.
+    pub pblock_of: Vec<u32>,
+    /// Node masses.
+    pub mass: Vec<f64>,
+    /// Node velocities after the grid update.
+    pub vel: Vec<Vector<D>>,
+    /// Wall masks.
+    pub wall_mask: Vec<u8>,
+}
+
+/// Stencil base node floor(x/Δx − ½) (same arithmetic as [`particle_base`]) of a particle that
+/// [`SparseGrid::build`] accepted (so the value is in [0, n_grid − 2)).
+#[inline(always)]
+pub fn base_of<const D: usize>(x: &Vector<D>, inv_dx: f64) -> [i32; D] {
+    std::array::from_fn(|d| {
+        let q = x[d] * inv_dx - 0.5;
+        debug_assert!(q >= 0.0 && q < i32::MAX as f64);
+        // SAFETY: q is finite and in [0, n_grid − 2) for every particle of a built grid.
+        unsafe { q.to_int_unchecked::<i32>() }
+    })
 }
 
 /// Quadratic B-spline weights (eq. 5.6's N) of a particle: fx = x/Δx − base ∈ [0.5, 1.5), and per
@@ -339,6 +419,50 @@ pub fn bspline<const D: usize>(
         dw[d] = [f - 1.5, -2.0 * (f - 1.0), f - 0.5];
     }
     (fx, w, dw)
+}
+
+/// Per-axis terms of an affine function of the node offset, u(o) = c + M (o − fx) s = c + Σ_d
+/// M[:, d] (o_d − fx_d) s: entry [d][o] is M[:, d] (o − fx_d) s, with `c` folded into axis 0. A node's
+/// value is then [`affine_at`]: D − 1 vector additions instead of a matrix–vector product.
+#[inline(always)]
+pub fn affine_terms<const D: usize>(c: &Vector<D>, m: &Matrix<D>, fx: &Vector<D>, s: f64) -> [[Vector<D>; 3]; D] {
+    let mut t = [[Vector::<D>::zeros(); 3]; D];
+    for (d, td) in t.iter_mut().enumerate() {
+        let col = m.column(d).into_owned();
+        for (o, tdo) in td.iter_mut().enumerate() {
+            *tdo = col * ((o as f64 - fx[d]) * s);
+            if d == 0 {
+                *tdo += c;
+            }
+        }
+    }
+    t
+}
+
+/// Value at stencil offset `o` of the affine function whose [`affine_terms`] are `t`.
+#[inline(always)]
+pub fn affine_at<const D: usize>(t: &[[Vector<D>; 3]; D], o: &[usize; D]) -> Vector<D> {
+    let mut u = t[0][o[0]];
+    for d in 1..D {
+        u += t[d][o[d]];
+    }
+    u
+}
+
+/// ∂w/∂fx_d of a stencil node: dw_d[o_d] Π_{e≠d} w_e[o_e].
+#[inline(always)]
+pub fn weight_grad<const D: usize>(w: &[[f64; 3]; D], dw: &[[f64; 3]; D], o: &[usize; D]) -> Vector<D> {
+    let mut g = Vector::<D>::zeros();
+    for d in 0..D {
+        let mut v = dw[d][o[d]];
+        for e in 0..D {
+            if e != d {
+                v *= w[e][o[e]];
+            }
+        }
+        g[d] = v;
+    }
+    g
 }
 
 /// Offset of stencil entry `k` along axis `d` (axis 0 slowest).
@@ -389,7 +513,7 @@ pub fn for_stencil<const D: usize>(w: &[[f64; 3]; D], mut f: impl FnMut(usize, &
 
 /// Visit the 3^D stencil offsets in stencil order (axis 0 slowest).
 #[inline(always)]
-pub fn for_stencil_offsets<const D: usize>(mut f: impl FnMut(&[usize; D])) {
+pub fn for_stencil_offsets<const D: usize>(mut f: impl FnMut(usize, &[usize; D])) {
     let w = [[0.0; 3]; D];
-    for_stencil::<D>(&w, |_, o, _| f(o));
+    for_stencil::<D>(&w, |k, o, _| f(k, o));
 }

@@ -5,7 +5,7 @@
 //! w̄_i = v_i·u_i; f̄x = Σ_i w̄_i ∂w_i/∂fx − 4/Δx C̄'ᵀ v' (using Σ w_i v_i = v'); x̄ = x̄' + f̄x/Δx.
 use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad, SparseGrid, SyncPtr};
 
 /// Fills `vel_bar` (node-velocity adjoint, zeroed, one per node of `grid`) and `x_bar` (the G2P part
 /// of the position adjoint of the step input). `vel`: the step's node velocities; `v_next`: v'.
@@ -26,7 +26,7 @@ pub fn g2p_adjoint<const D: usize>(
     let dt = scene.dt;
     let vb_ptr = SyncPtr(vel_bar.as_mut_ptr());
     let xb_ptr = SyncPtr(x_bar.as_mut_ptr());
-    grid.for_each_coloured(|p| {
+    grid.for_each_coloured(|p, nbr| {
         // SAFETY: every particle is visited once; nodes are disjoint within a colour.
         let xb = unsafe { xb_ptr.at(p) };
         if scene.is_fixed(p) {
@@ -35,29 +35,19 @@ pub fn g2p_adjoint<const D: usize>(
         }
         let vb = v_bar_next[p] + x_bar_next[p] * dt;
         let cb4 = c_bar_next[p] * (4.0 * inv_dx);
-        let (fx, w, dw) = bspline(&x[p], &grid.base[p], inv_dx);
-        let st = grid.stencil_of(p);
+        let base = base_of(&x[p], inv_dx);
+        let (fx, w, dw) = bspline(&x[p], &base, inv_dx);
+        let st = nbr.nodes(&base);
         let mut fxb = -(cb4.transpose() * v_next[p]);
+        // u_i = v̄' + 4/Δx C̄' (o_i − fx) from per-axis terms.
+        let terms = affine_terms(&vb, &cb4, &fx, 1.0);
         for_stencil::<D>(&w, |k, o, weight| {
-            let mut dpos = Vector::<D>::zeros();
-            for d in 0..D {
-                dpos[d] = o[d] as f64 - fx[d];
-            }
             let i = st[k] as usize;
-            let u = vb + cb4 * dpos;
+            let u = affine_at(&terms, o);
             unsafe {
                 *vb_ptr.at(i) += u * weight;
             }
-            let wbar = vel[i].dot(&u);
-            for d in 0..D {
-                let mut dwd = dw[d][o[d]];
-                for e in 0..D {
-                    if e != d {
-                        dwd *= w[e][o[e]];
-                    }
-                }
-                fxb[d] += wbar * dwd;
-            }
+            fxb += weight_grad(&w, &dw, o) * vel[i].dot(&u);
         });
         *xb = x_bar_next[p] + fxb * inv_dx;
     });

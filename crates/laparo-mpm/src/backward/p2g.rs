@@ -9,29 +9,26 @@ use crate::constitutive::ConstitutiveModel;
 use crate::linalg::{Matrix, Vector};
 use crate::p2g::stress_scale;
 use crate::scene::Scene;
-use crate::sparse_grid::{bspline, for_stencil, SparseGrid};
-use rayon::prelude::*;
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad, SparseGrid, SyncPtr};
 
-/// Adjoints of one particle's step input.
-#[derive(Clone, Copy)]
-pub struct ParticleAdjoint<const D: usize> {
-    /// x̄ contribution from P2G (added to the G2P part by the caller).
-    pub x: Vector<D>,
-    /// v̄ of the step input.
-    pub v: Vector<D>,
-    /// C̄ of the step input.
-    pub c: Matrix<D>,
-    /// F̄ of the step input.
-    pub f: Matrix<D>,
-    /// μ̄ contribution.
-    pub mu: f64,
-    /// λ̄ contribution.
-    pub lambda: f64,
+/// Adjoint arrays of the particle state, updated in place by [`p2g_adjoint`] from those of the
+/// step output to those of the step input.
+pub struct StateAdjoint<'a, const D: usize> {
+    /// x̄: in, ignored; out, x̄ of the step input (G2P part + P2G part + loss gradient).
+    pub x: &'a mut [Vector<D>],
+    /// v̄ of the step input (out).
+    pub v: &'a mut [Vector<D>],
+    /// C̄ of the step input (out).
+    pub c: &'a mut [Matrix<D>],
+    /// F̄: in, of the step output; out, of the step input.
+    pub f: &'a mut [Matrix<D>],
+    /// (μ̄, λ̄) contribution per particle (out; the caller sums them in particle order).
+    pub lame: &'a mut [(f64, f64)],
 }
 
 /// Per-particle adjoint of P2G. `mom_bar`, `mass_bar`: node adjoints from the grid-update adjoint;
-/// `f_bar_next`: F̄ of the step output; `f_next`: F of the step output (checkpoint). The stress and
-/// the affine matrix A are recomputed here.
+/// `x_bar_g2p`: the G2P part of x̄; `loss_grad`: ∂L/∂x of the step input when observed; `f_next`: F
+/// of the step output (checkpoint). The stress and the affine matrix A are recomputed here.
 #[allow(clippy::too_many_arguments)]
 pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
     model: &M,
@@ -46,58 +43,67 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
     f_next: &[Matrix<D>],
     mom_bar: &[Vector<D>],
     mass_bar: &[f64],
-    f_bar_next: &[Matrix<D>],
-    out: &mut [ParticleAdjoint<D>],
+    x_bar_g2p: &[Vector<D>],
+    loss_grad: Option<&[Vector<D>]>,
+    out: StateAdjoint<'_, D>,
 ) {
     let dx = scene.grid.dx;
     let inv_dx = 1.0 / dx;
     let dt = scene.dt;
-    out.par_iter_mut().enumerate().with_min_len(64).for_each(|(p, o_adj)| {
-        let (fx, w, dw) = bspline(&x[p], &grid.base[p], inv_dx);
+    let (xb_ptr, vb_ptr, cb_ptr) =
+        (SyncPtr(out.x.as_mut_ptr()), SyncPtr(out.v.as_mut_ptr()), SyncPtr(out.c.as_mut_ptr()));
+    let (fb_ptr, lm_ptr) = (SyncPtr(out.f.as_mut_ptr()), SyncPtr(out.lame.as_mut_ptr()));
+    grid.for_each_particle(|p, nbr| {
+        let base = base_of(&x[p], inv_dx);
+        let (fx, w, dw) = bspline(&x[p], &base, inv_dx);
         let m = scene.masses[p];
         let scale = stress_scale(scene, p);
-        let tau = model.kirchhoff(&f_next[p], mu, lambda).unwrap_or_else(Matrix::<D>::zeros);
-        let a = tau * scale + c[p] * m;
         let mut mv = v[p] * m;
         if !scene.external_forces.is_empty() {
             mv += scene.external_forces[p] * dt;
         }
-        let st = grid.stencil_of(p);
-        let mut sum_wp = Vector::<D>::zeros();
-        let mut ab = Matrix::<D>::zeros();
-        let mut fxb = Vector::<D>::zeros();
-        for_stencil::<D>(&w, |k, o, weight| {
-            let mut dpos = Vector::<D>::zeros();
-            for d in 0..D {
-                dpos[d] = (o[d] as f64 - fx[d]) * dx;
-            }
-            let i = st[k] as usize;
-            let pb = mom_bar[i];
-            let wpb = pb * weight;
-            sum_wp += wpb;
-            ab += wpb * dpos.transpose();
-            let wbar = pb.dot(&(mv + a * dpos)) + mass_bar[i] * m;
-            for d in 0..D {
-                let mut dwd = dw[d][o[d]];
-                for e in 0..D {
-                    if e != d {
-                        dwd *= w[e][o[e]];
-                    }
+        let st = nbr.nodes(&base);
+        let (fnb_tau, mub, lab, (sum_wp, ab, fxb)) = model.kirchhoff_then_vjp(&f_next[p], mu, lambda, |tau| {
+            let a = tau * scale + c[p] * m;
+            // mv + A dpos_i from per-axis terms; Σ w p̄_i and Σ w p̄_i dpos_iᵀ from the per-axis
+            // sums S_d[o] = Σ_{nodes with o_d = o} w p̄_i.
+            let terms = affine_terms(&mv, &a, &fx, dx);
+            let mut sums = [[Vector::<D>::zeros(); 3]; D];
+            let mut fxb = Vector::<D>::zeros();
+            for_stencil::<D>(&w, |k, o, weight| {
+                let i = st[k] as usize;
+                let pb = mom_bar[i];
+                let wpb = pb * weight;
+                for d in 0..D {
+                    sums[d][o[d]] += wpb;
                 }
-                fxb[d] += wbar * dwd;
+                let wbar = pb.dot(&affine_at(&terms, o)) + mass_bar[i] * m;
+                fxb += weight_grad(&w, &dw, o) * wbar;
+            });
+            let sum_wp = sums[0][0] + sums[0][1] + sums[0][2];
+            let mut ab = Matrix::<D>::zeros();
+            for d in 0..D {
+                let col = sums[d][0] * ((0.0 - fx[d]) * dx)
+                    + sums[d][1] * ((1.0 - fx[d]) * dx)
+                    + sums[d][2] * ((2.0 - fx[d]) * dx);
+                ab.set_column(d, &col);
             }
+            fxb -= a.transpose() * sum_wp * dx;
+            (ab * scale, (sum_wp, ab, fxb))
         });
-        fxb -= a.transpose() * sum_wp * dx;
-        let tau_bar = ab * scale;
-        let (fnb_tau, mub, lab) = model.kirchhoff_vjp(&f_next[p], mu, lambda, &tau_bar);
-        let fnb = f_bar_next[p] + fnb_tau;
-        *o_adj = ParticleAdjoint {
-            x: fxb * inv_dx,
-            v: sum_wp * m,
-            c: ab * m + fnb * f[p].transpose() * dt,
-            f: (Matrix::<D>::identity() + c[p] * dt).transpose() * fnb,
-            mu: mub,
-            lambda: lab,
-        };
+        // SAFETY: every particle is visited once and only its own entries are touched.
+        unsafe {
+            let fb = fb_ptr.at(p);
+            let fnb = *fb + fnb_tau;
+            let xb = xb_ptr.at(p);
+            *xb = x_bar_g2p[p] + fxb * inv_dx;
+            if let Some(g) = loss_grad {
+                *xb += g[p];
+            }
+            *vb_ptr.at(p) = sum_wp * m;
+            *cb_ptr.at(p) = ab * m + fnb * f[p].transpose() * dt;
+            *fb = (Matrix::<D>::identity() + c[p] * dt).transpose() * fnb;
+            *lm_ptr.at(p) = (mub, lab);
+        }
     });
 }
