@@ -44,11 +44,6 @@ fn main() {
     let mp = MeshParams { grid_step_px: step, ..MeshParams::default() };
     let conf = ConformalParams::default();
     let mut solver = CpcSolver::new();
-    if std::env::var("CPC_MIXED").is_ok() {
-        solver.set_precision(laparo_cpc::SolvePrecision::Mixed);
-    } else {
-        solver.set_precision(laparo_cpc::SolvePrecision::Double);
-    }
     let names = [
         "mesh",
         "asm terms",

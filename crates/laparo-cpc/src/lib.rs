@@ -21,5 +21,5 @@ pub use conformal::{ConformalParams, RowConvention};
 pub use error::{CpcError, Result};
 pub use mesh::{CpcMesh, MeshParams, MeshReport};
 pub use pipeline::{cpc_warp, cpc_warp_with, CpcParams, CpcResult, CpcStats};
-pub use solve::{CpcSolver, CpcSystem, CpcTopology, SolveInfo, SolvePrecision};
+pub use solve::{CpcSolver, CpcSystem, CpcTopology};
 pub use warp::{Warp, WarpMaps};

@@ -32,7 +32,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{c32, c64, Conj, MatMut, Par, Side};
+use faer::{c64, Conj, MatMut, Par, Side};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -75,43 +75,8 @@ pub struct CpcTopology {
 }
 
 struct Scratch {
-    /// Double-precision factor (allocated on the first fallback or double-precision solve).
     l_vals: Vec<c64>,
-    /// Single-precision factor of the mixed-precision solve.
-    l32: Vec<c32>,
     mem: MemBuffer,
-}
-
-/// Iterative-refinement steps of the mixed-precision solve before it gives up and falls back to
-/// the double-precision factorisation.
-pub const MAX_REFINEMENT_STEPS: usize = 10;
-
-/// How [`CpcSystem::solve`] factorises the complex Hermitian system.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum SolvePrecision {
-    /// Single-precision numeric Cholesky factorisation, then iterative refinement with residuals
-    /// of the double-precision matrix until the backward error ‖b − A x‖∞ / (‖A‖∞ ‖x‖∞) is at
-    /// most ε·√n (LAPACK `zcposv`'s test, ε the f64 epsilon): as accurate as the double-precision
-    /// factorisation. Falls back to [`SolvePrecision::Double`] when the single-precision factorisation
-    /// fails or the refinement stops contracting (residual not halved by a step) or does not converge within
-    /// [`MAX_REFINEMENT_STEPS`] steps (λ → 1,
-    /// where the condition number grows like 1/(1−λ)). The default.
-    #[default]
-    Mixed,
-    /// Double-precision numeric Cholesky factorisation and one pair of triangular solves.
-    Double,
-}
-
-/// How the last complex solve went.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct SolveInfo {
-    /// Refinement steps of the mixed-precision solve (0 for a double-precision solve).
-    pub refinement_steps: usize,
-    /// Whether the mixed-precision solve fell back to the double-precision factorisation.
-    pub fell_back: bool,
-    /// Backward error ‖b − A x‖∞ / (‖A‖∞ ‖x‖∞) of the mixed-precision solution (0 for a
-    /// double-precision solve, not computed there).
-    pub backward_error: f64,
 }
 
 impl CpcTopology {
@@ -229,11 +194,14 @@ impl CpcTopology {
     }
 
     /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
-    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize, prec: SolvePrecision) -> Result<SolveInfo> {
+    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize) -> Result<()> {
+        let n = self.n;
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let mat = SparseColMatRef::new(sym, vals);
         // Sequential by default: on the shared, loaded 2-core machine faer's rayon path was not
         // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
         let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
-        // Reuse the factor buffers and workspace unless another solve holds them.
+        // Reuse the factor buffer and workspace unless another solve holds them.
         let mut guard = self.scratch.try_lock().ok();
         let mut local = None;
         let slot: &mut Option<Scratch> = match guard.as_deref_mut() {
@@ -241,28 +209,12 @@ impl CpcTopology {
             None => &mut local,
         };
         let sc = slot.get_or_insert_with(|| {
-            let sy = &self.symbolic;
-            let req = sy
+            let req = self
+                .symbolic
                 .factorize_numeric_llt_scratch::<c64>(par, Default::default())
-                .or(sy.solve_in_place_scratch::<c64>(1, par))
-                .or(sy.factorize_numeric_llt_scratch::<c32>(par, Default::default()))
-                .or(sy.solve_in_place_scratch::<c32>(1, par));
-            Scratch { l_vals: Vec::new(), l32: Vec::new(), mem: MemBuffer::new(req) }
+                .or(self.symbolic.solve_in_place_scratch::<c64>(1, par));
+            Scratch { l_vals: vec![c64::new(0.0, 0.0); self.symbolic.len_val()], mem: MemBuffer::new(req) }
         });
-        if prec == SolvePrecision::Mixed {
-            if let Some(info) = self.mixed_solve(vals, rhs, par, sc) {
-                return Ok(info);
-            }
-        }
-        self.double_solve(vals, rhs, par, sc)?;
-        Ok(SolveInfo { refinement_steps: 0, fell_back: prec == SolvePrecision::Mixed, backward_error: 0.0 })
-    }
-
-    fn double_solve(&self, vals: &[c64], rhs: &mut [c64], par: Par, sc: &mut Scratch) -> Result<()> {
-        let n = self.n;
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let mat = SparseColMatRef::new(sym, vals);
-        sc.l_vals.resize(self.symbolic.len_val(), c64::new(0.0, 0.0));
         let llt = self
             .symbolic
             .factorize_numeric_llt(
@@ -283,100 +235,6 @@ impl CpcTopology {
         );
         Ok(())
     }
-
-    /// Single-precision factorisation + double-precision iterative refinement; `None` (and `rhs`
-    /// untouched) when it fails or does not converge.
-    fn mixed_solve(&self, vals: &[c64], rhs: &mut [c64], par: Par, sc: &mut Scratch) -> Option<SolveInfo> {
-        let n = self.n;
-        let v32: Vec<c32> = vals.iter().map(|v| c32::new(v.re as f32, v.im as f32)).collect();
-        if v32.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())) {
-            return None;
-        }
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let mat = SparseColMatRef::new(sym, &v32[..]);
-        sc.l32.resize(self.symbolic.len_val(), c32::new(0.0, 0.0));
-        let llt = self
-            .symbolic
-            .factorize_numeric_llt(
-                &mut sc.l32,
-                mat,
-                Side::Lower,
-                Default::default(),
-                par,
-                MemStack::new(&mut sc.mem),
-                Default::default(),
-            )
-            .ok()?;
-        // Stopping test of LAPACK's zcposv: ‖b − A x‖∞ ≤ ‖x‖∞ · ‖A‖∞ · ε · √n, i.e. a backward
-        // error as small as that of the double-precision factorisation.
-        let mut row_sum = vec![0.0f64; n];
-        for c in 0..n {
-            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                let (i, a) = (self.row_idx[k], vals[k].re.abs() + vals[k].im.abs());
-                row_sum[i] += a;
-                if i != c {
-                    row_sum[c] += a;
-                }
-            }
-        }
-        let a_norm = row_sum.iter().fold(0.0f64, |m, &v| m.max(v));
-        let cte = a_norm * f64::EPSILON * (n as f64).sqrt();
-        let mut x = vec![c64::new(0.0, 0.0); n];
-        let mut r: Vec<c64> = rhs.to_vec();
-        let mut d32 = vec![c32::new(0.0, 0.0); n];
-        let mut prev = f64::INFINITY;
-        for step in 1..=MAX_REFINEMENT_STEPS {
-            for (d, v) in d32.iter_mut().zip(&r) {
-                *d = c32::new(v.re as f32, v.im as f32);
-            }
-            llt.solve_in_place_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(&mut d32, n, 1),
-                par,
-                MemStack::new(&mut sc.mem),
-            );
-            for (xi, d) in x.iter_mut().zip(&d32) {
-                xi.re += d.re as f64;
-                xi.im += d.im as f64;
-            }
-            self.residual(vals, rhs, &x, &mut r);
-            let xn = x.iter().fold(0.0f64, |m, v| m.max(v.re.abs()).max(v.im.abs()));
-            let rn = r.iter().fold(0.0f64, |m, v| m.max(v.re.abs()).max(v.im.abs()));
-            if !(rn.is_finite() && xn.is_finite()) {
-                return None;
-            }
-            let rel = rn / (xn * a_norm);
-            // Converged when the residual no longer shrinks (the f64 round-off floor of the
-            // residual) with a backward error at the double-precision factorisation's level.
-            if rn == 0.0 || (rn > 0.5 * prev && rn <= xn * cte) {
-                rhs.copy_from_slice(&x);
-                return Some(SolveInfo { refinement_steps: step, fell_back: false, backward_error: rel });
-            }
-            // Not contracting (residual not halved by the last step) above that level: give up.
-            if rn > 0.5 * prev {
-                return None;
-            }
-            prev = rn;
-        }
-        None
-    }
-
-    /// r = b − A x for the Hermitian A with lower-triangle values `vals`.
-    fn residual(&self, vals: &[c64], b: &[c64], x: &[c64], r: &mut [c64]) {
-        r.copy_from_slice(b);
-        for c in 0..self.n {
-            let (lo, hi) = (self.col_ptr[c], self.col_ptr[c + 1]);
-            let xc = x[c];
-            // The diagonal entry (real) is the first stored row of every column.
-            let mut acc = c64::new(vals[lo].re * xc.re, vals[lo].re * xc.im);
-            for k in lo + 1..hi {
-                let (i, a) = (self.row_idx[k], vals[k]);
-                r[i] -= a * xc;
-                acc += a.conj() * x[i];
-            }
-            r[c] -= acc;
-        }
-    }
 }
 
 /// Reusable CPC solver state for a video: keeps the [`CpcTopology`] of the last mesh and reuses it
@@ -386,7 +244,6 @@ impl CpcTopology {
 pub struct CpcSolver {
     topo: Option<Arc<CpcTopology>>,
     factor_threads: usize,
-    precision: SolvePrecision,
 }
 
 impl CpcSolver {
@@ -401,7 +258,6 @@ impl CpcSolver {
         let cached = self.topo.as_ref().filter(|t| t.matches(mesh)).cloned();
         let mut sys = CpcSystem::assemble_with(mesh, params, cached)?;
         sys.set_factor_threads(self.factor_threads);
-        sys.set_precision(self.precision);
         self.topo = Some(sys.topo.clone());
         Ok(sys)
     }
@@ -410,11 +266,6 @@ impl CpcSolver {
     /// sequential, the default). The result does not depend on it.
     pub fn set_factor_threads(&mut self, threads: usize) {
         self.factor_threads = threads;
-    }
-
-    /// Precision of the factorisation of the systems it assembles ([`SolvePrecision::Mixed`] by default).
-    pub fn set_precision(&mut self, precision: SolvePrecision) {
-        self.precision = precision;
     }
 
     /// Forget the cached topology.
@@ -451,7 +302,6 @@ pub struct CpcSystem {
     /// Whether the topology (pattern, ordering, symbolic factorisation) came from a [`CpcSolver`] cache.
     pub topology_reused: bool,
     factor_threads: usize,
-    precision: SolvePrecision,
 }
 
 /// The real interleaved system [x_0, y_0, x_1, y_1, ...] (built on demand).
@@ -564,7 +414,6 @@ impl CpcSystem {
             assembly_ms: [(t1 - t0).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3],
             topology_reused,
             factor_threads: 1,
-            precision: SolvePrecision::default(),
         })
     }
 
@@ -572,11 +421,6 @@ impl CpcSystem {
     /// solution is bitwise identical for any thread count.
     pub fn set_factor_threads(&mut self, threads: usize) {
         self.factor_threads = threads;
-    }
-
-    /// Precision of the factorisation ([`SolvePrecision::Mixed`] by default; see there).
-    pub fn set_precision(&mut self, precision: SolvePrecision) {
-        self.precision = precision;
     }
 
     /// Number of real unknowns (2 per vertex).
@@ -597,15 +441,9 @@ impl CpcSystem {
     /// Minimise eq. 4.11 for `lambda` ∈ [0, 1); returns the flattened vertex positions (px).
     /// λ = 0 returns P_init exactly.
     pub fn solve(&self, lambda: f64) -> Result<Vec<[f64; 2]>> {
-        Ok(self.solve_with_info(lambda)?.0)
-    }
-
-    /// [`CpcSystem::solve`], also telling how the factorisation went.
-    pub fn solve_with_info(&self, lambda: f64) -> Result<(Vec<[f64; 2]>, SolveInfo)> {
         validate_lambda(lambda)?;
-        let mut info = SolveInfo::default();
         if lambda == 0.0 {
-            return Ok((self.topo.p_init.clone(), info));
+            return Ok(self.topo.p_init.clone());
         }
         let out: Vec<[f64; 2]> = match &self.herm_vals {
             Some(h) => {
@@ -621,9 +459,8 @@ impl CpcSystem {
                     .zip(&self.disp_w)
                     .map(|(p, &w)| c64::new((1.0 - lambda) * w * p[0], (1.0 - lambda) * w * p[1]))
                     .collect();
-                info = self
-                    .topo
-                    .factor_solve(&vals, &mut rhs, self.factor_threads, self.precision)
+                self.topo
+                    .factor_solve(&vals, &mut rhs, self.factor_threads)
                     .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
                 rhs.iter().map(|z| [z.re, z.im]).collect()
             }
@@ -645,7 +482,7 @@ impl CpcSystem {
         if out.iter().any(|v| !(v[0].is_finite() && v[1].is_finite())) {
             return Err(CpcError::Solver(format!("non-finite solution for lambda = {lambda}")));
         }
-        Ok((out, info))
+        Ok(out)
     }
 
     /// The two terms of eq. 4.11 at `p` (area-weighted means): (conformal, displacement).
