@@ -14,6 +14,9 @@ use rayon::prelude::*;
 
 const NONE: u32 = u32::MAX;
 
+/// Canvas pixel range (x0, y0, x1, y1) of a face, inclusive.
+type PixelBox = (usize, usize, usize, usize);
+
 /// Canvas rows per rasterisation band (unit of parallel work).
 const RASTER_BAND_ROWS: usize = 16;
 
@@ -284,7 +287,7 @@ impl Warp {
         let canvas: Vec<[f64; 2]> = p_flat.iter().map(|p| sub(*p, origin)).collect();
         // Per face (in parallel, each face independently): the affine map canvas → original and
         // the canvas pixel range to rasterise.
-        let (inv_aff, rows_of): (Vec<[f64; 8]>, Vec<Option<(usize, usize, usize, usize)>>) = mesh
+        let (inv_aff, rows_of): (Vec<[f64; 8]>, Vec<Option<PixelBox>>) = mesh
             .faces
             .par_iter()
             .with_min_len(1024)
