@@ -23,6 +23,7 @@
 //! solves. The system is block-diagonal over connected components, so one factorisation solves
 //! every component separately.
 use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
+use crate::dd::DomainSplit;
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -72,6 +73,8 @@ pub struct CpcTopology {
     symbolic: SymbolicCholesky<usize>,
     /// Numeric factor values and workspace, reused by consecutive solves.
     scratch: Mutex<Option<Scratch>>,
+    /// Two-domain split of the top nested-dissection level (factorised on two threads), if any.
+    split: Option<DomainSplit>,
 }
 
 struct Scratch {
@@ -155,6 +158,8 @@ impl CpcTopology {
         for (k, &o) in fwd.iter().enumerate() {
             inv[o] = k;
         }
+        let split = nd_top_split(&mesh.p_init, mesh.grid_step_px, ND_LEAF)
+            .and_then(|(n1, n2)| DomainSplit::new(&col_ptr, &row_idx, &fwd, n1, n2));
         let perm = PermRef::new_checked(&fwd, &inv, n);
         // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
         // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
@@ -175,6 +180,7 @@ impl CpcTopology {
             face_pos,
             symbolic,
             scratch: Mutex::new(None),
+            split,
         })
     }
 
@@ -188,19 +194,34 @@ impl CpcTopology {
         self.row_idx.len()
     }
 
+    /// Whether the system is factorised as two halves and a separator on two threads (the top
+    /// nested-dissection level; systems of at least [`crate::dd::MIN_SPLIT_VERTICES`] vertices).
+    pub fn is_split(&self) -> bool {
+        self.split.is_some()
+    }
+
     /// Number of (complex) entries of the Cholesky factor.
     pub fn factor_len(&self) -> usize {
         self.symbolic.len_val()
     }
 
     /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
-    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize) -> Result<()> {
+    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize, split: bool) -> Result<()> {
         let n = self.n;
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let mat = SparseColMatRef::new(sym, vals);
         // Sequential by default: on the shared, loaded 2-core machine faer's rayon path was not
         // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
         let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
+        if let (true, Some(dd)) = (split, &self.split) {
+            let mut x = rhs.to_vec();
+            // (A failed split factorisation, e.g. a separator Schur complement that is not
+            // numerically positive definite, falls back to the whole-system factorisation.)
+            if dd.factor_solve(vals, &mut x, par).is_ok() {
+                rhs.copy_from_slice(&x);
+                return Ok(());
+            }
+        }
         // Reuse the factor buffer and workspace unless another solve holds them.
         let mut guard = self.scratch.try_lock().ok();
         let mut local = None;
@@ -302,6 +323,7 @@ pub struct CpcSystem {
     /// Whether the topology (pattern, ordering, symbolic factorisation) came from a [`CpcSolver`] cache.
     pub topology_reused: bool,
     factor_threads: usize,
+    domain_split: bool,
 }
 
 /// The real interleaved system [x_0, y_0, x_1, y_1, ...] (built on demand).
@@ -414,6 +436,7 @@ impl CpcSystem {
             assembly_ms: [(t1 - t0).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3],
             topology_reused,
             factor_threads: 1,
+            domain_split: true,
         })
     }
 
@@ -421,6 +444,13 @@ impl CpcSystem {
     /// solution is bitwise identical for any thread count.
     pub fn set_factor_threads(&mut self, threads: usize) {
         self.factor_threads = threads;
+    }
+
+    /// Use the topology's two-domain split when it has one (the default; see
+    /// [`CpcTopology::is_split`]); `false` factorises the whole system at once. Both give the same
+    /// solution up to round-off.
+    pub fn set_domain_split(&mut self, split: bool) {
+        self.domain_split = split;
     }
 
     /// Number of real unknowns (2 per vertex).
@@ -460,7 +490,7 @@ impl CpcSystem {
                     .map(|(p, &w)| c64::new((1.0 - lambda) * w * p[0], (1.0 - lambda) * w * p[1]))
                     .collect();
                 self.topo
-                    .factor_solve(&vals, &mut rhs, self.factor_threads)
+                    .factor_solve(&vals, &mut rhs, self.factor_threads, self.domain_split)
                     .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
                 rhs.iter().map(|z| [z.re, z.im]).collect()
             }
@@ -696,6 +726,31 @@ pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
 /// [`nested_dissection`] of grid points `p_init` (px) on a grid of step `grid_step_px`.
 pub fn nested_dissection_points(p_init: &[[f64; 2]], grid_step_px: usize) -> Vec<usize> {
     nested_dissection_leaf(p_init, grid_step_px, ND_LEAF)
+}
+
+/// Sizes (left, right) of the two parts of the top level of [`nested_dissection_leaf`] (the
+/// separator follows them in the order), or `None` when the top level is not split.
+fn nd_top_split(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Option<(usize, usize)> {
+    let s = grid_step_px as f64;
+    if p_init.len() <= leaf {
+        return None;
+    }
+    let gc: Vec<[i64; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
+    let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
+    for g in &gc {
+        for k in 0..2 {
+            lo[k] = lo[k].min(g[k]);
+            hi[k] = hi[k].max(g[k]);
+        }
+    }
+    let ax = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
+    if hi[ax] == lo[ax] {
+        return None;
+    }
+    let mid = (lo[ax] + hi[ax]) / 2;
+    let n1 = gc.iter().filter(|g| g[ax] < mid).count();
+    let n2 = gc.iter().filter(|g| g[ax] > mid).count();
+    Some((n1, n2))
 }
 
 /// [`nested_dissection_points`] with parts of at most `leaf` vertices left undivided.
