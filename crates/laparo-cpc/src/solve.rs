@@ -70,7 +70,11 @@ pub struct CpcTopology {
     /// Per face, position in the value array of the entry (row f[r], column f[c]) at index 3r + c,
     /// or `u32::MAX` when that entry lies in the (unstored) upper triangle.
     face_pos: Vec<[u32; 9]>,
-    symbolic: SymbolicCholesky<usize>,
+    /// Symbolic factorisation of the whole system (built on first use when the system is split).
+    symbolic: OnceLock<SymbolicCholesky<usize>>,
+    /// Nested-dissection ordering (forward and inverse).
+    fwd: Vec<usize>,
+    inv: Vec<usize>,
     /// Numeric factor values and workspace, reused by consecutive solves.
     scratch: Mutex<Option<Scratch>>,
     /// Two-domain split of the top nested-dissection level (factorised on two threads), if any.
@@ -152,7 +156,6 @@ impl CpcTopology {
             }
             face_pos.push(fp);
         }
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
         let fwd = nested_dissection_leaf(&mesh.p_init, mesh.grid_step_px, ND_LEAF);
         let mut inv = vec![0usize; n];
         for (k, &o) in fwd.iter().enumerate() {
@@ -160,16 +163,12 @@ impl CpcTopology {
         }
         let split = nd_top_split(&mesh.p_init, mesh.grid_step_px, ND_LEAF)
             .and_then(|(n1, n2)| DomainSplit::new(&col_ptr, &row_idx, &fwd, n1, n2));
-        let perm = PermRef::new_checked(&fwd, &inv, n);
-        // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
-        // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
-        };
-        let ord = SymmetricOrdering::Custom(perm);
-        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ord, params)
-            .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
+        let symbolic = OnceLock::new();
+        // Without a split, the whole-system analysis now (its errors surface at assembly);
+        // with one, on first use (a fallback or `set_domain_split(false)`).
+        if split.is_none() {
+            let _ = symbolic.set(whole_symbolic(&col_ptr, &row_idx, &fwd, &inv)?);
+        }
         Ok(CpcTopology {
             n,
             grid_step_px: mesh.grid_step_px,
@@ -179,9 +178,20 @@ impl CpcTopology {
             row_idx,
             face_pos,
             symbolic,
+            fwd,
+            inv,
             scratch: Mutex::new(None),
             split,
         })
+    }
+
+    /// The whole-system symbolic factorisation (built on first use).
+    fn whole(&self) -> Result<&SymbolicCholesky<usize>> {
+        if let Some(s) = self.symbolic.get() {
+            return Ok(s);
+        }
+        let s = whole_symbolic(&self.col_ptr, &self.row_idx, &self.fwd, &self.inv)?;
+        Ok(self.symbolic.get_or_init(|| s))
     }
 
     /// Whether `mesh` has this topology (same grid step, vertex positions and faces).
@@ -202,7 +212,7 @@ impl CpcTopology {
 
     /// Number of (complex) entries of the Cholesky factor.
     pub fn factor_len(&self) -> usize {
-        self.symbolic.len_val()
+        self.whole().map_or(0, |s| s.len_val())
     }
 
     /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
@@ -222,6 +232,7 @@ impl CpcTopology {
                 return Ok(());
             }
         }
+        let symbolic = self.whole()?;
         // Reuse the factor buffer and workspace unless another solve holds them.
         let mut guard = self.scratch.try_lock().ok();
         let mut local = None;
@@ -230,14 +241,12 @@ impl CpcTopology {
             None => &mut local,
         };
         let sc = slot.get_or_insert_with(|| {
-            let req = self
-                .symbolic
+            let req = symbolic
                 .factorize_numeric_llt_scratch::<c64>(par, Default::default())
-                .or(self.symbolic.solve_in_place_scratch::<c64>(1, par));
-            Scratch { l_vals: vec![c64::new(0.0, 0.0); self.symbolic.len_val()], mem: MemBuffer::new(req) }
+                .or(symbolic.solve_in_place_scratch::<c64>(1, par));
+            Scratch { l_vals: vec![c64::new(0.0, 0.0); symbolic.len_val()], mem: MemBuffer::new(req) }
         });
-        let llt = self
-            .symbolic
+        let llt = symbolic
             .factorize_numeric_llt(
                 &mut sc.l_vals,
                 mat,
@@ -256,6 +265,27 @@ impl CpcTopology {
         );
         Ok(())
     }
+}
+
+/// Symbolic supernodal Cholesky factorisation of the lower pattern (`col_ptr`, `row_idx`) in the
+/// nested-dissection order `fwd` (inverse `inv`).
+fn whole_symbolic(
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    fwd: &[usize],
+    inv: &[usize],
+) -> Result<SymbolicCholesky<usize>> {
+    let n = fwd.len();
+    let sym = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+    let perm = PermRef::new_checked(fwd, inv, n);
+    // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
+    // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
+    let params = CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+        ..Default::default()
+    };
+    factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), params)
+        .map_err(|e| CpcError::Solver(format!("{e:?}")))
 }
 
 /// Reusable CPC solver state for a video: keeps the [`CpcTopology`] of the last mesh and reuses it
