@@ -10,7 +10,7 @@
 //! x_i = L_ii⁻ᴴ (y_i − L_3iᴴ x_3), all through the halves' own triangular solves. Every step has
 //! a fixed operation order, so the result does not depend on the number of threads.
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::matmul::matmul;
+use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::solvers::Solve;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
@@ -206,7 +206,18 @@ impl DomainSplit {
                 }
             }
             let mut tt = Mat::<c64>::zeros(k, k);
-            matmul(tt.as_mut(), Accum::Replace, t.as_ref(), t.adjoint(), c64::new(1.0, 0.0), Par::Seq);
+            // Lower triangle of T Tᴴ (T lower triangular).
+            triangular::matmul(
+                tt.as_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Replace,
+                t.as_ref(),
+                BlockStructure::TriangularLower,
+                t.adjoint(),
+                BlockStructure::TriangularUpper,
+                c64::new(1.0, 0.0),
+                Par::Seq,
+            );
             // y = L_ii⁻¹ b_i; the separator part is u = T⁻¹ (0 − L_3i y), so L_3i y = −T u.
             let mut y: Vec<c64> = h.glob.iter().take(ni).map(|&g| rhs_in(g)).collect();
             y.resize(m, c64::new(0.0, 0.0));
