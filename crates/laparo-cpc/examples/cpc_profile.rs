@@ -105,7 +105,8 @@ fn main() {
             let mesh = CpcMesh::build(&roi, &depth, &k, &mp).unwrap();
             let t1 = Instant::now();
             let k1 = proc_cpu_ns();
-            let sys: CpcSystem = solver.assemble(&mesh, &conf).unwrap();
+            let mut sys: CpcSystem = solver.assemble(&mesh, &conf).unwrap();
+            sys.set_domain_split(std::env::var("CPC_NOSPLIT").is_err());
             let t2 = Instant::now();
             let k2 = proc_cpu_ns();
             let c2 = cpu_ns();

@@ -7,6 +7,7 @@
 //! [`equiareal`] refinement (eqs. 4.8/4.9) → [`warp`] (piecewise-affine texture mapping).
 //! [`lambda`] selects λ automatically (§4.5.4); [`scene`] renders synthetic test scenes.
 pub mod conformal;
+pub mod dd;
 pub mod equiareal;
 pub mod error;
 pub mod lambda;

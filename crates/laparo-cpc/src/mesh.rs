@@ -11,6 +11,7 @@ use laparo_core::camera::Intrinsics;
 use laparo_core::depth::DepthMap;
 use laparo_core::image::Mask;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Sentinel for "no triangle" in [`CpcMesh::cell_faces`].
@@ -138,6 +139,8 @@ impl CpcMesh {
         let node_z = |i: usize, j: usize| depth.data[(j * s) * w + i * s];
         // Back-project every grid node in the ROI once (a node is shared by up to 6 triangles).
         let node_pos: Vec<Vector3<f64>> = (0..gc * gr)
+            .into_par_iter()
+            .with_min_len(2048)
             .map(|id| {
                 let (i, j) = (id % gc, id / gc);
                 if node_in_roi(i, j) {
@@ -153,52 +156,69 @@ impl CpcMesh {
         // Candidate triangles as grid-node triplets, with their cell and slot.
         /// Grid-node triplet, cell index, slot (0 or 1) within the cell.
         type CandidateTriangle = ([(usize, usize); 3], usize, usize);
-        let mut tris: Vec<CandidateTriangle> = Vec::new();
-        for j in 0..gr.saturating_sub(1) {
-            for i in 0..gc.saturating_sub(1) {
-                let cell = j * (gc - 1) + i;
-                let t0 = [(i, j), (i + 1, j), (i, j + 1)];
-                let t1 = [(i + 1, j), (i + 1, j + 1), (i, j + 1)];
-                for (slot, t) in [t0, t1].into_iter().enumerate() {
-                    if !t.iter().all(|&(a, b)| node_in_roi(a, b)) {
-                        continue;
-                    }
-                    rep.n_candidate_triangles += 1;
-                    let z = t.map(|(a, b)| node_z(a, b));
-                    if !z.iter().all(|&v| DepthMap::is_valid(v)) {
-                        rep.dropped_invalid_depth += 1;
-                        continue;
-                    }
-                    let jump = |a: f64, b: f64| (a - b).abs() / a.min(b);
-                    if jump(z[0], z[1]) > params.max_rel_depth_jump
-                        || jump(z[1], z[2]) > params.max_rel_depth_jump
-                        || jump(z[0], z[2]) > params.max_rel_depth_jump
-                    {
-                        rep.dropped_depth_jump += 1;
-                        continue;
-                    }
-                    let x = t.map(|(a, b)| node_x(a, b));
-                    let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
-                    let area2 = n.norm();
-                    let lmax = (x[1] - x[0])
-                        .norm_squared()
-                        .max((x[2] - x[1]).norm_squared())
-                        .max((x[0] - x[2]).norm_squared());
-                    if !(area2.is_finite() && area2 > params.min_shape_quality * lmax) {
-                        rep.dropped_degenerate += 1;
-                        continue;
-                    }
-                    if let Some(cmax) = cos_max {
-                        let c = (x[0] + x[1] + x[2]) / 3.0;
-                        let cosv = n.dot(&c).abs() / (area2 * c.norm());
-                        if cosv < cmax {
-                            rep.dropped_grazing += 1;
+        // Candidate triangles of each grid row (rows in parallel, concatenated in row order: the
+        // result does not depend on the thread count). Counters: [candidates, invalid depth,
+        // depth jump, degenerate, grazing].
+        let rows: Vec<(Vec<CandidateTriangle>, [usize; 5])> = (0..gr.saturating_sub(1))
+            .into_par_iter()
+            .map(|j| {
+                let mut tris: Vec<CandidateTriangle> = Vec::new();
+                let mut cnt = [0usize; 5];
+                for i in 0..gc.saturating_sub(1) {
+                    let cell = j * (gc - 1) + i;
+                    let t0 = [(i, j), (i + 1, j), (i, j + 1)];
+                    let t1 = [(i + 1, j), (i + 1, j + 1), (i, j + 1)];
+                    for (slot, t) in [t0, t1].into_iter().enumerate() {
+                        if !t.iter().all(|&(a, b)| node_in_roi(a, b)) {
                             continue;
                         }
+                        cnt[0] += 1;
+                        let z = t.map(|(a, b)| node_z(a, b));
+                        if !z.iter().all(|&v| DepthMap::is_valid(v)) {
+                            cnt[1] += 1;
+                            continue;
+                        }
+                        let jump = |a: f64, b: f64| (a - b).abs() / a.min(b);
+                        if jump(z[0], z[1]) > params.max_rel_depth_jump
+                            || jump(z[1], z[2]) > params.max_rel_depth_jump
+                            || jump(z[0], z[2]) > params.max_rel_depth_jump
+                        {
+                            cnt[2] += 1;
+                            continue;
+                        }
+                        let x = t.map(|(a, b)| node_x(a, b));
+                        let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
+                        let area2 = n.norm();
+                        let lmax = (x[1] - x[0])
+                            .norm_squared()
+                            .max((x[2] - x[1]).norm_squared())
+                            .max((x[0] - x[2]).norm_squared());
+                        if !(area2.is_finite() && area2 > params.min_shape_quality * lmax) {
+                            cnt[3] += 1;
+                            continue;
+                        }
+                        if let Some(cmax) = cos_max {
+                            let c = (x[0] + x[1] + x[2]) / 3.0;
+                            let cosv = n.dot(&c).abs() / (area2 * c.norm());
+                            if cosv < cmax {
+                                cnt[4] += 1;
+                                continue;
+                            }
+                        }
+                        tris.push((t, cell, slot));
                     }
-                    tris.push((t, cell, slot));
                 }
-            }
+                (tris, cnt)
+            })
+            .collect();
+        let mut tris: Vec<CandidateTriangle> = Vec::with_capacity(rows.iter().map(|r| r.0.len()).sum());
+        for (rt, cnt) in rows {
+            tris.extend(rt);
+            rep.n_candidate_triangles += cnt[0];
+            rep.dropped_invalid_depth += cnt[1];
+            rep.dropped_depth_jump += cnt[2];
+            rep.dropped_degenerate += cnt[3];
+            rep.dropped_grazing += cnt[4];
         }
         // Connected components (union–find on grid nodes).
         let n_nodes = gc * gr;

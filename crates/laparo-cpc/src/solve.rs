@@ -23,6 +23,7 @@
 //! solves. The system is block-diagonal over connected components, so one factorisation solves
 //! every component separately.
 use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
+use crate::dd::DomainSplit;
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -69,9 +70,15 @@ pub struct CpcTopology {
     /// Per face, position in the value array of the entry (row f[r], column f[c]) at index 3r + c,
     /// or `u32::MAX` when that entry lies in the (unstored) upper triangle.
     face_pos: Vec<[u32; 9]>,
-    symbolic: SymbolicCholesky<usize>,
+    /// Symbolic factorisation of the whole system (built on first use when the system is split).
+    symbolic: OnceLock<SymbolicCholesky<usize>>,
+    /// Nested-dissection ordering (forward and inverse).
+    fwd: Vec<usize>,
+    inv: Vec<usize>,
     /// Numeric factor values and workspace, reused by consecutive solves.
     scratch: Mutex<Option<Scratch>>,
+    /// Two-domain split of the top nested-dissection level (factorised on two threads), if any.
+    split: Option<DomainSplit>,
 }
 
 struct Scratch {
@@ -149,22 +156,19 @@ impl CpcTopology {
             }
             face_pos.push(fp);
         }
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
         let fwd = nested_dissection_leaf(&mesh.p_init, mesh.grid_step_px, ND_LEAF);
         let mut inv = vec![0usize; n];
         for (k, &o) in fwd.iter().enumerate() {
             inv[o] = k;
         }
-        let perm = PermRef::new_checked(&fwd, &inv, n);
-        // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
-        // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
-        };
-        let ord = SymmetricOrdering::Custom(perm);
-        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ord, params)
-            .map_err(|e| CpcError::Solver(format!("{e:?}")))?;
+        let split = nd_top_split(&mesh.p_init, mesh.grid_step_px, ND_LEAF)
+            .and_then(|(n1, n2)| DomainSplit::new(&col_ptr, &row_idx, &fwd, n1, n2));
+        let symbolic = OnceLock::new();
+        // Without a split, the whole-system analysis now (its errors surface at assembly);
+        // with one, on first use (a fallback or `set_domain_split(false)`).
+        if split.is_none() {
+            let _ = symbolic.set(whole_symbolic(&col_ptr, &row_idx, &fwd, &inv)?);
+        }
         Ok(CpcTopology {
             n,
             grid_step_px: mesh.grid_step_px,
@@ -174,8 +178,20 @@ impl CpcTopology {
             row_idx,
             face_pos,
             symbolic,
+            fwd,
+            inv,
             scratch: Mutex::new(None),
+            split,
         })
+    }
+
+    /// The whole-system symbolic factorisation (built on first use).
+    fn whole(&self) -> Result<&SymbolicCholesky<usize>> {
+        if let Some(s) = self.symbolic.get() {
+            return Ok(s);
+        }
+        let s = whole_symbolic(&self.col_ptr, &self.row_idx, &self.fwd, &self.inv)?;
+        Ok(self.symbolic.get_or_init(|| s))
     }
 
     /// Whether `mesh` has this topology (same grid step, vertex positions and faces).
@@ -188,19 +204,35 @@ impl CpcTopology {
         self.row_idx.len()
     }
 
+    /// Whether the system is factorised as two halves and a separator on two threads (the top
+    /// nested-dissection level; systems of at least [`crate::dd::MIN_SPLIT_VERTICES`] vertices).
+    pub fn is_split(&self) -> bool {
+        self.split.is_some()
+    }
+
     /// Number of (complex) entries of the Cholesky factor.
     pub fn factor_len(&self) -> usize {
-        self.symbolic.len_val()
+        self.whole().map_or(0, |s| s.len_val())
     }
 
     /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
-    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize) -> Result<()> {
+    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize, split: bool) -> Result<()> {
         let n = self.n;
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let mat = SparseColMatRef::new(sym, vals);
         // Sequential by default: on the shared, loaded 2-core machine faer's rayon path was not
         // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
         let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
+        if let (true, Some(dd)) = (split, &self.split) {
+            let mut x = rhs.to_vec();
+            // (A failed split factorisation, e.g. a separator Schur complement that is not
+            // numerically positive definite, falls back to the whole-system factorisation.)
+            if dd.factor_solve(vals, &mut x, par).is_ok() {
+                rhs.copy_from_slice(&x);
+                return Ok(());
+            }
+        }
+        let symbolic = self.whole()?;
         // Reuse the factor buffer and workspace unless another solve holds them.
         let mut guard = self.scratch.try_lock().ok();
         let mut local = None;
@@ -209,14 +241,12 @@ impl CpcTopology {
             None => &mut local,
         };
         let sc = slot.get_or_insert_with(|| {
-            let req = self
-                .symbolic
+            let req = symbolic
                 .factorize_numeric_llt_scratch::<c64>(par, Default::default())
-                .or(self.symbolic.solve_in_place_scratch::<c64>(1, par));
-            Scratch { l_vals: vec![c64::new(0.0, 0.0); self.symbolic.len_val()], mem: MemBuffer::new(req) }
+                .or(symbolic.solve_in_place_scratch::<c64>(1, par));
+            Scratch { l_vals: vec![c64::new(0.0, 0.0); symbolic.len_val()], mem: MemBuffer::new(req) }
         });
-        let llt = self
-            .symbolic
+        let llt = symbolic
             .factorize_numeric_llt(
                 &mut sc.l_vals,
                 mat,
@@ -235,6 +265,27 @@ impl CpcTopology {
         );
         Ok(())
     }
+}
+
+/// Symbolic supernodal Cholesky factorisation of the lower pattern (`col_ptr`, `row_idx`) in the
+/// nested-dissection order `fwd` (inverse `inv`).
+fn whole_symbolic(
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    fwd: &[usize],
+    inv: &[usize],
+) -> Result<SymbolicCholesky<usize>> {
+    let n = fwd.len();
+    let sym = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+    let perm = PermRef::new_checked(fwd, inv, n);
+    // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
+    // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
+    let params = CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+        ..Default::default()
+    };
+    factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), params)
+        .map_err(|e| CpcError::Solver(format!("{e:?}")))
 }
 
 /// Reusable CPC solver state for a video: keeps the [`CpcTopology`] of the last mesh and reuses it
@@ -302,6 +353,7 @@ pub struct CpcSystem {
     /// Whether the topology (pattern, ordering, symbolic factorisation) came from a [`CpcSolver`] cache.
     pub topology_reused: bool,
     factor_threads: usize,
+    domain_split: bool,
 }
 
 /// The real interleaved system [x_0, y_0, x_1, y_1, ...] (built on demand).
@@ -414,6 +466,7 @@ impl CpcSystem {
             assembly_ms: [(t1 - t0).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3],
             topology_reused,
             factor_threads: 1,
+            domain_split: true,
         })
     }
 
@@ -421,6 +474,13 @@ impl CpcSystem {
     /// solution is bitwise identical for any thread count.
     pub fn set_factor_threads(&mut self, threads: usize) {
         self.factor_threads = threads;
+    }
+
+    /// Use the topology's two-domain split when it has one (the default; see
+    /// [`CpcTopology::is_split`]); `false` factorises the whole system at once. Both give the same
+    /// solution up to round-off.
+    pub fn set_domain_split(&mut self, split: bool) {
+        self.domain_split = split;
     }
 
     /// Number of real unknowns (2 per vertex).
@@ -460,7 +520,7 @@ impl CpcSystem {
                     .map(|(p, &w)| c64::new((1.0 - lambda) * w * p[0], (1.0 - lambda) * w * p[1]))
                     .collect();
                 self.topo
-                    .factor_solve(&vals, &mut rhs, self.factor_threads)
+                    .factor_solve(&vals, &mut rhs, self.factor_threads, self.domain_split)
                     .map_err(|e| CpcError::Solver(format!("lambda = {lambda}: {e}")))?;
                 rhs.iter().map(|z| [z.re, z.im]).collect()
             }
@@ -696,6 +756,31 @@ pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
 /// [`nested_dissection`] of grid points `p_init` (px) on a grid of step `grid_step_px`.
 pub fn nested_dissection_points(p_init: &[[f64; 2]], grid_step_px: usize) -> Vec<usize> {
     nested_dissection_leaf(p_init, grid_step_px, ND_LEAF)
+}
+
+/// Sizes (left, right) of the two parts of the top level of [`nested_dissection_leaf`] (the
+/// separator follows them in the order), or `None` when the top level is not split.
+fn nd_top_split(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Option<(usize, usize)> {
+    let s = grid_step_px as f64;
+    if p_init.len() <= leaf {
+        return None;
+    }
+    let gc: Vec<[i64; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
+    let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
+    for g in &gc {
+        for k in 0..2 {
+            lo[k] = lo[k].min(g[k]);
+            hi[k] = hi[k].max(g[k]);
+        }
+    }
+    let ax = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
+    if hi[ax] == lo[ax] {
+        return None;
+    }
+    let mid = (lo[ax] + hi[ax]) / 2;
+    let n1 = gc.iter().filter(|g| g[ax] < mid).count();
+    let n2 = gc.iter().filter(|g| g[ax] > mid).count();
+    Some((n1, n2))
 }
 
 /// [`nested_dissection_points`] with parts of at most `leaf` vertices left undivided.

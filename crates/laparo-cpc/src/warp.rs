@@ -14,6 +14,9 @@ use rayon::prelude::*;
 
 const NONE: u32 = u32::MAX;
 
+/// Canvas pixel range (x0, y0, x1, y1) of a face, inclusive.
+type PixelBox = (usize, usize, usize, usize);
+
 /// Canvas rows per rasterisation band (unit of parallel work).
 const RASTER_BAND_ROWS: usize = 16;
 
@@ -37,8 +40,8 @@ pub struct Warp {
     /// Per face: affine map canvas → original, [A_x, A_y, a_x, a_y, l00, l01, l10, l11]: original
     /// anchor A, canvas anchor a and linear part (q ↦ A + L (q − a)); one cache line per face.
     inv_aff: Vec<[f64; 8]>,
-    /// Per face: affine map original → canvas (linear part).
-    fwd_lin: Vec<[f64; 4]>,
+    /// Per face: affine map original → canvas (linear part), computed on the first point query.
+    fwd_lin: std::sync::OnceLock<Vec<[f64; 4]>>,
     /// Triangle covering every canvas pixel (or NONE).
     face_id: Vec<u32>,
     /// Bucket grid over the canvas for point location.
@@ -282,17 +285,29 @@ impl Warp {
             ));
         }
         let canvas: Vec<[f64; 2]> = p_flat.iter().map(|p| sub(*p, origin)).collect();
-        let m = mesh.n_triangles();
-        let mut inv_aff = Vec::with_capacity(m);
-        let mut fwd_lin = Vec::with_capacity(m);
-        for f in &mesh.faces {
-            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-            let (pa, pb, pc) = (mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
-            let inv = edge_map(sub(pb, pa), sub(pc, pa), sub(b, a), sub(c, a)).unwrap_or([f64::NAN; 4]);
-            let fwd = edge_map(sub(b, a), sub(c, a), sub(pb, pa), sub(pc, pa)).unwrap_or([f64::NAN; 4]);
-            inv_aff.push([pa[0], pa[1], a[0], a[1], inv[0], inv[1], inv[2], inv[3]]);
-            fwd_lin.push(fwd);
-        }
+        // Per face (in parallel, each face independently): the affine map canvas → original and
+        // the canvas pixel range to rasterise.
+        let (inv_aff, rows_of): (Vec<[f64; 8]>, Vec<Option<PixelBox>>) = mesh
+            .faces
+            .par_iter()
+            .with_min_len(1024)
+            .map(|f| {
+                let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+                let (pa, pb, pc) = (mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
+                let inv = edge_map(sub(pb, pa), sub(pc, pa), sub(b, a), sub(c, a)).unwrap_or([f64::NAN; 4]);
+                let af = [pa[0], pa[1], a[0], a[1], inv[0], inv[1], inv[2], inv[3]];
+                if signed_area(a, b, c) == 0.0 || inv[0].is_nan() {
+                    return (af, None);
+                }
+                // Canvas coordinates are ≥ 0 (origin = floor of the minimum): truncation is floor,
+                // and avoids a libm call per bound.
+                let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
+                let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
+                let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
+                let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
+                (af, (y0 <= y1 && x0 <= x1).then_some((x0, y0, x1, y1)))
+            })
+            .unzip();
         // Rasterise: canvas pixel → covering triangle (the last face in index order wins on shared
         // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
         // row range meets it, so the result does not depend on the thread count.
@@ -300,25 +315,8 @@ impl Warp {
         let eps = 1e-9;
         let band = RASTER_BAND_ROWS;
         let n_bands = height.div_ceil(band);
-        let mut rows_of: Vec<Option<(usize, usize, usize, usize)>> = Vec::with_capacity(m);
         let mut band_count = vec![0usize; n_bands + 1];
-        for (t, f) in mesh.faces.iter().enumerate() {
-            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-            if signed_area(a, b, c) == 0.0 || inv_aff[t][4].is_nan() {
-                rows_of.push(None);
-                continue;
-            }
-            // Canvas coordinates are ≥ 0 (origin = floor of the minimum): truncation is floor, and
-            // avoids a libm call per bound.
-            let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
-            let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
-            let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
-            let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
-            if y0 > y1 || x0 > x1 {
-                rows_of.push(None);
-                continue;
-            }
-            rows_of.push(Some((x0, y0, x1, y1)));
+        for &(_, y0, _, y1) in rows_of.iter().flatten() {
             for bi in y0 / band..=y1 / band {
                 band_count[bi + 1] += 1;
             }
@@ -377,7 +375,7 @@ impl Warp {
             src_width,
             src_height,
             inv_aff,
-            fwd_lin,
+            fwd_lin: std::sync::OnceLock::new(),
             face_id,
             buckets: std::sync::OnceLock::new(),
         })
@@ -406,7 +404,17 @@ impl Warp {
         let f = self.mesh.faces[t];
         let a = self.canvas_vertex(f[0]);
         let pa = self.mesh.p_init[f[0]];
-        let l = self.fwd_lin[t];
+        let l = self.fwd_lin.get_or_init(|| {
+            self.mesh
+                .faces
+                .iter()
+                .map(|f| {
+                    let (a, b, c) = (self.canvas_vertex(f[0]), self.canvas_vertex(f[1]), self.canvas_vertex(f[2]));
+                    let (pa, pb, pc) = (self.mesh.p_init[f[0]], self.mesh.p_init[f[1]], self.mesh.p_init[f[2]]);
+                    edge_map(sub(b, a), sub(c, a), sub(pb, pa), sub(pc, pa)).unwrap_or([f64::NAN; 4])
+                })
+                .collect::<Vec<_>>()
+        })[t];
         let d = sub(q, pa);
         [a[0] + (l[0] * d[0] + l[1] * d[1]), a[1] + (l[2] * d[0] + l[3] * d[1])]
     }

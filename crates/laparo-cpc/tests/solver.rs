@@ -117,3 +117,33 @@ fn video_pipeline_matches_single_frame() {
         assert_eq!(a.mask.data, b.mask.data);
     }
 }
+
+#[test]
+fn two_domain_split_matches_the_whole_system_factorisation() {
+    let (_, mesh) = bowl_mesh(2);
+    assert!(mesh.n_vertices() >= laparo_cpc::dd::MIN_SPLIT_VERTICES);
+    let mut sys = CpcSystem::assemble(&mesh, &ConformalParams::default()).unwrap();
+    assert!(sys.topology().is_split());
+    let gap = |p: &[[f64; 2]], q: &[[f64; 2]]| {
+        p.iter().zip(q).map(|(a, b)| (a[0] - b[0]).abs().max((a[1] - b[1]).abs())).fold(0.0, f64::max)
+    };
+    for lambda in [0.3, 0.5, 0.9, 0.99, 0.999, 0.999999] {
+        sys.set_domain_split(false);
+        let whole = sys.solve(lambda).unwrap();
+        sys.set_domain_split(true);
+        let split = sys.solve(lambda).unwrap();
+        // The round-off scale: the same system solved by the real interleaved factorisation.
+        let d = gap(&split, &whole);
+        let dr = gap(&whole, &real_solve(&sys, &mesh, lambda));
+        eprintln!("λ = {lambda}: max |split − whole| = {d:.2e} px, |whole − real| = {dr:.2e} px");
+        assert!(d <= 10.0 * dr + 1e-11, "λ = {lambda}: {d:e} px (round-off scale {dr:e} px)");
+        if lambda <= 0.9 {
+            assert!(d < 1e-9, "λ = {lambda}: {d:e} px");
+        }
+        // Same result on one and on two rayon threads.
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            assert_eq!(pool.install(|| sys.solve(lambda).unwrap()), split, "λ = {lambda}, {threads} threads");
+        }
+    }
+}
