@@ -685,6 +685,44 @@ mod tests {
     }
 
     #[test]
+    fn selection_equals_a_plain_filter() {
+        // NaN/negative predictions, GT holes and a mask, on a full-size image.
+        let (mut pred, mut gt) = crate::bench::synthetic_pair(700, 300, 3);
+        for i in (0..pred.len()).step_by(37) {
+            pred[i] = if i % 2 == 0 { f64::NAN } else { -1.0 };
+        }
+        gt[5] = f64::INFINITY;
+        let mask: Vec<bool> = (0..gt.len()).map(|i| (i / 700) % 5 != 0).collect();
+        for kind in [PredKind::Disparity, PredKind::Depth] {
+            for policy in [InvalidPredPolicy::Far, InvalidPredPolicy::Exclude] {
+                let v = select_valid(&pred, kind, &gt, Some(&mask), policy).unwrap();
+                let (mut idx, mut bad) = (Vec::new(), 0);
+                for i in 0..gt.len() {
+                    let z = gt[i];
+                    if !(z.is_finite() && z > 0.0 && mask[i]) {
+                        continue;
+                    }
+                    let d = if kind == PredKind::Depth { 1.0 / pred[i] } else { pred[i] };
+                    let invalid = !pred[i].is_finite() || (kind == PredKind::Depth && pred[i] <= 0.0);
+                    bad += invalid as usize;
+                    if !(invalid && policy == InvalidPredPolicy::Exclude) {
+                        idx.push(i as u32);
+                        let k = idx.len() - 1;
+                        assert_eq!(v.d[k].to_bits(), if invalid { 0.0f64 } else { d }.to_bits(), "pixel {i}");
+                        assert_eq!(v.z_gt[k], z);
+                        assert_eq!(v.d_gt[k], 1.0 / z);
+                    }
+                }
+                assert_eq!(v.index, idx, "{kind:?} {policy:?}");
+                assert_eq!(v.n_invalid_pred, bad);
+                let n_gt_valid = gt.iter().filter(|z| z.is_finite() && **z > 0.0).count();
+                let n_in = idx.len() + if policy == InvalidPredPolicy::Exclude { bad } else { 0 };
+                assert_eq!(v.n_masked_out, n_gt_valid - n_in);
+            }
+        }
+    }
+
+    #[test]
     fn chunked_parallel_metrics_are_thread_count_independent() {
         // 640×480: several chunks, so the parallel path runs; the reference loop is sequential.
         let (pred, gt) = crate::bench::synthetic_pair(640, 480, 11);
