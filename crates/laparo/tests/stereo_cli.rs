@@ -204,6 +204,37 @@ fn stereo_rectify_writes_rectified_pair_and_calibration() {
         best = best.min(e / n as f64);
     }
     assert!(best < 2.0, "rectified pair does not match along rows: {best} grey levels");
+    // A SCARED-style file without an image size takes the images' size; an explicit size that
+    // disagrees with the images is an error naming the image.
+    let text = std::fs::read_to_string(&calib).unwrap();
+    let sizeless: String = text.lines().filter(|l| !l.starts_with("image_")).map(|l| format!("{l}\n")).collect();
+    let scared = dir.path().join("scared.yaml");
+    std::fs::write(&scared, sizeless).unwrap();
+    let out2 = dir.path().join("out2");
+    let (ok, _, err) =
+        laparo(&["stereo", "rectify", "--calib", s(&scared), "--left", s(&lp), "--right", s(&rp), "--out", s(&out2)]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        std::fs::read(out2.join("left_rectified.png")).unwrap(),
+        std::fs::read(out.join("left_rectified.png")).unwrap()
+    );
+    let (ok, _, err) = laparo(&[
+        "stereo",
+        "rectify",
+        "--calib",
+        s(&scared),
+        "--width",
+        "640",
+        "--height",
+        "512",
+        "--left",
+        s(&lp),
+        "--right",
+        s(&rp),
+        "--out",
+        s(&out2),
+    ]);
+    assert!(!ok && err.contains("l.png") && err.contains("640x512"), "{err}");
     // Bad input: right image of another size names the file.
     let small = dir.path().join("small.png");
     laparo_core::io::write_png(&small, &Image::filled(100, 80, 3, 0u8)).unwrap();

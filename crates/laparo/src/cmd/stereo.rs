@@ -53,10 +53,10 @@ pub struct CalibArgs {
     /// or `INTRINSICS,EXTRINSICS` (OpenCV stereo_calib layout).
     #[arg(long, value_name = "CALIB")]
     pub calib: Option<String>,
-    /// Image width for calibration files without an image size (SCARED: 1280).
+    /// Image width for calibration files without an image size (default: the input images' width).
     #[arg(long, requires = "height")]
     pub width: Option<usize>,
-    /// Image height for calibration files without an image size (SCARED: 1024).
+    /// Image height for calibration files without an image size (default: the input images' height).
     #[arg(long, requires = "width")]
     pub height: Option<usize>,
 }
@@ -70,6 +70,13 @@ impl CalibArgs {
             return Ok(Some(c));
         }
         Ok(Some(read_calibration(spec, self.width.zip(self.height))?.1))
+    }
+
+    /// [`read`](Self::read), taking the size of the images being processed (`w`, `h`) for a
+    /// calibration file that states none (SCARED's), unless --width/--height are given.
+    fn read_for_images(&self, w: usize, h: usize) -> anyhow::Result<Option<StereoCalibration>> {
+        let sized = CalibArgs { width: self.width.or(Some(w)), height: self.height.or(Some(h)), ..self.clone() };
+        sized.read()
     }
 }
 
@@ -164,14 +171,14 @@ pub fn run(c: StereoCmd) -> anyhow::Result<()> {
     }
 }
 
-fn need_calib(c: &CalibArgs) -> anyhow::Result<StereoCalibration> {
-    c.read()?.ok_or_else(|| anyhow::anyhow!("--calib is required"))
+fn need_calib(c: &CalibArgs, w: usize, h: usize) -> anyhow::Result<StereoCalibration> {
+    c.read_for_images(w, h)?.ok_or_else(|| anyhow::anyhow!("--calib is required"))
 }
 
 fn run_rectify(a: RectifyArgs) -> anyhow::Result<()> {
-    let calib = need_calib(&a.calib)?;
     let left = laparo_core::io::read_image(&a.left)?;
     let right = laparo_core::io::read_image(&a.right)?;
+    let calib = need_calib(&a.calib, left.width, left.height)?;
     for (p, img) in [(&a.left, &left), (&a.right, &right)] {
         if (img.width, img.height) != (calib.width, calib.height) {
             bail!(
@@ -281,7 +288,7 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
             })
         }
     };
-    let geometry = match a.calib.read()? {
+    let geometry = match a.calib.read_for_images(pred.width, pred.height)? {
         None => None,
         Some(c) => Some(DisparityGeometry::from_calibration(&c).context("calibration")?),
     };
@@ -374,8 +381,8 @@ fn markdown_report(a: &EvalArgs, m: &StereoMetrics) -> String {
 }
 
 fn run_disp2depth(a: Disp2DepthArgs) -> anyhow::Result<()> {
-    let calib = need_calib(&a.calib)?;
     let disp = read_map(&a.disp, a.scale, "")?;
+    let calib = need_calib(&a.calib, disp.width, disp.height)?;
     if (disp.width, disp.height) != (calib.width, calib.height) {
         bail!(
             "{}: disparity map is {}x{} but the calibration is for {}x{}",
@@ -441,9 +448,9 @@ fn run_disp2depth(a: Disp2DepthArgs) -> anyhow::Result<()> {
 }
 
 fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
-    let calib = need_calib(&a.calib)?;
     let left = laparo_core::io::read_image(&a.left)?;
     let right = laparo_core::io::read_image(&a.right)?;
+    let calib = need_calib(&a.calib, left.width, left.height)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build()?;
     let n = a.repeat.max(1);
     let median = |mut v: Vec<f64>| {
