@@ -39,9 +39,15 @@ pub enum ConfigError {
     /// A distribution or camera parameter is invalid (the message names it).
     #[error("invalid CATS config: {0}")]
     Invalid(String),
-    /// TOML syntax or schema error.
+    /// TOML syntax or schema error (quoted in the message, not also reported as `source()`).
     #[error("CATS config: {0}")]
-    Toml(#[from] toml::de::Error),
+    Toml(toml::de::Error),
+}
+
+impl From<toml::de::Error> for ConfigError {
+    fn from(e: toml::de::Error) -> Self {
+        ConfigError::Toml(e)
+    }
 }
 
 /// A scalar distribution: fixed value, Gaussian N(mean, std²) or uniform U(min, max).

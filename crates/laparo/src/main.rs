@@ -51,33 +51,7 @@ fn main() {
         Command::Demo(a) => demo::run(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {}", error_chain(&e));
+        eprintln!("error: {e:#}");
         std::process::exit(1);
-    }
-}
-
-/// The error and its causes joined by ": ", leaving out a cause whose text the message before
-/// it already contains (library errors often quote their source, e.g. "file.npy: <io error>").
-fn error_chain(e: &anyhow::Error) -> String {
-    let mut out = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if !out.contains(&text) {
-            if !out.is_empty() {
-                out.push_str(": ");
-            }
-            out.push_str(&text);
-        }
-    }
-    out
-}
-
-#[cfg(test)]
-mod error_tests {
-    #[test]
-    fn quoted_causes_are_not_repeated() {
-        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file");
-        let e = anyhow::Error::new(io).context("a.npy: No such file").context("reading the prediction");
-        assert_eq!(super::error_chain(&e), "reading the prediction: a.npy: No such file");
     }
 }
