@@ -55,6 +55,11 @@ fn sn(sym: &SymbolicCholesky<usize>) -> &SymbolicSupernodalCholesky<usize> {
 impl DomainSplit {
     /// Split for the nested-dissection order `fwd` whose top level is `n1` + `n2` interior vertices
     /// followed by the separator; `None` when it is not a valid split.
+    ///
+    /// Linear in the number of stored entries: a full (both triangles) adjacency with value
+    /// positions is built once, then each half's lower pattern is read off it column by column in
+    /// local order (at most a handful of rows per column to sort); the two halves, including
+    /// their symbolic factorisations, are analysed concurrently.
     pub(crate) fn new(
         col_ptr: &[usize],
         row_idx: &[usize],
@@ -67,9 +72,10 @@ impl DomainSplit {
         if n < MIN_SPLIT_VERTICES || n1 == 0 || n2 == 0 || k == 0 {
             return None;
         }
-        // part: 0, 1 interiors, 2 separator; local index within the half.
+        // part: 0, 1 interiors, 2 separator; local index within the half (separator: offset by
+        // the half's interior size when used).
         let mut part = vec![0u8; n];
-        let mut loc = vec![0usize; n];
+        let mut loc = vec![0u32; n];
         for (p, &v) in fwd.iter().enumerate() {
             let (pt, l) = if p < n1 {
                 (0, p)
@@ -79,9 +85,24 @@ impl DomainSplit {
                 (2, p - n1 - n2)
             };
             part[v] = pt;
-            loc[v] = l;
+            loc[v] = l as u32;
         }
-        let mut trip: [Vec<(usize, usize, u32, bool)>; 2] = [Vec::new(), Vec::new()];
+        // Full adjacency: for vertex g, (neighbour u, value position of the stored entry,
+        // conjugated = the stored entry is (g, u), i.e. A[u, g] = conj(vals[pos])).
+        let mut deg = vec![0u32; n + 1];
+        for c in 0..n {
+            deg[c + 1] += (col_ptr[c + 1] - col_ptr[c]) as u32;
+            for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
+                if r != c {
+                    deg[r + 1] += 1;
+                }
+            }
+        }
+        for i in 0..n {
+            deg[i + 1] += deg[i];
+        }
+        let mut fill: Vec<u32> = deg[..n].to_vec();
+        let mut adj = vec![(0u32, 0u32, false); deg[n] as usize];
         let mut a33 = Vec::new();
         for c in 0..n {
             for (pos, &r) in row_idx[col_ptr[c]..col_ptr[c + 1]].iter().enumerate().map(|(i, r)| (col_ptr[c] + i, r)) {
@@ -91,56 +112,66 @@ impl DomainSplit {
                 }
                 let pos = pos as u32;
                 if pr == 2 && pc == 2 {
-                    let (a, b) = (loc[r], loc[c]);
+                    let (a, b) = (loc[r] as usize, loc[c] as usize);
                     a33.push(if a >= b { (a, b, pos, false) } else { (b, a, pos, true) });
                 }
-                for h in 0..2u8 {
-                    let inh = |p: u8, v: usize| match p {
-                        2 => Some(if h == 0 { n1 } else { n2 } + loc[v]),
-                        p if p == h => Some(loc[v]),
-                        _ => None,
-                    };
-                    if let (Some(lr), Some(lc)) = (inh(pr, r), inh(pc, c)) {
-                        trip[h as usize].push(if lr >= lc { (lc, lr, pos, false) } else { (lr, lc, pos, true) });
-                    }
+                adj[fill[c] as usize] = (r as u32, pos, false);
+                fill[c] += 1;
+                if r != c {
+                    adj[fill[r] as usize] = (c as u32, pos, true);
+                    fill[r] += 1;
                 }
             }
         }
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
-        };
-        let mut halves = Vec::with_capacity(2);
-        for (h, mut t) in trip.into_iter().enumerate() {
+        let build_half = |h: usize| -> Option<Half> {
             let n_int = if h == 0 { n1 } else { n2 };
             let m = n_int + k;
             let off = if h == 0 { 0 } else { n1 };
             let mut glob: Vec<usize> = fwd[off..off + n_int].to_vec();
             glob.extend_from_slice(&fwd[n1 + n2..]);
-            t.sort_unstable();
-            let mut cp = vec![0usize; m + 1];
-            for &(c, _, _, _) in &t {
-                cp[c + 1] += 1;
+            let local = |u: usize| -> Option<usize> {
+                match part[u] {
+                    2 => Some(n_int + loc[u] as usize),
+                    p if p as usize == h => Some(loc[u] as usize),
+                    _ => None,
+                }
+            };
+            let mut cp = Vec::with_capacity(m + 1);
+            cp.push(0usize);
+            let mut ri = Vec::with_capacity(4 * m);
+            let mut src = Vec::with_capacity(4 * m);
+            let mut col: Vec<(usize, u32, bool)> = Vec::with_capacity(16);
+            for (lc, &g) in glob.iter().enumerate() {
+                col.clear();
+                for &(u, pos, cj) in &adj[deg[g] as usize..deg[g + 1] as usize] {
+                    if let Some(lu) = local(u as usize) {
+                        if lu >= lc {
+                            col.push((lu, pos, cj));
+                        }
+                    }
+                }
+                col.sort_unstable_by_key(|e| e.0);
+                ri.extend(col.iter().map(|e| e.0));
+                src.extend(col.iter().map(|e| (e.1, e.2)));
+                cp.push(ri.len());
             }
-            for i in 0..m {
-                cp[i + 1] += cp[i];
-            }
-            let ri: Vec<usize> = t.iter().map(|e| e.1).collect();
-            let src: Vec<(u32, bool)> = t.iter().map(|e| (e.2, e.3)).collect();
             let sym = SymbolicSparseColMatRef::new_checked(m, m, &cp, None, &ri);
             // (An explicit identity permutation: faer's `Identity` ordering expects upper storage.)
             let id: Vec<usize> = (0..m).collect();
             let perm = PermRef::new_checked(&id, &id, m);
+            let params = CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                ..Default::default()
+            };
             let symbolic =
                 factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), params).ok()?;
             if !matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) {
                 return None;
             }
-            halves.push(Half { n_int, glob, col_ptr: cp, row_idx: ri, src, symbolic, scratch: Mutex::new(None) });
-        }
-        let h1 = halves.pop().unwrap();
-        let h0 = halves.pop().unwrap();
-        Some(DomainSplit { halves: [h0, h1], k, a33 })
+            Some(Half { n_int, glob, col_ptr: cp, row_idx: ri, src, symbolic, scratch: Mutex::new(None) })
+        };
+        let (h0, h1) = rayon::join(|| build_half(0), || build_half(1));
+        Some(DomainSplit { halves: [h0?, h1?], k, a33 })
     }
 
     /// Factorise the Hermitian matrix with (global, lower) values `vals` and solve for `rhs` in

@@ -39,7 +39,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 /// Parts of at most this many vertices are left undivided by the nested dissection (measured:
 /// 4–8 give the fastest complex supernodal factorisation at 4 px, 48 is 1.3× slower).
-pub const ND_LEAF: usize = 8;
+pub const ND_LEAF: usize = 4;
 
 /// Displacements are measured in units of this fraction of √(mesh area).
 pub const DISPLACEMENT_SCALE: f64 = 0.1;
@@ -93,76 +93,15 @@ impl CpcTopology {
         if n == 0 || mesh.faces.is_empty() {
             return Err(CpcError::invalid("mesh", "has no triangle"));
         }
-        // Lower-triangle adjacency (rows ≥ column, including the diagonal), at most 8 per vertex on
-        // a triangulated grid (7 in practice); spill to a sorted Vec otherwise.
-        let mut nbr = vec![[u32::MAX; 8]; n];
-        let mut cnt = vec![0u8; n];
-        let mut spill: Vec<(usize, usize)> = Vec::new();
-        for v in 0..n {
-            nbr[v][0] = v as u32;
-            cnt[v] = 1;
-        }
-        for f in &mesh.faces {
-            for &c in f {
-                for &r in f {
-                    if r <= c {
-                        continue;
-                    }
-                    let k = cnt[c] as usize;
-                    if nbr[c][..k].contains(&(r as u32)) {
-                        continue;
-                    }
-                    if k < 8 {
-                        nbr[c][k] = r as u32;
-                        cnt[c] += 1;
-                    } else {
-                        spill.push((c, r));
-                    }
-                }
-            }
-        }
-        spill.sort_unstable();
-        spill.dedup();
-        let mut col_ptr = Vec::with_capacity(n + 1);
-        col_ptr.push(0usize);
-        let mut row_idx = Vec::with_capacity(4 * n);
-        let mut si = 0;
-        let mut tmp: Vec<usize> = Vec::with_capacity(16);
-        for c in 0..n {
-            tmp.clear();
-            tmp.extend(nbr[c][..cnt[c] as usize].iter().map(|&r| r as usize));
-            while si < spill.len() && spill[si].0 == c {
-                if !tmp.contains(&spill[si].1) {
-                    tmp.push(spill[si].1);
-                }
-                si += 1;
-            }
-            tmp.sort_unstable();
-            row_idx.extend_from_slice(&tmp);
-            col_ptr.push(row_idx.len());
-        }
-        let mut face_pos = Vec::with_capacity(mesh.faces.len());
-        for f in &mesh.faces {
-            let mut fp = [u32::MAX; 9];
-            for (rl, &r) in f.iter().enumerate() {
-                for (cl, &c) in f.iter().enumerate() {
-                    if r < c {
-                        continue;
-                    }
-                    let rows = &row_idx[col_ptr[c]..col_ptr[c + 1]];
-                    let k = rows.binary_search(&r).expect("adjacency contains every face pair");
-                    fp[3 * rl + cl] = (col_ptr[c] + k) as u32;
-                }
-            }
-            face_pos.push(fp);
-        }
-        let fwd = nested_dissection_leaf(&mesh.p_init, mesh.grid_step_px, ND_LEAF);
+        let ((col_ptr, row_idx, face_pos), (fwd, top)) = rayon::join(
+            || lower_pattern(n, &mesh.faces),
+            || nested_dissection_split(&mesh.p_init, mesh.grid_step_px, ND_LEAF),
+        );
         let mut inv = vec![0usize; n];
         for (k, &o) in fwd.iter().enumerate() {
             inv[o] = k;
         }
-        let split = nd_top_split(&mesh.p_init, mesh.grid_step_px, ND_LEAF)
-            .and_then(|(n1, n2)| DomainSplit::new(&col_ptr, &row_idx, &fwd, n1, n2));
+        let split = top.and_then(|(n1, n2)| DomainSplit::new(&col_ptr, &row_idx, &fwd, n1, n2));
         let symbolic = OnceLock::new();
         // Without a split, the whole-system analysis now (its errors surface at assembly);
         // with one, on first use (a fallback or `set_domain_split(false)`).
@@ -215,6 +154,23 @@ impl CpcTopology {
         self.whole().map_or(0, |s| s.len_val())
     }
 
+    /// Multiply–add count of the numeric factorisation of the whole system, Σ_j c_j² over the
+    /// factor's column counts c_j (a machine-independent cost measure of an ordering).
+    pub fn factor_flops(&self) -> f64 {
+        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+        let Ok(sym) = self.whole() else { return 0.0 };
+        match sym.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => (0..s.n_supernodes())
+                .map(|i| {
+                    let (b, e) = (s.supernode_begin()[i], s.supernode_end()[i]);
+                    let (c, r) = ((e - b) as f64, s.supernode(i).pattern().len() as f64);
+                    (0..c as usize).map(|j| (c - j as f64 + r).powi(2)).sum::<f64>()
+                })
+                .sum(),
+            SymbolicCholeskyRaw::Simplicial(_) => 0.0,
+        }
+    }
+
     /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
     fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize, split: bool) -> Result<()> {
         let n = self.n;
@@ -265,6 +221,80 @@ impl CpcTopology {
         );
         Ok(())
     }
+}
+
+/// The lower-triangle pattern (rows ≥ column, diagonal first in every column, rows sorted) of the
+/// vertex adjacency of `faces` over `n` vertices, and per face the value positions of its 3×3 block
+/// (entry 3r + c for rows/columns in face order, `u32::MAX` for the unstored upper entries).
+fn lower_pattern(n: usize, faces: &[[usize; 3]]) -> (Vec<usize>, Vec<usize>, Vec<[u32; 9]>) {
+    // Lower-triangle adjacency (rows ≥ column, including the diagonal), at most 8 per vertex on
+    // a triangulated grid (7 in practice); spill to a sorted Vec otherwise.
+    let mut nbr = vec![[u32::MAX; 8]; n];
+    let mut cnt = vec![0u8; n];
+    let mut spill: Vec<(usize, usize)> = Vec::new();
+    for v in 0..n {
+        nbr[v][0] = v as u32;
+        cnt[v] = 1;
+    }
+    for f in faces {
+        for &c in f {
+            for &r in f {
+                if r <= c {
+                    continue;
+                }
+                let k = cnt[c] as usize;
+                if nbr[c][..k].contains(&(r as u32)) {
+                    continue;
+                }
+                if k < 8 {
+                    nbr[c][k] = r as u32;
+                    cnt[c] += 1;
+                } else {
+                    spill.push((c, r));
+                }
+            }
+        }
+    }
+    spill.sort_unstable();
+    spill.dedup();
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    col_ptr.push(0usize);
+    let mut row_idx = Vec::with_capacity(4 * n);
+    let mut si = 0;
+    let mut tmp: Vec<usize> = Vec::with_capacity(16);
+    for c in 0..n {
+        tmp.clear();
+        tmp.extend(nbr[c][..cnt[c] as usize].iter().map(|&r| r as usize));
+        while si < spill.len() && spill[si].0 == c {
+            if !tmp.contains(&spill[si].1) {
+                tmp.push(spill[si].1);
+            }
+            si += 1;
+        }
+        tmp.sort_unstable();
+        row_idx.extend_from_slice(&tmp);
+        col_ptr.push(row_idx.len());
+    }
+    // Per face, the value positions of its 3×3 block (independent per face: parallel).
+    let face_pos: Vec<[u32; 9]> = faces
+        .par_iter()
+        .with_min_len(2048)
+        .map(|f| {
+            let mut fp = [u32::MAX; 9];
+            for (rl, &r) in f.iter().enumerate() {
+                for (cl, &c) in f.iter().enumerate() {
+                    if r < c {
+                        continue;
+                    }
+                    let rows = &row_idx[col_ptr[c]..col_ptr[c + 1]];
+                    let k = rows.binary_search(&r).expect("adjacency contains every face pair");
+                    fp[3 * rl + cl] = (col_ptr[c] + k) as u32;
+                }
+            }
+            fp
+        })
+        .collect();
+    (col_ptr, row_idx, face_pos)
 }
 
 /// Symbolic supernodal Cholesky factorisation of the lower pattern (`col_ptr`, `row_idx`) in the
@@ -758,16 +788,21 @@ pub fn nested_dissection_points(p_init: &[[f64; 2]], grid_step_px: usize) -> Vec
     nested_dissection_leaf(p_init, grid_step_px, ND_LEAF)
 }
 
-/// Sizes (left, right) of the two parts of the top level of [`nested_dissection_leaf`] (the
-/// separator follows them in the order), or `None` when the top level is not split.
-fn nd_top_split(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Option<(usize, usize)> {
-    let s = grid_step_px as f64;
-    if p_init.len() <= leaf {
+/// Parts larger than this are ordered on two threads (`rayon::join`); the order is the same
+/// whatever the thread count.
+const ND_PARALLEL_MIN: usize = 2048;
+
+/// One nested-dissection level of `ids` (grid coordinates `gc`): split the bounding box along its
+/// longer side by the middle grid line and stably partition `ids` in place into
+/// [left | right | separator] (`scratch`: same length). Returns the sizes (left, right), or `None`
+/// when the part is not split (at most `leaf` vertices, or a single point).
+fn nd_partition(ids: &mut [u32], scratch: &mut [u32], gc: &[[i32; 2]], leaf: usize) -> Option<(usize, usize)> {
+    if ids.len() <= leaf {
         return None;
     }
-    let gc: Vec<[i64; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
-    let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
-    for g in &gc {
+    let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
+    for &v in ids.iter() {
+        let g = gc[v as usize];
         for k in 0..2 {
             lo[k] = lo[k].min(g[k]);
             hi[k] = hi[k].max(g[k]);
@@ -778,45 +813,69 @@ fn nd_top_split(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Option
         return None;
     }
     let mid = (lo[ax] + hi[ax]) / 2;
-    let n1 = gc.iter().filter(|g| g[ax] < mid).count();
-    let n2 = gc.iter().filter(|g| g[ax] > mid).count();
-    Some((n1, n2))
+    let (mut nl, mut nr) = (0, 0);
+    for &v in ids.iter() {
+        let c = gc[v as usize][ax];
+        nl += (c < mid) as usize;
+        nr += (c > mid) as usize;
+    }
+    let (mut il, mut ir, mut is) = (0, nl, nl + nr);
+    for &v in ids.iter() {
+        let c = gc[v as usize][ax];
+        let slot = if c < mid {
+            &mut il
+        } else if c > mid {
+            &mut ir
+        } else {
+            &mut is
+        };
+        scratch[*slot] = v;
+        *slot += 1;
+    }
+    ids.copy_from_slice(scratch);
+    Some((nl, nr))
+}
+
+/// Order `ids` in place: [order(left) | order(right) | separator], recursively.
+fn nd_recurse(ids: &mut [u32], scratch: &mut [u32], gc: &[[i32; 2]], leaf: usize) {
+    let Some((nl, nr)) = nd_partition(ids, scratch, gc, leaf) else {
+        return;
+    };
+    let (left, rest) = ids.split_at_mut(nl);
+    let (sl, srest) = scratch.split_at_mut(nl);
+    let right = &mut rest[..nr];
+    let sr = &mut srest[..nr];
+    if nl + nr >= ND_PARALLEL_MIN {
+        rayon::join(|| nd_recurse(left, sl, gc, leaf), || nd_recurse(right, sr, gc, leaf));
+    } else {
+        nd_recurse(left, sl, gc, leaf);
+        nd_recurse(right, sr, gc, leaf);
+    }
+}
+
+/// The nested-dissection order of [`nested_dissection_leaf`] and the sizes (left, right) of the
+/// two parts of its top level (the separator follows them), `None` when the top is not split.
+/// Linear work per level (stable in-place partitions), the two halves of large parts on two threads.
+fn nested_dissection_split(
+    p_init: &[[f64; 2]],
+    grid_step_px: usize,
+    leaf: usize,
+) -> (Vec<usize>, Option<(usize, usize)>) {
+    let s = grid_step_px as f64;
+    let gc: Vec<[i32; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i32, (p[1] / s).round() as i32]).collect();
+    let n = p_init.len();
+    let mut ids: Vec<u32> = (0..n as u32).collect();
+    let mut scratch = vec![0u32; n];
+    let top = nd_partition(&mut ids, &mut scratch, &gc, leaf);
+    if let Some((nl, nr)) = top {
+        let (left, rest) = ids.split_at_mut(nl);
+        let (sl, srest) = scratch.split_at_mut(nl);
+        rayon::join(|| nd_recurse(left, sl, &gc, leaf), || nd_recurse(&mut rest[..nr], &mut srest[..nr], &gc, leaf));
+    }
+    (ids.into_iter().map(|v| v as usize).collect(), top)
 }
 
 /// [`nested_dissection_points`] with parts of at most `leaf` vertices left undivided.
 pub fn nested_dissection_leaf(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Vec<usize> {
-    let s = grid_step_px as f64;
-    let gc: Vec<[i64; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i64, (p[1] / s).round() as i64]).collect();
-    let mut ids: Vec<usize> = (0..p_init.len()).collect();
-    let mut out = Vec::with_capacity(ids.len());
-    fn rec(ids: &mut [usize], gc: &[[i64; 2]], out: &mut Vec<usize>, leaf: usize) {
-        if ids.len() <= leaf {
-            out.extend_from_slice(ids);
-            return;
-        }
-        let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
-        for &v in ids.iter() {
-            for k in 0..2 {
-                lo[k] = lo[k].min(gc[v][k]);
-                hi[k] = hi[k].max(gc[v][k]);
-            }
-        }
-        let ax = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
-        if hi[ax] == lo[ax] {
-            out.extend_from_slice(ids);
-            return;
-        }
-        let mid = (lo[ax] + hi[ax]) / 2;
-        ids.sort_unstable_by_key(|&v| (gc[v][ax] != mid, gc[v][ax] > mid));
-        // now: [separator | left | right]
-        let n_sep = ids.iter().take_while(|&&v| gc[v][ax] == mid).count();
-        let n_left = ids[n_sep..].iter().take_while(|&&v| gc[v][ax] < mid).count();
-        let sep: Vec<usize> = ids[..n_sep].to_vec();
-        let (left, right) = ids[n_sep..].split_at_mut(n_left);
-        rec(left, gc, out, leaf);
-        rec(right, gc, out, leaf);
-        out.extend_from_slice(&sep);
-    }
-    rec(&mut ids, &gc, &mut out, leaf);
-    out
+    nested_dissection_split(p_init, grid_step_px, leaf).0
 }
