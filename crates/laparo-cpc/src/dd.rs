@@ -9,7 +9,8 @@
 //! A x = b is solved by y_i = L_ii⁻¹ b_i, x_3 = Ŝ⁻¹ (b_3 − L_31 y_1 − L_32 y_2),
 //! x_i = L_ii⁻ᴴ (y_i − L_3iᴴ x_3), all through the halves' own triangular solves. Every step has
 //! a fixed operation order, so the result does not depend on the number of threads.
-use faer::dyn_stack::{MemBuffer, MemStack};
+use crate::factor_buffers::FactorBuffers;
+use faer::dyn_stack::MemStack;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::solvers::Solve;
 use faer::perm::PermRef;
@@ -35,7 +36,7 @@ struct Half {
     /// Per local stored value: global value position and whether it is conjugated.
     src: Vec<(u32, bool)>,
     symbolic: SymbolicCholesky<usize>,
-    scratch: Mutex<Option<(Vec<c64>, MemBuffer)>>,
+    scratch: Mutex<Option<FactorBuffers>>,
 }
 
 pub(crate) struct DomainSplit {
@@ -43,6 +44,14 @@ pub(crate) struct DomainSplit {
     k: usize,
     /// Lower entries of A33 (row, column, global value position, conjugated).
     a33: Vec<(usize, usize, u32, bool)>,
+}
+
+impl Drop for Half {
+    fn drop(&mut self) {
+        if let Some(b) = self.scratch.get_mut().ok().and_then(Option::take) {
+            b.give_back();
+        }
+    }
 }
 
 fn sn(sym: &SymbolicCholesky<usize>) -> &SymbolicSupernodalCholesky<usize> {
@@ -183,8 +192,7 @@ impl DomainSplit {
         let rhs_in = |g: usize| rhs_copy[g];
         // Per half: factor, trailing block T_i, T_i T_iᴴ, y_i and L_3i y_i.
         struct HalfOut {
-            l: Vec<c64>,
-            mem: MemBuffer,
+            b: FactorBuffers,
             t: Mat<c64>,
             tt: Mat<c64>,
             y: Vec<c64>,
@@ -196,26 +204,26 @@ impl DomainSplit {
             let v: Vec<c64> =
                 h.src.iter().map(|&(p, cj)| if cj { vals[p as usize].conj() } else { vals[p as usize] }).collect();
             let mat = SparseColMatRef::new(sym, &v[..]);
-            let (mut l, mut mem) = h.scratch.lock().ok().and_then(|mut g| g.take()).unwrap_or_else(|| {
+            let mut b = h.scratch.lock().ok().and_then(|mut g| g.take()).unwrap_or_else(|| {
                 let req = h
                     .symbolic
                     .factorize_numeric_llt_scratch::<c64>(par, Default::default())
                     .or(h.symbolic.solve_in_place_scratch::<c64>(1, par));
-                (vec![c64::new(0.0, 0.0); h.symbolic.len_val()], MemBuffer::new(req))
+                FactorBuffers::take(h.symbolic.len_val(), req)
             });
             h.symbolic
                 .factorize_numeric_llt(
-                    &mut l,
+                    &mut b.vals,
                     mat,
                     Side::Lower,
                     Default::default(),
                     par,
-                    MemStack::new(&mut mem),
+                    MemStack::new(&mut b.mem),
                     Default::default(),
                 )
                 .map_err(|e| format!("Cholesky failed (matrix not positive definite?): {e:?}"))?;
             let s = sn(&h.symbolic);
-            let llt = SupernodalLltRef::new(s, &l);
+            let llt = SupernodalLltRef::new(s, &b.vals);
             // Trailing k × k block T (separator columns, lower triangular).
             let mut t = Mat::<c64>::zeros(k, k);
             let ni = h.n_int;
@@ -256,7 +264,7 @@ impl DomainSplit {
                 Conj::No,
                 MatMut::from_column_major_slice_mut(&mut y, m, 1),
                 par,
-                MemStack::new(&mut mem),
+                MemStack::new(&mut b.mem),
             );
             let mut w = vec![c64::new(0.0, 0.0); k];
             for j in 0..k {
@@ -265,7 +273,7 @@ impl DomainSplit {
                     *wi -= t[(i, j)] * uj;
                 }
             }
-            Ok(HalfOut { l, mem, t, tt, y, w })
+            Ok(HalfOut { b, t, tt, y, w })
         };
         let (o0, o1) = rayon::join(|| run_half(&self.halves[0]), || run_half(&self.halves[1]));
         let (mut o0, mut o1) = (o0?, o1?);
@@ -296,12 +304,12 @@ impl DomainSplit {
                 }
                 o.y[ni + j] = acc;
             }
-            let llt = SupernodalLltRef::new(sn(&h.symbolic), &o.l);
+            let llt = SupernodalLltRef::new(sn(&h.symbolic), &o.b.vals);
             llt.l_transpose_solve_with_conj(
                 Conj::Yes,
                 MatMut::from_column_major_slice_mut(&mut o.y, m, 1),
                 par,
-                MemStack::new(&mut o.mem),
+                MemStack::new(&mut o.b.mem),
             );
         };
         rayon::join(|| back(&self.halves[0], &mut o0), || back(&self.halves[1], &mut o1));
@@ -310,7 +318,7 @@ impl DomainSplit {
                 rhs[g] = v;
             }
             if let Ok(mut g) = h.scratch.try_lock() {
-                *g = Some((o.l, o.mem));
+                *g = Some(o.b);
             }
         }
         for (j, &g) in sep_glob.iter().enumerate() {

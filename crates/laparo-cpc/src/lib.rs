@@ -10,6 +10,7 @@ pub mod conformal;
 pub mod dd;
 pub mod equiareal;
 pub mod error;
+mod factor_buffers;
 pub mod lambda;
 pub mod mesh;
 pub mod metrics;

@@ -25,6 +25,7 @@
 use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
 use crate::dd::DomainSplit;
 use crate::error::{CpcError, Result};
+use crate::factor_buffers::FactorBuffers;
 use crate::mesh::{signed_area, CpcMesh};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
@@ -76,14 +77,17 @@ pub struct CpcTopology {
     fwd: Vec<usize>,
     inv: Vec<usize>,
     /// Numeric factor values and workspace, reused by consecutive solves.
-    scratch: Mutex<Option<Scratch>>,
+    scratch: Mutex<Option<FactorBuffers>>,
     /// Two-domain split of the top nested-dissection level (factorised on two threads), if any.
     split: Option<DomainSplit>,
 }
 
-struct Scratch {
-    l_vals: Vec<c64>,
-    mem: MemBuffer,
+impl Drop for CpcTopology {
+    fn drop(&mut self) {
+        if let Some(b) = self.scratch.get_mut().ok().and_then(Option::take) {
+            b.give_back();
+        }
+    }
 }
 
 impl CpcTopology {
@@ -192,7 +196,7 @@ impl CpcTopology {
         // Reuse the factor buffer and workspace unless another solve holds them.
         let mut guard = self.scratch.try_lock().ok();
         let mut local = None;
-        let slot: &mut Option<Scratch> = match guard.as_deref_mut() {
+        let slot: &mut Option<FactorBuffers> = match guard.as_deref_mut() {
             Some(s) => s,
             None => &mut local,
         };
@@ -200,11 +204,11 @@ impl CpcTopology {
             let req = symbolic
                 .factorize_numeric_llt_scratch::<c64>(par, Default::default())
                 .or(symbolic.solve_in_place_scratch::<c64>(1, par));
-            Scratch { l_vals: vec![c64::new(0.0, 0.0); symbolic.len_val()], mem: MemBuffer::new(req) }
+            FactorBuffers::take(symbolic.len_val(), req)
         });
         let llt = symbolic
             .factorize_numeric_llt(
-                &mut sc.l_vals,
+                &mut sc.vals,
                 mat,
                 Side::Lower,
                 Default::default(),
