@@ -221,7 +221,11 @@ fn print_hashes(
     println!("canvas       {}x{} origin {:?}", w.width, w.height, w.origin);
     let (wi, m) = w.warp_image(image).unwrap();
     println!("warped       {:016x}", fnv(wi.data.iter().copied()));
-    println!("mask         {:016x} ({} px)", fnv(m.data.iter().map(|&b| b as u8)), m.data.iter().filter(|&&b| b).count());
+    println!(
+        "mask         {:016x} ({} px)",
+        fnv(m.data.iter().map(|&b| b as u8)),
+        m.data.iter().filter(|&&b| b).count()
+    );
     let grey = Image { width: 640, height: 480, channels: 1, data: image.data.iter().step_by(3).copied().collect() };
     let (wg, _) = w.warp_image(&grey).unwrap();
     println!("warped grey  {:016x}", fnv(wg.data.iter().copied()));

@@ -201,7 +201,7 @@ fn sample_row<const CH: usize>(
 ) {
     let (iw, ih) = (image.width, image.height);
     if iw < 2 || ih < 2 {
-        return sample_row_dyn(fid, inv_aff, image, y, row, mrow, CH);
+        return sample_row_dyn(fid, inv_aff, image, y, row, mrow, CH, 0);
     }
     let src = &image.data;
     let (wmax, hmax) = ((iw - 1) as f64, (ih - 1) as f64);
@@ -235,7 +235,97 @@ fn sample_row<const CH: usize>(
     }
 }
 
-/// [`sample_row`] for any channel count.
+/// AVX2 sampling of RGB rows (x86-64): the three channels of a pixel are the first three lanes of
+/// one 4 × f64 vector, so the per-channel bilinear arithmetic of [`sample_row`] runs once per pixel,
+/// lane by lane with the same IEEE operations in the same order (no FMA): bitwise the same result.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use super::NONE;
+    use laparo_core::image::Image;
+    use std::arch::x86_64::*;
+
+    /// Whether the CPU has what [`sample_row_rgb`] needs (AVX2 implies SSE4.1).
+    pub fn available() -> bool {
+        std::is_x86_feature_detected!("avx2")
+    }
+
+    /// The four bytes at `p` as 4 × f64.
+    ///
+    /// # Safety
+    /// `p..p + 4` must be readable.
+    #[inline(always)]
+    unsafe fn load4(p: *const u8) -> __m256d {
+        let w = std::ptr::read_unaligned(p as *const i32);
+        _mm256_cvtepi32_pd(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(w)))
+    }
+
+    /// [`super::sample_row`] for 3 channels; the source must be at least 2×2 pixels. Per pixel,
+    /// the same operations as the scalar code: q = A + L (q − a) (x and y in the two lanes of one
+    /// vector, the horizontal add sums l00·d0 + l01·d1 in the scalar order), clamp, truncation,
+    /// weights, bilinear blend.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn sample_row_rgb(
+        fid: &[u32],
+        inv_aff: &[[f64; 8]],
+        image: &Image<u8>,
+        y: usize,
+        row: &mut [u8],
+        mrow: &mut [bool],
+    ) {
+        const CH: usize = 3;
+        let (iw, ih) = (image.width, image.height);
+        let src = &image.data[..];
+        let qmax = _mm_set_pd((ih - 1) as f64, (iw - 1) as f64);
+        let imax = _mm_set_epi32(0, 0, (ih - 2) as i32, (iw - 2) as i32);
+        let (zero, one) = (_mm_setzero_pd(), _mm_set1_pd(1.0));
+        let yf = y as i32 as f64;
+        let half = _mm256_set1_pd(0.5);
+        for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(CH)).zip(mrow.iter_mut()).enumerate() {
+            if t == NONE {
+                continue;
+            }
+            let af = inv_aff[t as usize].as_ptr();
+            // d = q − a; (L d) by rows: [l00·d0, l01·d1] and [l10·d0, l11·d1] summed pairwise.
+            let d = _mm_sub_pd(_mm_set_pd(yf, x as i32 as f64), _mm_loadu_pd(af.add(2)));
+            let ld = _mm_hadd_pd(_mm_mul_pd(_mm_loadu_pd(af.add(4)), d), _mm_mul_pd(_mm_loadu_pd(af.add(6)), d));
+            let q = _mm_add_pd(_mm_loadu_pd(af), ld);
+            // Clamp to the pixel-centre hull (q is finite), truncate (q ≥ 0: floor), cap at w − 2, h − 2.
+            let qc = _mm_min_pd(_mm_max_pd(q, zero), qmax);
+            let i01 = _mm_min_epi32(_mm_cvttpd_epi32(qc), imax);
+            let a = _mm_sub_pd(qc, _mm_cvtepi32_pd(i01));
+            let b = _mm_sub_pd(one, a);
+            let (x0, y0) = (_mm_cvtsi128_si32(i01) as usize, _mm_extract_epi32::<1>(i01) as usize);
+            let i0 = (y0 * iw + x0) * CH;
+            let i1 = i0 + iw * CH;
+            if i1 + 2 * CH + 1 > src.len() {
+                // The last source pixel: a 4-byte load of its right neighbour would read past the
+                // end of the image.
+                super::sample_row_dyn(&fid[x..x + 1], inv_aff, image, y, px, std::slice::from_mut(m), CH, x);
+                continue;
+            }
+            let (ax, bx) = (_mm256_broadcastsd_pd(a), _mm256_broadcastsd_pd(b));
+            let (ay, by) = (_mm256_broadcastsd_pd(_mm_unpackhi_pd(a, a)), _mm256_broadcastsd_pd(_mm_unpackhi_pd(b, b)));
+            let p = src.as_ptr();
+            // SAFETY (reads): i0 < i1 and i1 + 7 ≤ src.len() (checked above), so the four 4-byte
+            // reads at i0, i0 + 3, i1, i1 + 3 are in bounds.
+            let top = _mm256_add_pd(_mm256_mul_pd(load4(p.add(i0)), bx), _mm256_mul_pd(load4(p.add(i0 + CH)), ax));
+            let bot = _mm256_add_pd(_mm256_mul_pd(load4(p.add(i1)), bx), _mm256_mul_pd(load4(p.add(i1 + CH)), ax));
+            let v = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(top, by), _mm256_mul_pd(bot, ay)), half);
+            // v + 0.5 ∈ [0.5, 255.5]: truncation is the scalar `as u8`; lane 3 (the next pixel's
+            // first channel) is dropped.
+            let i32x4 = _mm256_cvttpd_epi32(v);
+            let bytes = _mm_cvtsi128_si32(_mm_packus_epi16(_mm_packus_epi32(i32x4, i32x4), i32x4)) as u32;
+            px.copy_from_slice(&bytes.to_le_bytes()[..CH]);
+            *m = true;
+        }
+    }
+}
+
+/// [`sample_row`] for any channel count; `fid`, `row` and `mrow` start at canvas column `x_first`.
+#[allow(clippy::too_many_arguments)]
 fn sample_row_dyn(
     fid: &[u32],
     inv_aff: &[[f64; 8]],
@@ -244,12 +334,13 @@ fn sample_row_dyn(
     row: &mut [u8],
     mrow: &mut [bool],
     ch: usize,
+    x_first: usize,
 ) {
     for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(ch.max(1))).zip(mrow.iter_mut()).enumerate() {
         if t == NONE {
             continue;
         }
-        let q = inv_apply(&inv_aff[t as usize], [x as f64, y as f64]);
+        let q = inv_apply(&inv_aff[t as usize], [(x_first + x) as f64, y as f64]);
         bilinear_into(image, q, px, ch);
         *m = true;
     }
@@ -441,14 +532,21 @@ impl Warp {
         let mut out = Image::filled(self.width, self.height, ch, 0u8);
         let mut mask = Image::filled(self.width, self.height, 1, false);
         let width = self.width;
+        #[cfg(target_arch = "x86_64")]
+        let rgb_simd = ch == 3 && image.width >= 2 && image.height >= 2 && simd::available();
         out.data.par_chunks_mut(width * ch).zip(mask.data.par_chunks_mut(width)).enumerate().for_each(
             |(y, (row, mrow))| {
                 let fid = &self.face_id[y * width..(y + 1) * width];
+                #[cfg(target_arch = "x86_64")]
+                if rgb_simd {
+                    // SAFETY: `rgb_simd` implies the CPU supports AVX2.
+                    return unsafe { simd::sample_row_rgb(fid, &self.inv_aff, image, y, row, mrow) };
+                }
                 match ch {
                     1 => sample_row::<1>(fid, &self.inv_aff, image, y, row, mrow),
                     3 => sample_row::<3>(fid, &self.inv_aff, image, y, row, mrow),
                     4 => sample_row::<4>(fid, &self.inv_aff, image, y, row, mrow),
-                    _ => sample_row_dyn(fid, &self.inv_aff, image, y, row, mrow, ch),
+                    _ => sample_row_dyn(fid, &self.inv_aff, image, y, row, mrow, ch, 0),
                 }
             },
         );
