@@ -259,6 +259,58 @@ mod simd {
         _mm256_cvtepi32_pd(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(w)))
     }
 
+    /// [`super::RasterBand::raster`] with AVX2 rows.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn raster_band(band: super::RasterBand<'_>) {
+        band.raster::<true>();
+    }
+
+    /// Pixels `x0..=x1` of `row` covered by `test` are set to `t`, 4 at a time: the same inside
+    /// test as [`super::RowTest::inside`], lane by lane; the pixels beyond the row's last full
+    /// vector take the scalar path.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn fill_row(test: &super::RowTest, row: &mut [u32], x0: usize, x1: usize, t: u32) {
+        let (ax, cb, cc) = (_mm256_set1_pd(test.ax), _mm256_set1_pd(test.cb), _mm256_set1_pd(test.cc));
+        let (tb, tc, sd, tol) =
+            (_mm256_set1_pd(test.tb), _mm256_set1_pd(test.tc), _mm256_set1_pd(test.sd), _mm256_set1_pd(test.tol));
+        let tv = _mm_set1_epi32(t as i32);
+        let lanes = _mm_set_epi32(3, 2, 1, 0);
+        let last = _mm_set1_epi32(x1 as i32);
+        let mut x = x0;
+        while x <= x1 && x + 4 <= row.len() {
+            let xi = _mm_add_epi32(_mm_set1_epi32(x as i32), lanes);
+            let qx = _mm256_sub_pd(_mm256_cvtepi32_pd(xi), ax);
+            let nb = _mm256_sub_pd(_mm256_mul_pd(qx, cb), tb);
+            let nc = _mm256_sub_pd(tc, _mm256_mul_pd(cc, qx));
+            let na = _mm256_sub_pd(_mm256_sub_pd(sd, nb), nc);
+            let ok = _mm256_and_pd(
+                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(na, tol), _mm256_cmp_pd::<_CMP_GE_OQ>(nb, tol)),
+                _mm256_cmp_pd::<_CMP_GE_OQ>(nc, tol),
+            );
+            // 4 × 64-bit lane masks → 4 × 32-bit, restricted to x ≤ x1.
+            let ok32 = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(
+                _mm256_castpd_si256(ok),
+                _mm256_set_epi32(7, 5, 3, 1, 6, 4, 2, 0),
+            ));
+            let keep = _mm_andnot_si128(_mm_cmpgt_epi32(xi, last), ok32);
+            let dst = row[x..x + 4].as_mut_ptr() as *mut __m128i;
+            // SAFETY: `row[x..x + 4]` is in bounds (checked by the slice index), unaligned access.
+            let old = _mm_loadu_si128(dst);
+            _mm_storeu_si128(dst, _mm_blendv_epi8(old, tv, keep));
+            x += 4;
+        }
+        if x <= x1 {
+            test.fill_scalar(row, x, x1, t);
+        }
+    }
+
     /// [`super::sample_row`] for 3 channels; the source must be at least 2×2 pixels. Per pixel,
     /// the same operations as the scalar code: q = A + L (q − a) (x and y in the two lanes of one
     /// vector, the horizontal add sums l00·d0 + l01·d1 in the scalar order), clamp, truncation,
@@ -346,6 +398,95 @@ fn sample_row_dyn(
     }
 }
 
+/// Tolerance of the rasterisation's inside test (barycentric coordinates ≥ −`RASTER_EPS`).
+const RASTER_EPS: f64 = 1e-9;
+
+/// One band of canvas rows to rasterise: the faces meeting it, in index order (the last face in
+/// index order wins on shared edges).
+struct RasterBand<'a> {
+    /// The band's rows of the face-id raster (`width` per row).
+    chunk: &'a mut [u32],
+    width: usize,
+    /// Canvas row of the band's first row.
+    y0: usize,
+    faces: &'a [u32],
+    mesh_faces: &'a [[usize; 3]],
+    canvas: &'a [[f64; 2]],
+    boxes: &'a [Option<PixelBox>],
+}
+
+/// Inside test of one face on one canvas row: pixel x is inside when
+/// na, nb, nc ≥ tol with qx = x − ax, nb = qx·cb − tb, nc = tc − cc·qx, na = sd − nb − nc.
+#[derive(Clone, Copy)]
+struct RowTest {
+    ax: f64,
+    cb: f64,
+    cc: f64,
+    tb: f64,
+    tc: f64,
+    sd: f64,
+    tol: f64,
+}
+
+impl RowTest {
+    #[inline(always)]
+    fn inside(&self, x: usize) -> bool {
+        let qx = x as i32 as f64 - self.ax;
+        let nb = qx * self.cb - self.tb;
+        let nc = self.tc - self.cc * qx;
+        let na = self.sd - nb - nc;
+        na >= self.tol && nb >= self.tol && nc >= self.tol
+    }
+
+    /// Scalar rasterisation of pixels `x0..=x1` of `row`.
+    #[inline(always)]
+    fn fill_scalar(&self, row: &mut [u32], x0: usize, x1: usize, t: u32) {
+        for (x, id) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
+            if self.inside(x) {
+                *id = t;
+            }
+        }
+    }
+}
+
+impl RasterBand<'_> {
+    /// Rasterise every listed face into the band (`SIMD`: rows by 4-pixel AVX2 vectors; only
+    /// instantiated as `true` inside an AVX2 function).
+    #[inline(always)]
+    fn raster<const SIMD: bool>(self) {
+        let width = self.width;
+        let by0 = self.y0;
+        let by1 = (by0 + self.chunk.len() / width).saturating_sub(1);
+        for &t in self.faces {
+            let f = self.mesh_faces[t as usize];
+            let (a, b, c) = (self.canvas[f[0]], self.canvas[f[1]], self.canvas[f[2]]);
+            let (x0, y0, x1, y1) = self.boxes[t as usize].expect("listed faces have a row range");
+            // Barycentric test w_k ≥ −eps without divisions: w_b = nb / d, w_c = nc / d,
+            // w_a = (d − nb − nc) / d, so w ≥ −eps ⇔ s·num ≥ −eps·|d| with s = sign(d). The sign
+            // is folded into the edge coefficients (exact) and the row terms are hoisted.
+            let (e1x, e1y) = (b[0] - a[0], b[1] - a[1]);
+            let (e2x, e2y) = (c[0] - a[0], c[1] - a[1]);
+            let d = e1x * e2y - e1y * e2x;
+            let sg = if d > 0.0 { 1.0 } else { -1.0 };
+            let (cb, rb, cc, rc) = (sg * e2y, sg * e2x, sg * e1y, sg * e1x);
+            let sd = d.abs();
+            let tol = -RASTER_EPS * sd;
+            for y in y0.max(by0)..=y1.min(by1) {
+                let row = &mut self.chunk[(y - by0) * width..(y - by0 + 1) * width];
+                let qy = y as i32 as f64 - a[1];
+                let test = RowTest { ax: a[0], cb, cc, tb: qy * rb, tc: rc * qy, sd, tol };
+                #[cfg(target_arch = "x86_64")]
+                if SIMD {
+                    // SAFETY: `SIMD` is only true inside `simd::raster_band`, an AVX2 function.
+                    unsafe { simd::fill_row(&test, row, x0, x1, t) };
+                    continue;
+                }
+                test.fill_scalar(row, x0, x1, t);
+            }
+        }
+    }
+}
+
 impl Warp {
     /// Build the warp of `mesh` to the flattened positions `p_flat` (one per vertex).
     pub fn new(mesh: &CpcMesh, p_flat: Vec<[f64; 2]>, src_width: usize, src_height: usize) -> Result<Warp> {
@@ -403,7 +544,6 @@ impl Warp {
         // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
         // row range meets it, so the result does not depend on the thread count.
         let mut face_id = vec![NONE; width * height];
-        let eps = 1e-9;
         let band = RASTER_BAND_ROWS;
         let n_bands = height.div_ceil(band);
         let mut band_count = vec![0usize; n_bands + 1];
@@ -425,37 +565,24 @@ impl Warp {
                 }
             }
         }
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = simd::available();
         face_id.par_chunks_mut(band * width).enumerate().for_each(|(bi, chunk)| {
-            let (by0, by1) = (bi * band, (bi * band + chunk.len() / width).saturating_sub(1));
-            for &t in &band_faces[band_count[bi]..band_count[bi + 1]] {
-                let f = mesh.faces[t as usize];
-                let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-                let (x0, y0, x1, y1) = rows_of[t as usize].expect("listed faces have a row range");
-                // Barycentric test w_k ≥ −eps without divisions: w_b = nb / d, w_c = nc / d,
-                // w_a = (d − nb − nc) / d, so w ≥ −eps ⇔ s·num ≥ −eps·|d| with s = sign(d). The sign
-                // is folded into the edge coefficients (exact) and the row terms are hoisted.
-                let (e1x, e1y) = (b[0] - a[0], b[1] - a[1]);
-                let (e2x, e2y) = (c[0] - a[0], c[1] - a[1]);
-                let d = e1x * e2y - e1y * e2x;
-                let sg = if d > 0.0 { 1.0 } else { -1.0 };
-                let (cb, rb, cc, rc) = (sg * e2y, sg * e2x, sg * e1y, sg * e1x);
-                let sd = d.abs();
-                let tol = -eps * sd;
-                for y in y0.max(by0)..=y1.min(by1) {
-                    let row = &mut chunk[(y - by0) * width..(y - by0 + 1) * width];
-                    let qy = y as i32 as f64 - a[1];
-                    let (tb, tc) = (qy * rb, rc * qy);
-                    for (x, id) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
-                        let qx = x as i32 as f64 - a[0];
-                        let nb = qx * cb - tb;
-                        let nc = tc - cc * qx;
-                        let na = sd - nb - nc;
-                        if na >= tol && nb >= tol && nc >= tol {
-                            *id = t;
-                        }
-                    }
-                }
+            let band = RasterBand {
+                chunk,
+                width,
+                y0: bi * band,
+                faces: &band_faces[band_count[bi]..band_count[bi + 1]],
+                mesh_faces: &mesh.faces,
+                canvas: &canvas,
+                boxes: &rows_of,
+            };
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: `avx2` says the CPU supports AVX2.
+                return unsafe { simd::raster_band(band) };
             }
+            band.raster::<false>();
         });
         Ok(Warp {
             mesh: mesh.clone(),
