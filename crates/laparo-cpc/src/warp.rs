@@ -519,27 +519,36 @@ impl Warp {
         let canvas: Vec<[f64; 2]> = p_flat.iter().map(|p| sub(*p, origin)).collect();
         // Per face (in parallel, each face independently): the affine map canvas → original and
         // the canvas pixel range to rasterise.
-        let (inv_aff, rows_of): (Vec<[f64; 8]>, Vec<Option<PixelBox>>) = mesh
-            .faces
-            .par_iter()
-            .with_min_len(1024)
-            .map(|f| {
-                let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
-                let (pa, pb, pc) = (mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
-                let inv = edge_map(sub(pb, pa), sub(pc, pa), sub(b, a), sub(c, a)).unwrap_or([f64::NAN; 4]);
-                let af = [pa[0], pa[1], a[0], a[1], inv[0], inv[1], inv[2], inv[3]];
-                if signed_area(a, b, c) == 0.0 || inv[0].is_nan() {
-                    return (af, None);
+        let face_map = |f: &[usize; 3]| -> ([f64; 8], Option<PixelBox>) {
+            let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+            let (pa, pb, pc) = (mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
+            let inv = edge_map(sub(pb, pa), sub(pc, pa), sub(b, a), sub(c, a)).unwrap_or([f64::NAN; 4]);
+            let af = [pa[0], pa[1], a[0], a[1], inv[0], inv[1], inv[2], inv[3]];
+            if signed_area(a, b, c) == 0.0 || inv[0].is_nan() {
+                return (af, None);
+            }
+            // Canvas coordinates are ≥ 0 (origin = floor of the minimum): truncation is floor,
+            // and avoids a libm call per bound.
+            let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
+            let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
+            let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
+            let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
+            (af, (y0 <= y1 && x0 <= x1).then_some((x0, y0, x1, y1)))
+        };
+        // Written in place by chunks of faces (a parallel `unzip` into two vectors costs more than
+        // the maps themselves).
+        let m = mesh.faces.len();
+        let mut inv_aff: Vec<[f64; 8]> = vec![[0.0; 8]; m];
+        let mut rows_of: Vec<Option<PixelBox>> = vec![None; m];
+        const FACE_CHUNK: usize = 2048;
+        inv_aff.par_chunks_mut(FACE_CHUNK).zip(rows_of.par_chunks_mut(FACE_CHUNK)).enumerate().for_each(
+            |(ci, (aff, boxes))| {
+                let faces = &mesh.faces[ci * FACE_CHUNK..];
+                for ((f, af), bx) in faces.iter().zip(aff.iter_mut()).zip(boxes.iter_mut()) {
+                    (*af, *bx) = face_map(f);
                 }
-                // Canvas coordinates are ≥ 0 (origin = floor of the minimum): truncation is floor,
-                // and avoids a libm call per bound.
-                let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
-                let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
-                let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
-                let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
-                (af, (y0 <= y1 && x0 <= x1).then_some((x0, y0, x1, y1)))
-            })
-            .unzip();
+            },
+        );
         // Rasterise: canvas pixel → covering triangle (the last face in index order wins on shared
         // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
         // row range meets it, so the result does not depend on the thread count.
