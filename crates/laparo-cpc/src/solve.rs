@@ -404,28 +404,26 @@ impl CpcSystem {
             *w /= l2 * a_tot;
         }
         // M_t and w_t per face (independent per face: parallel, deterministic), written in place
-        // by chunks of faces (a parallel `collect` into a vector concatenates per-thread lists,
-        // which cost a third of the assembly).
+        // (`unzip_into_vecs` of an indexed iterator; collecting into an `Option<Vec>` concatenated
+        // per-thread lists, which cost a third of the assembly).
         let (cos_t, sin_t) = (th.cos(), th.sin());
-        let mut tri_rows: Vec<[[f64; 6]; 2]> = vec![[[0.0; 6]; 2]; m];
-        let mut tri_w: Vec<f64> = vec![0.0; m];
-        const FACE_CHUNK: usize = 1024;
+        let (mut tri_rows, mut tri_w): (Vec<[[f64; 6]; 2]>, Vec<f64>) = (Vec::new(), Vec::new());
         let degenerate = std::sync::atomic::AtomicBool::new(false);
-        tri_rows.par_chunks_mut(FACE_CHUNK).zip(tri_w.par_chunks_mut(FACE_CHUNK)).enumerate().for_each(
-            |(ci, (rows, ws))| {
-                let first = ci * FACE_CHUNK;
-                for (k, (mr, w)) in rows.iter_mut().zip(ws.iter_mut()).enumerate() {
-                    let f = mesh.faces[first + k];
-                    match triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t) {
-                        Some(r) => *mr = r,
-                        None => degenerate.store(true, std::sync::atomic::Ordering::Relaxed),
-                    }
-                    let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
-                    let e2 = (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2);
-                    *w = area[first + k] / (e2 * a_tot);
-                }
-            },
-        );
+        mesh.faces
+            .par_iter()
+            .zip(&area)
+            .with_min_len(1024)
+            .map(|(f, &a)| {
+                let mr = triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t)
+                    .unwrap_or_else(|| {
+                        degenerate.store(true, std::sync::atomic::Ordering::Relaxed);
+                        [[0.0; 6]; 2]
+                    });
+                let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
+                let e2 = (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2);
+                (mr, a / (e2 * a_tot))
+            })
+            .unzip_into_vecs(&mut tri_rows, &mut tri_w);
         if degenerate.into_inner() {
             let t = mesh
                 .faces

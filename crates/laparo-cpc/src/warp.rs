@@ -535,20 +535,10 @@ impl Warp {
             let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
             (af, (y0 <= y1 && x0 <= x1).then_some((x0, y0, x1, y1)))
         };
-        // Written in place by chunks of faces (a parallel `unzip` into two vectors costs more than
-        // the maps themselves).
-        let m = mesh.faces.len();
-        let mut inv_aff: Vec<[f64; 8]> = vec![[0.0; 8]; m];
-        let mut rows_of: Vec<Option<PixelBox>> = vec![None; m];
-        const FACE_CHUNK: usize = 2048;
-        inv_aff.par_chunks_mut(FACE_CHUNK).zip(rows_of.par_chunks_mut(FACE_CHUNK)).enumerate().for_each(
-            |(ci, (aff, boxes))| {
-                let faces = &mesh.faces[ci * FACE_CHUNK..];
-                for ((f, af), bx) in faces.iter().zip(aff.iter_mut()).zip(boxes.iter_mut()) {
-                    (*af, *bx) = face_map(f);
-                }
-            },
-        );
+        // Written in place (`unzip_into_vecs` of an indexed iterator; a plain parallel `unzip`
+        // concatenates per-thread lists, which costs more than the maps themselves).
+        let (mut inv_aff, mut rows_of): (Vec<[f64; 8]>, Vec<Option<PixelBox>>) = (Vec::new(), Vec::new());
+        mesh.faces.par_iter().with_min_len(1024).map(face_map).unzip_into_vecs(&mut inv_aff, &mut rows_of);
         // Rasterise: canvas pixel → covering triangle (the last face in index order wins on shared
         // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
         // row range meets it, so the result does not depend on the thread count.
