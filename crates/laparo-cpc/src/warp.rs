@@ -487,6 +487,74 @@ impl RasterBand<'_> {
     }
 }
 
+/// Whether the AVX2 paths can be used on this CPU.
+fn simd_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return simd::available();
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// The face-id raster of the canvas (`width` × `height`): every pixel gets the covering face (or
+/// `NONE`). `avx2` (only honoured when the CPU has it) picks the vectorised rows; both paths give
+/// the same raster.
+fn rasterise(
+    mesh_faces: &[[usize; 3]],
+    canvas: &[[f64; 2]],
+    boxes: &[Option<PixelBox>],
+    width: usize,
+    height: usize,
+    avx2: bool,
+) -> Vec<u32> {
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = avx2 && simd::available();
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = avx2;
+    // Rasterise: canvas pixel → covering triangle (the last face in index order wins on shared
+    // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
+    // row range meets it, so the result does not depend on the thread count.
+    let mut face_id = vec![NONE; width * height];
+    let band = RASTER_BAND_ROWS;
+    let n_bands = height.div_ceil(band);
+    let mut band_count = vec![0usize; n_bands + 1];
+    for &(_, y0, _, y1) in boxes.iter().flatten() {
+        for bi in y0 / band..=y1 / band {
+            band_count[bi + 1] += 1;
+        }
+    }
+    for i in 1..band_count.len() {
+        band_count[i] += band_count[i - 1];
+    }
+    let mut band_faces = vec![0u32; band_count[n_bands]];
+    let mut fill = band_count.clone();
+    for (t, r) in boxes.iter().enumerate() {
+        if let Some((_, y0, _, y1)) = *r {
+            for bi in y0 / band..=y1 / band {
+                band_faces[fill[bi]] = t as u32;
+                fill[bi] += 1;
+            }
+        }
+    }
+    face_id.par_chunks_mut(band * width).enumerate().for_each(|(bi, chunk)| {
+        let band = RasterBand {
+            chunk,
+            width,
+            y0: bi * band,
+            faces: &band_faces[band_count[bi]..band_count[bi + 1]],
+            mesh_faces,
+            canvas,
+            boxes,
+        };
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: `avx2` is only true when the CPU supports AVX2.
+            return unsafe { simd::raster_band(band) };
+        }
+        band.raster::<false>();
+    });
+    face_id
+}
+
 impl Warp {
     /// Build the warp of `mesh` to the flattened positions `p_flat` (one per vertex).
     pub fn new(mesh: &CpcMesh, p_flat: Vec<[f64; 2]>, src_width: usize, src_height: usize) -> Result<Warp> {
@@ -539,50 +607,7 @@ impl Warp {
         // concatenates per-thread lists, which costs more than the maps themselves).
         let (mut inv_aff, mut rows_of): (Vec<[f64; 8]>, Vec<Option<PixelBox>>) = (Vec::new(), Vec::new());
         mesh.faces.par_iter().with_min_len(1024).map(face_map).unzip_into_vecs(&mut inv_aff, &mut rows_of);
-        // Rasterise: canvas pixel → covering triangle (the last face in index order wins on shared
-        // edges). Parallel over bands of rows: each band visits, in index order, the faces whose
-        // row range meets it, so the result does not depend on the thread count.
-        let mut face_id = vec![NONE; width * height];
-        let band = RASTER_BAND_ROWS;
-        let n_bands = height.div_ceil(band);
-        let mut band_count = vec![0usize; n_bands + 1];
-        for &(_, y0, _, y1) in rows_of.iter().flatten() {
-            for bi in y0 / band..=y1 / band {
-                band_count[bi + 1] += 1;
-            }
-        }
-        for i in 1..band_count.len() {
-            band_count[i] += band_count[i - 1];
-        }
-        let mut band_faces = vec![0u32; band_count[n_bands]];
-        let mut fill = band_count.clone();
-        for (t, r) in rows_of.iter().enumerate() {
-            if let Some((_, y0, _, y1)) = *r {
-                for bi in y0 / band..=y1 / band {
-                    band_faces[fill[bi]] = t as u32;
-                    fill[bi] += 1;
-                }
-            }
-        }
-        #[cfg(target_arch = "x86_64")]
-        let avx2 = simd::available();
-        face_id.par_chunks_mut(band * width).enumerate().for_each(|(bi, chunk)| {
-            let band = RasterBand {
-                chunk,
-                width,
-                y0: bi * band,
-                faces: &band_faces[band_count[bi]..band_count[bi + 1]],
-                mesh_faces: &mesh.faces,
-                canvas: &canvas,
-                boxes: &rows_of,
-            };
-            #[cfg(target_arch = "x86_64")]
-            if avx2 {
-                // SAFETY: `avx2` says the CPU supports AVX2.
-                return unsafe { simd::raster_band(band) };
-            }
-            band.raster::<false>();
-        });
+        let face_id = rasterise(&mesh.faces, &canvas, &rows_of, width, height, simd_available());
         Ok(Warp {
             mesh: mesh.clone(),
             p_flat,
@@ -648,6 +673,12 @@ impl Warp {
     /// Warp `image` (any number of channels, same size as the depth/ROI): piecewise-affine,
     /// inverse mapping, bilinear sampling. Returns the warped image and its validity mask.
     pub fn warp_image(&self, image: &Image<u8>) -> Result<(Image<u8>, Mask)> {
+        self.warp_image_with(image, simd_available())
+    }
+
+    /// [`Warp::warp_image`]; `avx2` (only honoured when the CPU has it) picks the vectorised RGB
+    /// sampling, which gives the same image.
+    fn warp_image_with(&self, image: &Image<u8>, avx2: bool) -> Result<(Image<u8>, Mask)> {
         if image.width != self.src_width || image.height != self.src_height {
             return Err(CpcError::SizeMismatch(format!(
                 "image is {}x{}, the mesh was built on {}x{}",
@@ -659,7 +690,9 @@ impl Warp {
         let mut mask = Image::filled(self.width, self.height, 1, false);
         let width = self.width;
         #[cfg(target_arch = "x86_64")]
-        let rgb_simd = ch == 3 && image.width >= 2 && image.height >= 2 && simd::available();
+        let rgb_simd = avx2 && ch == 3 && image.width >= 2 && image.height >= 2 && simd::available();
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = avx2;
         out.data.par_chunks_mut(width * ch).zip(mask.data.par_chunks_mut(width)).enumerate().for_each(
             |(y, (row, mrow))| {
                 let fid = &self.face_id[y * width..(y + 1) * width];
@@ -754,5 +787,47 @@ impl Warp {
     pub fn original_to_warped_affine(&self, u: f64, v: f64) -> Option<[f64; 2]> {
         let (t, _) = self.mesh.locate_initial(u, v)?;
         Some(self.fwd_affine(t, [u, v]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::{cpc_warp, CpcParams};
+    use crate::scene::bumpy_bowl_spec;
+
+    /// The AVX2 rasterisation and sampling give bitwise the same raster and image as the scalar
+    /// code (on a CPU without AVX2 both calls take the scalar path).
+    #[test]
+    fn simd_paths_match_the_scalar_code() {
+        let sc = bumpy_bowl_spec().render().unwrap();
+        let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &CpcParams::default()).unwrap();
+        let w = &r.warp;
+        let canvas: Vec<[f64; 2]> = w.p_flat.iter().map(|p| sub(*p, w.origin)).collect();
+        let boxes: Vec<Option<PixelBox>> = w
+            .mesh
+            .faces
+            .iter()
+            .map(|f| {
+                let (a, b, c) = (canvas[f[0]], canvas[f[1]], canvas[f[2]]);
+                if signed_area(a, b, c) == 0.0 {
+                    return None;
+                }
+                let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
+                let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
+                let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(w.width - 1);
+                let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(w.height - 1);
+                (y0 <= y1 && x0 <= x1).then_some((x0, y0, x1, y1))
+            })
+            .collect();
+        let scalar = rasterise(&w.mesh.faces, &canvas, &boxes, w.width, w.height, false);
+        let vector = rasterise(&w.mesh.faces, &canvas, &boxes, w.width, w.height, true);
+        assert_eq!(scalar, vector);
+        assert_eq!(scalar, w.face_id);
+        assert!(scalar.iter().filter(|&&t| t != NONE).count() > 100_000);
+        let (a, ma) = w.warp_image_with(&sc.image, false).unwrap();
+        let (b, mb) = w.warp_image_with(&sc.image, true).unwrap();
+        assert_eq!(a.data, b.data);
+        assert_eq!(ma.data, mb.data);
     }
 }
