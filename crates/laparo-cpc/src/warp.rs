@@ -18,7 +18,7 @@ const NONE: u32 = u32::MAX;
 type PixelBox = (usize, usize, usize, usize);
 
 /// Canvas rows per rasterisation band (unit of parallel work).
-const RASTER_BAND_ROWS: usize = 16;
+const RASTER_BAND_ROWS: usize = 32;
 
 /// Largest canvas accepted, as a multiple of the input image area (guards against exploded solutions).
 pub const MAX_CANVAS_FACTOR: usize = 16;
@@ -144,10 +144,12 @@ fn barycentric(q: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> [f64; 3] {
     [1.0 - wb - wc, wb, wc]
 }
 
-/// ⌈v⌉ for v ≥ 0 (0 for negative or NaN v) without a libm call.
+/// ⌈v⌉ for v ≥ 0 (0 for negative or NaN v) without a libm call. (Through i64: one instruction
+/// plus a range check, where f64 → usize needs a multi-instruction sequence for the upper half of
+/// the u64 range; canvas coordinates are far below 2⁶³.)
 #[inline(always)]
 fn ceil_nonneg(v: f64) -> usize {
-    let t = v.max(0.0) as usize;
+    let t = v.max(0.0) as i64 as usize;
     if (t as f64) < v {
         t + 1
     } else {
@@ -599,8 +601,8 @@ impl Warp {
             // and avoids a libm call per bound.
             let x0 = ceil_nonneg(a[0].min(b[0]).min(c[0]));
             let y0 = ceil_nonneg(a[1].min(b[1]).min(c[1]));
-            let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as usize).min(width - 1);
-            let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as usize).min(height - 1);
+            let x1 = (a[0].max(b[0]).max(c[0]).max(0.0) as i64 as usize).min(width - 1);
+            let y1 = (a[1].max(b[1]).max(c[1]).max(0.0) as i64 as usize).min(height - 1);
             (af, (y0 <= y1 && x0 <= x1).then_some((x0, y0, x1, y1)))
         };
         // Written in place (`unzip_into_vecs` of an indexed iterator; a plain parallel `unzip`
