@@ -288,32 +288,6 @@ fn whole_symbolic(
         .map_err(|e| CpcError::Solver(format!("{e:?}")))
 }
 
-/// Image area A_t of every face, their sum A_tot and the displacement weight a_v / (L² A_tot)
-/// of every vertex (sums in face order); an error for a face of non-positive area.
-fn area_weights(mesh: &CpcMesh) -> Result<(Vec<f64>, f64, Vec<f64>)> {
-    let mut area = vec![0.0; mesh.faces.len()];
-    let mut a_tot = 0.0;
-    for (t, f) in mesh.faces.iter().enumerate() {
-        let a = signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
-        if a.is_nan() || a <= 0.0 {
-            return Err(CpcError::invalid("mesh", format!("triangle {t} has non-positive image area {a}")));
-        }
-        area[t] = a;
-        a_tot += a;
-    }
-    let l2 = DISPLACEMENT_SCALE * DISPLACEMENT_SCALE * a_tot; // L²
-    let mut disp_w = vec![0.0; mesh.n_vertices()];
-    for (t, f) in mesh.faces.iter().enumerate() {
-        for &v in f {
-            disp_w[v] += area[t] / 3.0;
-        }
-    }
-    for w in disp_w.iter_mut() {
-        *w /= l2 * a_tot;
-    }
-    Ok((area, a_tot, disp_w))
-}
-
 /// Reusable CPC solver state for a video: keeps the [`CpcTopology`] of the last mesh and reuses it
 /// (sparsity pattern, ordering, symbolic factorisation, factor buffers) when the next frame's mesh
 /// has the same topology, e.g. a fixed ROI and the same valid-depth triangles.
@@ -408,6 +382,32 @@ impl CpcSystem {
         if m == 0 {
             return Err(CpcError::invalid("mesh", "has no triangle"));
         }
+        // Image area A_t of every face, their sum A_tot and the displacement weight
+        // a_v / (L² A_tot) of every vertex (sums in face order); an error for a face of
+        // non-positive area.
+        let area_weights = |mesh: &CpcMesh| -> Result<(Vec<f64>, f64, Vec<f64>)> {
+            let mut area = vec![0.0; mesh.faces.len()];
+            let mut a_tot = 0.0;
+            for (t, f) in mesh.faces.iter().enumerate() {
+                let a = signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
+                if a.is_nan() || a <= 0.0 {
+                    return Err(CpcError::invalid("mesh", format!("triangle {t} has non-positive image area {a}")));
+                }
+                area[t] = a;
+                a_tot += a;
+            }
+            let l2 = DISPLACEMENT_SCALE * DISPLACEMENT_SCALE * a_tot; // L²
+            let mut disp_w = vec![0.0; mesh.n_vertices()];
+            for (t, f) in mesh.faces.iter().enumerate() {
+                for &v in f {
+                    disp_w[v] += area[t] / 3.0;
+                }
+            }
+            for w in disp_w.iter_mut() {
+                *w /= l2 * a_tot;
+            }
+            Ok((area, a_tot, disp_w))
+        };
         // The image areas and vertex weights (sequential sums, fixed order) run beside the
         // parallel M_t of the faces, which does not need them.
         let (cos_t, sin_t) = (th.cos(), th.sin());
