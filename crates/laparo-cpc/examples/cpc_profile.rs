@@ -1,6 +1,13 @@
 //! Stage profile of one CPC frame on raw scene files (development tool):
 //! `cargo run --release -p laparo-cpc --example cpc_profile -- DEPTH.f64 IMG.u8 [STEP] [REPEATS] [LAMBDA]`
-//! (640×480 little-endian f64 depth in mm, NaN outside the ROI; 640×480×3 u8 image).
+//! (640×480 little-endian f64 depth in mm, NaN outside the ROI; 640×480×3 u8 image), or
+//! `... -- scene [STEP] [REPEATS] [LAMBDA]` for the rendered bumpy bowl (`scene::bumpy_bowl_spec`).
+//!
+//! Environment: `CPC_NOREF` skips the real-system reference, `CPC_NOSPLIT` solves the whole system,
+//! `CPC_HASH` prints FNV hashes of every stage's output (mesh, solution, warp, image, maps) to check
+//! that an optimisation leaves the results bitwise identical, `CPC_STAGES=N` times the mesh,
+//! next-frame assembly, `Warp::new` and `warp_image` alone, N times each (wall and CPU medians;
+//! `CPC_ONLY=<stage name>` times one of them only, e.g. for `perf record`).
 use laparo_core::camera::Intrinsics;
 use laparo_core::depth::{DepthMap, DepthUnit};
 use laparo_core::image::Image;
@@ -30,19 +37,35 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    let a: Vec<String> = std::env::args().collect();
-    let depth: Vec<f64> =
-        std::fs::read(&a[1]).unwrap().chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
-    let img = std::fs::read(&a[2]).unwrap();
+    let mut a: Vec<String> = std::env::args().collect();
+    let (depth, image) = if a.get(1).map(String::as_str) == Some("scene") {
+        let sc = laparo_cpc::scene::bumpy_bowl_spec().render().unwrap();
+        a.insert(1, String::new());
+        (sc.depth, sc.image)
+    } else {
+        let depth: Vec<f64> =
+            std::fs::read(&a[1]).unwrap().chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+        let img = std::fs::read(&a[2]).unwrap();
+        (
+            DepthMap::new(640, 480, DepthUnit::Mm, depth).unwrap(),
+            Image { width: 640, height: 480, channels: 3, data: img },
+        )
+    };
     let step: usize = a.get(3).map_or(4, |s| s.parse().unwrap());
     let reps: usize = a.get(4).map_or(9, |s| s.parse().unwrap());
     let lambda: f64 = a.get(5).map_or(0.9, |s| s.parse().unwrap());
-    let depth = DepthMap::new(640, 480, DepthUnit::Mm, depth).unwrap();
-    let image = Image { width: 640, height: 480, channels: 3, data: img };
     let roi = depth.valid_mask();
     let k = Intrinsics::new(500.0, 500.0, 320.0, 240.0, 640, 480).unwrap();
     let mp = MeshParams { grid_step_px: step, ..MeshParams::default() };
     let conf = ConformalParams::default();
+    if std::env::var("CPC_HASH").is_ok() {
+        print_hashes(&roi, &depth, &k, &mp, &conf, &image, lambda);
+        return;
+    }
+    if let Ok(n) = std::env::var("CPC_STAGES") {
+        stage_times(&roi, &depth, &k, &mp, &conf, &image, lambda, n.parse().unwrap());
+        return;
+    }
     let mut solver = CpcSolver::new();
     let names = [
         "mesh",
@@ -157,4 +180,116 @@ fn main() {
         }
         println!();
     }
+}
+
+/// FNV-1a hash of a byte stream.
+fn fnv(bytes: impl IntoIterator<Item = u8>) -> u64 {
+    bytes.into_iter().fold(0xcbf29ce484222325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100000001b3))
+}
+
+fn fnv_f64<'a>(v: impl IntoIterator<Item = &'a f64>) -> u64 {
+    fnv(v.into_iter().flat_map(|x| x.to_bits().to_le_bytes()))
+}
+
+/// Hashes of every stage's output (bitwise identity checks across optimisations).
+fn print_hashes(
+    roi: &laparo_core::image::Mask,
+    depth: &DepthMap,
+    k: &Intrinsics,
+    mp: &MeshParams,
+    conf: &ConformalParams,
+    image: &Image<u8>,
+    lambda: f64,
+) {
+    let mesh = CpcMesh::build(roi, depth, k, mp).unwrap();
+    println!("mesh p_init  {:016x}", fnv_f64(mesh.p_init.iter().flatten()));
+    println!("mesh x3d     {:016x}", fnv_f64(mesh.x3d.iter().flat_map(|x| x.iter())));
+    println!("mesh faces   {:016x}", fnv(mesh.faces.iter().flatten().flat_map(|i| i.to_le_bytes())));
+    println!("mesh cells   {:016x}", fnv(mesh.cell_faces.iter().flatten().flat_map(|i| i.to_le_bytes())));
+    println!("mesh comps   {:016x}", fnv(mesh.face_component.iter().flat_map(|i| i.to_le_bytes())));
+    println!("mesh report  {}", serde_json::to_string(&mesh.report).unwrap());
+    let mut solver = CpcSolver::new();
+    let sys = solver.assemble(&mesh, conf).unwrap();
+    let p = sys.solve(lambda).unwrap();
+    println!("solution     {:016x}", fnv_f64(p.iter().flatten()));
+    let sys2 = solver.assemble(&mesh, conf).unwrap();
+    let p2 = sys2.solve(lambda).unwrap();
+    println!("solution 2   {:016x} (topology reused: {})", fnv_f64(p2.iter().flatten()), sys2.topology_reused);
+    let (ec, ed) = sys.energies(&p);
+    println!("energies     {:016x}", fnv_f64(&[ec, ed]));
+    let w = Warp::new(&mesh, p, 640, 480).unwrap();
+    println!("canvas       {}x{} origin {:?}", w.width, w.height, w.origin);
+    let (wi, m) = w.warp_image(image).unwrap();
+    println!("warped       {:016x}", fnv(wi.data.iter().copied()));
+    println!(
+        "mask         {:016x} ({} px)",
+        fnv(m.data.iter().map(|&b| b as u8)),
+        m.data.iter().filter(|&&b| b).count()
+    );
+    let grey = Image { width: 640, height: 480, channels: 1, data: image.data.iter().step_by(3).copied().collect() };
+    let (wg, _) = w.warp_image(&grey).unwrap();
+    println!("warped grey  {:016x}", fnv(wg.data.iter().copied()));
+    let maps = w.maps();
+    println!("backward     {:016x}", fnv_f64(&maps.backward.data));
+    println!("forward      {:016x}", fnv_f64(&maps.forward.data));
+    let pts: Vec<f64> = (0..2000)
+        .flat_map(|i| {
+            let (x, y) = ((i * 37 % 640) as f64 + 0.25, (i * 91 % 480) as f64 + 0.5);
+            let a = w.original_to_warped(x, y).unwrap_or([-1.0; 2]);
+            let b = w.warped_to_original(x, y).unwrap_or([-1.0; 2]);
+            let c = w.original_to_warped_affine(x, y).unwrap_or([-1.0; 2]);
+            [a[0], a[1], b[0], b[1], c[0], c[1]]
+        })
+        .collect();
+    println!("points       {:016x}", fnv_f64(&pts));
+    println!("angle err    {}", laparo_cpc::metrics::angle_error_deg(&w.p_flat, &mesh.x3d, &mesh.faces));
+    println!("delta area   {}", laparo_cpc::metrics::delta_area(&w.p_flat, &mesh.p_init, &mesh.faces));
+}
+
+/// Each stage alone, `n` times: median wall and process CPU (ms).
+#[allow(clippy::too_many_arguments)]
+fn stage_times(
+    roi: &laparo_core::image::Mask,
+    depth: &DepthMap,
+    k: &Intrinsics,
+    mp: &MeshParams,
+    conf: &ConformalParams,
+    image: &Image<u8>,
+    lambda: f64,
+    n: usize,
+) {
+    let only = std::env::var("CPC_ONLY").ok();
+    let time = |name: &str, f: &mut dyn FnMut()| {
+        if only.as_deref().is_some_and(|o| o != name) {
+            return;
+        }
+        let (mut wall, mut cpu) = (vec![], vec![]);
+        for _ in 0..n {
+            let (t, c) = (Instant::now(), proc_cpu_ns());
+            f();
+            cpu.push((proc_cpu_ns() - c) * 1e-6);
+            wall.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        println!("{name:>12}: wall {:.3} ms (min {:.3})  CPU {:.3} ms", median(wall.clone()), vmin(&wall), median(cpu));
+    };
+    let mesh = CpcMesh::build(roi, depth, k, mp).unwrap();
+    let mut solver = CpcSolver::new();
+    let p = solver.assemble(&mesh, conf).unwrap().solve(lambda).unwrap();
+    let w = Warp::new(&mesh, p.clone(), 640, 480).unwrap();
+    time("mesh", &mut || {
+        std::hint::black_box(CpcMesh::build(roi, depth, k, mp).unwrap());
+    });
+    time("assembly", &mut || {
+        std::hint::black_box(solver.assemble(&mesh, conf).unwrap());
+    });
+    time("warp new", &mut || {
+        std::hint::black_box(Warp::new(&mesh, p.clone(), 640, 480).unwrap());
+    });
+    time("warp image", &mut || {
+        std::hint::black_box(w.warp_image(image).unwrap());
+    });
+}
+
+fn vmin(v: &[f64]) -> f64 {
+    v.iter().cloned().fold(f64::INFINITY, f64::min)
 }

@@ -105,8 +105,7 @@ pub fn validate_inputs(roi: &Mask, depth: &DepthMap, k: &Intrinsics) -> Result<(
     if !depth.data.iter().any(|&z| DepthMap::is_valid(z)) {
         return Err(CpcError::invalid("depth", "no valid value (all NaN, zero or negative)"));
     }
-    let n_roi = roi.data.iter().filter(|&&b| b).count();
-    if n_roi == 0 {
+    if !roi.data.iter().any(|&b| b) {
         return Err(CpcError::invalid("ROI mask", "is empty"));
     }
     Ok(())
@@ -153,98 +152,78 @@ impl CpcMesh {
         let node_x = |i: usize, j: usize| node_pos[j * gc + i];
         let mut rep = MeshReport { grid_step_px: s, ..Default::default() };
         let cos_max = params.max_view_angle_deg.map(|a| a.to_radians().cos());
-        // Candidate triangles as grid-node triplets, with their cell and slot.
-        /// Grid-node triplet, cell index, slot (0 or 1) within the cell.
-        type CandidateTriangle = ([(usize, usize); 3], usize, usize);
+        let nc = gc.saturating_sub(1);
         // Candidate triangles of each grid row (rows in parallel, concatenated in row order: the
-        // result does not depend on the thread count). Counters: [candidates, invalid depth,
-        // depth jump, degenerate, grazing].
-        let rows: Vec<(Vec<CandidateTriangle>, [usize; 5])> = (0..gr.saturating_sub(1))
+        // result does not depend on the thread count), kept ones as `2 · cell + slot` (the grid
+        // nodes follow from the cell). Counters: [candidates, invalid depth, depth jump,
+        // degenerate, grazing].
+        let rows: Vec<(Vec<u32>, [usize; 5])> = (0..gr.saturating_sub(1))
             .into_par_iter()
             .map(|j| {
-                let mut tris: Vec<CandidateTriangle> = Vec::new();
+                let mut kept: Vec<u32> = Vec::with_capacity(2 * nc);
                 let mut cnt = [0usize; 5];
-                for i in 0..gc.saturating_sub(1) {
-                    let cell = j * (gc - 1) + i;
-                    let t0 = [(i, j), (i + 1, j), (i, j + 1)];
-                    let t1 = [(i + 1, j), (i + 1, j + 1), (i, j + 1)];
-                    for (slot, t) in [t0, t1].into_iter().enumerate() {
+                for i in 0..nc {
+                    let cell = j * nc + i;
+                    for slot in 0..2 {
+                        let t = cell_nodes(i, j, slot);
                         if !t.iter().all(|&(a, b)| node_in_roi(a, b)) {
                             continue;
                         }
                         cnt[0] += 1;
-                        let z = t.map(|(a, b)| node_z(a, b));
-                        if !z.iter().all(|&v| DepthMap::is_valid(v)) {
-                            cnt[1] += 1;
-                            continue;
+                        match triangle_test(
+                            t.map(|(a, b)| node_z(a, b)),
+                            || t.map(|(a, b)| node_x(a, b)),
+                            params,
+                            cos_max,
+                        ) {
+                            Ok(()) => kept.push((2 * cell + slot) as u32),
+                            Err(k) => cnt[k] += 1,
                         }
-                        let jump = |a: f64, b: f64| (a - b).abs() / a.min(b);
-                        if jump(z[0], z[1]) > params.max_rel_depth_jump
-                            || jump(z[1], z[2]) > params.max_rel_depth_jump
-                            || jump(z[0], z[2]) > params.max_rel_depth_jump
-                        {
-                            cnt[2] += 1;
-                            continue;
-                        }
-                        let x = t.map(|(a, b)| node_x(a, b));
-                        let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
-                        let area2 = n.norm();
-                        let lmax = (x[1] - x[0])
-                            .norm_squared()
-                            .max((x[2] - x[1]).norm_squared())
-                            .max((x[0] - x[2]).norm_squared());
-                        if !(area2.is_finite() && area2 > params.min_shape_quality * lmax) {
-                            cnt[3] += 1;
-                            continue;
-                        }
-                        if let Some(cmax) = cos_max {
-                            let c = (x[0] + x[1] + x[2]) / 3.0;
-                            let cosv = n.dot(&c).abs() / (area2 * c.norm());
-                            if cosv < cmax {
-                                cnt[4] += 1;
-                                continue;
-                            }
-                        }
-                        tris.push((t, cell, slot));
                     }
                 }
-                (tris, cnt)
+                (kept, cnt)
             })
             .collect();
-        let mut tris: Vec<CandidateTriangle> = Vec::with_capacity(rows.iter().map(|r| r.0.len()).sum());
+        let mut tris: Vec<u32> = Vec::with_capacity(rows.iter().map(|r| r.0.len()).sum());
         for (rt, cnt) in rows {
-            tris.extend(rt);
+            tris.extend_from_slice(&rt);
             rep.n_candidate_triangles += cnt[0];
             rep.dropped_invalid_depth += cnt[1];
             rep.dropped_depth_jump += cnt[2];
             rep.dropped_degenerate += cnt[3];
             rep.dropped_grazing += cnt[4];
         }
+        // Grid nodes of a kept triangle.
+        let tri_nodes = |code: u32| {
+            let cell = code as usize / 2;
+            cell_nodes(cell % nc, cell / nc, code as usize % 2)
+        };
         // Connected components (union–find on grid nodes).
         let n_nodes = gc * gr;
-        let mut parent: Vec<usize> = (0..n_nodes).collect();
-        fn find(p: &mut [usize], mut a: usize) -> usize {
-            while p[a] != a {
-                p[a] = p[p[a]];
-                a = p[a];
+        let mut parent: Vec<u32> = (0..n_nodes as u32).collect();
+        fn find(p: &mut [u32], mut a: usize) -> usize {
+            while p[a] as usize != a {
+                p[a] = p[p[a] as usize];
+                a = p[a] as usize;
             }
             a
         }
         let nid = |(a, b): (usize, usize)| b * gc + a;
-        for (t, _, _) in &tris {
+        for &code in &tris {
+            let t = tri_nodes(code);
             let r0 = find(&mut parent, nid(t[0]));
             for &q in &t[1..] {
                 let r = find(&mut parent, nid(q));
                 if r != r0 {
-                    parent[r] = r0;
+                    parent[r] = r0 as u32;
                 }
             }
         }
         // Triangle count per root (dense over grid nodes: no hashing).
         let mut comp_count = vec![0usize; n_nodes];
-        let roots: Vec<usize> = tris.iter().map(|(t, _, _)| find(&mut parent, nid(t[0]))).collect();
+        let roots: Vec<u32> = tris.iter().map(|&code| find(&mut parent, nid(tri_nodes(code)[0])) as u32).collect();
         for &r in &roots {
-            comp_count[r] += 1;
+            comp_count[r as usize] += 1;
         }
         let mut comps: Vec<(usize, usize)> =
             comp_count.iter().enumerate().filter(|&(_, &c)| c > 0).map(|(r, &c)| (r, c)).collect();
@@ -253,35 +232,36 @@ impl CpcMesh {
         for (i, &(r, _)) in comps.iter().enumerate() {
             comp_id[r] = i;
         }
-        let mut node_vertex = vec![usize::MAX; n_nodes];
+        let mut node_vertex = vec![u32::MAX; n_nodes];
+        let nt = tris.len();
         let mut mesh = CpcMesh {
             grid_step_px: s,
             grid_cols: gc,
             grid_rows: gr,
-            p_init: Vec::new(),
-            x3d: Vec::new(),
-            faces: Vec::new(),
-            cell_faces: vec![[NO_FACE; 2]; gc.saturating_sub(1) * gr.saturating_sub(1)],
-            face_component: Vec::new(),
+            p_init: Vec::with_capacity(nt / 2 + 2 * gc),
+            x3d: Vec::with_capacity(nt / 2 + 2 * gc),
+            faces: Vec::with_capacity(nt),
+            cell_faces: vec![[NO_FACE; 2]; nc * gr.saturating_sub(1)],
+            face_component: Vec::with_capacity(nt),
             report: MeshReport::default(),
         };
-        for ((t, cell, slot), r) in tris.iter().zip(&roots) {
-            let c = comp_id[*r];
+        for (&code, &r) in tris.iter().zip(&roots) {
+            let c = comp_id[r as usize];
             if comps[c].1 < params.min_component_triangles {
                 rep.dropped_small_components += 1;
                 continue;
             }
             let mut f = [0usize; 3];
-            for (q, fi) in t.iter().zip(f.iter_mut()) {
+            for (q, fi) in tri_nodes(code).iter().zip(f.iter_mut()) {
                 let id = nid(*q);
-                if node_vertex[id] == usize::MAX {
-                    node_vertex[id] = mesh.p_init.len();
+                if node_vertex[id] == u32::MAX {
+                    node_vertex[id] = mesh.p_init.len() as u32;
                     mesh.p_init.push([(q.0 * s) as f64, (q.1 * s) as f64]);
                     mesh.x3d.push(node_x(q.0, q.1));
                 }
-                *fi = node_vertex[id];
+                *fi = node_vertex[id] as usize;
             }
-            mesh.cell_faces[*cell][*slot] = mesh.faces.len() as u32;
+            mesh.cell_faces[code as usize / 2][code as usize % 2] = mesh.faces.len() as u32;
             mesh.faces.push(f);
             mesh.face_component.push(c);
         }
@@ -363,6 +343,53 @@ impl CpcMesh {
         }
         None
     }
+}
+
+/// Grid nodes (i, j) of triangle `slot` of grid cell (i, j): `(p00, p10, p01)` or `(p10, p11, p01)`.
+#[inline(always)]
+fn cell_nodes(i: usize, j: usize, slot: usize) -> [(usize, usize); 3] {
+    if slot == 0 {
+        [(i, j), (i + 1, j), (i, j + 1)]
+    } else {
+        [(i + 1, j), (i + 1, j + 1), (i, j + 1)]
+    }
+}
+
+/// Whether a candidate triangle (corner depths `z`, 3D corners from `x`) is kept; otherwise the
+/// index of the report counter of the reason: 1 invalid depth, 2 depth jump, 3 degenerate,
+/// 4 grazing.
+#[inline(always)]
+fn triangle_test(
+    z: [f64; 3],
+    x: impl FnOnce() -> [Vector3<f64>; 3],
+    params: &MeshParams,
+    cos_max: Option<f64>,
+) -> std::result::Result<(), usize> {
+    if !z.iter().all(|&v| DepthMap::is_valid(v)) {
+        return Err(1);
+    }
+    let jump = |a: f64, b: f64| (a - b).abs() / a.min(b);
+    if jump(z[0], z[1]) > params.max_rel_depth_jump
+        || jump(z[1], z[2]) > params.max_rel_depth_jump
+        || jump(z[0], z[2]) > params.max_rel_depth_jump
+    {
+        return Err(2);
+    }
+    let x = x();
+    let n = (x[1] - x[0]).cross(&(x[2] - x[0]));
+    let area2 = n.norm();
+    let lmax = (x[1] - x[0]).norm_squared().max((x[2] - x[1]).norm_squared()).max((x[0] - x[2]).norm_squared());
+    if !(area2.is_finite() && area2 > params.min_shape_quality * lmax) {
+        return Err(3);
+    }
+    if let Some(cmax) = cos_max {
+        let c = (x[0] + x[1] + x[2]) / 3.0;
+        let cosv = n.dot(&c).abs() / (area2 * c.norm());
+        if cosv < cmax {
+            return Err(4);
+        }
+    }
+    Ok(())
 }
 
 /// Signed area of the 2D triangle (a, b, c) in px² (positive for the grid orientation).

@@ -416,53 +416,69 @@ impl CpcSystem {
         if m == 0 {
             return Err(CpcError::invalid("mesh", "has no triangle"));
         }
-        // Areas and weights.
-        let mut area = vec![0.0; m];
-        let mut a_tot = 0.0;
-        for (t, f) in mesh.faces.iter().enumerate() {
-            let a = signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
-            if a.is_nan() || a <= 0.0 {
-                return Err(CpcError::invalid("mesh", format!("triangle {t} has non-positive image area {a}")));
+        // Image area A_t of every face, their sum A_tot and the displacement weight
+        // a_v / (L² A_tot) of every vertex (sums in face order); an error for a face of
+        // non-positive area.
+        let area_weights = |mesh: &CpcMesh| -> Result<(Vec<f64>, f64, Vec<f64>)> {
+            let mut area = vec![0.0; mesh.faces.len()];
+            let mut a_tot = 0.0;
+            for (t, f) in mesh.faces.iter().enumerate() {
+                let a = signed_area(mesh.p_init[f[0]], mesh.p_init[f[1]], mesh.p_init[f[2]]);
+                if a.is_nan() || a <= 0.0 {
+                    return Err(CpcError::invalid("mesh", format!("triangle {t} has non-positive image area {a}")));
+                }
+                area[t] = a;
+                a_tot += a;
             }
-            area[t] = a;
-            a_tot += a;
-        }
-        let l2 = DISPLACEMENT_SCALE * DISPLACEMENT_SCALE * a_tot; // L²
-        let mut disp_w = vec![0.0; n];
-        for (t, f) in mesh.faces.iter().enumerate() {
-            for &v in f {
-                disp_w[v] += area[t] / 3.0;
+            let l2 = DISPLACEMENT_SCALE * DISPLACEMENT_SCALE * a_tot; // L²
+            let mut disp_w = vec![0.0; mesh.n_vertices()];
+            for (t, f) in mesh.faces.iter().enumerate() {
+                for &v in f {
+                    disp_w[v] += area[t] / 3.0;
+                }
             }
-        }
-        for w in disp_w.iter_mut() {
-            *w /= l2 * a_tot;
-        }
-        // M_t per face (independent per face: parallel, deterministic).
+            for w in disp_w.iter_mut() {
+                *w /= l2 * a_tot;
+            }
+            Ok((area, a_tot, disp_w))
+        };
+        // The image areas and vertex weights (sequential sums, fixed order) run beside the
+        // parallel M_t of the faces, which does not need them.
         let (cos_t, sin_t) = (th.cos(), th.sin());
-        let tri_rows: Vec<[[f64; 6]; 2]> = mesh
-            .faces
-            .par_iter()
-            .with_min_len(1024)
-            .map(|f| triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t))
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| {
-                let t = mesh
-                    .faces
-                    .iter()
-                    .position(|f| triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params).is_none())
-                    .unwrap_or(0);
-                CpcError::invalid("mesh", format!("3D triangle {t} is degenerate"))
-            })?;
-        let tri_w: Vec<f64> = mesh
-            .faces
-            .iter()
-            .zip(&area)
-            .map(|(f, &a)| {
-                let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
-                let e2 = (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2);
-                a / (e2 * a_tot)
-            })
-            .collect();
+        let (mut tri_rows, mut edge2): (Vec<[[f64; 6]; 2]>, Vec<f64>) = (Vec::new(), Vec::new());
+        let degenerate = std::sync::atomic::AtomicBool::new(false);
+        let (weights, ()) = rayon::join(
+            || area_weights(mesh),
+            || {
+                // M_t and |P_b − P_a|² per face (independent per face: parallel, deterministic),
+                // written in place (`unzip_into_vecs` of an indexed iterator; collecting into an
+                // `Option<Vec>` concatenated per-thread lists, which cost a third of the assembly).
+                mesh.faces
+                    .par_iter()
+                    .with_min_len(1024)
+                    .map(|f| {
+                        let mr =
+                            triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t)
+                                .unwrap_or_else(|| {
+                                    degenerate.store(true, std::sync::atomic::Ordering::Relaxed);
+                                    [[0.0; 6]; 2]
+                                });
+                        let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
+                        (mr, (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2))
+                    })
+                    .unzip_into_vecs(&mut tri_rows, &mut edge2)
+            },
+        );
+        let (area, a_tot, disp_w) = weights?;
+        let tri_w: Vec<f64> = area.iter().zip(&edge2).map(|(&a, &e2)| a / (e2 * a_tot)).collect();
+        if degenerate.into_inner() {
+            let t = mesh
+                .faces
+                .iter()
+                .position(|f| triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params).is_none())
+                .unwrap_or(0);
+            return Err(CpcError::invalid("mesh", format!("3D triangle {t} is degenerate")));
+        }
         let t1 = std::time::Instant::now();
         let topology_reused = topo.is_some();
         let topo = match topo {
