@@ -382,7 +382,8 @@ pub struct CpcSystem {
     /// the rows of M_t lack the complex structure).
     herm_vals: Option<Vec<c64>>,
     real: OnceLock<std::result::Result<RealSystem, String>>,
-    /// Assembly timings (ms): [weights and M_t, sparse pattern and values, ordering + symbolic Cholesky].
+    /// Assembly timings (ms): [weights and M_t, H values, topology (pattern, ordering, symbolic
+    /// Cholesky; 0 when reused)]; for a new topology the first and last run concurrently.
     pub assembly_ms: [f64; 3],
     /// Whether the topology (pattern, ordering, symbolic factorisation) came from a [`CpcSolver`] cache.
     pub topology_reused: bool,
@@ -410,7 +411,6 @@ impl CpcSystem {
         if !(th.is_finite() && th > 0.0 && th < std::f64::consts::PI) {
             return Err(CpcError::invalid("theta", format!("{th} rad (must be in (0, π))")));
         }
-        let t0 = std::time::Instant::now();
         let n = mesh.n_vertices();
         let m = mesh.n_triangles();
         if m == 0 {
@@ -442,49 +442,65 @@ impl CpcSystem {
             }
             Ok((area, a_tot, disp_w))
         };
-        // The image areas and vertex weights (sequential sums, fixed order) run beside the
-        // parallel M_t of the faces, which does not need them.
-        let (cos_t, sin_t) = (th.cos(), th.sin());
-        let (mut tri_rows, mut edge2): (Vec<[[f64; 6]; 2]>, Vec<f64>) = (Vec::new(), Vec::new());
-        let degenerate = std::sync::atomic::AtomicBool::new(false);
-        let (weights, ()) = rayon::join(
-            || area_weights(mesh),
-            || {
-                // M_t and |P_b − P_a|² per face (independent per face: parallel, deterministic),
-                // written in place (`unzip_into_vecs` of an indexed iterator; collecting into an
-                // `Option<Vec>` concatenated per-thread lists, which cost a third of the assembly).
-                mesh.faces
-                    .par_iter()
-                    .with_min_len(1024)
-                    .map(|f| {
-                        let mr =
-                            triangle_rows_cs(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params, cos_t, sin_t)
-                                .unwrap_or_else(|| {
-                                    degenerate.store(true, std::sync::atomic::Ordering::Relaxed);
-                                    [[0.0; 6]; 2]
-                                });
-                        let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
-                        (mr, (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2))
-                    })
-                    .unzip_into_vecs(&mut tri_rows, &mut edge2)
-            },
-        );
-        let (area, a_tot, disp_w) = weights?;
-        let tri_w: Vec<f64> = area.iter().zip(&edge2).map(|(&a, &e2)| a / (e2 * a_tot)).collect();
-        if degenerate.into_inner() {
-            let t = mesh
-                .faces
-                .iter()
-                .position(|f| triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params).is_none())
-                .unwrap_or(0);
-            return Err(CpcError::invalid("mesh", format!("3D triangle {t} is degenerate")));
-        }
-        let t1 = std::time::Instant::now();
-        let topology_reused = topo.is_some();
-        let topo = match topo {
-            Some(t) => t,
-            None => Arc::new(CpcTopology::new(mesh)?),
+        // Per-face terms (M_t, w_t) and vertex weights; for a new mesh topology they are computed
+        // beside its analysis (pattern, ordering, symbolic factorisation), which does not need them.
+        let terms = || -> Result<(Vec<[[f64; 6]; 2]>, Vec<f64>, Vec<f64>, f64)> {
+            let t0 = std::time::Instant::now();
+            // The image areas and vertex weights (sequential sums, fixed order) run beside the
+            // parallel M_t of the faces, which does not need them.
+            let (cos_t, sin_t) = (th.cos(), th.sin());
+            let (mut tri_rows, mut edge2): (Vec<[[f64; 6]; 2]>, Vec<f64>) = (Vec::new(), Vec::new());
+            let degenerate = std::sync::atomic::AtomicBool::new(false);
+            let (weights, ()) = rayon::join(
+                || area_weights(mesh),
+                || {
+                    // M_t and |P_b − P_a|² per face (independent per face: parallel, deterministic),
+                    // written in place (`unzip_into_vecs` of an indexed iterator; collecting into an
+                    // `Option<Vec>` concatenated per-thread lists, which cost a third of the assembly).
+                    mesh.faces
+                        .par_iter()
+                        .with_min_len(1024)
+                        .map(|f| {
+                            let mr = triangle_rows_cs(
+                                &mesh.x3d[f[0]],
+                                &mesh.x3d[f[1]],
+                                &mesh.x3d[f[2]],
+                                params,
+                                cos_t,
+                                sin_t,
+                            )
+                            .unwrap_or_else(|| {
+                                degenerate.store(true, std::sync::atomic::Ordering::Relaxed);
+                                [[0.0; 6]; 2]
+                            });
+                            let (pa, pb) = (mesh.p_init[f[0]], mesh.p_init[f[1]]);
+                            (mr, (pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2))
+                        })
+                        .unzip_into_vecs(&mut tri_rows, &mut edge2)
+                },
+            );
+            let (area, a_tot, disp_w) = weights?;
+            let tri_w: Vec<f64> = area.iter().zip(&edge2).map(|(&a, &e2)| a / (e2 * a_tot)).collect();
+            if degenerate.into_inner() {
+                let t = mesh
+                    .faces
+                    .iter()
+                    .position(|f| triangle_rows(&mesh.x3d[f[0]], &mesh.x3d[f[1]], &mesh.x3d[f[2]], params).is_none())
+                    .unwrap_or(0);
+                return Err(CpcError::invalid("mesh", format!("3D triangle {t} is degenerate")));
+            }
+            Ok((tri_rows, tri_w, disp_w, t0.elapsed().as_secs_f64() * 1e3))
         };
+        let topology_reused = topo.is_some();
+        let (terms, topo) = match topo {
+            Some(t) => (terms(), Ok((t, 0.0))),
+            None => rayon::join(terms, || {
+                let t = std::time::Instant::now();
+                CpcTopology::new(mesh).map(|tp| (Arc::new(tp), t.elapsed().as_secs_f64() * 1e3))
+            }),
+        };
+        let (tri_rows, tri_w, disp_w, ms_terms) = terms?;
+        let (topo, ms_topo) = topo?;
         let t2 = std::time::Instant::now();
         let herm_vals = (params.convention == RowConvention::Derived).then(|| {
             let mut vals = vec![c64::new(0.0, 0.0); topo.nnz_lower()];
@@ -513,7 +529,7 @@ impl CpcSystem {
             topo,
             herm_vals,
             real: OnceLock::new(),
-            assembly_ms: [(t1 - t0).as_secs_f64() * 1e3, (t3 - t2).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3],
+            assembly_ms: [ms_terms, (t3 - t2).as_secs_f64() * 1e3, ms_topo],
             topology_reused,
             factor_threads: 1,
             domain_split: true,
