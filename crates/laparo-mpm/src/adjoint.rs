@@ -133,7 +133,6 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let mut vel_bar: Vec<Vector<D>> = Vec::new();
     let mut mass_bar: Vec<f64> = Vec::new();
     let mut lame_bar = vec![(0.0, 0.0); n];
-    let (mut mu_bar, mut la_bar) = (0.0, 0.0);
     for s in (0..t).rev() {
         let cur = &states[s];
         let next = &states[s + 1];
@@ -167,11 +166,13 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
             StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: &mut lame_bar },
         );
         stepper.grid.swap_checkpoint(&mut ws.grids[s]);
-        // Fixed summation order: deterministic whatever the thread count.
-        for &(m, l) in &lame_bar {
-            mu_bar += m;
-            la_bar += l;
-        }
+    }
+    // (μ̄, λ̄): per-particle sums over the steps (accumulated by `p2g_adjoint`), then summed in particle
+    // order: a fixed summation order, deterministic whatever the thread count.
+    let (mut mu_bar, mut la_bar) = (0.0, 0.0);
+    for &(m, l) in &lame_bar {
+        mu_bar += m;
+        la_bar += l;
     }
     if t == 0 {
         if let Some(g) = loss_grads[0].take() {

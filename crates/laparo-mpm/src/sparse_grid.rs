@@ -82,8 +82,6 @@ pub struct SparseGrid<const D: usize> {
     pub pnbr: Vec<BlockNbr<D>>,
     /// Particle block of every particle (by particle index).
     pub pblock_of: Vec<u32>,
-    /// Stencil base node per particle (scratch of [`Self::build`]; kernels recompute it from x).
-    base: Vec<[i32; D]>,
     /// Node mass m_i.
     pub mass: Vec<f64>,
     /// Node momentum (m v)_i after P2G; node velocity after the grid update.
@@ -92,7 +90,7 @@ pub struct SparseGrid<const D: usize> {
     pub vel: Vec<Vector<D>>,
     /// Per node: which velocity components the wall condition zeroed (bit d), for the adjoint.
     pub wall_mask: Vec<u8>,
-    keys: Vec<u64>,
+    keys: Vec<u32>,
     counts: Vec<u32>,
     distinct: Vec<u32>,
 }
@@ -138,6 +136,31 @@ impl<const D: usize> BlockNbr<D> {
     }
 }
 
+/// Maps a particle position to the key of its base block (see [`SparseGrid::keyer`]).
+#[derive(Clone, Copy, Debug)]
+pub struct BlockKeyer {
+    spec: GridSpec,
+    blocks_per_axis: usize,
+}
+
+impl BlockKeyer {
+    /// Key of the block of the stencil base node of a particle at `x` (row-major block coordinate,
+    /// axis 0 slowest), or `u32::MAX` when the stencil leaves the grid (see [`particle_base`]).
+    #[inline(always)]
+    pub fn key<const D: usize>(&self, x: &Vector<D>) -> u32 {
+        match particle_base(x, &self.spec) {
+            Some(b) => {
+                let mut k = 0;
+                for bd in b {
+                    k = k * self.blocks_per_axis + ((bd as usize) >> BLOCK_SHIFT);
+                }
+                k as u32
+            }
+            None => INACTIVE,
+        }
+    }
+}
+
 /// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
 /// disjoint by construction.
 #[derive(Clone, Copy)]
@@ -168,7 +191,6 @@ impl<const D: usize> SparseGrid<D> {
             order: Vec::new(),
             pnbr: Vec::new(),
             pblock_of: Vec::new(),
-            base: Vec::new(),
             mass: Vec::new(),
             mom: Vec::new(),
             vel: Vec::new(),
@@ -198,6 +220,12 @@ impl<const D: usize> SparseGrid<D> {
         k
     }
 
+    /// What [`Self::particle_key`] needs (a small copyable value for the kernels that compute the
+    /// keys of the next step's positions).
+    pub fn keyer(&self) -> BlockKeyer {
+        BlockKeyer { spec: self.spec, blocks_per_axis: self.blocks_per_axis }
+    }
+
     /// Global node coordinate of node `n`.
     #[inline(always)]
     pub fn node_coord(&self, n: usize) -> [usize; D] {
@@ -214,29 +242,34 @@ impl<const D: usize> SparseGrid<D> {
     /// Rebuild for particle positions `x` at `step`: sort particles into blocks, activate the
     /// blocks their stencils touch, colour the particle blocks, zero the node arrays.
     pub fn build(&mut self, x: &[Vector<D>], step: usize) -> Result<(), MpmError> {
-        let spec = self.spec;
-        let n = x.len();
-        self.base.resize(n, [0; D]);
-        // Base nodes and counting sort of the particles by base block (stable: particle index order
-        // within a block); one sequential pass (cheaper than a parallel pass for a few 10⁴ particles).
-        self.keys.clear();
+        let keyer = self.keyer();
+        let mut keys = std::mem::take(&mut self.keys);
+        keys.clear();
+        keys.extend(x.iter().map(|xp| keyer.key(xp)));
+        let r = self.build_from_keys(&keys, step);
+        self.keys = keys;
+        r
+    }
+
+    /// [`Self::build`] from the block keys of the particles ([`BlockKeyer::key`] of their positions,
+    /// e.g. computed in parallel by the previous step's G2P): the serial part of the build.
+    pub fn build_from_keys(&mut self, keys: &[u32], step: usize) -> Result<(), MpmError> {
+        let n = keys.len();
+        // Counting sort of the particles by base block (stable: particle index order within a block).
         self.distinct.clear();
-        for (p, xp) in x.iter().enumerate() {
-            let Some(b) = particle_base(xp, &spec) else {
+        for (p, &k) in keys.iter().enumerate() {
+            if k == INACTIVE {
                 for &k in &self.distinct {
                     self.counts[k as usize] = 0;
                 }
                 self.distinct.clear();
                 return Err(MpmError::OutsideDomain { particle: p, step });
-            };
-            self.base[p] = b;
-            let c: [usize; D] = std::array::from_fn(|d| (b[d] as usize) >> BLOCK_SHIFT);
-            let k = self.block_key(&c);
-            if self.counts[k] == 0 {
-                self.distinct.push(k as u32);
             }
-            self.counts[k] += 1;
-            self.keys.push(k as u64);
+            let c = &mut self.counts[k as usize];
+            if *c == 0 {
+                self.distinct.push(k);
+            }
+            *c += 1;
         }
         self.distinct.sort_unstable();
         let mut offset = 0u32;
@@ -247,30 +280,20 @@ impl<const D: usize> SparseGrid<D> {
         }
         self.order.clear();
         self.order.resize(n, 0);
-        for p in 0..n {
-            let k = self.keys[p] as usize;
-            self.order[self.counts[k] as usize] = p as u32;
-            self.counts[k] += 1;
+        for (p, &k) in keys.iter().enumerate() {
+            let c = &mut self.counts[k as usize];
+            self.order[*c as usize] = p as u32;
+            *c += 1;
         }
-        for &k in &self.distinct {
-            self.counts[k as usize] = 0;
-        }
+        // Now counts[k] = end of block k's run in `order`.
         // Activate blocks in order of first touch (the block table is all INACTIVE between builds).
         self.blocks.clear();
         self.pblocks.clear();
         self.pnbr.clear();
-        self.colors.resize(1 << D, Vec::new());
-        for c in self.colors.iter_mut() {
-            c.clear();
-        }
         let nn = block_nodes(D) as u32;
-        self.pblock_of.resize(n, 0);
-        let mut start = 0usize;
-        let ca = coloured_axes(D);
-        let mut prev_prefix = [usize::MAX; D];
+        let mut start = 0u32;
         for &key in &self.distinct {
-            let b0 = self.base[self.order[start] as usize];
-            let c0: [usize; D] = std::array::from_fn(|d| (b0[d] as usize) >> BLOCK_SHIFT);
+            let c0 = self.key_coord(key as usize);
             let mut nbr = [0u32; 8];
             for (nb, slot) in nbr.iter_mut().enumerate().take(1 << D) {
                 let c: [usize; D] = std::array::from_fn(|d| c0[d] + ((nb >> d) & 1));
@@ -283,32 +306,24 @@ impl<const D: usize> SparseGrid<D> {
                     *slot = self.table[k] * nn;
                 }
             }
-            let mut end = start;
-            while end < n && self.keys[self.order[end] as usize] == key as u64 {
-                end += 1;
-            }
-            let colour: usize = (0..ca).map(|d| (c0[d] & 1) << d).sum();
-            let pb = self.pblocks.len() as u32;
-            let prefix: [usize; D] = std::array::from_fn(|d| if d < ca { c0[d] } else { 0 });
-            // Blocks are visited in key order, so a task's blocks (same coloured coordinates) are
-            // consecutive; with all axes coloured every block is its own task.
-            match self.colors[colour].last_mut() {
-                Some(task) if ca < D && prefix == prev_prefix => task[1] = pb + 1,
-                _ => self.colors[colour].push([pb, pb + 1]),
-            }
-            prev_prefix = prefix;
-            for &p in &self.order[start..end] {
-                self.pblock_of[p as usize] = pb;
-            }
-            self.pblocks.push(ParticleBlock { start: start as u32, end: end as u32 });
+            let end = self.counts[key as usize];
+            // From here on counts[key] is the particle block of key (reset to 0 below).
+            self.counts[key as usize] = self.pblocks.len() as u32;
+            self.pblocks.push(ParticleBlock { start, end });
             self.pnbr.push(BlockNbr { first: nbr, origin: c0.map(|v| (v * BLOCK) as i32) });
             start = end;
+        }
+        self.pblock_of.clear();
+        self.pblock_of.extend(keys.iter().map(|&k| self.counts[k as usize]));
+        for &k in &self.distinct {
+            self.counts[k as usize] = 0;
         }
         for b in &self.blocks {
             let c: [usize; D] = std::array::from_fn(|d| b[d] as usize);
             let k = self.block_key(&c);
             self.table[k] = INACTIVE;
         }
+        self.colour_tasks();
         let nodes = self.blocks.len() * nn as usize;
         self.mass.clear();
         self.mass.resize(nodes, 0.0);
@@ -319,6 +334,39 @@ impl<const D: usize> SparseGrid<D> {
         self.wall_mask.clear();
         self.wall_mask.resize(nodes, 0);
         Ok(())
+    }
+
+    /// Block coordinate of block key `k` (inverse of `block_key`).
+    fn key_coord(&self, mut k: usize) -> [usize; D] {
+        let mut c = [0usize; D];
+        for d in (0..D).rev() {
+            c[d] = k % self.blocks_per_axis;
+            k /= self.blocks_per_axis;
+        }
+        c
+    }
+
+    /// The colour tasks of the particle blocks (in key order), see [`coloured_axes`].
+    fn colour_tasks(&mut self) {
+        self.colors.resize(1 << D, Vec::new());
+        for c in self.colors.iter_mut() {
+            c.clear();
+        }
+        let ca = coloured_axes(D);
+        let mut prev_prefix = [usize::MAX; D];
+        for (pb, nbr) in self.pnbr.iter().enumerate() {
+            let c0: [usize; D] = std::array::from_fn(|d| nbr.origin[d] as usize / BLOCK);
+            let colour: usize = (0..ca).map(|d| (c0[d] & 1) << d).sum();
+            let prefix: [usize; D] = std::array::from_fn(|d| if d < ca { c0[d] } else { 0 });
+            let pb = pb as u32;
+            // Blocks are visited in key order, so a task's blocks (same coloured coordinates) are
+            // consecutive; with all axes coloured every block is its own task.
+            match self.colors[colour].last_mut() {
+                Some(task) if ca < D && prefix == prev_prefix => task[1] = pb + 1,
+                _ => self.colors[colour].push([pb, pb + 1]),
+            }
+            prev_prefix = prefix;
+        }
     }
 
     /// Run `f(particle, its block's neighbourhood)` for every particle, colour by colour,

@@ -22,7 +22,8 @@ pub struct StateAdjoint<'a, const D: usize> {
     pub c: &'a mut [Matrix<D>],
     /// F̄: in, of the step output; out, of the step input.
     pub f: &'a mut [Matrix<D>],
-    /// (μ̄, λ̄) contribution per particle (out; the caller sums them in particle order).
+    /// (μ̄, λ̄) per particle, accumulated over the steps (in-out; the caller sums them in particle
+    /// order at the end of the reverse pass).
     pub lame: &'a mut [(f64, f64)],
 }
 
@@ -103,7 +104,9 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
             *vb_ptr.at(p) = sum_wp * m;
             *cb_ptr.at(p) = ab * m + fnb * f[p].transpose() * dt;
             *fb = (Matrix::<D>::identity() + c[p] * dt).transpose() * fnb;
-            *lm_ptr.at(p) = (mub, lab);
+            let lm = lm_ptr.at(p);
+            lm.0 += mub;
+            lm.1 += lab;
         }
     });
 }
