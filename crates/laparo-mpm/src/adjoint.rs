@@ -1,6 +1,11 @@
 //! `simulate_with_gradient`: forward pass with per-step particle checkpoints, then the hand-derived
 //! reverse pass, recomputing each step's grid from its checkpoint (as DiffTaichi's diffmpm does).
-use crate::backward::{g2p::g2p_adjoint, grid_update::grid_update_adjoint, p2g::p2g_adjoint, p2g::StateAdjoint};
+use crate::backward::{
+    g2p::g2p_adjoint,
+    grid_update::{grid_update_adjoint, NodeAdjoint},
+    p2g::p2g_adjoint,
+    p2g::StateAdjoint,
+};
 use crate::cfl::{self, Warning};
 use crate::constitutive::{lame_vjp, ConstitutiveModel};
 use crate::error::MpmError;
@@ -131,7 +136,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let mut f_bar = vec![Matrix::<D>::zeros(); n];
     let mut x_bar_g2p = vec![Vector::<D>::zeros(); n];
     let mut vel_bar: Vec<Vector<D>> = Vec::new();
-    let mut mass_bar: Vec<f64> = Vec::new();
+    let mut node_bar: Vec<NodeAdjoint<D>> = Vec::new();
     let mut lame_bar = vec![(0.0, 0.0); n];
     for s in (0..t).rev() {
         let cur = &states[s];
@@ -143,10 +148,9 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
         let nodes = grid.mass.len();
         vel_bar.clear();
         vel_bar.resize(nodes, Vector::<D>::zeros());
-        mass_bar.clear();
-        mass_bar.resize(nodes, 0.0);
+        node_bar.resize(nodes, NodeAdjoint::default());
         g2p_adjoint(grid, scene, &grid.vel, &cur.x, &next.v, &x_bar, &v_bar, &c_bar, &mut vel_bar, &mut x_bar_g2p);
-        grid_update_adjoint(scene, &grid.mass, &grid.vel, &grid.wall_mask, &mut vel_bar, &mut mass_bar);
+        grid_update_adjoint(scene, &grid.mass, &grid.vel, &grid.wall_mask, &vel_bar, &mut node_bar);
         let lg = loss_grads[s].take();
         p2g_adjoint(
             model,
@@ -159,8 +163,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
             &cur.c,
             &cur.f,
             &next.f,
-            &vel_bar,
-            &mass_bar,
+            &node_bar,
             &x_bar_g2p,
             lg.as_deref(),
             StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: &mut lame_bar },

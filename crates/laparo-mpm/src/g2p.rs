@@ -2,7 +2,7 @@
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{base_of, bspline, for_stencil, node_at, SparseGrid, SyncPtr};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
@@ -28,6 +28,7 @@ pub fn gather<const D: usize>(
     let cn_ptr = SyncPtr(c_next.as_mut_ptr());
     let key_ptr = SyncPtr(keys_next.as_mut_ptr());
     let bad = AtomicUsize::new(usize::MAX);
+    assert_eq!(grid.vel.len(), grid.n_nodes());
     grid.for_each_particle(|p, nbr| {
         // SAFETY: every particle is visited once.
         let (xn, vn, cn, key) = unsafe { (xn_ptr.at(p), vn_ptr.at(p), cn_ptr.at(p), key_ptr.at(p)) };
@@ -45,7 +46,7 @@ pub fn gather<const D: usize>(
         // S_d[o] = Σ_{nodes with o_d = o} w v_i.
         let mut sums = [[Vector::<D>::zeros(); 3]; D];
         for_stencil::<D>(&w, |k, o, weight| {
-            let gw = grid.vel[st[k] as usize] * weight;
+            let gw = node_at(&grid.vel, st[k] as usize) * weight;
             for d in 0..D {
                 sums[d][o[d]] += gw;
             }

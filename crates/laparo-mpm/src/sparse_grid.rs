@@ -130,7 +130,8 @@ impl<const D: usize> BlockNbr<D> {
                 s += sel[d][o[d]];
                 l += loc[d][o[d]];
             }
-            out[k] = self.first[s] + l;
+            // s < 2^D ≤ 8 (the mask only spares the bounds check).
+            out[k] = self.first[s & 7] + l;
         });
         out
     }
@@ -159,6 +160,16 @@ impl BlockKeyer {
             None => INACTIVE,
         }
     }
+}
+
+/// `nodes[i]` for a stencil node index `i` from [`BlockNbr::nodes`] of a grid with `nodes.len()` =
+/// [`SparseGrid::n_nodes`] (checked once by the caller): in bounds by construction of the grid, so
+/// the per-node bounds check is spared (still checked in debug builds).
+#[inline(always)]
+pub(crate) fn node_at<T>(nodes: &[T], i: usize) -> &T {
+    debug_assert!(i < nodes.len());
+    // SAFETY: see above; block neighbour slots are active blocks, local offsets < 4^D.
+    unsafe { nodes.get_unchecked(i) }
 }
 
 /// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
