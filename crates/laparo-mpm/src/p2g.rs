@@ -8,10 +8,10 @@ use crate::scene::Scene;
 use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, SparseGrid, SyncPtr};
 use rayon::prelude::*;
 
-/// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
+/// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²), with
+/// `inv_dx` = 1/Δx computed once by the caller (a division per particle is not free).
 #[inline(always)]
-pub fn stress_scale<const D: usize>(scene: &Scene<D>, p: usize) -> f64 {
-    let inv_dx = 1.0 / scene.grid.dx;
+pub fn stress_scale<const D: usize>(scene: &Scene<D>, p: usize, inv_dx: f64) -> f64 {
     -scene.dt * scene.volumes[p] * 4.0 * inv_dx * inv_dx
 }
 
@@ -28,11 +28,12 @@ pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
     f: &Matrix<D>,
     f_next: &mut Matrix<D>,
     p: usize,
+    inv_dx: f64,
 ) -> Option<Matrix<D>> {
     let nf = (Matrix::<D>::identity() + c * scene.dt) * f;
     *f_next = nf;
     match model.kirchhoff(&nf, mu, lambda) {
-        Some(tau) if all_finite(tau.as_slice()) => Some(tau * stress_scale(scene, p) + c * scene.masses[p]),
+        Some(tau) if all_finite(tau.as_slice()) => Some(tau * stress_scale(scene, p, inv_dx) + c * scene.masses[p]),
         _ => None,
     }
 }
@@ -55,6 +56,7 @@ pub fn stress<const D: usize, M: ConstitutiveModel<D>>(
     step: usize,
 ) -> Result<(), MpmError> {
     let n = c.len();
+    let inv_dx = 1.0 / scene.grid.dx;
     affine.resize(n, Matrix::<D>::zeros());
     let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
     let bad = f_next
@@ -62,7 +64,7 @@ pub fn stress<const D: usize, M: ConstitutiveModel<D>>(
         .zip(affine.par_iter_mut())
         .enumerate()
         .with_min_len(min_len)
-        .map(|(p, (fnext, a))| match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p) {
+        .map(|(p, (fnext, a))| match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p, inv_dx) {
             Some(v) => {
                 *a = v;
                 usize::MAX

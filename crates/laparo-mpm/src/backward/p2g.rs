@@ -64,7 +64,7 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
         let (fnb_tau, mub, lab, (sum_wp, ab, fxb)) = model.kirchhoff_then_vjp(&f_next[p], mu, lambda, |tau| {
             let base = base_of(&x[p], inv_dx);
             let (fx, w, dw) = bspline(&x[p], &base, inv_dx);
-            let scale = stress_scale(scene, p);
+            let scale = stress_scale(scene, p, inv_dx);
             let mut mv = v[p] * m;
             if !scene.external_forces.is_empty() {
                 mv += scene.external_forces[p] * dt;
