@@ -35,6 +35,24 @@ impl<const D: usize> ParticleState<D> {
             },
         }
     }
+    /// Overwrite with the initial state of a scene (as [`Self::initial`], reusing the buffers).
+    pub fn set_initial(&mut self, scene: &Scene<D>) {
+        let n = scene.n_particles();
+        self.x.clone_from(&scene.positions);
+        self.v.clone_from(&scene.velocities);
+        if scene.affine.is_empty() {
+            self.c.clear();
+            self.c.resize(n, Matrix::<D>::zeros());
+        } else {
+            self.c.clone_from(&scene.affine);
+        }
+        if scene.initial_deformation.is_empty() {
+            self.f.clear();
+            self.f.resize(n, Matrix::<D>::identity());
+        } else {
+            self.f.clone_from(&scene.initial_deformation);
+        }
+    }
     fn zeros(n: usize) -> Self {
         ParticleState {
             x: vec![Vector::<D>::zeros(); n],
