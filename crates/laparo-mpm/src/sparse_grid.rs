@@ -348,9 +348,8 @@ impl<const D: usize> SparseGrid<D> {
         self.mass.resize(nodes, 0.0);
         self.mom.clear();
         self.mom.resize(nodes, Vector::<D>::zeros());
-        self.vel.clear();
+        // Fully overwritten by the grid update: no need to zero.
         self.vel.resize(nodes, Vector::<D>::zeros());
-        self.wall_mask.clear();
         self.wall_mask.resize(nodes, 0);
         Ok(())
     }
