@@ -80,6 +80,8 @@ pub struct SparseGrid<const D: usize> {
     pub order: Vec<u32>,
     /// Neighbourhood of every particle block (same index as [`Self::pblocks`]).
     pub pnbr: Vec<BlockNbr<D>>,
+    /// Node window of every particle block ([`window_len`] entries each, see [`StencilWindow`]).
+    pub pwin: Vec<u32>,
     /// Particle block of every particle (by particle index).
     pub pblock_of: Vec<u32>,
     /// Node mass m_i.
@@ -105,33 +107,55 @@ pub struct BlockNbr<const D: usize> {
     pub origin: [i32; D],
 }
 
-impl<const D: usize> BlockNbr<D> {
+/// Side of a particle block's node window: the block's 4 nodes and 2 of the next block along each
+/// axis (a stencil starts at a local coordinate 0..3 and spans 3 nodes).
+pub const WINDOW: usize = BLOCK + 2;
+
+/// Number of entries of a node window: 6^D.
+pub const fn window_len(d: usize) -> usize {
+    let mut n = 1;
+    let mut i = 0;
+    while i < d {
+        n *= WINDOW;
+        i += 1;
+    }
+    n
+}
+
+/// Span of window entries a stencil covers from its first node: 2 (6^(D−1) + … + 1) + 1.
+const fn stencil_span(d: usize) -> usize {
+    (window_len(d) - 1) / (WINDOW - 1) * 2 + 1
+}
+
+/// The node indices around one particle block: a dense 6^D window (axis 0 slowest) of the node
+/// indices of the block and its neighbours, built once per block by [`SparseGrid::build`], so that a
+/// particle's 3^D stencil node indices are 3^D loads at fixed offsets from its base node's entry.
+#[derive(Clone, Copy, Debug)]
+pub struct StencilWindow<'a, const D: usize> {
+    win: &'a [u32],
+    origin: [i32; D],
+}
+
+impl<const D: usize> StencilWindow<'_, D> {
     /// Node indices of the 3^D stencil (stencil order, first 3^D entries) of a particle of this
     /// block with base node `b`.
     #[inline(always)]
     pub fn nodes(&self, b: &[i32; D]) -> [u32; 27] {
-        let mut sel = [[0usize; 3]; D];
-        let mut loc = [[0u32; 3]; D];
-        let mut stride = 1u32;
-        for d in 0..D {
-            let l0 = (b[d] - self.origin[d]) as usize;
-            for o in 0..3 {
-                let l = l0 + o;
-                sel[d][o] = (l >> BLOCK_SHIFT) << d;
-                loc[d][o] = (l & (BLOCK - 1)) as u32 * stride;
-            }
-            stride *= BLOCK as u32;
+        let mut off = 0usize;
+        for (bd, od) in b.iter().zip(&self.origin) {
+            let l0 = (bd - od) as usize;
+            debug_assert!(l0 < BLOCK);
+            off = off * WINDOW + l0;
         }
+        // One bounds check per particle; the per-node offsets below are constants < the span.
+        let win = &self.win[off..off + stencil_span(D)];
         let mut out = [0u32; 27];
         for_stencil_offsets::<D>(|k, o| {
-            let mut s = 0;
-            let mut l = 0;
-            for d in 0..D {
-                s += sel[d][o[d]];
-                l += loc[d][o[d]];
+            let mut r = 0;
+            for &od in o {
+                r = r * WINDOW + od;
             }
-            // s < 2^D ≤ 8 (the mask only spares the bounds check).
-            out[k] = self.first[s & 7] + l;
+            out[k] = win[r];
         });
         out
     }
@@ -205,6 +229,7 @@ impl<const D: usize> SparseGrid<D> {
             colors: vec![Vec::new(); 1 << D],
             order: Vec::new(),
             pnbr: Vec::new(),
+            pwin: Vec::new(),
             pblock_of: Vec::new(),
             mass: Vec::new(),
             mom: Vec::new(),
@@ -309,6 +334,7 @@ impl<const D: usize> SparseGrid<D> {
         self.blocks.clear();
         self.pblocks.clear();
         self.pnbr.clear();
+        self.pwin.clear();
         let nn = block_nodes(D) as u32;
         let mut start = 0u32;
         for &key in &self.distinct {
@@ -330,6 +356,25 @@ impl<const D: usize> SparseGrid<D> {
             self.counts[key as usize] = self.pblocks.len() as u32;
             self.pblocks.push(ParticleBlock { start, end });
             self.pnbr.push(BlockNbr { first: nbr, origin: c0.map(|v| (v * BLOCK) as i32) });
+            // Node window: entry (w_0, …, w_{D−1}) is node (w_d mod 4)_d of neighbour block
+            // (w_d ≥ 4)_d (blocks outside the grid give unused entries).
+            let mut w = [0usize; D];
+            for _ in 0..window_len(D) {
+                let (mut slot, mut local) = (0usize, 0u32);
+                for (d, &wd) in w.iter().enumerate() {
+                    slot |= (wd >> BLOCK_SHIFT) << d;
+                    local += ((wd & (BLOCK - 1)) as u32) << (BLOCK_SHIFT * d as u32);
+                }
+                self.pwin.push(nbr[slot] + local);
+                // Next window coordinate (last axis fastest).
+                for d in (0..D).rev() {
+                    w[d] += 1;
+                    if w[d] < WINDOW {
+                        break;
+                    }
+                    w[d] = 0;
+                }
+            }
             start = end;
         }
         self.pblock_of.clear();
@@ -425,10 +470,17 @@ impl<const D: usize> SparseGrid<D> {
         }
     }
 
+    /// Node window of particle block `pb`.
+    #[inline(always)]
+    pub fn window(&self, pb: usize) -> StencilWindow<'_, D> {
+        let wl = window_len(D);
+        StencilWindow { win: &self.pwin[pb * wl..(pb + 1) * wl], origin: self.pnbr[pb].origin }
+    }
+
     /// Run `f(particle, its block's neighbourhood)` for every particle, colour by colour,
     /// same-colour tasks in parallel. `f` may write to the stencil nodes of its particle (disjoint
     /// across a colour).
-    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
+    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize, &StencilWindow<D>) + Sync) {
         for tasks in &self.colors {
             if tasks.is_empty() {
                 continue;
@@ -437,7 +489,7 @@ impl<const D: usize> SparseGrid<D> {
             tasks.par_iter().with_min_len(min_len).for_each(|&[b0, b1]| {
                 for pb in b0 as usize..b1 as usize {
                     let blk = self.pblocks[pb];
-                    let nbr = &self.pnbr[pb];
+                    let nbr = &self.window(pb);
                     for &p in &self.order[blk.start as usize..blk.end as usize] {
                         f(p as usize, nbr);
                     }
@@ -449,11 +501,11 @@ impl<const D: usize> SparseGrid<D> {
     /// Run `f(particle, its block's neighbourhood)` for every particle, in particle-index order
     /// (contiguous chunks in parallel: the per-particle arrays are streamed sequentially). For
     /// gathers: `f` must only write to per-particle data.
-    pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &BlockNbr<D>) + Sync) {
+    pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &StencilWindow<D>) + Sync) {
         let n = self.pblock_of.len();
         let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
         self.pblock_of.par_iter().enumerate().with_min_len(min_len).for_each(|(p, &pb)| {
-            f(p, &self.pnbr[pb as usize]);
+            f(p, &self.window(pb as usize));
         });
     }
 
@@ -464,6 +516,7 @@ impl<const D: usize> SparseGrid<D> {
         std::mem::swap(&mut self.pblocks, &mut cp.pblocks);
         std::mem::swap(&mut self.colors, &mut cp.colors);
         std::mem::swap(&mut self.pnbr, &mut cp.pnbr);
+        std::mem::swap(&mut self.pwin, &mut cp.pwin);
         std::mem::swap(&mut self.pblock_of, &mut cp.pblock_of);
         std::mem::swap(&mut self.mass, &mut cp.mass);
         std::mem::swap(&mut self.vel, &mut cp.vel);
@@ -483,6 +536,8 @@ pub struct GridCheckpoint<const D: usize> {
     pub colors: Vec<Vec<[u32; 2]>>,
     /// Neighbourhood per particle block.
     pub pnbr: Vec<BlockNbr<D>>,
+    /// Node window per particle block.
+    pub pwin: Vec<u32>,
     /// Particle block of every particle.
     pub pblock_of: Vec<u32>,
     /// Node masses.
