@@ -5,7 +5,15 @@
 //! colours by the parity of their block coordinates; blocks of one colour touch disjoint nodes, so
 //! a colour can scatter in parallel without atomics, and the order of the additions into every node
 //! is fixed (colour by colour, particles in sorted order): results are bit-identical whatever the
-//! number of threads.
+//! number of threads. In 2D the colour tasks are chunks of consecutive particle blocks balanced by
+//! particle count (see `balanced_stripe_tasks`).
+//!
+//! The build is split so that little of it is serial: the block key of every particle is computed in
+//! parallel by the previous step's G2P (while the new position is at hand, [`BlockKeyer`]), and the
+//! counting sort ([`SparseGrid::build_from_keys`]) runs alongside the stress pass of P2G, which does
+//! not need the grid. Each particle block gets a node window ([`StencilWindow`]: the node indices of
+//! the 6^D nodes its stencils can reach), so the kernels find a stencil's node indices by 3^D loads at
+//! fixed offsets.
 use crate::error::MpmError;
 use crate::linalg::{Matrix, Vector};
 use crate::scene::GridSpec;
