@@ -268,7 +268,7 @@ impl<const D: usize> SparseGrid<D> {
         k
     }
 
-    /// What [`Self::particle_key`] needs (a small copyable value for the kernels that compute the
+    /// What [`BlockKeyer::key`] needs (a small copyable value for the kernels that compute the
     /// keys of the next step's positions).
     pub fn keyer(&self) -> BlockKeyer {
         BlockKeyer {
