@@ -40,7 +40,7 @@ pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
 
 /// First half of P2G (eq. 5.6), per particle in particle-index order (streaming the particle
 /// arrays): F_{t+1} = (I + Δt C) F into `f_next` and the affine momentum matrix A_p into `affine`.
-/// It does not need the sparse grid, so [`crate::simulate`] runs it alongside the grid build. Errors
+/// It does not need the sparse grid, so the forward step runs it alongside the grid build. Errors
 /// on an inverted or non-finite F (reported for the lowest particle index, whatever the thread
 /// count).
 #[allow(clippy::too_many_arguments)]
