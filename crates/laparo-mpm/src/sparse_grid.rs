@@ -366,16 +366,20 @@ impl<const D: usize> SparseGrid<D> {
             self.pnbr.push(BlockNbr { first: nbr, origin: c0.map(|v| (v * BLOCK) as i32) });
             // Node window: entry (w_0, …, w_{D−1}) is node (w_d mod 4)_d of neighbour block
             // (w_d ≥ 4)_d (blocks outside the grid give unused entries).
+            // Rows along the last axis: 4 nodes of one neighbour block then 2 of the next.
+            let last = D - 1;
             let mut w = [0usize; D];
-            for _ in 0..window_len(D) {
+            for _ in 0..window_len(D) / WINDOW {
                 let (mut slot, mut local) = (0usize, 0u32);
-                for (d, &wd) in w.iter().enumerate() {
+                for (d, &wd) in w.iter().enumerate().take(last) {
                     slot |= (wd >> BLOCK_SHIFT) << d;
                     local += ((wd & (BLOCK - 1)) as u32) << (BLOCK_SHIFT * d as u32);
                 }
-                self.pwin.push(nbr[slot] + local);
-                // Next window coordinate (last axis fastest).
-                for d in (0..D).rev() {
+                let step = 1u32 << (BLOCK_SHIFT * last as u32);
+                let (lo, hi) = (nbr[slot] + local, nbr[slot | (1 << last)] + local);
+                self.pwin.extend([lo, lo + step, lo + 2 * step, lo + 3 * step, hi, hi + step]);
+                // Next row (axis D − 2 fastest).
+                for d in (0..last).rev() {
                     w[d] += 1;
                     if w[d] < WINDOW {
                         break;
