@@ -58,7 +58,7 @@ pub fn stress<const D: usize, M: ConstitutiveModel<D>>(
     let n = c.len();
     let inv_dx = 1.0 / scene.grid.dx;
     affine.resize(n, Matrix::<D>::zeros());
-    let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let min_len = n.div_ceil(16 * rayon::current_num_threads()).max(1);
     let bad = f_next
         .par_iter_mut()
         .zip(affine.par_iter_mut())

@@ -515,7 +515,7 @@ impl<const D: usize> SparseGrid<D> {
     /// gathers: `f` must only write to per-particle data.
     pub(crate) fn for_each_particle(&self, f: impl Fn(usize, &StencilWindow<D>) + Sync) {
         let n = self.pblock_of.len();
-        let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+        let min_len = n.div_ceil(16 * rayon::current_num_threads()).max(1);
         self.pblock_of.par_iter().enumerate().with_min_len(min_len).for_each(|(p, &pb)| {
             f(p, &self.window(pb as usize));
         });
