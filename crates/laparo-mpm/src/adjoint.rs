@@ -146,6 +146,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     x_bar_g2p.resize(n, Vector::<D>::zeros());
     lame_bar.clear();
     lame_bar.resize(n, (0.0, 0.0));
+    vel_bar.clear();
     for s in (0..t).rev() {
         let cur = &states[s];
         let next = &states[s + 1];
@@ -154,7 +155,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
         stepper.grid.swap_checkpoint(&mut grids[s]);
         let grid = &stepper.grid;
         let nodes = grid.mass.len();
-        vel_bar.clear();
+        // All zero: grid_update_adjoint zeroes what it reads.
         vel_bar.resize(nodes, Vector::<D>::zeros());
         node_bar.resize(nodes, NodeAdjoint::default());
         g2p_adjoint(grid, scene, &grid.vel, &cur.x, &next.v, &x_bar, &v_bar, &c_bar, vel_bar, x_bar_g2p);

@@ -22,19 +22,20 @@ impl<const D: usize> Default for NodeAdjoint<D> {
 }
 
 /// Fills `node_bar` (every entry is written) with the momentum and mass adjoints from `vel_bar`
-/// (node velocity adjoint) and the stored node masses, velocities and wall masks of the step.
+/// (node velocity adjoint) and the stored node masses, velocities and wall masks of the step. Leaves
+/// `vel_bar` zeroed, ready for the next (earlier) step's G2P adjoint scatter.
 pub fn grid_update_adjoint<const D: usize>(
     scene: &Scene<D>,
     mass: &[f64],
     vel: &[Vector<D>],
     wall_mask: &[u8],
-    vel_bar: &[Vector<D>],
+    vel_bar: &mut [Vector<D>],
     node_bar: &mut [NodeAdjoint<D>],
 ) {
     let eps = scene.mass_epsilon;
     let gdt = scene.gravity * scene.dt;
-    node_bar.par_iter_mut().enumerate().with_min_len(1024).for_each(|(i, nb)| {
-        let mut vb = vel_bar[i];
+    node_bar.par_iter_mut().zip(vel_bar.par_iter_mut()).enumerate().with_min_len(1024).for_each(|(i, (nb, vbi))| {
+        let mut vb = std::mem::replace(vbi, Vector::<D>::zeros());
         let mask = wall_mask[i];
         for d in 0..D {
             if mask & (1 << d) != 0 {
