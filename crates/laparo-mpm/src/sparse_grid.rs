@@ -20,9 +20,10 @@ use crate::scene::GridSpec;
 use rayon::prelude::*;
 
 /// Number of leading axes along which particle blocks are coloured. In 3D all of them (2³ colours,
-/// a scatter task is one block). In 2D only axis 0: a task is a whole stripe of blocks with the same
-/// axis-0 coordinate (processed in order by one thread), and stripes of equal parity touch disjoint
-/// nodes; 2 colour phases per scatter instead of 4 halve the synchronisations of a small 2D step.
+/// a scatter task is one block). In 2D only axis 0: a task is a chunk of consecutive block columns
+/// (processed in order by one thread, see `balanced_stripe_tasks`), and chunks of equal colour touch
+/// disjoint nodes; 2 colour phases per scatter instead of 4 halve the synchronisations of a small 2D
+/// step.
 pub const fn coloured_axes(d: usize) -> usize {
     if d == 2 {
         1
