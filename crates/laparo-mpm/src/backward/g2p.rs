@@ -6,7 +6,7 @@
 use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
 use crate::sparse_grid::{
-    affine_at, affine_terms, base_of, bspline, for_stencil, node_at, weight_grad, SparseGrid, SyncPtr,
+    affine_at, affine_terms, base_of, bspline, for_stencil, node_at, prefetch, weight_grad, SparseGrid, SyncPtr,
 };
 
 /// Fills `vel_bar` (node-velocity adjoint, zeroed, one per node of `grid`) and `x_bar` (the G2P part
@@ -29,7 +29,14 @@ pub fn g2p_adjoint<const D: usize>(
     let vb_ptr = SyncPtr(vel_bar.as_mut_ptr());
     let xb_ptr = SyncPtr(x_bar.as_mut_ptr());
     assert!(vel.len() == grid.n_nodes() && vel_bar.len() == grid.n_nodes());
-    grid.for_each_coloured(|p, nbr| {
+    let pre = |q: usize| {
+        prefetch(&x[q]);
+        prefetch(&v_next[q]);
+        prefetch(&x_bar_next[q]);
+        prefetch(&v_bar_next[q]);
+        prefetch(&c_bar_next[q]);
+    };
+    grid.for_each_coloured_prefetch(pre, |p, nbr| {
         // SAFETY: every particle is visited once; nodes are disjoint within a colour.
         let xb = unsafe { xb_ptr.at(p) };
         if scene.is_fixed(p) {
