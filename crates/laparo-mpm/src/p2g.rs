@@ -5,7 +5,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, prefetch, SparseGrid, SyncPtr};
 use rayon::prelude::*;
 
 /// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²), with
@@ -102,7 +102,12 @@ pub fn scatter<const D: usize>(
     let mass = SyncPtr(grid.mass.as_mut_ptr());
     let mom = SyncPtr(grid.mom.as_mut_ptr());
     let g = &*grid;
-    g.for_each_coloured(|p, nbr| {
+    let pre = |q: usize| {
+        prefetch(&x[q]);
+        prefetch(&v[q]);
+        prefetch(&affine[q]);
+    };
+    g.for_each_coloured(pre, |p, nbr| {
         let base = base_of(&x[p], inv_dx);
         let (fx, w, _) = bspline(&x[p], &base, inv_dx);
         let m = scene.masses[p];

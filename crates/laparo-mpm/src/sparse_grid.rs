@@ -505,14 +505,9 @@ impl<const D: usize> SparseGrid<D> {
     /// Run `f(particle, its block's neighbourhood)` for every particle, colour by colour,
     /// same-colour tasks in parallel. `f` may write to the stencil nodes of its particle (disjoint
     /// across a colour).
-    pub(crate) fn for_each_coloured(&self, f: impl Fn(usize, &StencilWindow<D>) + Sync) {
-        self.for_each_coloured_prefetch(|_| {}, f)
-    }
-
-    /// [`Self::for_each_coloured`], calling `prefetch(q)` for the particle `q` a few places ahead in
-    /// the task's order (the coloured order jumps around the particle arrays, which the hardware
-    /// prefetchers do not follow).
-    pub(crate) fn for_each_coloured_prefetch(
+    /// `prefetch(q)` is called for the particle `q` a few places ahead in the task's order (the
+    /// coloured order jumps around the particle arrays, which the hardware prefetchers do not follow).
+    pub(crate) fn for_each_coloured(
         &self,
         prefetch: impl Fn(usize) + Sync,
         f: impl Fn(usize, &StencilWindow<D>) + Sync,

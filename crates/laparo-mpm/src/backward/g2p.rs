@@ -36,7 +36,7 @@ pub fn g2p_adjoint<const D: usize>(
         prefetch(&v_bar_next[q]);
         prefetch(&c_bar_next[q]);
     };
-    grid.for_each_coloured_prefetch(pre, |p, nbr| {
+    grid.for_each_coloured(pre, |p, nbr| {
         // SAFETY: every particle is visited once; nodes are disjoint within a colour.
         let xb = unsafe { xb_ptr.at(p) };
         if scene.is_fixed(p) {
