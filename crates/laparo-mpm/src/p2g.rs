@@ -59,17 +59,25 @@ pub fn stress<const D: usize, M: ConstitutiveModel<D>>(
     let inv_dx = 1.0 / scene.grid.dx;
     affine.resize(n, Matrix::<D>::zeros());
     let min_len = n.div_ceil(16 * rayon::current_num_threads()).max(1);
+    // F_{t+1} goes to checkpoint memory not touched since the previous iteration: ask for the cache
+    // lines a few particles ahead.
+    let f_ahead = SyncPtr(f_next.as_mut_ptr());
     let bad = f_next
         .par_iter_mut()
         .zip(affine.par_iter_mut())
         .enumerate()
         .with_min_len(min_len)
-        .map(|(p, (fnext, a))| match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p, inv_dx) {
-            Some(v) => {
-                *a = v;
-                usize::MAX
+        .map(|(p, (fnext, a))| {
+            if p + 16 < n {
+                prefetch(f_ahead.addr(p + 16));
             }
-            None => p,
+            match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p, inv_dx) {
+                Some(v) => {
+                    *a = v;
+                    usize::MAX
+                }
+                None => p,
+            }
         })
         .min()
         .unwrap_or(usize::MAX);

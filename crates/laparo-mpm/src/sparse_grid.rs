@@ -209,13 +209,14 @@ pub(crate) fn node_at<T>(nodes: &[T], i: usize) -> &T {
     unsafe { nodes.get_unchecked(i) }
 }
 
-/// Hint the CPU to load the cache line of `r` (no effect on results; a no-op off x86-64).
+/// Hint the CPU to load the cache line at `r` (no effect on results; a no-op off x86-64). `r` is only
+/// an address: it is never dereferenced.
 #[inline(always)]
-pub(crate) fn prefetch<T>(r: &T) {
+pub(crate) fn prefetch<T>(r: *const T) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch never faults and does not change memory.
     unsafe {
-        std::arch::x86_64::_mm_prefetch(r as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0)
+        std::arch::x86_64::_mm_prefetch(r as *const i8, std::arch::x86_64::_MM_HINT_T0)
     };
     #[cfg(not(target_arch = "x86_64"))]
     let _ = r;
@@ -234,6 +235,11 @@ impl<T> SyncPtr<T> {
     #[allow(clippy::mut_from_ref)]
     pub unsafe fn at(&self, i: usize) -> &mut T {
         &mut *self.0.add(i)
+    }
+    /// Address of element `i` (for [`prefetch`]; no reference is made).
+    #[inline(always)]
+    pub fn addr(&self, i: usize) -> *const T {
+        self.0.wrapping_add(i)
     }
 }
 
