@@ -1,6 +1,11 @@
 //! `simulate_with_gradient`: forward pass with per-step particle checkpoints, then the hand-derived
 //! reverse pass, recomputing each step's grid from its checkpoint (as DiffTaichi's diffmpm does).
-use crate::backward::{g2p::g2p_adjoint, grid_update::grid_update_adjoint, p2g::p2g_adjoint, p2g::StateAdjoint};
+use crate::backward::{
+    g2p::g2p_adjoint,
+    grid_update::{grid_update_adjoint, NodeAdjoint},
+    p2g::p2g_adjoint,
+    p2g::StateAdjoint,
+};
 use crate::cfl::{self, Warning};
 use crate::constitutive::{lame_vjp, ConstitutiveModel};
 use crate::error::MpmError;
@@ -44,12 +49,18 @@ pub struct GradientResult<const D: usize> {
 pub struct GradientWorkspace<const D: usize> {
     states: Vec<ParticleState<D>>,
     grids: Vec<GridCheckpoint<D>>,
+    // Reverse-pass scratch (kept so that a registration loop does not page-fault fresh memory in
+    // every iteration).
+    x_bar_g2p: Vec<Vector<D>>,
+    lame_bar: Vec<(f64, f64)>,
+    vel_bar: Vec<Vector<D>>,
+    node_bar: Vec<NodeAdjoint<D>>,
 }
 
 impl<const D: usize> GradientWorkspace<D> {
     /// Empty workspace.
     pub fn new() -> Self {
-        GradientWorkspace { states: Vec::new(), grids: Vec::new() }
+        Self::default()
     }
 }
 
@@ -85,9 +96,13 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let (mu, la) = scene.material.lame();
     let mut stepper = Stepper::new(scene);
     // ---- forward with checkpoints of every step's particle state and grid nodes ----
-    let init = ParticleState::initial(scene);
-    // Only the initial state is copied; later states are fully overwritten by the steps.
+    // Only the initial state is written; later states are fully overwritten by the steps.
     ws.states.truncate(t + 1);
+    if ws.states.is_empty() {
+        ws.states.push(ParticleState::initial(scene));
+    } else {
+        ws.states[0].set_initial(scene);
+    }
     for st in ws.states.iter_mut() {
         st.x.resize(n, Vector::<D>::zeros());
         st.v.resize(n, Vector::<D>::zeros());
@@ -95,14 +110,13 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
         st.f.resize(n, Matrix::<D>::zeros());
     }
     while ws.states.len() < t + 1 {
-        ws.states.push(init.clone());
+        ws.states.push(ws.states[0].clone());
     }
-    ws.states[0].clone_from(&init);
     ws.grids.truncate(t);
     while ws.grids.len() < t {
         ws.grids.push(GridCheckpoint::default());
     }
-    let states = &mut ws.states;
+    let GradientWorkspace { states, grids, x_bar_g2p, lame_bar, vel_bar, node_bar } = ws;
     let mut loss_grads: Vec<Option<Vec<Vector<D>>>> = vec![None; t + 1];
     let mut total = 0.0;
     let mut observe = |s: usize, st: &ParticleState<D>, total: &mut f64| -> Result<(), MpmError> {
@@ -121,7 +135,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     for s in 0..t {
         let (head, tail) = states.split_at_mut(s + 1);
         stepper.step(model, scene, &head[s], &mut tail[0], s)?;
-        stepper.grid.swap_checkpoint(&mut ws.grids[s]);
+        stepper.grid.swap_checkpoint(&mut grids[s]);
         observe(s + 1, &states[s + 1], &mut total)?;
     }
     // ---- reverse pass ----
@@ -129,25 +143,23 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let mut v_bar = vec![Vector::<D>::zeros(); n];
     let mut c_bar = vec![Matrix::<D>::zeros(); n];
     let mut f_bar = vec![Matrix::<D>::zeros(); n];
-    let mut x_bar_g2p = vec![Vector::<D>::zeros(); n];
-    let mut vel_bar: Vec<Vector<D>> = Vec::new();
-    let mut mass_bar: Vec<f64> = Vec::new();
-    let mut lame_bar = vec![(0.0, 0.0); n];
-    let (mut mu_bar, mut la_bar) = (0.0, 0.0);
+    x_bar_g2p.resize(n, Vector::<D>::zeros());
+    lame_bar.clear();
+    lame_bar.resize(n, (0.0, 0.0));
+    vel_bar.clear();
     for s in (0..t).rev() {
         let cur = &states[s];
         let next = &states[s + 1];
         // The layout and node data of step s, moved into the stepper's grid for the adjoint kernels
         // (and moved back afterwards so that the workspace keeps its buffers).
-        stepper.grid.swap_checkpoint(&mut ws.grids[s]);
+        stepper.grid.swap_checkpoint(&mut grids[s]);
         let grid = &stepper.grid;
         let nodes = grid.mass.len();
-        vel_bar.clear();
+        // All zero: grid_update_adjoint zeroes what it reads.
         vel_bar.resize(nodes, Vector::<D>::zeros());
-        mass_bar.clear();
-        mass_bar.resize(nodes, 0.0);
-        g2p_adjoint(grid, scene, &grid.vel, &cur.x, &next.v, &x_bar, &v_bar, &c_bar, &mut vel_bar, &mut x_bar_g2p);
-        grid_update_adjoint(scene, &grid.mass, &grid.vel, &grid.wall_mask, &mut vel_bar, &mut mass_bar);
+        node_bar.resize(nodes, NodeAdjoint::default());
+        g2p_adjoint(grid, scene, &grid.vel, &cur.x, &next.v, &x_bar, &v_bar, &c_bar, vel_bar, x_bar_g2p);
+        grid_update_adjoint(scene, &grid.mass, &grid.vel, &grid.wall_mask, vel_bar, node_bar);
         let lg = loss_grads[s].take();
         p2g_adjoint(
             model,
@@ -160,18 +172,19 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
             &cur.c,
             &cur.f,
             &next.f,
-            &vel_bar,
-            &mass_bar,
-            &x_bar_g2p,
+            node_bar,
+            x_bar_g2p,
             lg.as_deref(),
-            StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: &mut lame_bar },
+            StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: lame_bar },
         );
-        stepper.grid.swap_checkpoint(&mut ws.grids[s]);
-        // Fixed summation order: deterministic whatever the thread count.
-        for &(m, l) in &lame_bar {
-            mu_bar += m;
-            la_bar += l;
-        }
+        stepper.grid.swap_checkpoint(&mut grids[s]);
+    }
+    // (μ̄, λ̄): per-particle sums over the steps (accumulated by `p2g_adjoint`), then summed in particle
+    // order: a fixed summation order, deterministic whatever the thread count.
+    let (mut mu_bar, mut la_bar) = (0.0, 0.0);
+    for &(m, l) in lame_bar.iter() {
+        mu_bar += m;
+        la_bar += l;
     }
     if t == 0 {
         if let Some(g) = loss_grads[0].take() {

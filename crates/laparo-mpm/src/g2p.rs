@@ -2,11 +2,14 @@
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{base_of, bspline, for_stencil, node_at, prefetch, SparseGrid, SyncPtr};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
-/// their position (v = 0, C = 0). Errors when a particle state becomes non-finite.
+/// their position (v = 0, C = 0). Also writes the block key of every new position into `keys_next`
+/// (for the next step's [`SparseGrid::build_from_keys`], computed here in parallel while x_p is at
+/// hand). Errors when a particle state becomes non-finite.
+#[allow(clippy::too_many_arguments)]
 pub fn gather<const D: usize>(
     grid: &SparseGrid<D>,
     scene: &Scene<D>,
@@ -14,21 +17,34 @@ pub fn gather<const D: usize>(
     x_next: &mut [Vector<D>],
     v_next: &mut [Vector<D>],
     c_next: &mut [Matrix<D>],
+    keys_next: &mut [u32],
     step: usize,
 ) -> Result<(), MpmError> {
     let inv_dx = 1.0 / scene.grid.dx;
     let dt = scene.dt;
+    let keyer = grid.keyer();
     let xn_ptr = SyncPtr(x_next.as_mut_ptr());
     let vn_ptr = SyncPtr(v_next.as_mut_ptr());
     let cn_ptr = SyncPtr(c_next.as_mut_ptr());
+    let key_ptr = SyncPtr(keys_next.as_mut_ptr());
     let bad = AtomicUsize::new(usize::MAX);
+    assert_eq!(grid.vel.len(), grid.n_nodes());
+    let n = x.len();
     grid.for_each_particle(|p, nbr| {
+        // The outputs are checkpoint memory not touched since the previous iteration: ask for the
+        // cache lines a few particles ahead.
+        if p + 16 < n {
+            prefetch(xn_ptr.addr(p + 16));
+            prefetch(vn_ptr.addr(p + 16));
+            prefetch(cn_ptr.addr(p + 16));
+        }
         // SAFETY: every particle is visited once.
-        let (xn, vn, cn) = unsafe { (xn_ptr.at(p), vn_ptr.at(p), cn_ptr.at(p)) };
+        let (xn, vn, cn, key) = unsafe { (xn_ptr.at(p), vn_ptr.at(p), cn_ptr.at(p), key_ptr.at(p)) };
         if scene.is_fixed(p) {
             *xn = x[p];
             *vn = Vector::<D>::zeros();
             *cn = Matrix::<D>::zeros();
+            *key = keyer.key(xn);
             return;
         }
         let base = base_of(&x[p], inv_dx);
@@ -38,7 +54,7 @@ pub fn gather<const D: usize>(
         // S_d[o] = Σ_{nodes with o_d = o} w v_i.
         let mut sums = [[Vector::<D>::zeros(); 3]; D];
         for_stencil::<D>(&w, |k, o, weight| {
-            let gw = grid.vel[st[k] as usize] * weight;
+            let gw = node_at(&grid.vel, st[k] as usize) * weight;
             for d in 0..D {
                 sums[d][o[d]] += gw;
             }
@@ -53,6 +69,7 @@ pub fn gather<const D: usize>(
         *vn = nv;
         *cn = nc;
         *xn = x[p] + nv * dt;
+        *key = keyer.key(xn);
         if !(all_finite(xn.as_slice()) && all_finite(nv.as_slice()) && all_finite(nc.as_slice())) {
             bad.fetch_min(p, Ordering::Relaxed);
         }

@@ -5,13 +5,13 @@ use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, SparseGrid, SyncPtr};
+use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, prefetch, SparseGrid, SyncPtr};
 use rayon::prelude::*;
 
-/// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²).
+/// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²), with
+/// `inv_dx` = 1/Δx computed once by the caller (a division per particle is not free).
 #[inline(always)]
-pub fn stress_scale<const D: usize>(scene: &Scene<D>, p: usize) -> f64 {
-    let inv_dx = 1.0 / scene.grid.dx;
+pub fn stress_scale<const D: usize>(scene: &Scene<D>, p: usize, inv_dx: f64) -> f64 {
     -scene.dt * scene.volumes[p] * 4.0 * inv_dx * inv_dx
 }
 
@@ -28,80 +28,59 @@ pub fn particle_stress<const D: usize, M: ConstitutiveModel<D>>(
     f: &Matrix<D>,
     f_next: &mut Matrix<D>,
     p: usize,
+    inv_dx: f64,
 ) -> Option<Matrix<D>> {
     let nf = (Matrix::<D>::identity() + c * scene.dt) * f;
     *f_next = nf;
     match model.kirchhoff(&nf, mu, lambda) {
-        Some(tau) if all_finite(tau.as_slice()) => Some(tau * stress_scale(scene, p) + c * scene.masses[p]),
+        Some(tau) if all_finite(tau.as_slice()) => Some(tau * stress_scale(scene, p, inv_dx) + c * scene.masses[p]),
         _ => None,
     }
 }
 
-/// P2G of eq. 5.6: F_{t+1} = (I + Δt C) F into `f_next` and A_p from the stress (one pass in
-/// particle-index order, streaming the particle arrays), then the coloured scatter
-/// m_i += w_ip m_p, (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)). Errors on an inverted or
-/// non-finite F (reported for the lowest particle index, whatever the thread count).
+/// First half of P2G (eq. 5.6), per particle in particle-index order (streaming the particle
+/// arrays): F_{t+1} = (I + Δt C) F into `f_next` and the affine momentum matrix A_p into `affine`.
+/// It does not need the sparse grid, so the forward step runs it alongside the grid build. Errors
+/// on an inverted or non-finite F (reported for the lowest particle index, whatever the thread
+/// count).
 #[allow(clippy::too_many_arguments)]
-pub fn scatter<const D: usize, M: ConstitutiveModel<D>>(
+pub fn stress<const D: usize, M: ConstitutiveModel<D>>(
     model: &M,
     mu: f64,
     lambda: f64,
-    grid: &mut SparseGrid<D>,
     scene: &Scene<D>,
-    x: &[Vector<D>],
-    v: &[Vector<D>],
     c: &[Matrix<D>],
     f: &[Matrix<D>],
     f_next: &mut [Matrix<D>],
     affine: &mut Vec<Matrix<D>>,
     step: usize,
 ) -> Result<(), MpmError> {
-    let dx = scene.grid.dx;
-    let inv_dx = 1.0 / dx;
-    let n = x.len();
+    let n = c.len();
+    let inv_dx = 1.0 / scene.grid.dx;
     affine.resize(n, Matrix::<D>::zeros());
-    let min_len = n.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let min_len = n.div_ceil(16 * rayon::current_num_threads()).max(1);
+    // F_{t+1} goes to checkpoint memory not touched since the previous iteration: ask for the cache
+    // lines a few particles ahead.
+    let f_ahead = SyncPtr(f_next.as_mut_ptr());
     let bad = f_next
         .par_iter_mut()
         .zip(affine.par_iter_mut())
         .enumerate()
         .with_min_len(min_len)
-        .map(|(p, (fnext, a))| match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p) {
-            Some(v) => {
-                *a = v;
-                usize::MAX
+        .map(|(p, (fnext, a))| {
+            if p + 16 < n {
+                prefetch(f_ahead.addr(p + 16));
             }
-            None => p,
+            match particle_stress(model, mu, lambda, scene, &c[p], &f[p], fnext, p, inv_dx) {
+                Some(v) => {
+                    *a = v;
+                    usize::MAX
+                }
+                None => p,
+            }
         })
         .min()
         .unwrap_or(usize::MAX);
-    if bad == usize::MAX {
-        let mass = SyncPtr(grid.mass.as_mut_ptr());
-        let mom = SyncPtr(grid.mom.as_mut_ptr());
-        let affine = &*affine;
-        let g = &*grid;
-        g.for_each_coloured(|p, nbr| {
-            let base = base_of(&x[p], inv_dx);
-            let (fx, w, _) = bspline(&x[p], &base, inv_dx);
-            let m = scene.masses[p];
-            let mut mv = v[p] * m;
-            if !scene.external_forces.is_empty() {
-                mv += scene.external_forces[p] * scene.dt;
-            }
-            let st = nbr.nodes(&base);
-            // mv + A (o − fx) Δx per node from per-axis terms.
-            let terms = affine_terms(&mv, &affine[p], &fx, dx);
-            for_stencil::<D>(&w, |k, o, weight| {
-                let i = st[k] as usize;
-                let q = affine_at(&terms, o);
-                // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
-                unsafe {
-                    *mom.at(i) += q * weight;
-                    *mass.at(i) += weight * m;
-                }
-            });
-        });
-    }
     if bad != usize::MAX {
         let j = crate::linalg::det(&f_next[bad]);
         return Err(MpmError::BlowUp {
@@ -115,4 +94,46 @@ pub fn scatter<const D: usize, M: ConstitutiveModel<D>>(
         });
     }
     Ok(())
+}
+
+/// Second half of P2G (eq. 5.6), the coloured scatter: m_i += w_ip m_p,
+/// (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)) with A_p from [`stress`].
+pub fn scatter<const D: usize>(
+    grid: &mut SparseGrid<D>,
+    scene: &Scene<D>,
+    x: &[Vector<D>],
+    v: &[Vector<D>],
+    affine: &[Matrix<D>],
+) {
+    let dx = scene.grid.dx;
+    let inv_dx = 1.0 / dx;
+    let mass = SyncPtr(grid.mass.as_mut_ptr());
+    let mom = SyncPtr(grid.mom.as_mut_ptr());
+    let g = &*grid;
+    let pre = |q: usize| {
+        prefetch(&x[q]);
+        prefetch(&v[q]);
+        prefetch(&affine[q]);
+    };
+    g.for_each_coloured(pre, |p, nbr| {
+        let base = base_of(&x[p], inv_dx);
+        let (fx, w, _) = bspline(&x[p], &base, inv_dx);
+        let m = scene.masses[p];
+        let mut mv = v[p] * m;
+        if !scene.external_forces.is_empty() {
+            mv += scene.external_forces[p] * scene.dt;
+        }
+        let st = nbr.nodes(&base);
+        // mv + A (o − fx) Δx per node from per-axis terms.
+        let terms = affine_terms(&mv, &affine[p], &fx, dx);
+        for_stencil::<D>(&w, |k, o, weight| {
+            let i = st[k] as usize;
+            let q = affine_at(&terms, o);
+            // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
+            unsafe {
+                *mom.at(i) += q * weight;
+                *mass.at(i) += weight * m;
+            }
+        });
+    });
 }

@@ -35,6 +35,24 @@ impl<const D: usize> ParticleState<D> {
             },
         }
     }
+    /// Overwrite with the initial state of a scene (as [`Self::initial`], reusing the buffers).
+    pub fn set_initial(&mut self, scene: &Scene<D>) {
+        let n = scene.n_particles();
+        self.x.clone_from(&scene.positions);
+        self.v.clone_from(&scene.velocities);
+        if scene.affine.is_empty() {
+            self.c.clear();
+            self.c.resize(n, Matrix::<D>::zeros());
+        } else {
+            self.c.clone_from(&scene.affine);
+        }
+        if scene.initial_deformation.is_empty() {
+            self.f.clear();
+            self.f.resize(n, Matrix::<D>::identity());
+        } else {
+            self.f.clone_from(&scene.initial_deformation);
+        }
+    }
     fn zeros(n: usize) -> Self {
         ParticleState {
             x: vec![Vector::<D>::zeros(); n],
@@ -58,15 +76,20 @@ pub struct Simulation<const D: usize> {
 pub(crate) struct Stepper<const D: usize> {
     pub grid: SparseGrid<D>,
     pub affine: Vec<Matrix<D>>,
+    /// Block keys of the current positions (written by the previous step's G2P) …
+    keys: Vec<u32>,
+    /// … when valid (false before the first step).
+    keys_valid: bool,
 }
 
 impl<const D: usize> Stepper<D> {
     pub fn new(scene: &Scene<D>) -> Self {
-        Stepper { grid: SparseGrid::new(scene.grid), affine: Vec::new() }
+        Stepper { grid: SparseGrid::new(scene.grid), affine: Vec::new(), keys: Vec::new(), keys_valid: false }
     }
 
-    /// One full step `cur` → `next`: sparse-grid build, P2G (F update, stress and scatter), grid
-    /// update, G2P.
+    /// One full step `cur` → `next`: sparse-grid build (in parallel with the F update and stress of
+    /// P2G, which do not need the grid), P2G scatter, grid update, G2P. `cur` must be the `next` of
+    /// the previous call, if any (its block keys were computed by that call's G2P).
     pub fn step<M: ConstitutiveModel<D>>(
         &mut self,
         model: &M,
@@ -76,23 +99,26 @@ impl<const D: usize> Stepper<D> {
         s: usize,
     ) -> Result<(), MpmError> {
         let (mu, la) = scene.material.lame();
-        self.grid.build(&cur.x, s)?;
-        p2g::scatter(
-            model,
-            mu,
-            la,
-            &mut self.grid,
-            scene,
-            &cur.x,
-            &cur.v,
-            &cur.c,
-            &cur.f,
-            &mut next.f,
-            &mut self.affine,
-            s,
-        )?;
-        grid_update::update(&mut self.grid, scene);
-        g2p::gather(&self.grid, scene, &cur.x, &mut next.x, &mut next.v, &mut next.c, s)
+        let n = cur.x.len();
+        if !self.keys_valid {
+            let keyer = self.grid.keyer();
+            self.keys.clear();
+            self.keys.extend(cur.x.iter().map(|x| keyer.key(x)));
+        }
+        self.keys_valid = false;
+        let Stepper { grid, affine, keys, .. } = self;
+        let (built, stressed) = rayon::join(
+            || grid.build_from_keys(keys, s),
+            || p2g::stress(model, mu, la, scene, &cur.c, &cur.f, &mut next.f, affine, s),
+        );
+        built?;
+        stressed?;
+        p2g::scatter(grid, scene, &cur.x, &cur.v, affine);
+        grid_update::update(grid, scene);
+        keys.resize(n, 0);
+        g2p::gather(grid, scene, &cur.x, &mut next.x, &mut next.v, &mut next.c, keys, s)?;
+        self.keys_valid = true;
+        Ok(())
     }
 }
 

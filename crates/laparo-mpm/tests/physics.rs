@@ -163,6 +163,32 @@ fn deterministic_across_thread_counts() {
 }
 
 #[test]
+fn deterministic_across_thread_counts_2d() {
+    // A body wide enough for several colour tasks per phase (2D stripes of block columns).
+    let mut scene = block::<2>(96, [40.0, 24.0], 0.5, 3.0, 0.4, 40);
+    for p in 0..scene.n_particles() {
+        let r = scene.positions[p] - Vector::<2>::from_element(0.5);
+        scene.velocities[p] = Vector::<2>::new(6.0 * r[0] + r[1], -r[0] + 0.1 * (p as f64).sin());
+    }
+    let loss = LandmarkLoss { indices: vec![0, 7, 50, 99], targets: vec![Vector::<2>::from_element(0.45); 4] };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| simulate_with_gradient(&scene, &loss).unwrap())
+    };
+    let bits =
+        |v: &[Vector<2>]| v.iter().flat_map(|x| x.iter().map(|c| c.to_bits()).collect::<Vec<_>>()).collect::<Vec<_>>();
+    let a = run(1);
+    for threads in [2, 3] {
+        let b = run(threads);
+        assert_eq!(bits(&a.final_state.x), bits(&b.final_state.x));
+        assert_eq!(bits(&a.d_velocities), bits(&b.d_velocities));
+        assert_eq!(bits(&a.d_positions), bits(&b.d_positions));
+        assert_eq!(a.d_youngs_modulus.to_bits(), b.d_youngs_modulus.to_bits());
+        assert_eq!(a.loss.to_bits(), b.loss.to_bits());
+    }
+}
+
+#[test]
 fn bad_input_gives_clear_errors() {
     let ok = block::<2>(32, [4.0, 4.0], 0.5, 3.0, 0.3, 5);
     let mut s = ok.clone();

@@ -5,7 +5,9 @@
 //! w̄_i = v_i·u_i; f̄x = Σ_i w̄_i ∂w_i/∂fx − 4/Δx C̄'ᵀ v' (using Σ w_i v_i = v'); x̄ = x̄' + f̄x/Δx.
 use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad, SparseGrid, SyncPtr};
+use crate::sparse_grid::{
+    affine_at, affine_terms, base_of, bspline, for_stencil, node_at, prefetch, weight_grad, SparseGrid, SyncPtr,
+};
 
 /// Fills `vel_bar` (node-velocity adjoint, zeroed, one per node of `grid`) and `x_bar` (the G2P part
 /// of the position adjoint of the step input). `vel`: the step's node velocities; `v_next`: v'.
@@ -26,7 +28,15 @@ pub fn g2p_adjoint<const D: usize>(
     let dt = scene.dt;
     let vb_ptr = SyncPtr(vel_bar.as_mut_ptr());
     let xb_ptr = SyncPtr(x_bar.as_mut_ptr());
-    grid.for_each_coloured(|p, nbr| {
+    assert!(vel.len() == grid.n_nodes() && vel_bar.len() == grid.n_nodes());
+    let pre = |q: usize| {
+        prefetch(&x[q]);
+        prefetch(&v_next[q]);
+        prefetch(&x_bar_next[q]);
+        prefetch(&v_bar_next[q]);
+        prefetch(&c_bar_next[q]);
+    };
+    grid.for_each_coloured(pre, |p, nbr| {
         // SAFETY: every particle is visited once; nodes are disjoint within a colour.
         let xb = unsafe { xb_ptr.at(p) };
         if scene.is_fixed(p) {
@@ -47,7 +57,7 @@ pub fn g2p_adjoint<const D: usize>(
             unsafe {
                 *vb_ptr.at(i) += u * weight;
             }
-            fxb += weight_grad(&w, &dw, o) * vel[i].dot(&u);
+            fxb += weight_grad(&w, &dw, o) * node_at(vel, i).dot(&u);
         });
         *xb = x_bar_next[p] + fxb * inv_dx;
     });

@@ -5,19 +5,37 @@ use crate::linalg::Vector;
 use crate::scene::Scene;
 use rayon::prelude::*;
 
-/// Turns `vel_bar` (node velocity adjoint) into the momentum adjoint in place and fills `mass_bar`,
-/// from the stored node masses, velocities and wall masks of the step.
+/// Adjoint of a node's P2G result: (m v)̄ and m̄, side by side so that the P2G adjoint (a gather)
+/// loads one record per stencil node.
+#[derive(Clone, Copy, Debug)]
+pub struct NodeAdjoint<const D: usize> {
+    /// (m v)̄_i.
+    pub mom: Vector<D>,
+    /// m̄_i.
+    pub mass: f64,
+}
+
+impl<const D: usize> Default for NodeAdjoint<D> {
+    fn default() -> Self {
+        NodeAdjoint { mom: Vector::<D>::zeros(), mass: 0.0 }
+    }
+}
+
+/// Fills `node_bar` (every entry is written) with the momentum and mass adjoints from `vel_bar`
+/// (node velocity adjoint) and the stored node masses, velocities and wall masks of the step. Leaves
+/// `vel_bar` zeroed, ready for the next (earlier) step's G2P adjoint scatter.
 pub fn grid_update_adjoint<const D: usize>(
     scene: &Scene<D>,
     mass: &[f64],
     vel: &[Vector<D>],
     wall_mask: &[u8],
     vel_bar: &mut [Vector<D>],
-    mass_bar: &mut [f64],
+    node_bar: &mut [NodeAdjoint<D>],
 ) {
     let eps = scene.mass_epsilon;
     let gdt = scene.gravity * scene.dt;
-    vel_bar.par_iter_mut().zip(mass_bar.par_iter_mut()).enumerate().with_min_len(1024).for_each(|(i, (vb, mb))| {
+    node_bar.par_iter_mut().zip(vel_bar.par_iter_mut()).enumerate().with_min_len(1024).for_each(|(i, (nb, vbi))| {
+        let mut vb = std::mem::replace(vbi, Vector::<D>::zeros());
         let mask = wall_mask[i];
         for d in 0..D {
             if mask & (1 << d) != 0 {
@@ -25,13 +43,11 @@ pub fn grid_update_adjoint<const D: usize>(
             }
         }
         let denom = mass[i] + eps;
-        if denom > 0.0 {
+        *nb = if denom > 0.0 {
             let inv = 1.0 / denom;
-            *mb = -vb.dot(&(vel[i] - gdt)) * inv;
-            *vb *= inv;
+            NodeAdjoint { mom: vb * inv, mass: -vb.dot(&(vel[i] - gdt)) * inv }
         } else {
-            *mb = 0.0;
-            *vb = Vector::<D>::zeros();
-        }
+            NodeAdjoint::default()
+        };
     });
 }
