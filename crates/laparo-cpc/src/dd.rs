@@ -13,7 +13,6 @@ use crate::factor_buffers::FactorBuffers;
 use faer::dyn_stack::MemStack;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::solvers::Solve;
-use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -164,16 +163,30 @@ impl DomainSplit {
                 src.extend(col.iter().map(|e| (e.1, e.2)));
                 cp.push(ri.len());
             }
-            let sym = SymbolicSparseColMatRef::new_checked(m, m, &cp, None, &ri);
-            // (An explicit identity permutation: faer's `Identity` ordering expects upper storage.)
-            let id: Vec<usize> = (0..m).collect();
-            let perm = PermRef::new_checked(&id, &id, m);
+            // The half is already in elimination order: faer's `Identity` ordering, whose symbolic
+            // analysis reads the upper pattern (the transpose of the stored lower one). The numeric
+            // factorisation then takes the lower values as they are (no permuted copy per solve).
+            let mut cpu = vec![0usize; m + 1];
+            for &r in &ri {
+                cpu[r + 1] += 1;
+            }
+            for i in 0..m {
+                cpu[i + 1] += cpu[i];
+            }
+            let mut riu = vec![0usize; ri.len()];
+            let mut next = cpu[..m].to_vec();
+            for c in 0..m {
+                for &r in &ri[cp[c]..cp[c + 1]] {
+                    riu[next[r]] = c;
+                    next[r] += 1;
+                }
+            }
+            let sym = SymbolicSparseColMatRef::new_checked(m, m, &cpu, None, &riu);
             let params = CholeskySymbolicParams {
                 supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
                 ..Default::default()
             };
-            let symbolic =
-                factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), params).ok()?;
+            let symbolic = factorize_symbolic_cholesky(sym, Side::Upper, SymmetricOrdering::Identity, params).ok()?;
             if !matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) {
                 return None;
             }

@@ -42,13 +42,22 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
-    let result = match cli.command {
+    let run = move || match cli.command {
         Command::Depth(c) => cmd::depth::run(c),
         Command::Cats(c) => cmd::cats::run(c),
         Command::Stereo(c) => cmd::stereo::run(c),
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
         Command::Demo(a) => demo::run(a),
+    };
+    // The command runs on a worker of the rayon pool, not on the main thread: the library's
+    // parallel regions (thousands per MPM run, a dozen per CPC frame) then start and end on a pool
+    // thread instead of being injected from outside and waking a blocked main thread each time
+    // (measured: MPM 2D forward+backward 0.12 → 0.09 s per iteration). 8 MiB stacks, as the main
+    // thread has.
+    let result = match rayon::ThreadPoolBuilder::new().stack_size(8 << 20).build() {
+        Ok(pool) => pool.install(run),
+        Err(_) => run(),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
