@@ -322,6 +322,9 @@ fn whole_symbolic(
         .map_err(|e| CpcError::Solver(format!("{e:?}")))
 }
 
+/// Per-face M_t and w_t, per-vertex displacement weights, and the time taken (ms).
+type FaceTerms = (Vec<[[f64; 6]; 2]>, Vec<f64>, Vec<f64>, f64);
+
 /// Reusable CPC solver state for a video: keeps the [`CpcTopology`] of the last mesh and reuses it
 /// (sparsity pattern, ordering, symbolic factorisation, factor buffers) when the next frame's mesh
 /// has the same topology, e.g. a fixed ROI and the same valid-depth triangles.
@@ -444,7 +447,7 @@ impl CpcSystem {
         };
         // Per-face terms (M_t, w_t) and vertex weights; for a new mesh topology they are computed
         // beside its analysis (pattern, ordering, symbolic factorisation), which does not need them.
-        let terms = || -> Result<(Vec<[[f64; 6]; 2]>, Vec<f64>, Vec<f64>, f64)> {
+        let terms = || -> Result<FaceTerms> {
             let t0 = std::time::Instant::now();
             // The image areas and vertex weights (sequential sums, fixed order) run beside the
             // parallel M_t of the faces, which does not need them.
