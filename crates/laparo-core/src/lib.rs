@@ -16,6 +16,7 @@ pub mod homography;
 pub mod image;
 pub mod io;
 pub mod mesh;
+pub mod par;
 pub mod plot;
 pub mod se3;
 

@@ -116,6 +116,18 @@ pub fn cpc_warp_with(
     roi: &Mask,
     params: &CpcParams,
 ) -> Result<CpcResult> {
+    // The whole frame on a pool worker (its parallel stages are not injected one by one).
+    laparo_core::par::on_pool(|| frame(solver, image, depth, k, roi, params))
+}
+
+fn frame(
+    solver: &mut CpcSolver,
+    image: &Image<u8>,
+    depth: &DepthMap,
+    k: &Intrinsics,
+    roi: &Mask,
+    params: &CpcParams,
+) -> Result<CpcResult> {
     if image.width != depth.width || image.height != depth.height {
         return Err(CpcError::SizeMismatch(format!(
             "image is {}x{}, depth is {}x{}",
