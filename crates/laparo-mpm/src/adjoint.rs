@@ -1,10 +1,10 @@
 //! `simulate_with_gradient`: forward pass with per-step particle checkpoints, then the hand-derived
 //! reverse pass, recomputing each step's grid from its checkpoint (as DiffTaichi's diffmpm does).
 use crate::backward::{
-    fused::p2g_g2p_adjoint,
-    g2p::{g2p_adjoint, G2pAdjoint},
+    g2p::g2p_adjoint,
     grid_update::{grid_update_adjoint, NodeAdjoint},
-    p2g::{P2gAdjoint, StateAdjoint},
+    p2g::p2g_adjoint,
+    p2g::StateAdjoint,
 };
 use crate::cfl::{self, Warning};
 use crate::constitutive::{lame_vjp, ConstitutiveModel};
@@ -13,7 +13,7 @@ use crate::linalg::{Matrix, Vector};
 use crate::loss::Loss;
 use crate::scene::{Model, Scene};
 use crate::simulate::{ParticleState, Stepper};
-use crate::sparse_grid::{GridCheckpoint, SparseGrid};
+use crate::sparse_grid::GridCheckpoint;
 use crate::{fixed_corotated::FixedCorotated, neo_hookean::NeoHookean};
 
 /// Loss value and its exact gradient with respect to the scene's inputs.
@@ -147,53 +147,39 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     lame_bar.clear();
     lame_bar.resize(n, (0.0, 0.0));
     vel_bar.clear();
-    // Step t − 1's G2P adjoint runs alone; then per step s (down to 0): the grid-update adjoint of
-    // step s, and the P2G adjoint of step s fused with the G2P adjoint of step s − 1 (plain P2G
-    // adjoint for s = 0). `cur` holds the layout and nodes of step s, `prev` those of step s − 1
-    // (moved in from the checkpoints, and moved back afterwards so that the workspace keeps its
-    // buffers). Invariant at the top of the loop: `vel_bar` (one per node of `cur`) and `x_bar_g2p`
-    // hold the G2P adjoint of step s.
-    let mut other = SparseGrid::<D>::new(scene.grid);
-    let (mut cur, mut prev) = (&mut stepper.grid, &mut other);
-    if t > 0 {
-        cur.swap_checkpoint(&mut grids[t - 1]);
-        vel_bar.resize(cur.n_nodes(), Vector::<D>::zeros());
-        let (x, v_next) = (&states[t - 1].x, &states[t].v);
-        g2p_adjoint(cur, scene, &cur.vel, x, v_next, &x_bar, &v_bar, &c_bar, vel_bar, x_bar_g2p);
-    }
     for s in (0..t).rev() {
-        let (cur_st, next) = (&states[s], &states[s + 1]);
-        node_bar.resize(cur.n_nodes(), NodeAdjoint::default());
-        // Leaves `vel_bar` zeroed.
-        grid_update_adjoint(scene, &cur.mass, &cur.vel, &cur.wall_mask, vel_bar, node_bar);
+        let cur = &states[s];
+        let next = &states[s + 1];
+        // The layout and node data of step s, moved into the stepper's grid for the adjoint kernels
+        // (and moved back afterwards so that the workspace keeps its buffers).
+        stepper.grid.swap_checkpoint(&mut grids[s]);
+        let grid = &stepper.grid;
+        let nodes = grid.mass.len();
+        // All zero: grid_update_adjoint zeroes what it reads.
+        vel_bar.resize(nodes, Vector::<D>::zeros());
+        node_bar.resize(nodes, NodeAdjoint::default());
+        g2p_adjoint(grid, scene, &grid.vel, &cur.x, &next.v, &x_bar, &v_bar, &c_bar, vel_bar, x_bar_g2p);
+        grid_update_adjoint(scene, &grid.mass, &grid.vel, &grid.wall_mask, vel_bar, node_bar);
         let lg = loss_grads[s].take();
-        let p2g = P2gAdjoint::new(
+        p2g_adjoint(
             model,
             mu,
             la,
-            cur,
+            grid,
             scene,
-            &cur_st.x,
-            &cur_st.v,
-            &cur_st.c,
-            &cur_st.f,
+            &cur.x,
+            &cur.v,
+            &cur.c,
+            &cur.f,
             &next.f,
             node_bar,
+            x_bar_g2p,
             lg.as_deref(),
             StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: lame_bar },
         );
-        if s > 0 {
-            prev.swap_checkpoint(&mut grids[s - 1]);
-            vel_bar.resize(prev.n_nodes(), Vector::<D>::zeros());
-            let g2p = G2pAdjoint::new(prev, scene, &prev.vel, &states[s - 1].x, &cur_st.v, vel_bar);
-            p2g_g2p_adjoint(cur, &p2g, prev, &g2p, x_bar_g2p);
-        } else {
-            p2g.run(cur, x_bar_g2p);
-        }
-        cur.swap_checkpoint(&mut grids[s]);
-        std::mem::swap(&mut cur, &mut prev);
+        stepper.grid.swap_checkpoint(&mut grids[s]);
     }
-    // (μ̄, λ̄): per-particle sums over the steps (accumulated by the P2G adjoint), then summed in particle
+    // (μ̄, λ̄): per-particle sums over the steps (accumulated by `p2g_adjoint`), then summed in particle
     // order: a fixed summation order, deterministic whatever the thread count.
     let (mut mu_bar, mut la_bar) = (0.0, 0.0);
     for &(m, l) in lame_bar.iter() {
