@@ -38,9 +38,11 @@ use faer::{c64, Conj, MatMut, Par, Side};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex, OnceLock};
 
-/// Parts of at most this many vertices are left undivided by the nested dissection (measured:
-/// 4–8 give the fastest complex supernodal factorisation at 4 px, 48 is 1.3× slower).
-pub const ND_LEAF: usize = 4;
+/// Parts of at most this many vertices are left undivided by the nested dissection (measured with
+/// the stable partitions, 4 px, second solve on a new topology: leaf 4 4.20 ms, 8 3.84–4.01,
+/// 16 3.67–3.70, 24 3.68–3.79, 32 3.79–3.89, 48 4.00–4.04 ms: larger leaves add a little fill
+/// but give faer larger supernodes).
+pub const ND_LEAF: usize = 16;
 
 /// Displacements are measured in units of this fraction of √(mesh area).
 pub const DISPLACEMENT_SCALE: f64 = 0.1;

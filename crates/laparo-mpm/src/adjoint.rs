@@ -72,17 +72,19 @@ pub fn simulate_with_gradient<const D: usize, L: Loss<D> + ?Sized>(
     simulate_with_gradient_in(&mut GradientWorkspace::new(), scene, loss)
 }
 
-/// [`simulate_with_gradient`] reusing the checkpoint buffers of `ws`.
+/// [`simulate_with_gradient`] reusing the checkpoint buffers of `ws`. Runs on a worker of the
+/// current rayon pool (`laparo_core::par::on_pool`), so that its thousands of short parallel
+/// regions are not each injected from the calling thread.
 pub fn simulate_with_gradient_in<const D: usize, L: Loss<D> + ?Sized>(
     ws: &mut GradientWorkspace<D>,
     scene: &Scene<D>,
     loss: &L,
 ) -> Result<GradientResult<D>, MpmError> {
     scene.validate()?;
-    match scene.material.model {
+    laparo_core::par::on_pool(|| match scene.material.model {
         Model::NeoHookean => run(ws, &NeoHookean, scene, loss),
         Model::FixedCorotated => run(ws, &FixedCorotated, scene, loss),
-    }
+    })
 }
 
 fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(

@@ -123,8 +123,9 @@ impl<const D: usize> Stepper<D> {
 }
 
 /// Run the scene to its horizon; returns the final state.
+/// (On a worker of the current rayon pool, see [`crate::simulate_with_gradient_in`].)
 pub fn simulate<const D: usize>(scene: &Scene<D>) -> Result<Simulation<D>, MpmError> {
-    simulate_observed(scene, |_, _| Ok(()))
+    laparo_core::par::on_pool(|| simulate_observed(scene, |_, _| Ok(())))
 }
 
 /// Run the scene, calling `observer(step, state)` on the initial state (step 0) and after every step;
