@@ -196,13 +196,11 @@ impl DomainSplit {
         Some(DomainSplit { halves: [h0?, h1?], k, a33 })
     }
 
-    /// Factorise the Hermitian matrix with (global, lower) values `vals` and solve for `rhs` in
-    /// place. Err(message) when a factorisation fails.
-    pub(crate) fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], par: Par) -> Result<(), String> {
+    /// Factorise the Hermitian matrix with (global, lower) values `vals` and solve for `rhs` into
+    /// `x` (same length). Err(message) when a factorisation fails (`x` is then unspecified).
+    pub(crate) fn factor_solve(&self, vals: &[c64], rhs: &[c64], x: &mut [c64], par: Par) -> Result<(), String> {
         let k = self.k;
-        // (`rhs` is read inside the halves and written afterwards.)
-        let rhs_copy: Vec<c64> = rhs.to_vec();
-        let rhs_in = |g: usize| rhs_copy[g];
+        let rhs_in = |g: usize| rhs[g];
         // Per half: factor, trailing block T_i, T_i T_iᴴ, y_i and L_3i y_i.
         struct HalfOut {
             b: FactorBuffers,
@@ -303,7 +301,7 @@ impl DomainSplit {
         let sep_glob = &self.halves[0].glob[self.halves[0].n_int..];
         let mut x3 = Mat::<c64>::zeros(k, 1);
         for (j, &g) in sep_glob.iter().enumerate() {
-            x3[(j, 0)] = rhs_copy[g] - o0.w[j] - o1.w[j];
+            x3[(j, 0)] = rhs[g] - o0.w[j] - o1.w[j];
         }
         let sl = s.llt(Side::Lower).map_err(|e| format!("separator Cholesky failed: {e:?}"))?;
         let x3 = sl.solve(&x3);
@@ -328,14 +326,14 @@ impl DomainSplit {
         rayon::join(|| back(&self.halves[0], &mut o0), || back(&self.halves[1], &mut o1));
         for (h, o) in self.halves.iter().zip([o0, o1]) {
             for (&g, &v) in h.glob.iter().zip(&o.y).take(h.n_int) {
-                rhs[g] = v;
+                x[g] = v;
             }
             if let Ok(mut g) = h.scratch.try_lock() {
                 *g = Some(o.b);
             }
         }
         for (j, &g) in sep_glob.iter().enumerate() {
-            rhs[g] = x3[(j, 0)];
+            x[g] = x3[(j, 0)];
         }
         Ok(())
     }

@@ -37,7 +37,6 @@ impl FactorBuffers {
             Some(mut b) => {
                 // Values already in the buffer are overwritten by the factorisation.
                 b.vals.resize(len_val, c64::new(0.0, 0.0));
-                b.vals.truncate(len_val);
                 b
             }
             None => FactorBuffers { vals: vec![c64::new(0.0, 0.0); len_val], mem: MemBuffer::new(req), mem_req: req },

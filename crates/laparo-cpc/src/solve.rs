@@ -186,10 +186,10 @@ impl CpcTopology {
         // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
         let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
         if let (true, Some(dd)) = (split, &self.split) {
-            let mut x = rhs.to_vec();
+            let mut x = vec![c64::new(0.0, 0.0); n];
             // (A failed split factorisation, e.g. a separator Schur complement that is not
             // numerically positive definite, falls back to the whole-system factorisation.)
-            if dd.factor_solve(vals, &mut x, par).is_ok() {
+            if dd.factor_solve(vals, rhs, &mut x, par).is_ok() {
                 rhs.copy_from_slice(&x);
                 return Ok(());
             }

@@ -55,13 +55,7 @@ pub fn particle_base<const D: usize>(x: &Vector<D>, grid: &GridSpec) -> Option<[
 
 /// Number of nodes in a block: 4^D.
 pub const fn block_nodes(d: usize) -> usize {
-    let mut n = 1;
-    let mut i = 0;
-    while i < d {
-        n *= BLOCK;
-        i += 1;
-    }
-    n
+    BLOCK.pow(d as u32)
 }
 
 /// A run of sorted particles sharing one base block.
@@ -122,13 +116,7 @@ pub const WINDOW: usize = BLOCK + 2;
 
 /// Number of entries of a node window: 6^D.
 pub const fn window_len(d: usize) -> usize {
-    let mut n = 1;
-    let mut i = 0;
-    while i < d {
-        n *= WINDOW;
-        i += 1;
-    }
-    n
+    WINDOW.pow(d as u32)
 }
 
 /// Span of window entries a stencil covers from its first node: 2 (6^(D−1) + … + 1) + 1.
