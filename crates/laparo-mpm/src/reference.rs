@@ -3,7 +3,8 @@
 use crate::error::MpmError;
 use crate::linalg::Vector;
 use crate::loss::LandmarkLoss;
-use crate::scene::{Boundary, GridSpec, Material, Model, Scene, WallKind};
+use crate::grid_spec::GridSpec;
+use crate::scene::{Boundary, Material, Model, Scene, WallKind};
 use crate::simulate_with_gradient;
 
 /// One DiffTaichi run: scene parameters, initial particles, final positions, loss and ∂L/∂v₀.
