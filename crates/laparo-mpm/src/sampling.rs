@@ -86,6 +86,17 @@ pub fn read_tet_mesh(path: &Path) -> Result<TetMesh, MpmError> {
         e => return Err(err(path, format!("unsupported tetrahedral mesh extension '{e}' (msh, vtk)"))),
     }
     .map_err(|e| core_err(path, e))
+    .map_err(|e| match e {
+        // e.g. a VTK POLYDATA surface given as a tetrahedral mesh
+        MpmError::Mesh { path, reason } if reason.starts_with("no tetrahedra") => MpmError::Mesh {
+            path,
+            reason: format!(
+                "{}: a surface, not a tetrahedral mesh; for a closed surface use shape = \"mesh\" (voxelised at spacing)",
+                reason.split(": use ").next().unwrap_or(&reason)
+            ),
+        },
+        e => e,
+    })
 }
 
 /// The cell-centred lattice of spacing `spacing` over an axis-aligned box: point (i, j, k) is
@@ -272,6 +283,44 @@ mod tests {
         assert!((vol[0] - 8.0 / 6.0).abs() < 1e-12);
     }
 
+    /// The unit corner tetrahedron (0,0,0), (1,0,0), (0,1,0), (0,0,1).
+    fn corner_tet() -> TetMesh {
+        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        TetMesh { vertices: v.iter().map(|p| Vector::<3>::new(p[0], p[1], p[2])).collect(), tets: vec![[0, 1, 2, 3]] }
+    }
+
+    #[test]
+    fn corner_tet_lattice_count_is_the_closed_form() {
+        // Lattice points (i+½, j+½, k+½)·s with s = 1/50 inside x+y+z ≤ 1: i+j+k ≤ 48.5, i.e.
+        // i+j+k ≤ 48 over i, j, k ≥ 0: C(48+3, 3) = 20825 points; V/s³ = 125000/6 = 20833.3.
+        let pts = sample_tet_mesh(&corner_tet(), 0.02).unwrap();
+        assert_eq!(pts.len(), 20825);
+        assert!(pts.iter().all(|p| p.min() > 0.0 && p.sum() <= 1.0));
+        // a point of the lattice, in lattice order (last axis fastest)
+        assert!((pts[0] - Vector::<3>::new(0.01, 0.01, 0.01)).norm() < 1e-15);
+        assert!((pts[1] - Vector::<3>::new(0.01, 0.01, 0.03)).norm() < 1e-15);
+        assert!(tet_scan_points(&corner_tet(), 0.02) >= 51f64.powi(3));
+    }
+
+    #[test]
+    fn cube_of_six_tets_gives_every_lattice_point_once() {
+        // The unit cube split into 6 tetrahedra around the diagonal (0,0,0)–(1,1,1): many lattice
+        // points (i = j, j = k, …) lie on the shared internal faces and must be kept exactly once.
+        let c = |i: usize| Vector::<3>::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64);
+        let vertices: Vec<Vector<3>> = (0..8).map(c).collect();
+        let tets = vec![[0, 1, 3, 7], [0, 3, 2, 7], [0, 2, 6, 7], [0, 6, 4, 7], [0, 4, 5, 7], [0, 5, 1, 7]];
+        let m = TetMesh { vertices, tets };
+        assert!((m.volume() - 1.0).abs() < 1e-12);
+        for (s, n) in [(0.1, 10usize), (0.05, 20), (1.0 / 7.0, 7)] {
+            let pts = sample_tet_mesh(&m, s).unwrap();
+            assert_eq!(pts.len(), n * n * n, "spacing {s}");
+            let mut keys: Vec<[i64; 3]> = pts.iter().map(|p| [0, 1, 2].map(|d| (p[d] / s - 0.5).round() as i64)).collect();
+            keys.dedup();
+            assert_eq!(keys.len(), n * n * n);
+        }
+        assert!(sample_tet_mesh(&m, 0.0).is_err() && sample_tet_mesh(&m, f64::NAN).is_err());
+    }
+
     #[test]
     fn real_sofa_liver_gmsh_v1_tetrahedra() {
         let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/sofa_liver/liver.msh"));
@@ -286,6 +335,19 @@ mod tests {
         // particle volumes sum to the mesh volume; the surface of the tets is closed
         let total: f64 = vol.iter().sum();
         assert!((total - m.volume().abs()).abs() < 1e-12 * total, "{total} vs {}", m.volume());
-        check_closed(&m.boundary(), p).unwrap();
+        let surface = m.boundary();
+        check_closed(&surface, p).unwrap();
+        // Sampled at a spacing: count ≈ volume / spacing³, the volume computed independently from the
+        // closed boundary surface (divergence theorem), within the boundary layer's share.
+        let v_surf = surface.signed_volume().abs();
+        let (lo, hi) = m.bounding_box().unwrap();
+        let s = (hi - lo).max() / 40.0;
+        let pts = sample_tet_mesh(&m, s).unwrap();
+        let expect = v_surf / s.powi(3);
+        let rel = (pts.len() as f64 - expect).abs() / expect;
+        assert!(pts.len() > 5000 && rel < 0.03, "{} particles vs V/s^3 = {expect:.0} ({rel:.3})", pts.len());
+        // the same count as voxelising the boundary surface on the same lattice (ray parity)
+        let vox = voxelize(&surface, s);
+        assert!((vox.len() as f64 - pts.len() as f64).abs() < 0.01 * pts.len() as f64, "{} vs {}", vox.len(), pts.len());
     }
 }
