@@ -7,9 +7,9 @@ use crate::backward::{
     p2g::StateAdjoint,
 };
 use crate::cfl;
-use crate::error::Warning;
 use crate::constitutive::{lame_vjp, ConstitutiveModel};
 use crate::error::MpmError;
+use crate::error::Warning;
 use crate::linalg::{Matrix, Vector};
 use crate::loss::Loss;
 use crate::scene::{Model, Scene};

@@ -314,7 +314,8 @@ mod tests {
         for (s, n) in [(0.1, 10usize), (0.05, 20), (1.0 / 7.0, 7)] {
             let pts = sample_tet_mesh(&m, s).unwrap();
             assert_eq!(pts.len(), n * n * n, "spacing {s}");
-            let mut keys: Vec<[i64; 3]> = pts.iter().map(|p| [0, 1, 2].map(|d| (p[d] / s - 0.5).round() as i64)).collect();
+            let mut keys: Vec<[i64; 3]> =
+                pts.iter().map(|p| [0, 1, 2].map(|d| (p[d] / s - 0.5).round() as i64)).collect();
             keys.dedup();
             assert_eq!(keys.len(), n * n * n);
         }
@@ -348,6 +349,11 @@ mod tests {
         assert!(pts.len() > 5000 && rel < 0.03, "{} particles vs V/s^3 = {expect:.0} ({rel:.3})", pts.len());
         // the same count as voxelising the boundary surface on the same lattice (ray parity)
         let vox = voxelize(&surface, s);
-        assert!((vox.len() as f64 - pts.len() as f64).abs() < 0.01 * pts.len() as f64, "{} vs {}", vox.len(), pts.len());
+        assert!(
+            (vox.len() as f64 - pts.len() as f64).abs() < 0.01 * pts.len() as f64,
+            "{} vs {}",
+            vox.len(),
+            pts.len()
+        );
     }
 }

@@ -247,8 +247,7 @@ impl<const D: usize> Scene<D> {
                     return Err(MpmError::InvalidScene(format!("particle {p}: initial deformation has det <= 0")));
                 }
             }
-            self.grid.stencil_base(&self.positions[p])
-                .ok_or(MpmError::OutsideDomain { particle: p, step: 0 })?;
+            self.grid.stencil_base(&self.positions[p]).ok_or(MpmError::OutsideDomain { particle: p, step: 0 })?;
         }
         Ok(())
     }

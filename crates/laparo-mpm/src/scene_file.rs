@@ -5,9 +5,9 @@
 //! the parameter instead of exhausting memory or time.
 use crate::budget::{estimate_memory_bytes, DEFAULT_MEMORY_LIMIT_BYTES};
 use crate::error::{MpmError, Warning};
+use crate::grid_spec::GridSpec;
 use crate::linalg::Vector;
 use crate::sampling;
-use crate::grid_spec::GridSpec;
 use crate::scene::{box_lattice, ellipsoid_lattice, Boundary, Material, Scene, WallKind};
 use serde::Deserialize;
 use std::path::Path;
@@ -259,7 +259,10 @@ fn plan<const D: usize>(path: &Path, bi: usize, b: &BodyFile, dx: f64, extent: f
                 for v in verts {
                     let w = to_world(v);
                     if !w.iter().all(|c| c.is_finite()) {
-                        return Err(bad(path, name(&format!("mesh {}: a vertex is not finite after scale and offset", mp.display()))));
+                        return Err(bad(
+                            path,
+                            name(&format!("mesh {}: a vertex is not finite after scale and offset", mp.display())),
+                        ));
                     }
                     lo = lo.inf(&w);
                     hi = hi.sup(&w);
@@ -292,9 +295,7 @@ fn plan<const D: usize>(path: &Path, bi: usize, b: &BodyFile, dx: f64, extent: f
     if lo.iter().zip(&hi).any(|(a, b)| !(*a >= 0.0 && *b <= extent)) {
         return Err(bad(
             path,
-            name(&format!(
-                "its bounding box {lo:?}..{hi:?} is outside the grid domain [0, {extent}]^{D} (n_grid*dx)"
-            )),
+            name(&format!("its bounding box {lo:?}..{hi:?} is outside the grid domain [0, {extent}]^{D} (n_grid*dx)")),
         ));
     }
     Ok(Planned { geometry, spacing, lo, hi, particles, scan })
@@ -313,10 +314,9 @@ fn sample<const D: usize>(p: &Planned) -> Result<Vec<Vector<D>>, MpmError> {
                 .map(|q| Vector::<D>::from_fn(|i, _| q[i] * scale + offset[i]))
                 .collect()
         }
-        Geometry::Tets { mesh } => sampling::sample_tet_mesh(mesh, p.spacing)?
-            .iter()
-            .map(|q| Vector::<D>::from_fn(|i, _| q[i]))
-            .collect(),
+        Geometry::Tets { mesh } => {
+            sampling::sample_tet_mesh(mesh, p.spacing)?.iter().map(|q| Vector::<D>::from_fn(|i, _| q[i])).collect()
+        }
     })
 }
 
@@ -328,12 +328,8 @@ fn build<const D: usize>(path: &Path, f: &SceneFile, opts: &LoadOptions) -> Resu
     }
     // Plan every body (read meshes, check numbers and domain), then bound memory and time before
     // sampling anything.
-    let plans = f
-        .bodies
-        .iter()
-        .enumerate()
-        .map(|(bi, b)| plan::<D>(path, bi, b, dx, extent))
-        .collect::<Result<Vec<_>, _>>()?;
+    let plans =
+        f.bodies.iter().enumerate().map(|(bi, b)| plan::<D>(path, bi, b, dx, extent)).collect::<Result<Vec<_>, _>>()?;
     let block = 4.0 * dx;
     let blocks: f64 = plans
         .iter()
@@ -382,7 +378,10 @@ fn build<const D: usize>(path: &Path, f: &SceneFile, opts: &LoadOptions) -> Resu
         if pos.is_empty() {
             return Err(bad(
                 path,
-                format!("body {bi} ({}) produced no particles (spacing {:e} is coarser than the body?)", b.shape, plan.spacing),
+                format!(
+                    "body {bi} ({}) produced no particles (spacing {:e} is coarser than the body?)",
+                    b.shape, plan.spacing
+                ),
             ));
         }
         let ppc = (dx / plan.spacing).powi(D as i32);

@@ -1,8 +1,8 @@
 //! Forward simulation (`simulate`): P2G → grid update → G2P per step.
 use crate::cfl;
-use crate::error::Warning;
 use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
+use crate::error::Warning;
 use crate::linalg::{det, vee_antisym, Matrix, Vector};
 use crate::scene::{Model, Scene};
 use crate::sparse_grid::SparseGrid;

@@ -182,10 +182,20 @@ fn malformed_scenes_fail_cleanly_within_limits() {
         ("tiny_dx", "dx = 0.03125".into(), "dx = 1e-300".into(), &["outside the grid domain"]),
         ("subnormal_dx", "dx = 0.03125".into(), "dx = 1e-320".into(), &["grid.dx"]),
         ("zero_dx", "dx = 0.03125".into(), "dx = 0.0".into(), &["grid.dx"]),
-        ("tiny_spacing", "hi = [0.6, 0.6, 0.6]".into(), "hi = [0.6, 0.6, 0.6]\nspacing = 1e-7".into(), &["spacing", "too fine"]),
+        (
+            "tiny_spacing",
+            "hi = [0.6, 0.6, 0.6]".into(),
+            "hi = [0.6, 0.6, 0.6]\nspacing = 1e-7".into(),
+            &["spacing", "too fine"],
+        ),
         ("nan_spacing", "hi = [0.6, 0.6, 0.6]".into(), "hi = [0.6, 0.6, 0.6]\nspacing = nan".into(), &["spacing"]),
         ("inf_corner", "hi = [0.6, 0.6, 0.6]".into(), "hi = [inf, 0.6, 0.6]".into(), &["hi", "finite"]),
-        ("nan_force", "hi = [0.6, 0.6, 0.6]".into(), "hi = [0.6, 0.6, 0.6]\nforce_density = [nan, 0.0, 0.0]".into(), &["force_density", "finite"]),
+        (
+            "nan_force",
+            "hi = [0.6, 0.6, 0.6]".into(),
+            "hi = [0.6, 0.6, 0.6]\nforce_density = [nan, 0.0, 0.0]".into(),
+            &["force_density", "finite"],
+        ),
         ("inf_gravity", "dim = 3".into(), "dim = 3\ngravity = [0.0, 0.0, -inf]".into(), &["gravity"]),
         ("nan_dt", "steps = 10".into(), "steps = 10\ndt = nan".into(), &["time.dt"]),
         ("thick_walls", "youngs_modulus".into(), "youngs_modulus".into(), &[]),
@@ -227,13 +237,13 @@ fn tet_mesh_is_sampled_at_spacing() {
     let d = dir.path();
     // Corner tetrahedron of edge 0.5 at (0.25, 0.25, 0.25), spacing 0.01: lattice points
     // (i+½, j+½, k+½)·0.01 with i+j+k ≤ 48.5: C(51, 3) = 20825 (V/s³ = 20833). Before the fix: 1.
-    std::fs::write(
-        d.join("t.msh"),
-        msh_one_tet([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5]]),
-    )
-    .unwrap();
+    std::fs::write(d.join("t.msh"), msh_one_tet([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5]]))
+        .unwrap();
     let scene = SCENE_3D
-        .replace("shape = \"box\"", "shape = \"tet_mesh\"\npath = \"t.msh\"\noffset = [0.25, 0.25, 0.25]\nspacing = 0.01")
+        .replace(
+            "shape = \"box\"",
+            "shape = \"tet_mesh\"\npath = \"t.msh\"\noffset = [0.25, 0.25, 0.25]\nspacing = 0.01",
+        )
         .replace("steps = 10", "steps = 2");
     std::fs::write(d.join("t.toml"), &scene).unwrap();
     let (o, _) = simulate_limited(&d.join("t.toml"), &d.join("out"));

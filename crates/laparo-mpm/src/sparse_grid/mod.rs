@@ -16,9 +16,9 @@
 //! fixed offsets.
 mod colour;
 mod raw;
-mod traverse;
 #[cfg(test)]
 mod tests;
+mod traverse;
 
 pub(crate) use raw::{node_at, prefetch, SyncPtr};
 

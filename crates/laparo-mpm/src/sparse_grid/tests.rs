@@ -80,8 +80,7 @@ fn colour_tasks_are_node_disjoint() {
     for (lo, hi, n) in
         [([0.1, 0.2], [0.8, 0.6], 20000), ([0.4, 0.1], [0.47, 0.9], 3000), ([0.05, 0.05], [0.95, 0.95], 500)]
     {
-        let x: Vec<Vector<2>> =
-            (0..n).map(|_| Vector::<2>::from_fn(|d, _| lo[d] + (hi[d] - lo[d]) * rnd())).collect();
+        let x: Vec<Vector<2>> = (0..n).map(|_| Vector::<2>::from_fn(|d, _| lo[d] + (hi[d] - lo[d]) * rnd())).collect();
         check::<2>(&x, 96);
     }
     let x: Vec<Vector<3>> = (0..5000).map(|_| Vector::<3>::from_fn(|_, _| 0.3 + 0.4 * rnd())).collect();

@@ -195,11 +195,11 @@ fn simulate_cmd(scene_path: &Path, out: &Path, every: Option<usize>) -> Result<(
 fn is_run_output(name: &str) -> bool {
     let name = name.strip_prefix('.').and_then(|n| n.split_once(".tmp").map(|_| n)).unwrap_or(name);
     let frame = |n: &str| {
-        n.strip_prefix("frame_")
-            .and_then(|r| r.split_once('.'))
-            .is_some_and(|(num, ext)| {
-                !num.is_empty() && num.bytes().all(|b| b.is_ascii_digit()) && (ext.starts_with("ply") || ext.starts_with("png"))
-            })
+        n.strip_prefix("frame_").and_then(|r| r.split_once('.')).is_some_and(|(num, ext)| {
+            !num.is_empty()
+                && num.bytes().all(|b| b.is_ascii_digit())
+                && (ext.starts_with("ply") || ext.starts_with("png"))
+        })
     };
     frame(name) || name.starts_with("preview.png") || name.starts_with("energy_momentum.csv")
 }
@@ -346,11 +346,8 @@ fn run_scene<const D: usize>(scene: &Scene<D>, out: &Path, every: Option<usize>)
                 d.min_j
             )
             .with_context(|| format!("writing {}", log_tmp.display()));
-            let frame = if step % every == 0 || step == scene.steps {
-                write_frame(scene, st, out, step)
-            } else {
-                Ok(())
-            };
+            let frame =
+                if step % every == 0 || step == scene.steps { write_frame(scene, st, out, step) } else { Ok(()) };
             if let Err(e) = row.and(frame) {
                 out_err = Some(e);
                 return Err(laparo_mpm::MpmError::InvalidScene("output failed".into()));
