@@ -19,8 +19,10 @@
 //! let x0 = box_lattice(Vector::<2>::new(0.42, 0.45), Vector::<2>::new(0.5, 0.49), spacing);
 //! let dt = cfl_dt(&material, grid.dx, 0.3);
 //! let mut scene = Scene::new(x0, spacing * spacing, material, grid, dt, 20);
-//! for p in 0..scene.n_particles() {
-//!     scene.velocities[p] = Vector::<2>::new(2.0 * (scene.positions[p][0] - 0.46), 0.0);
+//! let n = scene.n_particles();
+//! let cx = scene.positions.iter().map(|p| p[0]).sum::<f64>() / n as f64;
+//! for p in 0..n {
+//!     scene.velocities[p] = Vector::<2>::new(2.0 * (scene.positions[p][0] - cx), 0.0);
 //! }
 //! let sim = simulate(&scene)?;
 //! // No external force and walls far away: linear momentum is conserved (it starts at 0).
