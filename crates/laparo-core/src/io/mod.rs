@@ -12,6 +12,7 @@
 //! Every error names the file. Every writer is atomic (temporary sibling + rename).
 mod depth_io;
 mod npy;
+mod npy_header;
 pub mod opencv_yaml;
 mod pfm;
 mod png;
