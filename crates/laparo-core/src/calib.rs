@@ -69,9 +69,7 @@ const ROTATION_TOL: f64 = 1e-3;
 impl StereoCalibration {
     /// Check sizes, intrinsics, distortion finiteness, that R is a rotation and T finite.
     pub fn validate(&self) -> Result<()> {
-        if self.width == 0 || self.height == 0 {
-            return Err(CoreError::invalid("stereo calibration", format!("image size {}x{}", self.width, self.height)));
-        }
+        crate::io::camera_io::check_image_size(self.width as u64, self.height as u64, "stereo calibration")?;
         self.left.validate()?;
         self.right.validate()?;
         if self.left_dist.to_opencv().iter().chain(self.right_dist.to_opencv().iter()).any(|v| !v.is_finite()) {
@@ -106,7 +104,8 @@ impl StereoCalibration {
         ((self.r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
     }
 
-    /// Read a calibration: JSON (by `.json` extension or a leading `{`) or OpenCV FileStorage YAML.
+    /// Read a calibration: JSON (by `.json` extension or a leading `{`), the EndoVis 2017
+    /// `camera_calibration.txt` (`Camera-0-F: ...` lines) or OpenCV FileStorage YAML.
     /// The image size must be in the file; otherwise use [`StereoCalibration::read_with_size`].
     pub fn read(path: impl AsRef<Path>) -> Result<Self> {
         Self::read_impl(path.as_ref(), None)
@@ -122,6 +121,16 @@ impl StereoCalibration {
         let bytes = std::fs::read(path).map_err(|e| CoreError::io(path, e))?;
         let text = String::from_utf8(bytes).map_err(|_| CoreError::format(path, "not UTF-8 text"))?;
         let is_json = crate::io::extension(path) == "json" || text.trim_start().starts_with('{');
+        if text.lines().any(|l| l.trim_start().starts_with("Camera-0-F")) {
+            return crate::io::calib_formats::parse_endovis_txt(&text, path, size);
+        }
+        if !is_json && crate::io::extension(path) == "txt" {
+            return Err(CoreError::format(
+                path,
+                "a text file that is not an EndoVis camera_calibration.txt: COLMAP cameras.txt holds no stereo \
+                 extrinsics (use it as --intrinsics); a stereo calibration needs R and T",
+            ));
+        }
         let c = if is_json {
             let j: StereoJson = serde_json::from_str(&text)
                 .map_err(|e| CoreError::format(path, format!("not a laparo stereo calibration JSON: {e}")))?;
@@ -137,13 +146,21 @@ impl StereoCalibration {
             c
         } else {
             let fs = FileStorage::parse(&text, path)?;
+            if crate::io::calib_formats::is_ros_camera_info(&fs) {
+                return Err(CoreError::format(
+                    path,
+                    "a ROS camera_info file describes one camera: give the left and the right file as a pair",
+                ));
+            }
             Self::from_filestorage(&fs, size)?
         };
         Ok(c)
     }
 
-    /// Read OpenCV's `stereo_calib` two-file layout: `intrinsics` (M1 D1 M2 D2) and `extrinsics`
-    /// (R T, plus rectification R1 R2 P1 P2 Q which are ignored). The size must be in one of them.
+    /// Read a two-file calibration: OpenCV's `stereo_calib` layout, `intrinsics` (M1 D1 M2 D2) and
+    /// `extrinsics` (R T, plus rectification R1 R2 P1 P2 Q which are ignored), or a left/right
+    /// pair of ROS `camera_info` YAML files (see [`crate::io::calib_formats`]). The size must be
+    /// in one of them.
     pub fn read_pair(intrinsics: impl AsRef<Path>, extrinsics: impl AsRef<Path>) -> Result<Self> {
         Self::read_pair_impl(intrinsics.as_ref(), extrinsics.as_ref(), None)
     }
@@ -161,6 +178,9 @@ impl StereoCalibration {
     fn read_pair_impl(intr: &Path, extr: &Path, size: Option<(usize, usize)>) -> Result<Self> {
         let a = read_filestorage(intr)?;
         let b = read_filestorage(extr)?;
+        if crate::io::calib_formats::is_ros_camera_info(&a) && crate::io::calib_formats::is_ros_camera_info(&b) {
+            return crate::io::calib_formats::read_ros_pair(&a, &b, size);
+        }
         let mut merged = a.clone();
         merged.path = PathBuf::from(format!("{} + {}", intr.display(), extr.display()));
         for (k, v) in b.entries {
@@ -203,6 +223,14 @@ impl StereoCalibration {
             m.to_matrix3()
                 .ok_or_else(|| CoreError::format(path, format!("{what} is {}x{}, expected 3x3", m.rows, m.cols)))
         };
+        let k3 = |m: &FsMatrix, what: &str| -> Result<Matrix3<f64>> {
+            let k = m3(m, what)?;
+            crate::io::camera_io::check_k_matrix(&k).map_err(|e| CoreError::format(path, format!("{what}: {e}")))?;
+            Ok(k)
+        };
+        let dist = |m: &FsMatrix, what: &str| -> Result<Distortion> {
+            crate::io::camera_io::distortion_from(&m.data).map_err(|e| CoreError::format(path, format!("{what}: {e}")))
+        };
         let file_size = Self::size_from(fs)?;
         let (width, height) = match (file_size, size) {
             (Some(f), Some(s)) if f != s => {
@@ -228,10 +256,10 @@ impl StereoCalibration {
         let c = StereoCalibration {
             width,
             height,
-            left: Intrinsics::from_matrix(&m3(&k1, "left camera matrix")?, width, height).map_err(fmt)?,
-            left_dist: Distortion::from_opencv(&d1.data).map_err(fmt)?,
-            right: Intrinsics::from_matrix(&m3(&k2, "right camera matrix")?, width, height).map_err(fmt)?,
-            right_dist: Distortion::from_opencv(&d2.data).map_err(fmt)?,
+            left: Intrinsics::from_matrix(&k3(&k1, "left camera matrix")?, width, height).map_err(fmt)?,
+            left_dist: dist(&d1, "left distortion")?,
+            right: Intrinsics::from_matrix(&k3(&k2, "right camera matrix")?, width, height).map_err(fmt)?,
+            right_dist: dist(&d2, "right distortion")?,
             r: m3(&r, "R")?,
             t_mm,
         };
@@ -247,7 +275,9 @@ impl StereoCalibration {
             fs.get_any(&["image_height", "imageHeight", "height", "ImageHeight"]),
         ) {
             return match (w.1.as_usize(), h.1.as_usize()) {
-                (Some(w), Some(h)) if w > 0 && h > 0 => Ok(Some((w, h))),
+                (Some(w), Some(h)) if w > 0 && h > 0 => {
+                    crate::io::camera_io::check_image_size(w as u64, h as u64, &fs.path.display().to_string()).map(Some)
+                }
                 _ => Err(bad("image_width/image_height")),
             };
         }
@@ -262,8 +292,9 @@ impl StereoCalibration {
                 _ => v.numbers().ok_or_else(|| bad(k))?,
             };
             return match wh.as_slice() {
-                [w, h] if *w >= 1.0 && *h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 => {
-                    Ok(Some((*w as usize, *h as usize)))
+                [w, h] if *w >= 1.0 && *h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 && *w < 1e15 && *h < 1e15 => {
+                    crate::io::camera_io::check_image_size(*w as u64, *h as u64, &fs.path.display().to_string())
+                        .map(Some)
                 }
                 _ => Err(bad(k)),
             };
@@ -362,6 +393,10 @@ impl TryFrom<StereoJson> for StereoCalibration {
             return Err(format!("unknown format tag '{}'", j.format));
         }
         let m = |a: &[[f64; 3]; 3]| Matrix3::from_fn(|r, c| a[r][c]);
+        crate::io::camera_io::check_image_size(j.width as u64, j.height as u64, "width/height")
+            .map_err(|e| e.to_string())?;
+        crate::io::camera_io::check_k_matrix(&m(&j.left.k)).map_err(|e| format!("left: {e}"))?;
+        crate::io::camera_io::check_k_matrix(&m(&j.right.k)).map_err(|e| format!("right: {e}"))?;
         let c = StereoCalibration {
             width: j.width,
             height: j.height,
