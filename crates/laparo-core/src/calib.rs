@@ -105,7 +105,8 @@ impl StereoCalibration {
     }
 
     /// Read a calibration: JSON (by `.json` extension or a leading `{`), the EndoVis 2017
-    /// `camera_calibration.txt` (`Camera-0-F: ...` lines) or OpenCV FileStorage YAML.
+    /// `camera_calibration.txt` (`Camera-0-F: ...` lines), Middlebury `calib.txt` (`cam0=[...]`)
+    /// or OpenCV FileStorage YAML.
     /// The image size must be in the file; otherwise use [`StereoCalibration::read_with_size`].
     pub fn read(path: impl AsRef<Path>) -> Result<Self> {
         Self::read_impl(path.as_ref(), None)
@@ -123,6 +124,18 @@ impl StereoCalibration {
         let is_json = crate::io::extension(path) == "json" || text.trim_start().starts_with('{');
         if text.lines().any(|l| l.trim_start().starts_with("Camera-0-F")) {
             return crate::io::calib_formats::parse_endovis_txt(&text, path, size);
+        }
+        if text.lines().any(|l| l.trim_start().starts_with("cam0") && l.contains('=')) {
+            let c = crate::io::calib_formats::parse_middlebury_calib(&text, path)?;
+            if let Some((w, h)) = size {
+                if (w, h) != (c.width, c.height) {
+                    return Err(CoreError::format(
+                        path,
+                        format!("file says {}x{}, caller says {w}x{h}", c.width, c.height),
+                    ));
+                }
+            }
+            return Ok(c);
         }
         if !is_json && crate::io::extension(path) == "txt" {
             return Err(CoreError::format(

@@ -9,6 +9,9 @@
 //!   `distortion_coefficients`, `rectification_matrix` R_i, `projection_matrix` P_i. With
 //!   X_rect,i = R_i X_i and P_i = K' [I | t_i] (t_i = K'⁻¹ P_i[:, 3], ROS units: metres by REP 103),
 //!   the right camera w.r.t. the left is R = R_rᵀ R_l, T = R_rᵀ (t_r − t_l), converted to mm.
+//! - Middlebury `calib.txt` (2014/2021): `cam0=[f 0 cx0; 0 f cy; 0 0 1]`, `cam1=[...]`,
+//!   `doffs`, `baseline` (mm), `width`, `height`; rectified, so no distortion, R = I and
+//!   T = (−baseline, 0, 0); `doffs = c_x1 − c_x0` is checked against the camera matrices.
 //! - COLMAP `cameras.txt`: `CAMERA_ID MODEL WIDTH HEIGHT PARAMS...`. It has no extrinsics, so it
 //!   is accepted for single-camera intrinsics only (a stereo rig needs R and T).
 use crate::calib::StereoCalibration;
@@ -102,6 +105,71 @@ pub fn parse_endovis_txt(text: &str, path: &Path, size: Option<(usize, usize)>) 
     };
     c.validate().map_err(|e| err(e.to_string()))?;
     Ok(c)
+}
+
+fn middlebury_matrix(v: &str, path: &Path, key: &str) -> Result<Matrix3<f64>> {
+    let inner = v.trim().trim_start_matches('[').trim_end_matches(']');
+    let nums: Vec<f64> = inner
+        .split(|c: char| c == ';' || c.is_whitespace() || c == ',')
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| CoreError::format(path, format!("{key}: not a 3x3 matrix of numbers: '{v}'")))?;
+    if nums.len() != 9 {
+        return Err(CoreError::format(path, format!("{key}: {} numbers, expected 9", nums.len())));
+    }
+    Ok(Matrix3::from_row_slice(&nums))
+}
+
+/// Parse the text of a Middlebury `calib.txt` (`path` is used in error messages).
+pub fn parse_middlebury_calib(text: &str, path: &Path) -> Result<StereoCalibration> {
+    let mut get = std::collections::HashMap::new();
+    for line in text.lines() {
+        if let Some((k, v)) = line.split_once('=') {
+            get.insert(k.trim().to_string(), v.trim().to_string());
+        }
+    }
+    let need = |k: &str| get.get(k).ok_or_else(|| CoreError::format(path, format!("missing key '{k}'")));
+    let num = |k: &str| -> Result<f64> {
+        need(k)?.parse::<f64>().map_err(|_| CoreError::format(path, format!("{k}: not a number")))
+    };
+    let k0 = middlebury_matrix(need("cam0")?, path, "cam0")?;
+    let k1 = middlebury_matrix(need("cam1")?, path, "cam1")?;
+    let (w, h) = (num("width")?, num("height")?);
+    if !(w >= 1.0 && h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0) {
+        return Err(CoreError::format(path, format!("width/height {w}x{h} are not positive integers")));
+    }
+    let (w, h) = check_image_size(w.min(1e15) as u64, h.min(1e15) as u64, &path.display().to_string())?;
+    for (k, m) in [("cam0", &k0), ("cam1", &k1)] {
+        crate::io::camera_io::check_k_matrix(m).map_err(|e| CoreError::format(path, format!("{k}: {e}")))?;
+    }
+    let b = num("baseline")?;
+    if !(b.is_finite() && b > 0.0) {
+        return Err(CoreError::format(path, format!("baseline = {b} (must be > 0 mm)")));
+    }
+    let fmt = |e: CoreError| CoreError::format(path, e.to_string());
+    let left = Intrinsics::from_matrix(&k0, w, h).map_err(fmt)?;
+    let right = Intrinsics::from_matrix(&k1, w, h).map_err(fmt)?;
+    if get.contains_key("doffs") {
+        let doffs = num("doffs")?;
+        if !doffs.is_finite() {
+            return Err(CoreError::format(path, format!("doffs = {doffs} (must be finite)")));
+        }
+        let d = right.cx - left.cx;
+        if (doffs - d).abs() > 1e-3 * doffs.abs().max(1.0) {
+            return Err(CoreError::format(path, format!("doffs = {doffs} but cam1 cx − cam0 cx = {d}")));
+        }
+    }
+    Ok(StereoCalibration {
+        width: w,
+        height: h,
+        left,
+        left_dist: Distortion::default(),
+        right,
+        right_dist: Distortion::default(),
+        r: Matrix3::identity(),
+        t_mm: Vector3::new(-b, 0.0, 0.0),
+    })
 }
 
 /// Parse COLMAP `cameras.txt` into cameras (in file order; at least one).

@@ -346,41 +346,34 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     let ext_unit: DepthUnit = a.extrinsics_unit.parse().context("--extrinsics-unit")?;
     let out_unit: DepthUnit = a.out_unit.parse().context("--out-unit")?;
     let sp = a.sensor_intrinsics.display().to_string();
-    let sensor = rp::intrinsics_from_json(&read_json(&a.sensor_intrinsics, "--sensor-intrinsics")?, &sp)?;
     let lp = a.intrinsics.display().to_string();
-    let lap_json = read_json(&a.intrinsics, "--intrinsics")?;
-    let mut lap = rp::intrinsics_from_json(&lap_json, &lp)?;
-    // Optional OpenCV-order distortion of the laparoscope image ("dist" or "distortion").
-    let distortion = match lap_json.get("dist").or_else(|| lap_json.get("distortion")) {
-        Some(v) => {
-            let c: Vec<f64> = v
-                .as_array()
-                .and_then(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>())
-                .with_context(|| format!("--intrinsics {lp}: \"dist\" must be a list of numbers"))?;
-            Some(laparo_core::Distortion::from_opencv(&c).with_context(|| format!("--intrinsics {lp}"))?)
+    let depth = laparo_core::io::read_depth(&a.depth, depth_unit)?;
+    // One camera reader for every command: JSON (numbers or numeric strings, fx..cy or K, optional
+    // size and distortion), ROS / OpenCV YAML, COLMAP cameras.txt, EndoVis txt.
+    let sensor_cam = laparo_core::io::read_camera(&a.sensor_intrinsics).context("--sensor-intrinsics")?;
+    let sensor = sensor_cam
+        .intrinsics_undistorted(Some((depth.width, depth.height)), "the depth-sensor back-projection of depth reproject")
+        .with_context(|| format!("--sensor-intrinsics {sp} for --depth {}", a.depth.display()))?;
+    let lap_cam = laparo_core::io::read_camera(&a.intrinsics).context("--intrinsics")?;
+    let size = match (a.width, a.height) {
+        (Some(w), Some(h)) => {
+            Some(laparo_core::io::check_image_size(w as u64, h as u64, "--width/--height")?)
         }
-        None => None,
+        (None, None) => None,
+        _ => bail!("give both --width and --height, or neither"),
     };
-    lap.width = a.width.unwrap_or(lap.width);
-    lap.height = a.height.unwrap_or(lap.height);
-    lap.validate().context("--width/--height")?;
+    // The laparoscope's distortion is applied: the output is depth for the distorted image.
+    let lap = match (lap_cam.size, size) {
+        (Some(_), Some(s)) => laparo_core::io::CameraFile { size: Some(s), ..lap_cam.clone() }.intrinsics(None),
+        _ => lap_cam.intrinsics(size),
+    }
+    .with_context(|| format!("--intrinsics {lp} (give --width/--height when the file has no size)"))?;
+    let distortion = lap_cam.has_distortion().then_some(lap_cam.distortion);
     let ep = a.extrinsics.display().to_string();
     let t = rp::extrinsics_from_json(&read_json(&a.extrinsics, "--extrinsics")?, ext_unit, &ep)?;
-    let depth = laparo_core::io::read_depth(&a.depth, depth_unit)?;
-    if depth.width != sensor.width || depth.height != sensor.height {
-        bail!(
-            "--depth {} is {}x{} but --sensor-intrinsics {} is for {}x{}",
-            a.depth.display(),
-            depth.width,
-            depth.height,
-            sp,
-            sensor.width,
-            sensor.height
-        );
-    }
     let mask = match &a.tool_mask {
         Some(p) => {
-            let m = laparo_core::io::read_image(p)?;
+            let m = laparo_core::io::read_mask(p).context("--tool-mask")?;
             if m.width != lap.width || m.height != lap.height {
                 bail!(
                     "--tool-mask {} is {}x{}, the laparoscope image is {}x{}",
@@ -391,13 +384,7 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
                     lap.height
                 );
             }
-            let ch = m.channels;
-            Some(Image {
-                width: m.width,
-                height: m.height,
-                channels: 1,
-                data: m.data.chunks(ch).map(|p| p.iter().take(ch.min(3)).any(|&v| v != 0)).collect(),
-            })
+            Some(m)
         }
         None => None,
     };
