@@ -484,6 +484,53 @@ mod tests {
         assert!(e.contains("1280x1024") && e.contains("640x480"), "{e}");
     }
 
+    /// Regression (issue 10): a K whose last row is not [0 0 1], an empty distortion vector and
+    /// absurd image sizes were accepted (or panicked / allocated without bound downstream).
+    #[test]
+    fn malformed_calibration_values_are_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.yaml");
+        sample_calib().write_opencv_yaml(&p).unwrap();
+        let good = std::fs::read_to_string(&p).unwrap();
+        let fs = FileStorage::parse(&good, "c.yaml").unwrap();
+        let mut with = |key: &str, node: FsNode| {
+            let mut f = fs.clone();
+            for (k, v) in f.entries.iter_mut() {
+                if k == key {
+                    *v = node.clone();
+                }
+            }
+            f.write(&p).unwrap();
+            StereoCalibration::read(&p).unwrap_err().to_string()
+        };
+        let mut k = sample_calib().left.matrix();
+        k[(2, 2)] = 2.0;
+        let m = FsNode::Mat(FsMatrix::new(3, 3, (0..9).map(|i| k[(i / 3, i % 3)]).collect()).unwrap());
+        let e = with("M1", m);
+        assert!(e.contains("c.yaml") && e.contains("[0, 0, 1]"), "{e}");
+        let e = with("D2", FsNode::Mat(FsMatrix::new(0, 0, vec![]).unwrap()));
+        assert!(e.contains("c.yaml") && e.contains("empty"), "{e}");
+        let e = with("image_width", FsNode::Int(i64::MAX));
+        assert!(e.contains("c.yaml") && e.contains("out of range"), "{e}");
+        let e = with("image_height", FsNode::Int(100_000));
+        assert!(e.contains("out of range"), "{e}");
+        let e = with("T", FsNode::Mat(FsMatrix::new(3, 1, vec![f64::NAN, 0.0, 0.0]).unwrap()));
+        assert!(e.contains("c.yaml") && e.contains("non-finite"), "{e}");
+        // Caller-given sizes are bounded too (cats stats --width/--height, stereo --width).
+        let scared = "%YAML:1.0\nM1: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 600., 0., 1000., 500., 0., 0., 1. ]\n\
+D1: [ 0., 0., 0., 0., 0. ]\nM2: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 600., 0., 1000., 500., 0., 0., 1. ]\n\
+D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5., 0., 0. ]\n";
+        std::fs::write(&p, scared).unwrap();
+        assert!(StereoCalibration::read_with_size(&p, 1280, 1024).is_ok());
+        let e = StereoCalibration::read_with_size(&p, i64::MAX as usize, 1).unwrap_err().to_string();
+        assert!(e.contains("out of range"), "{e}");
+        let e = StereoCalibration::read_with_size(&p, 100_000, 100_000).unwrap_err().to_string();
+        assert!(e.contains("out of range"), "{e}");
+        // imageSize with i64::MAX
+        std::fs::write(&p, format!("{scared}imageSize: [ 9223372036854775807, 1024 ]\n")).unwrap();
+        assert!(StereoCalibration::read(&p).unwrap_err().to_string().contains("c.yaml"));
+    }
+
     #[test]
     fn real_scared_calibrations() {
         let dir = data_dir();

@@ -63,7 +63,12 @@ fn targets(dir: &Path) -> Vec<Target> {
     c.write_json(dir.join("c.json")).unwrap();
     c.write_opencv_yaml(dir.join("c.yaml")).unwrap();
     let tri = TriMesh::new(
-        vec![Vector3::new(0.0, 0.0, 0.0), Vector3::new(1.0, 0.0, 0.0), Vector3::new(0.0, 1.0, 0.0), Vector3::new(0.0, 0.0, 1.0)],
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::new(0.0, 0.0, 1.0),
+        ],
         vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]],
     )
     .unwrap();
@@ -84,7 +89,8 @@ Camera-1-K: -0.00085 0.00245 0.00004 0.00000 0.00000\nExtrinsic-Omega: -0.0002 -
 distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0.1, 0, 0, 0, 0]\n\
 rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\nprojection_matrix:\n  rows: 3\n  cols: 4\n  data: [500, 0, 320, -25, 0, 500, 240, 0, 0, 0, 1, 0]\n";
     let p2ilf = r#"{"projection": "frame", "width": "1920", "height": "1080", "fx": "9.52e+02", "fy": "9.52e+02", "cx": "8.84e+02", "cy": "5.53e+02", "skew": "0.0", "k1": "-2.3e-01", "k2": "3.4e-01", "k3": "-2.3e-01", "k4": "0", "p1": "0", "p2": "0"}"#;
-    let kjson = r#"{"K": [[500, 0, 320], [0, 500, 240], [0, 0, 1]], "width": 640, "height": 480, "dist": [0.1, 0, 0, 0, 0]}"#;
+    let kjson =
+        r#"{"K": [[500, 0, 320], [0, 500, 240], [0, 0, 1]], "width": 640, "height": 480, "dist": [0.1, 0, 0, 0, 0]}"#;
     vec![
         Target { name: "opencv_yaml", file: "f.yaml", parse: |p| StereoCalibration::read(p).is_ok(), seeds: vec![r("c.yaml"), b(ros), b("%YAML:1.0\na: [ 1, [ 2, { b: 3 } ] ]\nm: !!opencv-nd-matrix\n   sizes: [ 2, 1 ]\n   dt: d\n   data: [ 1., 2. ]\n")] },
         Target { name: "filestorage", file: "f.yml", parse: |p| io::opencv_yaml::read_filestorage(p).is_ok(), seeds: vec![r("c.yaml"), b(ros)] },
@@ -109,9 +115,36 @@ rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
 }
 
 const SPECIAL: &[&[u8]] = &[
-    b"[", b"{", b"]", b"}", b"(", b")", b"\"", b"'", b",", b":", b"\n", b" ", b"-", b"0", b"9", b"\0", b"\xff",
-    b"nan", b"inf", b"-1", b"1e308", b"18446744073709551615", b"9223372036854775807", b"0x10", b"1_000", b"4294967296",
-    b"100000", b"!!opencv-matrix", b"True", b"L",
+    b"[",
+    b"{",
+    b"]",
+    b"}",
+    b"(",
+    b")",
+    b"\"",
+    b"'",
+    b",",
+    b":",
+    b"\n",
+    b" ",
+    b"-",
+    b"0",
+    b"9",
+    b"\0",
+    b"\xff",
+    b"nan",
+    b"inf",
+    b"-1",
+    b"1e308",
+    b"18446744073709551615",
+    b"9223372036854775807",
+    b"0x10",
+    b"1_000",
+    b"4294967296",
+    b"100000",
+    b"!!opencv-matrix",
+    b"True",
+    b"L",
 ];
 
 fn mutate(rng: &mut ChaCha8Rng, input: &[u8]) -> Vec<u8> {
@@ -242,7 +275,7 @@ fn every_parser_survives_mutated_inputs() {
     let dir = tempfile::tempdir().unwrap();
     let budget = match std::env::var("LAPARO_FUZZ_SECS").ok().and_then(|s| s.parse::<f64>().ok()) {
         Some(s) => Budget::Seconds(s),
-        None => Budget::Iterations(std::env::var("LAPARO_FUZZ_ITERS").ok().and_then(|s| s.parse().ok()).unwrap_or(150)),
+        None => Budget::Iterations(std::env::var("LAPARO_FUZZ_ITERS").ok().and_then(|s| s.parse().ok()).unwrap_or(60)),
     };
     let only = std::env::var("LAPARO_FUZZ_TARGET").ok();
     let seed: u64 = std::env::var("LAPARO_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x1a9a_0010);

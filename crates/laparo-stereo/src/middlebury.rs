@@ -33,9 +33,12 @@ mod tests {
             .to_string();
         assert!(e.contains("calib.txt") && e.contains("doffs = NaN"), "{e}");
         // K's last row must be [0 0 1].
-        let e = parse_middlebury_calib(&t.replace("0 3979.911 1019.507; 0 0 1]\ncam1", "0 3979.911 1019.507; 0 0 2]\ncam1"), Path::new("calib.txt"))
-            .unwrap_err()
-            .to_string();
+        let e = parse_middlebury_calib(
+            &t.replace("0 3979.911 1019.507; 0 0 1]\ncam1", "0 3979.911 1019.507; 0 0 2]\ncam1"),
+            Path::new("calib.txt"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("cam0") && e.contains("[0, 0, 1]"), "{e}");
         // Absurd sizes are bounded, not allocated.
         let e = parse_middlebury_calib(&t.replace("width=2964", "width=9223372036854775807"), Path::new("calib.txt"))

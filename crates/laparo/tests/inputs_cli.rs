@@ -71,11 +71,17 @@ fn intrinsics_files(dir: &Path, k: &Intrinsics) -> Vec<PathBuf> {
     );
     put(
         "k_matrix.json",
-        format!(r#"{{"K": [[{}, 0, {}], [0, {}, {}], [0, 0, 1]], "width": {w}, "height": {h}}}"#, k.fx, k.cx, k.fy, k.cy),
+        format!(
+            r#"{{"K": [[{}, 0, {}], [0, {}, {}], [0, 0, 1]], "width": {w}, "height": {h}}}"#,
+            k.fx, k.cx, k.fy, k.cy
+        ),
     );
     put(
         "k_strings_nosize.json",
-        format!(r#"{{"fx": "{:e}", "fy": "{:e}", "cx": "{:e}", "cy": "{:e}", "k1": "0.0", "p1": "0"}}"#, k.fx, k.fy, k.cx, k.cy),
+        format!(
+            r#"{{"fx": "{:e}", "fy": "{:e}", "cx": "{:e}", "cy": "{:e}", "k1": "0.0", "p1": "0"}}"#,
+            k.fx, k.fy, k.cx, k.cy
+        ),
     );
     put(
         "k_flat9.json",
@@ -121,8 +127,11 @@ fn calibration_files(dir: &Path, k: &Intrinsics, b_mm: f64) -> Vec<String> {
             k.fx, k.fy, k.cx, k.cy
         )
     };
-    std::fs::write(&p, format!("Width: {w}\nHeight: {h}\n{}{}Extrinsic-Omega: 0 0 0\nExtrinsic-T: {} 0 0\n", cam(0), cam(1), -b_mm))
-        .unwrap();
+    std::fs::write(
+        &p,
+        format!("Width: {w}\nHeight: {h}\n{}{}Extrinsic-Omega: 0 0 0\nExtrinsic-T: {} 0 0\n", cam(0), cam(1), -b_mm),
+    )
+    .unwrap();
     out.push(s(&p));
     let p = dir.join("calib.txt");
     std::fs::write(
@@ -351,7 +360,10 @@ fn every_command_accepts_the_same_masks_intrinsics_and_calibrations() {
 /// the distortion (never silently ignoring it).
 #[test]
 fn p2ilf_camera_file_is_read_and_its_distortion_never_ignored() {
-    let p2ilf = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/p2ilf/acquisition-camera-metadata.json"));
+    let p2ilf = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/meshes/p2ilf/acquisition-camera-metadata.json"
+    ));
     if !p2ilf.exists() {
         eprintln!("SKIP p2ilf_camera_file_is_read_and_its_distortion_never_ignored: {} absent", p2ilf.display());
         return;
@@ -359,7 +371,10 @@ fn p2ilf_camera_file_is_read_and_its_distortion_never_ignored() {
     let cam = io::read_camera(p2ilf).unwrap();
     assert_eq!(cam.size, Some((1920, 1080)));
     assert_eq!((cam.fx, cam.cx, cam.cy), (9.5206967601396957e+02, 8.8447392341747241e+02, 5.5368748726315528e+02));
-    assert_eq!((cam.distortion.k1, cam.distortion.k2, cam.distortion.k3), (-2.3184898303739043e-01, 3.4051349187505525e-01, -2.3860036358921605e-01));
+    assert_eq!(
+        (cam.distortion.k1, cam.distortion.k2, cam.distortion.k3),
+        (-2.3184898303739043e-01, 3.4051349187505525e-01, -2.3860036358921605e-01)
+    );
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     // A fronto-parallel plane at 100 mm seen by the P2ILF camera (sensor = laparoscope, T = I).
@@ -368,7 +383,14 @@ fn p2ilf_camera_file_is_read_and_its_distortion_never_ignored() {
     io::write_png(d.join("plane.png"), &Image::filled(w, h, 1, 128u8)).unwrap();
     std::fs::write(d.join("ext.json"), r#"{"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 0], "unit": "mm"}"#).unwrap();
     let sensor = d.join("pinhole.json");
-    std::fs::write(&sensor, format!(r#"{{"fx": {}, "fy": {}, "cx": {}, "cy": {}, "width": {w}, "height": {h}}}"#, cam.fx, cam.fy, cam.cx, cam.cy)).unwrap();
+    std::fs::write(
+        &sensor,
+        format!(
+            r#"{{"fx": {}, "fy": {}, "cx": {}, "cy": {}, "width": {w}, "height": {h}}}"#,
+            cam.fx, cam.fy, cam.cx, cam.cy
+        ),
+    )
+    .unwrap();
     let (ok, err) = run(&[
         "depth".into(),
         "reproject".into(),
@@ -403,4 +425,102 @@ fn p2ilf_camera_file_is_read_and_its_distortion_never_ignored() {
         s(&d.join("warp")),
     ]);
     assert!(!ok && err.contains("acquisition-camera-metadata.json") && err.contains("distortion"), "{err}");
+}
+
+/// Reproducers of the malformed-input campaign (issue 10) through the CLI: each must exit
+/// non-zero with an error naming the file or flag (before: stack overflow abort, 80 GB allocation
+/// abort, a minute of header parsing, a 7-minute distortion scan, an i64::MAX panic, exit 0 on a
+/// truncated JPEG mask).
+#[test]
+fn malformed_inputs_fail_cleanly_through_the_cli() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let (w, h) = (32usize, 24usize);
+    let k = default_camera(w, h);
+    io::write_npy_f64(d.join("depth.npy"), &Image::filled(w, h, 1, 100.0)).unwrap();
+    io::write_png(d.join("img.png"), &Image::filled(w, h, 1, 100u8)).unwrap();
+    let cams = intrinsics_files(d, &k);
+    let scared = "%YAML:1.0\nM1: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 600., 0., 1000., 500., 0., 0., 1. ]\n\
+D1: [ 0., 0., 0., 0., 0. ]\nM2: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 610., 0., 1000., 500., 0., 0., 1. ]\n\
+D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5., 0., 0. ]\n";
+    std::fs::write(d.join("scared.yaml"), scared).unwrap();
+    // cats stats angles need no image size.
+    let (ok, err) = laparo(&["cats", "stats", &s(&d.join("scared.yaml"))]);
+    assert!(ok, "cats stats without a size: {err}");
+    assert!(err.contains("nominal"), "{err}");
+    let (ok, err) =
+        laparo(&["cats", "stats", &s(&d.join("scared.yaml")), "--width", "9223372036854775807", "--height", "1"]);
+    assert!(!ok && err.contains("out of range"), "{err}");
+    let (ok, err) = laparo(&["cats", "stats", &s(&d.join("scared.yaml")), "--width", "100000", "--height", "100000"]);
+    assert!(!ok && err.contains("out of range"), "{err}");
+    std::fs::write(d.join("deep.yaml"), format!("%YAML:1.0\nM1: {}1{}\n", "[".repeat(30_000), "]".repeat(30_000)))
+        .unwrap();
+    let (ok, err) = laparo(&["cats", "stats", &s(&d.join("deep.yaml"))]);
+    assert!(!ok && err.contains("deep.yaml") && err.contains("nested"), "{err}");
+    // depth reproject: bounded --width/--height and JSON sizes.
+    std::fs::write(d.join("ext.json"), r#"{"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 0]}"#).unwrap();
+    let rep = |intr: &Path, extra: &[&str]| {
+        let mut a = vec![
+            "depth".to_string(),
+            "reproject".into(),
+            "--depth".into(),
+            s(&d.join("depth.npy")),
+            "--sensor-intrinsics".into(),
+            s(&cams[0]),
+            "--extrinsics".into(),
+            s(&d.join("ext.json")),
+            "--intrinsics".into(),
+            s(intr),
+            "--out".into(),
+            s(&d.join("o.npy")),
+        ];
+        a.extend(extra.iter().map(|x| x.to_string()));
+        run(&a)
+    };
+    let (ok, err) = rep(&cams[0], &["--width", "100000", "--height", "100000"]);
+    assert!(!ok && err.contains("--width/--height") && err.contains("out of range"), "{err}");
+    std::fs::write(
+        d.join("huge.json"),
+        r#"{"fx": 1, "fy": 1, "cx": 0, "cy": 0, "width": 9223372036854775807, "height": 1}"#,
+    )
+    .unwrap();
+    let (ok, err) = rep(&d.join("huge.json"), &[]);
+    assert!(!ok && err.contains("huge.json"), "{err}");
+    std::fs::write(d.join("badk.json"), r#"{"K": [[500, 0, 16], [0, 500, 12], [0, 1, 1]]}"#).unwrap();
+    let (ok, err) = rep(&d.join("badk.json"), &["--width", "32", "--height", "24"]);
+    assert!(!ok && err.contains("badk.json") && err.contains("[0, 0, 1]"), "{err}");
+    // A 160-byte .npy announcing 100000 x 100000 float64.
+    let mut hdr = "{'descr': '<f8', 'fortran_order': False, 'shape': (0x186a0, 100_000), }".to_string();
+    while (10 + hdr.len() + 1) % 64 != 0 {
+        hdr.push(' ');
+    }
+    hdr.push('\n');
+    let mut f = b"\x93NUMPY\x01\x00".to_vec();
+    f.extend_from_slice(&(hdr.len() as u16).to_le_bytes());
+    f.extend_from_slice(hdr.as_bytes());
+    f.extend_from_slice(&[0u8; 16]);
+    std::fs::write(d.join("evil.npy"), &f).unwrap();
+    let (ok, err) =
+        laparo(&["depth", "eval-pair", "--pred", &s(&d.join("evil.npy")), "--gt", &s(&d.join("depth.npy"))]);
+    assert!(!ok && err.contains("evil.npy"), "{err}");
+    // A truncated JPEG mask.
+    let m = Image::from_vec(w, h, 1, (0..w * h).map(|i| if i % 7 < 4 { 255u8 } else { 0 }).collect()).unwrap();
+    io::write_jpeg(d.join("m.jpg"), &m, 90).unwrap();
+    let bytes = std::fs::read(d.join("m.jpg")).unwrap();
+    std::fs::write(d.join("cut.jpg"), &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let (ok, err) = laparo(&[
+        "cpc",
+        "warp",
+        "--image",
+        &s(&d.join("img.png")),
+        "--depth",
+        &s(&d.join("depth.npy")),
+        "--intrinsics",
+        &s(&cams[0]),
+        "--mask",
+        &s(&d.join("cut.jpg")),
+        "--out",
+        &s(&d.join("w")),
+    ]);
+    assert!(!ok && err.contains("cut.jpg") && err.contains("truncated"), "{err}");
 }

@@ -41,11 +41,11 @@ pub fn parse_endovis_txt(text: &str, path: &Path, size: Option<(usize, usize)>) 
         let Some((key, rest)) = line.split_once(':') else {
             return Err(err(format!("line {}: expected 'Key: values', found '{line}'", no + 1)));
         };
-        let nums: Vec<f64> = rest
-            .split_whitespace()
-            .map(|t| t.parse::<f64>())
-            .collect::<std::result::Result<_, _>>()
-            .map_err(|_| err(format!("line {}: '{}' is not a list of numbers", no + 1, rest.trim())))?;
+        let nums: Vec<f64> =
+            rest.split_whitespace()
+                .map(|t| t.parse::<f64>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| err(format!("line {}: '{}' is not a list of numbers", no + 1, rest.trim())))?;
         if nums.iter().any(|v| !v.is_finite()) {
             return Err(err(format!("line {}: non-finite value in '{}'", no + 1, key.trim())));
         }
@@ -268,7 +268,11 @@ pub fn is_ros_camera_info(fs: &FileStorage) -> bool {
 
 /// Read a left/right pair of ROS `camera_info` YAML files into a stereo calibration (see the
 /// module doc for the derivation of R and T). `size` must agree with the files' size if given.
-pub fn read_ros_pair(left: &FileStorage, right: &FileStorage, size: Option<(usize, usize)>) -> Result<StereoCalibration> {
+pub fn read_ros_pair(
+    left: &FileStorage,
+    right: &FileStorage,
+    size: Option<(usize, usize)>,
+) -> Result<StereoCalibration> {
     let l = camera_from_filestorage(left, &left.path)?;
     let r = camera_from_filestorage(right, &right.path)?;
     let rect = |fs: &FileStorage| -> Result<(Matrix3<f64>, Vector3<f64>)> {
@@ -299,8 +303,12 @@ pub fn read_ros_pair(left: &FileStorage, right: &FileStorage, size: Option<(usiz
     let path_pair = format!("{} + {}", left.path.display(), right.path.display());
     let err = |m: String| CoreError::format(&path_pair, m);
     let (width, height) = match (l.size, r.size, size) {
-        (Some(a), Some(b), _) if a != b => return Err(err(format!("left is {}x{}, right {}x{} px", a.0, a.1, b.0, b.1))),
-        (Some(a), _, Some(s)) if a != s => return Err(err(format!("files say {}x{}, caller says {}x{}", a.0, a.1, s.0, s.1))),
+        (Some(a), Some(b), _) if a != b => {
+            return Err(err(format!("left is {}x{}, right {}x{} px", a.0, a.1, b.0, b.1)))
+        }
+        (Some(a), _, Some(s)) if a != s => {
+            return Err(err(format!("files say {}x{}, caller says {}x{}", a.0, a.1, s.0, s.1)))
+        }
         (Some(a), _, _) | (None, Some(a), _) | (None, None, Some(a)) => a,
         (None, None, None) => return Err(err("no image size (image_width/image_height)".into())),
     };

@@ -218,7 +218,9 @@ pub fn camera_from_json(v: &Value, path: &Path) -> Result<CameraFile> {
     let (w, h) = match (w, h, first(v, &["size", "image_size", "imageSize"])) {
         (Some(w), Some(h), _) => (Some(w), Some(h)),
         (None, None, Some((k, s))) => match json_numbers(s).as_deref() {
-            Some([w, h]) if w.fract() == 0.0 && h.fract() == 0.0 && *w >= 1.0 && *h >= 1.0 && *w < 1e15 && *h < 1e15 => {
+            Some([w, h])
+                if w.fract() == 0.0 && h.fract() == 0.0 && *w >= 1.0 && *h >= 1.0 && *w < 1e15 && *h < 1e15 =>
+            {
                 (Some(*w as u64), Some(*h as u64))
             }
             _ => return Err(err(format!("\"{k}\" must be [width, height]"))),
@@ -337,7 +339,9 @@ pub fn camera_from_filestorage(fs: &FileStorage, path: &Path) -> Result<CameraFi
     let h = fs.get_any(&["image_height", "height", "imageHeight"]);
     let size = match (w, h) {
         (Some((_, w)), Some((_, h))) => match (w.as_f64(), h.as_f64()) {
-            (Some(w), Some(h)) if w.fract() == 0.0 && h.fract() == 0.0 && w >= 1.0 && h >= 1.0 && w < 1e15 && h < 1e15 => {
+            (Some(w), Some(h))
+                if w.fract() == 0.0 && h.fract() == 0.0 && w >= 1.0 && h >= 1.0 && w < 1e15 && h < 1e15 =>
+            {
                 Some(check_image_size(w as u64, h as u64, &path.display().to_string())?)
             }
             _ => return Err(err("image width/height are not positive integers".into())),

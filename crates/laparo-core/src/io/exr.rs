@@ -56,7 +56,11 @@ pub fn write_exr(path: impl AsRef<Path>, img: &Image<f64>) -> Result<()> {
     let channels = AnyChannels::sort(smallvec_one(AnyChannel::new("Y", samples)));
     let image = exr::prelude::Image::from_channels((img.width, img.height), channels);
     let mut buf = Cursor::new(Vec::new());
-    image.write().non_parallel().to_buffered(&mut buf).map_err(|e| CoreError::format(path, format!("cannot encode OpenEXR: {e}")))?;
+    image
+        .write()
+        .non_parallel()
+        .to_buffered(&mut buf)
+        .map_err(|e| CoreError::format(path, format!("cannot encode OpenEXR: {e}")))?;
     write_atomic(path, &buf.into_inner())
 }
 

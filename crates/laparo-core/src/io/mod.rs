@@ -26,8 +26,8 @@ mod pfm;
 mod png;
 mod tiff;
 
-pub use depth_io::{read_depth, read_float_map, read_mask, write_depth, write_float_map, write_mask_png};
 pub use camera_io::{check_image_size, read_camera, CameraFile, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE};
+pub use depth_io::{read_depth, read_float_map, read_mask, write_depth, write_float_map, write_mask_png};
 pub use exr::{read_exr, write_exr};
 pub use npy::{read_npy, read_npz, read_npz_names, write_npy_f32, write_npy_f64, write_npz_f64};
 pub use pfm::{read_pfm, write_pfm};

@@ -1,11 +1,11 @@
 //! NumPy `.npy` and `.npz` arrays as images: shape (H, W) → 1 channel, (H, W, C) → C channels
 //! (leading singleton axes of 4-D+ arrays are dropped; a 3-D (1, H, W) with W > 4 is read as (H, W)). Any of f16, f32, f64, u8, u16, u32, u64, i8, i16, i32, i64
 //! and bool, little- or big-endian, C or Fortran order; values are converted to f64 on reading.
+use super::npy_header;
 use crate::atomic::write_atomic;
 use crate::error::{CoreError, Result};
 use crate::image::Image;
 use ndarray::{ArrayD, IxDyn};
-use super::npy_header;
 use ndarray_npy::{WritableElement, WriteNpyExt};
 use std::io::{Cursor, Read};
 use std::path::Path;

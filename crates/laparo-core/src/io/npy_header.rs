@@ -58,7 +58,10 @@ impl NpyHeader {
     pub fn count(&self) -> Result<usize, String> {
         let mut n: u64 = 1;
         for &d in &self.shape {
-            n = n.checked_mul(d as u64).filter(|&n| n < (1 << 48)).ok_or("the shape has too many elements")?;
+            n = n
+                .checked_mul(d as u64)
+                .filter(|&n| n < (1 << 48))
+                .ok_or("truncated: the shape announces more elements (over 2^48) than the file holds")?;
         }
         Ok(n as usize)
     }
@@ -349,8 +352,7 @@ mod tests {
 
     #[test]
     fn numpy_headers_parse() {
-        let h = parse_header(&file("{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }   \n", &[]))
-            .unwrap();
+        let h = parse_header(&file("{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }   \n", &[])).unwrap();
         assert_eq!((h.dtype, h.big_endian, h.fortran_order, h.shape.clone()), (Dtype::F64, false, false, vec![2, 3]));
         assert_eq!(h.data_bytes().unwrap(), 48);
         let h = parse_header(&file("{\"descr\": \">f2\", \"fortran_order\": True, \"shape\": (5,)}", &[])).unwrap();
@@ -380,8 +382,8 @@ mod tests {
             assert!(parse_header(&file(hdr, &[0; 8])).is_err(), "{hdr}");
         }
         // 100000 x 100000 f64 in a tiny file: parsed, then refused before allocating.
-        let h = parse_header(&file("{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }", &[]))
-            .unwrap();
+        let h =
+            parse_header(&file("{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }", &[])).unwrap();
         assert!(decode(&h, &[0; 64]).unwrap_err().contains("truncated"));
     }
 

@@ -64,10 +64,7 @@ fn resolve(spec: &str) -> (PathBuf, Option<PathBuf>) {
 /// Read a calibration given as `FILE` or `INTRINSICS,EXTRINSICS` (see [`StatsArgs::calib`]);
 /// `size` is used only when the file does not state the image size. Returns a display label,
 /// the calibration and whether its image size was assumed (no size in the file nor given).
-pub fn read_calibration(
-    spec: &str,
-    size: Option<(usize, usize)>,
-) -> anyhow::Result<(String, StereoCalibration, bool)> {
+pub fn read_calibration(spec: &str, size: Option<(usize, usize)>) -> anyhow::Result<(String, StereoCalibration, bool)> {
     let (a, b) = resolve(spec);
     let label = match &b {
         Some(b) => format!("{} + {}", a.display(), b.display()),

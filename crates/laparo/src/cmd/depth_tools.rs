@@ -352,13 +352,14 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     // size and distortion), ROS / OpenCV YAML, COLMAP cameras.txt, EndoVis txt.
     let sensor_cam = laparo_core::io::read_camera(&a.sensor_intrinsics).context("--sensor-intrinsics")?;
     let sensor = sensor_cam
-        .intrinsics_undistorted(Some((depth.width, depth.height)), "the depth-sensor back-projection of depth reproject")
+        .intrinsics_undistorted(
+            Some((depth.width, depth.height)),
+            "the depth-sensor back-projection of depth reproject",
+        )
         .with_context(|| format!("--sensor-intrinsics {sp} for --depth {}", a.depth.display()))?;
     let lap_cam = laparo_core::io::read_camera(&a.intrinsics).context("--intrinsics")?;
     let size = match (a.width, a.height) {
-        (Some(w), Some(h)) => {
-            Some(laparo_core::io::check_image_size(w as u64, h as u64, "--width/--height")?)
-        }
+        (Some(w), Some(h)) => Some(laparo_core::io::check_image_size(w as u64, h as u64, "--width/--height")?),
         (None, None) => None,
         _ => bail!("give both --width and --height, or neither"),
     };
