@@ -493,7 +493,7 @@ mod tests {
         sample_calib().write_opencv_yaml(&p).unwrap();
         let good = std::fs::read_to_string(&p).unwrap();
         let fs = FileStorage::parse(&good, "c.yaml").unwrap();
-        let mut with = |key: &str, node: FsNode| {
+        let with = |key: &str, node: FsNode| {
             let mut f = fs.clone();
             for (k, v) in f.entries.iter_mut() {
                 if k == key {
