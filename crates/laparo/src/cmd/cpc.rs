@@ -41,10 +41,11 @@ pub struct InputArgs {
     /// Unit of the depth file (m or mm).
     #[arg(long, default_value = "mm")]
     pub depth_unit: DepthUnit,
-    /// Intrinsics JSON: {"fx","fy","cx","cy","width","height"[,"skew"]}.
+    /// Intrinsics (px): JSON {"fx","fy","cx","cy"} or {"K": 3x3}, numbers or numeric strings, optional "width"/"height" and distortion; ROS camera_info / OpenCV YAML; COLMAP cameras.txt. The size defaults to the depth map's; a camera with lens
+    /// distortion is refused (undistort first).
     #[arg(long)]
     pub intrinsics: PathBuf,
-    /// ROI mask image (non-zero = inside); default: every pixel with valid depth.
+    /// ROI mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero); default: every pixel with valid depth.
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Grid step in px.

@@ -51,7 +51,7 @@ pub struct ReprojectArgs {
     /// Unit of the values in `--depth` (m or mm).
     #[arg(long, default_value = "mm")]
     pub depth_unit: String,
-    /// Depth-sensor intrinsics JSON: {"fx","fy","cx","cy","width","height"} or {"K": 3x3, "width", "height"} (px).
+    /// Depth-sensor intrinsics (px): JSON {"fx","fy","cx","cy"} or {"K": 3x3}, numbers or numeric strings, optional "width"/"height" and distortion; ROS camera_info / OpenCV YAML; COLMAP cameras.txt; the size defaults to --depth's; must be distortion-free.
     #[arg(long)]
     pub sensor_intrinsics: PathBuf,
     /// T_DS→L JSON (P_L = R P_DS + t): {"T": 4x4} or {"R": 3x3, "t": [x,y,z]}, optional "unit": "mm"|"m"
@@ -61,8 +61,9 @@ pub struct ReprojectArgs {
     /// Unit of the translation in `--extrinsics` when the file does not state it.
     #[arg(long, default_value = "mm")]
     pub extrinsics_unit: String,
-    /// Laparoscope intrinsics JSON (same format as --sensor-intrinsics), px; an optional
-    /// "dist": [k1, k2, p1, p2, k3, ...] (OpenCV order) gives depth for the distorted image.
+    /// Laparoscope intrinsics (same formats as --sensor-intrinsics), px; its distortion
+    /// ("dist": [k1, k2, p1, p2, k3, ...] in OpenCV order, or named k1..k3, p1, p2) is applied:
+    /// the output is depth for the distorted image.
     #[arg(long)]
     pub intrinsics: PathBuf,
     /// Output width in px (default: from --intrinsics).
@@ -71,7 +72,7 @@ pub struct ReprojectArgs {
     /// Output height in px (default: from --intrinsics).
     #[arg(long)]
     pub height: Option<usize>,
-    /// Tool mask in the laparoscope view (8-bit PNG, non-zero = tool): removed from the output.
+    /// Tool mask in the laparoscope view (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero): removed from the output.
     #[arg(long)]
     pub tool_mask: Option<PathBuf>,
     /// Lower clamp of the output depth in m (values below become invalid).

@@ -106,7 +106,7 @@ pub struct EvalArgs {
     pub gt: PathBuf,
     #[command(flatten)]
     pub calib: CalibArgs,
-    /// Valid-pixel mask (8-bit image; non-zero = evaluate).
+    /// Valid-pixel mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero).
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Output folder (metrics.json, metrics.md, PNG maps).
