@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use laparo_core::{DepthUnit, Image};
+use laparo_core::DepthUnit;
 use laparo_depth::manifest::{FrameSpec, Manifest};
 use laparo_depth::perturb::{self as pt, Perturbation};
 use laparo_depth::reproject::{self as rp, ClampMode, ReprojectParams, TargetCamera};
@@ -531,7 +531,7 @@ mod tests {
         let g = laparo_core::io::read_depth(d.join("gt.npy"), DepthUnit::Mm).unwrap();
         assert!(g.data.iter().all(|v| (v - 130.0).abs() < 1e-9), "a closer view of a wall is hole-free");
         // Tool mask of the wrong size names the file; nothing is written.
-        laparo_core::io::write_png(d.join("mask.png"), &Image::filled(10, 10, 1, 255u8)).unwrap();
+        laparo_core::io::write_png(d.join("mask.png"), &laparo_core::Image::filled(10, 10, 1, 255u8)).unwrap();
         let mut a = args("bad.npy");
         a.tool_mask = Some(d.join("mask.png"));
         assert!(format!("{:#}", reproject(a).unwrap_err()).contains("mask.png"));

@@ -42,9 +42,10 @@ impl FsMatrix {
         self.data[(r * self.cols + c) * self.channels]
     }
 
-    /// As a 3×3 matrix, if it is one.
+    /// As a 3×3 matrix, if it is one: 3×3, or a flat list of 9 values (row-major).
     pub fn to_matrix3(&self) -> Option<Matrix3<f64>> {
-        (self.rows == 3 && self.cols == 3 && self.channels == 1).then(|| Matrix3::from_row_slice(&self.data))
+        let shape_ok = (self.rows == 3 && self.cols == 3) || self.rows == 1 || self.cols == 1;
+        (shape_ok && self.channels == 1 && self.data.len() == 9).then(|| Matrix3::from_row_slice(&self.data))
     }
 
     /// As a 3-vector if it is 3×1 or 1×3.
