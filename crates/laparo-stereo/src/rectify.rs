@@ -507,19 +507,23 @@ mod tests {
         assert!((p - Vector3::new(5.0, -5.0, 50.0)).norm() < 1e-12);
     }
 
-    #[test]
-    fn identity_pair_keeps_cameras() {
-        let k = Intrinsics::new(1000.0, 1000.0, 319.5, 239.5, 640, 480).unwrap();
-        let c = StereoCalibration {
-            width: 640,
-            height: 480,
+    /// Two identical distortion-free cameras, the right one 5 mm along +x.
+    fn parallel_pair(k: Intrinsics) -> StereoCalibration {
+        StereoCalibration {
+            width: k.width,
+            height: k.height,
             left: k,
             left_dist: Distortion::default(),
             right: k,
             right_dist: Distortion::default(),
             r: Matrix3::identity(),
             t_mm: Vector3::new(-5.0, 0.0, 0.0),
-        };
+        }
+    }
+
+    #[test]
+    fn identity_pair_keeps_cameras() {
+        let c = parallel_pair(Intrinsics::new(1000.0, 1000.0, 319.5, 239.5, 640, 480).unwrap());
         let r = Rectification::new(&c, RectifyOptions { alpha: -1.0, align_principal_points: true }).unwrap();
         assert!((r.r1 - Matrix3::identity()).norm() < 1e-15 && (r.r2 - Matrix3::identity()).norm() < 1e-15);
         assert!((r.k1.cx - 319.5).abs() < 1e-12 && (r.k1.cy - 239.5).abs() < 1e-12 && r.k1.fx == 1000.0);
@@ -534,17 +538,7 @@ mod tests {
 
     #[test]
     fn rectifying_an_unrotated_distortion_free_pair_copies_the_image() {
-        let k = Intrinsics::new(1000.0, 1000.0, 18.0, 11.0, 37, 23).unwrap();
-        let c = StereoCalibration {
-            width: 37,
-            height: 23,
-            left: k,
-            left_dist: Distortion::default(),
-            right: k,
-            right_dist: Distortion::default(),
-            r: Matrix3::identity(),
-            t_mm: Vector3::new(-5.0, 0.0, 0.0),
-        };
+        let c = parallel_pair(Intrinsics::new(1000.0, 1000.0, 18.0, 11.0, 37, 23).unwrap());
         let r = Rectification::new(&c, RectifyOptions { alpha: -1.0, align_principal_points: true }).unwrap();
         let data: Vec<u8> = (0..37 * 23 * 3).map(|i| ((i * 7919) % 256) as u8).collect();
         let img = Image::from_vec(37, 23, 3, data).unwrap();

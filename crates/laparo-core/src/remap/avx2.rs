@@ -59,17 +59,22 @@ const fn spread_table() -> [u64; 256] {
 }
 static SPREAD: [u64; 256] = spread_table();
 
-/// Coordinates of 8 consecutive pixels starting at `x0`: the operations of `kernel::homography_px`.
+/// Coordinates of the 8 pixels `xi` (i32 lanes): the operations of `kernel::homography_px`;
+/// returns (x_s, y_s, denominator).
 #[inline(always)]
-unsafe fn coords(a: [f32; 3], c: [f32; 3], x0: usize) -> (__m256, __m256, __m256) {
-    let xf =
-        _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)));
+unsafe fn coords_xi(a: [f32; 3], c: [f32; 3], xi: __m256i) -> (__m256, __m256, __m256) {
+    let xf = _mm256_cvtepi32_ps(xi);
     let w = _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(a[2]), xf), _mm256_set1_ps(c[2]));
-    let ok_w = _mm256_cmp_ps::<_CMP_GT_OQ>(w, _mm256_set1_ps(1e-12));
     let iw = _mm256_div_ps(_mm256_set1_ps(1.0), w);
     let sx = _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(a[0]), xf), _mm256_set1_ps(c[0])), iw);
     let sy = _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(a[1]), xf), _mm256_set1_ps(c[1])), iw);
-    (sx, sy, ok_w)
+    (sx, sy, w)
+}
+
+/// [`coords_xi`] for the 8 consecutive pixels from `x0`.
+#[inline(always)]
+unsafe fn coords(a: [f32; 3], c: [f32; 3], x0: usize) -> (__m256, __m256, __m256) {
+    coords_xi(a, c, _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)))
 }
 
 /// Nearest 1-channel f32 row of a homography warp; pixels in `span` (see
@@ -98,21 +103,10 @@ pub unsafe fn homography_nearest_f32(
     let mhalf = _mm256_set1_ps(-0.5);
     let vfill = _mm256_set1_ps(fill);
     let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    let (va0, va1, va2) = (_mm256_set1_ps(a[0]), _mm256_set1_ps(a[1]), _mm256_set1_ps(a[2]));
-    let (vc0, vc1, vc2) = (_mm256_set1_ps(c[0]), _mm256_set1_ps(c[1]), _mm256_set1_ps(c[2]));
-    let (eps, one) = (_mm256_set1_ps(1e-12), _mm256_set1_ps(1.0));
+    let eps = _mm256_set1_ps(1e-12);
     let (absm, inf) = (_mm256_set1_epi32(0x7fff_ffff), _mm256_set1_epi32(0x7f80_0000));
     let (optr, mptr, dptr) = (orow.as_mut_ptr() as *mut f32, mrow.as_mut_ptr() as *mut u8, data.as_ptr());
     let (xs, xe) = (span.0, span.1.min(n));
-    let coords_xi = |xi: __m256i| {
-        let xf = _mm256_cvtepi32_ps(xi);
-        let ww = _mm256_add_ps(_mm256_mul_ps(va2, xf), vc2);
-        let iw = _mm256_div_ps(one, ww);
-        let sx = _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(va0, xf), vc0), iw);
-        let sy = _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(va1, xf), vc1), iw);
-        (sx, sy, ww)
-    };
-    let coords = |x: usize| coords_xi(_mm256_add_epi32(_mm256_set1_epi32(x as i32), iota));
     // Finite test, store of the value (or `fill`) and of the mask bytes.
     let finish = |x: usize, v: __m256, ok: __m256| {
         let finite = _mm256_castsi256_ps(_mm256_cmpgt_epi32(inf, _mm256_and_si256(_mm256_castps_si256(v), absm)));
@@ -124,7 +118,7 @@ pub unsafe fn homography_nearest_f32(
     };
     // General block: bounds tests, clamps, masked gather.
     let checked = |x: usize| {
-        let (sx, sy, ww) = coords(x);
+        let (sx, sy, ww) = coords(a, c, x);
         let ok_w = _mm256_cmp_ps::<_CMP_GT_OQ>(ww, eps);
         let inb = _mm256_and_ps(
             _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(sx, mhalf), _mm256_cmp_ps::<_CMP_GE_OQ>(sy, mhalf)),
@@ -160,7 +154,7 @@ pub unsafe fn homography_nearest_f32(
     let mut xi = _mm256_add_epi32(_mm256_set1_epi32(x as i32), iota);
     let eight = _mm256_set1_epi32(8);
     while x + 8 <= xe {
-        let (sx, sy, _) = coords_xi(xi);
+        let (sx, sy, _) = coords_xi(a, c, xi);
         xi = _mm256_add_epi32(xi, eight);
         let ix = _mm256_cvttps_epi32(_mm256_add_ps(sx, half));
         let iy = _mm256_cvttps_epi32(_mm256_add_ps(sy, half));
@@ -236,7 +230,8 @@ pub unsafe fn homography_bilinear_rgb(
     let (optr, mptr) = (orow.as_mut_ptr() as *mut u8, mrow.as_mut_ptr() as *mut u8);
     let mut x = 0;
     while x + 8 <= n {
-        let (sx, sy, ok_w) = coords(a, c, x);
+        let (sx, sy, ww) = coords(a, c, x);
+        let ok_w = _mm256_cmp_ps::<_CMP_GT_OQ>(ww, _mm256_set1_ps(1e-12));
         let inb = _mm256_and_ps(
             _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(sx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(sy, zero)),
             _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(sx, xmax), _mm256_cmp_ps::<_CMP_LE_OQ>(sy, ymax)),

@@ -114,25 +114,35 @@ pub trait Texel: Copy + Send + Sync + PartialEq + std::fmt::Debug + 'static + pr
     }
 }
 
+/// The conversions of a texel type: interpolation type, float flag, rounding back.
+macro_rules! texel_basics {
+    ($t:ty, $acc:ty, $float:literal, |$v:ident| $from:expr) => {
+        type Acc = $acc;
+        const FLOAT: bool = $float;
+        #[inline(always)]
+        #[allow(clippy::unnecessary_cast)]
+        fn to_acc(self) -> $acc {
+            self as $acc
+        }
+        #[inline(always)]
+        fn from_acc($v: $acc) -> $t {
+            $from
+        }
+        #[inline(always)]
+        #[allow(clippy::unnecessary_cast)]
+        fn to_f64(self) -> f64 {
+            self as f64
+        }
+        #[inline(always)]
+        fn is_finite(self) -> bool {
+            #[allow(clippy::unnecessary_cast)]
+            (self as f64).is_finite()
+        }
+    };
+}
+
 impl Texel for u8 {
-    type Acc = f32;
-    const FLOAT: bool = false;
-    #[inline(always)]
-    fn to_acc(self) -> f32 {
-        self as f32
-    }
-    #[inline(always)]
-    fn from_acc(v: f32) -> u8 {
-        (v + 0.5) as u8
-    }
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        self as f64
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        true
-    }
+    texel_basics!(u8, f32, false, |v| (v + 0.5) as u8);
     #[inline(always)]
     fn bilerp_px_simd(data: &[u8], i00: usize, dx: usize, dy: usize, ax: f32, ay: f32, o: &mut [u8]) -> bool {
         #[cfg(target_arch = "x86_64")]
@@ -177,45 +187,11 @@ impl Texel for u8 {
 }
 
 impl Texel for u16 {
-    type Acc = f32;
-    const FLOAT: bool = false;
-    #[inline(always)]
-    fn to_acc(self) -> f32 {
-        self as f32
-    }
-    #[inline(always)]
-    fn from_acc(v: f32) -> u16 {
-        (v + 0.5) as u16
-    }
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        self as f64
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        true
-    }
+    texel_basics!(u16, f32, false, |v| (v + 0.5) as u16);
 }
 
 impl Texel for f32 {
-    type Acc = f32;
-    const FLOAT: bool = true;
-    #[inline(always)]
-    fn to_acc(self) -> f32 {
-        self
-    }
-    #[inline(always)]
-    fn from_acc(v: f32) -> f32 {
-        v
-    }
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        self as f64
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        f32::is_finite(self)
-    }
+    texel_basics!(f32, f32, true, |v| v);
     #[inline(always)]
     fn homography_row_simd(
         a: [f32; 3],
@@ -246,24 +222,7 @@ impl Texel for f32 {
 }
 
 impl Texel for f64 {
-    type Acc = f64;
-    const FLOAT: bool = true;
-    #[inline(always)]
-    fn to_acc(self) -> f64 {
-        self
-    }
-    #[inline(always)]
-    fn from_acc(v: f64) -> f64 {
-        v
-    }
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        self
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        f64::is_finite(self)
-    }
+    texel_basics!(f64, f64, true, |v| v);
 }
 
 /// An inverse coordinate map (OpenCV's `map1` as `CV_32FC2`): for each output pixel, row-major,
