@@ -312,7 +312,7 @@ pub fn camera_from_filestorage(fs: &FileStorage, path: &Path) -> Result<CameraFi
     let err = |m: String| CoreError::format(path, m);
     let (kkey, knode) = fs
         .get_any(&["camera_matrix", "cameraMatrix", "K", "k", "M", "M1", "K1", "cam1", "CameraMatrix"])
-        .ok_or_else(|| err(format!("no camera matrix (camera_matrix, K, M, ...); the file has {:?}", fs.keys())))?;
+        .ok_or_else(|| err(format!("no camera matrix (camera_matrix, K, M, ...); the file has {}", fs.keys_summary())))?;
     let km = fs_numbers(knode).filter(|m| m.len() == 9).ok_or_else(|| err(format!("'{kkey}' is not 3x3 numbers")))?;
     let km = Matrix3::from_row_slice(&km);
     check_k_matrix(&km).map_err(|e| err(format!("'{kkey}': {e}")))?;
