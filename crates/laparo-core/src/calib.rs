@@ -212,7 +212,7 @@ impl StereoCalibration {
                 Some((k, _)) => fs.matrix(k),
                 None => Err(CoreError::format(
                     path,
-                    format!("no {what} (looked for {keys:?}; the file has {:?})", fs.keys()),
+                    format!("no {what} (looked for {keys:?}; the file has {})", fs.keys_summary()),
                 )),
             }
         };

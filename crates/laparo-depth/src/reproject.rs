@@ -288,7 +288,7 @@ fn raster_triangle(zbuf: &mut [f64], w: usize, h: usize, a: &Vert, b: &Vert, c: 
 /// (see [`laparo_core::io::read_camera`]). `what` names the source in errors.
 pub fn intrinsics_from_json(v: &serde_json::Value, what: &str) -> Result<Intrinsics> {
     let cam = laparo_core::io::camera_io::camera_from_json(v, std::path::Path::new(what))?;
-    Ok(cam.intrinsics(None)?)
+    cam.intrinsics(None)
 }
 
 /// Parse T_DS→L from JSON: `{"T": 4×4}` or `{"R": 3×3, "t": [x,y,z]}` (rows, nested or flat),

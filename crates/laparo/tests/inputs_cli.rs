@@ -370,7 +370,14 @@ fn p2ilf_camera_file_is_read_and_its_distortion_never_ignored() {
     }
     let cam = io::read_camera(p2ilf).unwrap();
     assert_eq!(cam.size, Some((1920, 1080)));
-    assert_eq!((cam.fx, cam.cx, cam.cy), (9.5206967601396957e+02, 8.8447392341747241e+02, 5.5368748726315528e+02));
+    assert_eq!(
+        (cam.fx, cam.cx, cam.cy),
+        (
+            "9.5206967601396957e+02".parse().unwrap(),
+            "8.8447392341747241e+02".parse().unwrap(),
+            "5.5368748726315528e+02".parse().unwrap()
+        )
+    );
     assert_eq!(
         (cam.distortion.k1, cam.distortion.k2, cam.distortion.k3),
         (-2.3184898303739043e-01, 3.4051349187505525e-01, -2.3860036358921605e-01)
@@ -491,7 +498,7 @@ D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5.,
     assert!(!ok && err.contains("badk.json") && err.contains("[0, 0, 1]"), "{err}");
     // A 160-byte .npy announcing 100000 x 100000 float64.
     let mut hdr = "{'descr': '<f8', 'fortran_order': False, 'shape': (0x186a0, 100_000), }".to_string();
-    while (10 + hdr.len() + 1) % 64 != 0 {
+    while !(10 + hdr.len() + 1).is_multiple_of(64) {
         hdr.push(' ');
     }
     hdr.push('\n');

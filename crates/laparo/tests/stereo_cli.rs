@@ -114,15 +114,17 @@ fn cats_stats_bad_input_names_the_file() {
     .unwrap();
     let (ok, _, err) = laparo(&["cats", "stats", s(&p)]);
     assert!(!ok && err.contains("bad_r.yaml") && err.contains("R is not a rotation"), "{err}");
-    // A SCARED-like file without image size: error says to pass --width/--height; works with them.
+    // A SCARED-like file without image size: the angles need none (issue 10), so it works with a
+    // warning naming the file, and with --width/--height too.
     let scared = dir.path().join("noscale.yaml");
     let text = std::fs::read_to_string(&p)
         .unwrap()
         .replace("1.5, 0., 0.", "1., 0., 0.")
         .replace("image_width: 1280\nimage_height: 1024\n", "");
     std::fs::write(&scared, text).unwrap();
-    let (ok, _, err) = laparo(&["cats", "stats", s(&scared)]);
-    assert!(!ok && err.contains("noscale.yaml") && err.contains("--width"), "{err}");
+    let (ok, out, err) = laparo(&["cats", "stats", s(&scared)]);
+    assert!(ok && err.contains("noscale.yaml") && err.contains("--width/--height"), "{err}");
+    assert!(out.contains("Table 3.6"), "{out}");
     let (ok, out, err) = laparo(&["cats", "stats", s(&scared), "--width", "1280", "--height", "1024", "--json"]);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();

@@ -172,7 +172,7 @@ fn json_size(v: &Value, key: &str, path: &Path) -> Result<Option<u64>> {
     match v.get(key) {
         None | Some(Value::Null) => Ok(None),
         Some(x) => match json_num(x) {
-            Some(n) if n.fract() == 0.0 && n >= 1.0 && n < 1e15 => Ok(Some(n as u64)),
+            Some(n) if n.fract() == 0.0 && (1.0..1e15).contains(&n) => Ok(Some(n as u64)),
             _ => Err(CoreError::format(path, format!("\"{key}\" must be a positive integer, found {x}"))),
         },
     }
@@ -310,9 +310,10 @@ pub(crate) fn fs_numbers(n: &FsNode) -> Option<Vec<f64>> {
 /// A camera from a FileStorage document (ROS camera_info YAML or OpenCV YAML).
 pub fn camera_from_filestorage(fs: &FileStorage, path: &Path) -> Result<CameraFile> {
     let err = |m: String| CoreError::format(path, m);
-    let (kkey, knode) = fs
-        .get_any(&["camera_matrix", "cameraMatrix", "K", "k", "M", "M1", "K1", "cam1", "CameraMatrix"])
-        .ok_or_else(|| err(format!("no camera matrix (camera_matrix, K, M, ...); the file has {:?}", fs.keys())))?;
+    let (kkey, knode) =
+        fs.get_any(&["camera_matrix", "cameraMatrix", "K", "k", "M", "M1", "K1", "cam1", "CameraMatrix"]).ok_or_else(
+            || err(format!("no camera matrix (camera_matrix, K, M, ...); the file has {}", fs.keys_summary())),
+        )?;
     let km = fs_numbers(knode).filter(|m| m.len() == 9).ok_or_else(|| err(format!("'{kkey}' is not 3x3 numbers")))?;
     let km = Matrix3::from_row_slice(&km);
     check_k_matrix(&km).map_err(|e| err(format!("'{kkey}': {e}")))?;

@@ -133,6 +133,16 @@ impl FileStorage {
         self.entries.iter().map(|(k, _)| k.as_str()).collect()
     }
 
+    /// The top-level keys for an error message: at most 12, then "... and N more".
+    pub fn keys_summary(&self) -> String {
+        let k = self.keys();
+        if k.len() <= 12 {
+            format!("{k:?}")
+        } else {
+            format!("{:?} ... and {} more", &k[..12], k.len() - 12)
+        }
+    }
+
     /// The matrix stored under `key` (an `!!opencv-matrix`, or a flow sequence of numbers read as
     /// a column); an error naming the file when the key is missing or holds something else.
     pub fn matrix(&self, key: &str) -> Result<FsMatrix> {
@@ -143,7 +153,7 @@ impl FileStorage {
                 None => Err(CoreError::format(&self.path, format!("'{key}' is a sequence but not of numbers"))),
             },
             Some(_) => Err(CoreError::format(&self.path, format!("'{key}' is not a matrix"))),
-            None => Err(CoreError::format(&self.path, format!("no '{key}' entry (keys: {:?})", self.keys()))),
+            None => Err(CoreError::format(&self.path, format!("no '{key}' entry (keys: {})", self.keys_summary()))),
         }
     }
 
