@@ -82,17 +82,6 @@ pub fn sweep(system: &CpcSystem, mesh: &CpcMesh, grid: &[f64]) -> Result<Vec<Swe
         .collect()
 }
 
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
-}
-
 /// Build the constrained model from the free parameters (b1, c1, ℓ); `None` if infeasible.
 fn model(a1: f64, b1: f64, c1: f64, ell: f64) -> Option<GompertzExpFit> {
     if !(b1 > 0.0 && c1 > 0.0 && ell > 0.0 && ell < 1.0) {
@@ -191,7 +180,7 @@ pub fn fit_gompertz_exp(lambdas: &[f64], delta: &[f64]) -> Result<GompertzExpFit
     if lambdas.iter().chain(delta).any(|v| !v.is_finite()) {
         return Err(CpcError::invalid("lambda sweep", "contains non-finite values"));
     }
-    let a1 = median(delta);
+    let a1 = laparo_core::stats::median(&mut delta.to_vec());
     if !(a1 > 0.0 && a1 < 1.0) {
         return Err(CpcError::invalid("lambda sweep", format!("median delta_area {a1} is not in (0, 1)")));
     }

@@ -2,7 +2,6 @@
 //! in surgery (thesis §2.3.3, §3.2, Appendix C).
 
 pub mod align;
-pub mod bench;
 pub mod error;
 pub mod eval;
 pub mod fastmath;

@@ -402,8 +402,9 @@ pub fn remove_stale_results(dir: &Path) -> Result<()> {
 use crate::eval::{load_gt, read_prediction};
 use crate::manifest::Manifest;
 use crate::metrics::aligned_depth_map;
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
 use laparo_core::image::Image;
+use laparo_core::plot::with_colorbar;
 use laparo_core::plot::PlotResult;
 use plotters::coord::Shift;
 use plotters::prelude::*;

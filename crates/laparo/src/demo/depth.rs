@@ -5,7 +5,8 @@
 //! would. Intermediate files go to `<out>/depth/work/` and are removed at the end.
 use super::DemoSection;
 use anyhow::{Context, Result};
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
+use laparo_core::plot::with_colorbar;
 use laparo_core::Image;
 use laparo_depth::align::Alignment;
 use laparo_depth::eval::{evaluate_manifest, EvalConfig};

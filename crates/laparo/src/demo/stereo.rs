@@ -6,7 +6,8 @@
 use super::DemoSection;
 use anyhow::{Context, Result};
 use laparo_core::calib::StereoCalibration;
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
+use laparo_core::plot::with_colorbar;
 use laparo_core::se3::rotation_zyx;
 use laparo_core::{io, Distortion, Image, Intrinsics};
 use laparo_stereo::augment::{
