@@ -88,13 +88,18 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let mut video = CpcSolver::new();
         video.set_factor_threads(a.solver_threads);
         video.assemble(&CpcMesh::build(&roi, &depth, &k, &mp)?, &conf)?;
+        // First frames: a solver whose cached topology is forgotten before each frame (a video
+        // whose ROI changes); its factor-buffer pool recycles the buffers of dropped topologies.
+        let mut first = CpcSolver::new();
+        first.set_factor_threads(a.solver_threads);
         let mut last = None;
         for _ in 0..a.repeats {
             pb.set_message(format!("step {s} px"));
             for next in [false, true] {
-                let mut fresh = CpcSolver::new();
-                fresh.set_factor_threads(a.solver_threads);
-                let solver = if next { &mut video } else { &mut fresh };
+                if !next {
+                    first.clear();
+                }
+                let solver = if next { &mut video } else { &mut first };
                 let t0 = Instant::now();
                 let mesh = CpcMesh::build(&roi, &depth, &k, &mp)?;
                 let t1 = Instant::now();

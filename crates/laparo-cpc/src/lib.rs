@@ -14,9 +14,11 @@ mod factor_buffers;
 pub mod lambda;
 pub mod mesh;
 pub mod metrics;
+pub mod ordering;
 pub mod pipeline;
 pub mod scene;
 pub mod solve;
+mod topology;
 pub mod warp;
 
 pub use conformal::{ConformalParams, RowConvention};

@@ -594,6 +594,23 @@ pub fn aligned_depth_map(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+
+    /// depth_eval_ref.py's timing input: GT depth U(0.03, 0.3) m with 10 % holes (0), predicted
+    /// disparity `(1/z − 2)/5 + N(0, 0.2)`. Seeded (the same generator as `laparo-bench depth`).
+    fn synthetic_pair(width: usize, height: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let noise = Normal::new(0.0, 0.2).unwrap();
+        let (mut pred, mut gt) = (Vec::new(), Vec::new());
+        for _ in 0..width * height {
+            let z: f64 = rng.gen_range(0.03..0.3);
+            let z = if rng.gen::<f64>() < 0.1 { 0.0 } else { z };
+            gt.push(z);
+            pred.push((if z > 0.0 { 1.0 / z } else { 1.0 } - 2.0) / 5.0 + noise.sample(&mut rng));
+        }
+        (pred, gt)
+    }
 
     fn close(a: f64, b: f64) -> bool {
         (a - b).abs() <= 1e-12 * (1.0 + b.abs())
@@ -687,7 +704,7 @@ mod tests {
     #[test]
     fn selection_equals_a_plain_filter() {
         // NaN/negative predictions, GT holes and a mask, on a full-size image.
-        let (mut pred, mut gt) = crate::bench::synthetic_pair(700, 300, 3);
+        let (mut pred, mut gt) = synthetic_pair(700, 300, 3);
         for i in (0..pred.len()).step_by(37) {
             pred[i] = if i % 2 == 0 { f64::NAN } else { -1.0 };
         }
@@ -725,7 +742,7 @@ mod tests {
     #[test]
     fn chunked_parallel_metrics_are_thread_count_independent() {
         // 640×480: several chunks, so the parallel path runs; the reference loop is sequential.
-        let (pred, gt) = crate::bench::synthetic_pair(640, 480, 11);
+        let (pred, gt) = synthetic_pair(640, 480, 11);
         let opts = PairOptions::default();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -748,7 +765,7 @@ mod tests {
 
     #[test]
     fn fast_metrics_equal_the_reference_loop() {
-        let (pred, gt) = crate::bench::synthetic_pair(37, 23, 5);
+        let (pred, gt) = synthetic_pair(37, 23, 5);
         let v = select_valid(&pred, PredKind::Disparity, &gt, None, InvalidPredPolicy::Far).unwrap();
         for p in
             [AlignParams::IDENTITY, AlignParams { scale: 3.0, shift: 1.5 }, AlignParams { scale: -2.0, shift: 9.0 }]
