@@ -25,12 +25,19 @@ pub fn default_lambda_grid() -> Vec<f64> {
 /// The fitted model of eq. 4.14.
 #[derive(Clone, Debug, Serialize)]
 pub struct GompertzExpFit {
+    /// Gompertz branch (λ < ℓ): a1 · exp(−b1 · exp(−c1 λ)); a1 = median δ_area (eq. 4.15).
     pub a1: f64,
+    /// Gompertz displacement b1 (> 0).
     pub b1: f64,
+    /// Gompertz growth rate c1 (> 0).
     pub c1: f64,
+    /// Exponential branch (λ ≥ ℓ): a2 · exp(b2 (λ + c2)) + d2; amplitude a2.
     pub a2: f64,
+    /// Exponential rate b2.
     pub b2: f64,
+    /// Exponential shift c2.
     pub c2: f64,
+    /// Exponential offset d2.
     pub d2: f64,
     /// Transition point ℓ (the selected λ).
     pub ell: f64,
@@ -52,16 +59,22 @@ impl GompertzExpFit {
 /// One row of the sweep.
 #[derive(Clone, Debug, Serialize)]
 pub struct SweepPoint {
+    /// λ of this solve.
     pub lambda: f64,
+    /// δ_area (eq. 4.13) of the flattened mesh.
     pub delta_area: f64,
+    /// Mean |2D − 3D| corner angle (deg) of the flattened mesh.
     pub angle_error_deg: f64,
+    /// Number of flipped triangles.
     pub n_flipped: usize,
 }
 
 /// Result of the automatic λ selection.
 #[derive(Clone, Debug, Serialize)]
 pub struct LambdaSweep {
+    /// One row per λ of the grid.
     pub points: Vec<SweepPoint>,
+    /// The model of eq. 4.14 fitted to the sweep.
     pub fit: GompertzExpFit,
     /// The selected λ = ℓ.
     pub ell: f64,

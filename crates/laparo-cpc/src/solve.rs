@@ -27,6 +27,7 @@ use crate::error::{CpcError, Result};
 use crate::factor_buffers::FactorPool;
 use crate::mesh::{signed_area, CpcMesh};
 use crate::ordering::nested_dissection_points;
+pub use crate::dd::MIN_SPLIT_VERTICES;
 pub use crate::topology::CpcTopology;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;

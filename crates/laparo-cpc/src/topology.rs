@@ -121,7 +121,7 @@ impl CpcTopology {
     }
 
     /// Whether the system is factorised as two halves and a separator on two threads (the top
-    /// nested-dissection level; systems of at least [`crate::dd::MIN_SPLIT_VERTICES`] vertices).
+    /// nested-dissection level; systems of at least [`crate::solve::MIN_SPLIT_VERTICES`] vertices).
     pub fn is_split(&self) -> bool {
         self.split.is_some()
     }

@@ -141,7 +141,9 @@ impl std::fmt::Display for PredKind {
 /// Clamp range of aligned predicted depth, in metres.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DepthRange {
+    /// Near clamp (m).
     pub min_m: f64,
+    /// Far clamp (m).
     pub max_m: f64,
 }
 
@@ -174,7 +176,9 @@ impl DepthRange {
 /// Scale and shift applied in disparity space: `d̂ = scale · d + shift`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AlignParams {
+    /// Scale s of the aligned disparity s d + t.
     pub scale: f64,
+    /// Shift t of the aligned disparity s d + t.
     pub shift: f64,
 }
 

@@ -23,19 +23,29 @@ pub const DELTA_POWERS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 3.0];
 /// All metrics of one prediction under one alignment, with the fitted scale and shift.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
+    /// mean(|z* − ẑ| / z*) (eq. 3.1).
     pub abs_rel: f64,
+    /// mean((z* − ẑ)² / z*) (m).
     pub sq_rel: f64,
+    /// sqrt(mean((z* − ẑ)²)) (m).
     pub rmse: f64,
+    /// sqrt(mean((log z* − log ẑ)²)).
     pub rmse_log: f64,
+    /// 100 · sqrt(mean(e²) − mean(e)²), e = log ẑ − log z*.
     pub silog: f64,
+    /// Fraction with max(z*/ẑ, ẑ/z*) < 1.25^0.25 (eq. 3.2).
     #[serde(rename = "delta_0.25")]
     pub delta_0_25: f64,
+    /// Fraction below 1.25^0.5.
     #[serde(rename = "delta_0.5")]
     pub delta_0_5: f64,
+    /// Fraction below 1.25.
     #[serde(rename = "delta_1")]
     pub delta_1: f64,
+    /// Fraction below 1.25².
     #[serde(rename = "delta_2")]
     pub delta_2: f64,
+    /// Fraction below 1.25³.
     #[serde(rename = "delta_3")]
     pub delta_3: f64,
     /// Fitted disparity scale (NaN → JSON null when the prediction's median is 0).
@@ -97,7 +107,9 @@ impl Metrics {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorMetric {
+    /// Abs Rel (eq. 3.1).
     AbsRel,
+    /// 1 − δ_0.25 (eq. 3.2).
     OneMinusDelta025,
 }
 
@@ -497,10 +509,13 @@ pub struct PairMetrics {
     pub n_valid: usize,
     /// Valid GT pixels with an invalid prediction (see [`InvalidPredPolicy`]).
     pub n_invalid_pred: usize,
+    /// Metrics without alignment.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub none: Option<Metrics>,
+    /// Metrics after s-alignment.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale: Option<Metrics>,
+    /// Metrics after s&t-alignment.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale_shift: Option<Metrics>,
 }

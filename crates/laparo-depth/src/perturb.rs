@@ -31,12 +31,19 @@ use rayon::prelude::*;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Perturbation {
+    /// Smoke/haze (atmospheric scattering towards a grey airlight).
     Smoke,
+    /// Blood-like dark red blobs with a specular rim.
     Blood,
+    /// Bright illumination (gain, gamma, vignetting; clipped).
     Bright,
+    /// Dark illumination (same model plus sensor noise).
     Dark,
+    /// Defocus blur (uniform disk kernel).
     Defocus,
+    /// Motion blur.
     Motion,
+    /// Lens dirt.
     LensDirt,
 }
 

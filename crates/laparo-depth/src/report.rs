@@ -14,7 +14,9 @@ use std::path::{Path, PathBuf};
 /// Mean of every metric over all images of a method (one alignment).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MethodMeans {
+    /// Method name.
     pub method: String,
+    /// Number of images averaged.
     pub n_images: usize,
     /// Sum of invalid predictions on valid GT pixels over all images.
     pub n_invalid_pred: usize,
@@ -25,15 +27,20 @@ pub struct MethodMeans {
 /// Accuracy and robustness of every method under one alignment.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlignmentSummary {
+    /// The alignment these results are for.
     pub alignment: Alignment,
+    /// Mean accuracy of every method.
     pub means: Vec<MethodMeans>,
+    /// Robustness of every method against the baseline.
     pub robustness: Vec<MethodRobustness>,
 }
 
 /// The summary of an evaluation.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Summary {
+    /// Baseline method of mCE.
     pub baseline: String,
+    /// Results per alignment.
     pub alignments: Vec<AlignmentSummary>,
 }
 

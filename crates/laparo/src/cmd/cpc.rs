@@ -280,7 +280,10 @@ fn render_scene(a: SceneArgs) -> Result<()> {
     spec.texture = match a.texture.as_str() {
         "checker" => Texture::Checker { square_mm: 5.0 },
         "procedural" => Texture::Procedural { seed: 1 },
-        name => scene::photo_or_procedural(name, 1),
+        name => match crate::demo::shared_data(&format!("textures/{name}")) {
+            Some(p) => scene::photo_or_procedural(&p, 1),
+            None => Texture::Procedural { seed: 1 },
+        },
     };
     if a.surface == "bowl" {
         spec.texture = Texture::Checker { square_mm: 5.0 };

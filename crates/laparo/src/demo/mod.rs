@@ -35,12 +35,19 @@ pub struct DemoSection {
 
 type SectionFn = fn(&Path) -> Result<DemoSection>;
 
-/// `../shared/data/<rel>` beside the repository (looked up from the working directory, then
-/// from the source tree), if present. Demo sections use real data from there when they can and
-/// fall back to built-in data otherwise.
+/// `<shared>/data/<rel>`, if present, where `<shared>` is `$LAPARO_SHARED_DATA`, else
+/// `../shared/data` from the working directory, else `../shared/data` beside the repository the
+/// executable was built in (`<repo>/target/<profile>/laparo`). Looked up at run time (no
+/// compile-time source paths). Demo sections use real data from there when they can and fall back
+/// to built-in data otherwise.
 pub(crate) fn shared_data(rel: &str) -> Option<PathBuf> {
-    [PathBuf::from("../shared/data"), Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")]
-        .into_iter()
+    let env = std::env::var_os("LAPARO_SHARED_DATA").map(PathBuf::from);
+    let beside_exe = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent()?.parent()?.parent()?.parent().map(|r| r.join("shared/data")));
+    env.into_iter()
+        .chain([PathBuf::from("../shared/data")])
+        .chain(beside_exe)
         .map(|d| d.join(rel))
         .find(|p| p.exists())
 }
