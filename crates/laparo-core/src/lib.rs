@@ -20,6 +20,7 @@ pub mod par;
 pub mod plot;
 pub mod se3;
 pub mod stats;
+pub mod table;
 
 pub use calib::StereoCalibration;
 pub use camera::{Distortion, Intrinsics};
@@ -50,4 +51,5 @@ pub mod prelude {
     pub use crate::plot::with_colorbar;
     pub use crate::se3::Se3;
     pub use crate::stats::{fast_median, median};
+    pub use crate::table::Table;
 }

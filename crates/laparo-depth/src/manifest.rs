@@ -44,6 +44,10 @@
 //! `<root>/predictions/<method>/<scene>/<perturbation>/<level>/<name>.<ext>`, where `<level>`
 //! is `s0`/`clean`/`0` (severity 0), `s<k>` or `<k>` (severity k), or any other name (a
 //! sequence; an optional `<level>/gesture_start.txt` holds the first perturbed frame name).
+//!
+//! Length (~650 lines): ~50 lines of format documentation above, the manifest types, their
+//! resolution/validation and the scaffolding from a folder layout, which must produce exactly what
+//! the validation accepts.
 use crate::align::{DepthRange, PredKind};
 use crate::error::{DepthError, Result};
 use crate::robustness::{Layout, CLEAN};

@@ -1,6 +1,11 @@
 //! Reports of a RoDEM evaluation: `results.json`, a per-image CSV, markdown tables shaped like
 //! thesis Tables 3.3–3.5 (accuracy and robustness per alignment) and C.3–C.16 (per
 //! perturbation and severity), radar charts (Fig. 3.4) and colour error maps (Fig. C.1).
+//!
+//! Length (~690 lines): text outputs (JSON, CSV, markdown, terminal; first half) and figures (radar
+//! charts, error maps; second half) of one evaluation share the [`Summary`] types and the
+//! figure/table naming; both halves are under 450 lines. To be split into `report/{text,figures}`
+//! once the radar-chart rework of issue 10 has landed.
 use crate::align::Alignment;
 use crate::error::{DepthError, Result};
 use crate::eval::EvalOutput;

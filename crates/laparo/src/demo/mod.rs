@@ -82,7 +82,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let page = format!(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>laparo demo report</title>\n<style>\
 body{{font-family:sans-serif;max-width:1200px;margin:2em auto;line-height:1.4}}img{{max-width:100%}}\
-table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}\
+table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}td:first-child{{text-align:left}}\
 .t{{color:#777;font-size:small}}figure{{display:inline-block;margin:4px}}</style></head><body>\n\
 <h1>laparo demo report</h1><p>laparo {} — every module run on built-in data.</p><ul>{toc}</ul>\n{html}</body></html>\n",
         env!("CARGO_PKG_VERSION")
