@@ -9,11 +9,12 @@
 #   e.g. scripts/bench_before_after.sh /tmp/laparo-before target/release/laparo-bench
 #   env: SHARED=../shared  ROUNDS=3  MPM3D=0 (1: also the 3D thesis configuration, ~10 s a round)
 #        THREADS (rayon threads of the depth/cpc benches; default all cores)
+#        BENCHES="cpc stereo" (a subset of: depth cats stereo cpc mpm_2d mpm_3d)
 # Raw outputs are kept in OUT (default /tmp/laparo-bench-before-after). Exit 1 when a figure is more
 # than 5 % slower (median ratio > 1.05).
 set -euo pipefail
 if [ $# -lt 2 ]; then
-  sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
   exit 2
 fi
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -59,8 +60,12 @@ run() {
   fi
 }
 
-BENCHES=(depth cats stereo cpc mpm_2d)
-[ "${MPM3D:-0}" = 1 ] && BENCHES+=(mpm_3d)
+if [ -n "${BENCHES:-}" ]; then
+  read -r -a BENCHES <<<"$BENCHES"
+else
+  BENCHES=(depth cats stereo cpc mpm_2d)
+  [ "${MPM3D:-0}" = 1 ] && BENCHES+=(mpm_3d)
+fi
 for r in $(seq 1 "$ROUNDS"); do
   echo "== round $r/$ROUNDS, $(date -u +%H:%M:%S) UTC, load $(cut -d' ' -f1-3 /proc/loadavg)"
   for name in "${BENCHES[@]}"; do

@@ -5,6 +5,7 @@ use crate::timing::median;
 use anyhow::{Context, Result};
 use clap::Args;
 use laparo_core::calib::StereoCalibration;
+use laparo_core::remap::{remap, Interp};
 use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -67,8 +68,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
             let t1 = Instant::now();
             let (ml, mr) = (rect.remap_table(Side::Left), rect.remap_table(Side::Right));
             let t2 = Instant::now();
-            let (l, _) = laparo_stereo::rectify::remap_bilinear_u8(&left, &ml);
-            let (r, _) = laparo_stereo::rectify::remap_bilinear_u8(&right, &mr);
+            let (l, _) = remap(&left, &ml, Interp::Bilinear, 0)?;
+            let (r, _) = remap(&right, &mr, Interp::Bilinear, 0)?;
             let t3 = Instant::now();
             std::hint::black_box((l, r));
             t_rect.push((t1 - t0).as_secs_f64() * 1e3);
