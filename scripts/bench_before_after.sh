@@ -10,11 +10,12 @@
 #   env: SHARED=../shared  ROUNDS=3  MPM3D=0 (1: also the 3D thesis configuration, ~10 s a round)
 #        THREADS (rayon threads of the depth/cpc benches; default all cores)
 #        BENCHES="cpc stereo" (a subset of: depth cats stereo cpc mpm_2d mpm_3d)
+#        ANALYSE_ONLY=1 (only re-read the outputs already in OUT)
 # Raw outputs are kept in OUT (default /tmp/laparo-bench-before-after). Exit 1 when a figure is more
 # than 5 % slower (median ratio > 1.05).
 set -euo pipefail
 if [ $# -lt 2 ]; then
-  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'
   exit 2
 fi
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -34,7 +35,7 @@ for f in "$IMG" "$CAL" "$LEFT" "$RIGHT"; do
   [ -f "$f" ] || { echo "error: input $f not found (set SHARED=/path/to/shared)" >&2; exit 2; }
 done
 mkdir -p "$OUT"
-rm -f "$OUT"/*.out
+[ -n "${ANALYSE_ONLY:-}" ] || rm -f "$OUT"/*.out "$OUT"/*.out.json "$OUT"/*.out.cpu
 
 # run VARIANT NAME ROUND: one bench of one binary, output in $OUT/NAME_VARIANT_ROUND.out
 run() {
@@ -53,10 +54,13 @@ run() {
     mpm_2d) cmd+=(--dim 2 --repeats 5 --json) ;;
     mpm_3d) cmd+=(--dim 3 --repeats 3 --json) ;;
   esac
+  # Process CPU time (user + system, s) of the whole command beside its own wall-time figures:
+  # the same work on both sides, and less sensitive than wall time to other jobs on the machine.
+  local TIMEFORMAT='%U %S'
   if [ -n "${THREADS:-}" ]; then
-    RAYON_NUM_THREADS="$THREADS" "${cmd[@]}" >"$o" 2>/dev/null
+    { time RAYON_NUM_THREADS="$THREADS" "${cmd[@]}" >"$o" 2>/dev/null; } 2>"$o.cpu"
   else
-    "${cmd[@]}" >"$o" 2>/dev/null
+    { time "${cmd[@]}" >"$o" 2>/dev/null; } 2>"$o.cpu"
   fi
 }
 
@@ -67,6 +71,7 @@ else
   [ "${MPM3D:-0}" = 1 ] && BENCHES+=(mpm_3d)
 fi
 for r in $(seq 1 "$ROUNDS"); do
+  [ -n "${ANALYSE_ONLY:-}" ] && break
   echo "== round $r/$ROUNDS, $(date -u +%H:%M:%S) UTC, load $(cut -d' ' -f1-3 /proc/loadavg)"
   for name in "${BENCHES[@]}"; do
     if [ $((r % 2)) = 1 ]; then order=(before after); else order=(after before); fi
@@ -97,21 +102,31 @@ def figures(name, path):
                 "stereo remap ms": float(m.group(3))}
     if name == "cpc":
         row = json.load(open(path + ".json"))["rows"][0]
-        return {"cpc 4px first frame ms": row["ms_total"], "cpc 4px next frame ms": row["ms_total_next"],
-                "cpc 4px sweep20 ms": row["ms_sweep20"]}
+        return {"cpc 4px first frame min ms": row["min_ms_total"], "cpc 4px next frame min ms": row["min_ms_total_next"],
+                "cpc 4px sweep20 min ms": row["min_ms_sweep20"], "cpc 4px first frame median ms": row["ms_total"],
+                "cpc 4px next frame median ms": row["ms_total_next"]}
     if name.startswith("mpm"):
         j = json.loads(txt.strip().splitlines()[-1])
         d = name.split("_")[1]
         return {f"mpm {d} forward s": j["forward_s"], f"mpm {d} forward+backward s": j["forward_backward_s"]}
     raise ValueError(name)
 
+def figures_cpu(name, path):
+    f = figures(name, path)
+    try:
+        u, s_ = open(path + ".cpu").read().split()[-2:]
+        f[f"{name} process CPU s"] = float(u) + float(s_)
+    except (OSError, ValueError):
+        pass
+    return f
+
 rows, worst = [], 0.0
 for name in benches:
     per = {}
     for r in range(1, rounds + 1):
         try:
-            b = figures(name, f"{out}/{name}_before_{r}.out")
-            a = figures(name, f"{out}/{name}_after_{r}.out")
+            b = figures_cpu(name, f"{out}/{name}_before_{r}.out")
+            a = figures_cpu(name, f"{out}/{name}_after_{r}.out")
         except Exception as e:  # a failed run: report, do not hide
             print(f"{name} round {r}: could not read the outputs ({e})")
             continue
@@ -121,12 +136,18 @@ for name in benches:
         ratios = [a / b for b, a in v]
         med = statistics.median(ratios)
         worst = max(worst, med)
-        rows.append((k, statistics.median(b for b, _ in v), statistics.median(a for _, a in v), med, min(ratios), max(ratios)))
-print(f"{'figure':34} {'before':>10} {'after':>10} {'after/before':>13} {'(range over rounds)':>20}")
-for k, b, a, med, lo, hi in rows:
-    flag = "  SLOWER > 5 %" if med > 1.05 else ""
-    print(f"{k:34} {b:10.4g} {a:10.4g} {med:13.3f} {lo:9.3f} – {hi:<8.3f}{flag}")
-print(f"worst median ratio {worst:.3f} ({'within' if worst <= 1.05 else 'OUTSIDE'} the 5 % allowance)")
-sys.exit(0 if worst <= 1.05 else 1)
+        best = min(a for _, a in v) / min(b for b, _ in v)
+        rows.append((k, min(b for b, _ in v), min(a for _, a in v), med, min(ratios), max(ratios), best))
+# Two estimators: the median over rounds of the per-round ratio, and the ratio of the best
+# (lowest) figure of each side over all rounds, the less load-sensitive one on a shared machine.
+print(f"{'figure':36} {'best before':>11} {'best after':>11} {'best ratio':>10} {'median ratio':>12} {'(range over rounds)':>20}")
+worst_best = 0.0
+for k, b, a, med, lo, hi, best in rows:
+    worst_best = max(worst_best, best)
+    flag = "  SLOWER > 5 %" if best > 1.05 else ""
+    print(f"{k:36} {b:11.4g} {a:11.4g} {best:10.3f} {med:12.3f} {lo:9.3f} – {hi:<8.3f}{flag}")
+print(f"worst best-of-rounds ratio {worst_best:.3f}, worst median ratio {worst:.3f} "
+      f"({'within' if worst_best <= 1.05 else 'OUTSIDE'} the 5 % allowance by the best-of-rounds ratio)")
+sys.exit(0 if worst_best <= 1.05 else 1)
 PY
 echo "raw outputs: $OUT"

@@ -2,7 +2,7 @@
 //! at several grid steps on the bumpy-bowl scene of `../shared/bench/cpc_ref/scene.py` (its
 //! `scene.npz`, or the Rust port of that scene), for a first frame (new topology) and for a next
 //! video frame with the same topology (formerly `laparo cpc bench`).
-use crate::timing::{median, vmin};
+use crate::timing::{med, vmin};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -150,11 +150,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "min_ms_mesh": vmin(&tm), "min_ms_assemble": vmin(&ta), "min_ms_solve": vmin(&ts), "min_ms_warp": vmin(&tw), "min_ms_total": vmin(&tt),
             "min_ms_sweep20": vmin(&t20),
             "min_ms_total_next": vmin(&nt),
-            "ms_mesh": median(tm), "ms_assemble": median(ta),
-            "ms_assemble_terms": median(ta0), "ms_assemble_values": median(ta1), "ms_assemble_symbolic": median(ta2), "ms_solve": median(ts),
-            "ms_warp": median(tw), "ms_warp_new": median(twn), "ms_warp_image": median(twi), "ms_total": median(tt),
-            "ms_mesh_next": median(nm), "ms_assemble_next": median(na), "ms_solve_next": median(ns), "ms_warp_next": median(nw), "ms_total_next": median(nt),
-            "ms_sweep20": median(t20),
+            "ms_mesh": med(tm), "ms_assemble": med(ta),
+            "ms_assemble_terms": med(ta0), "ms_assemble_values": med(ta1), "ms_assemble_symbolic": med(ta2), "ms_solve": med(ts),
+            "ms_warp": med(tw), "ms_warp_new": med(twn), "ms_warp_image": med(twi), "ms_total": med(tt),
+            "ms_mesh_next": med(nm), "ms_assemble_next": med(na), "ms_solve_next": med(ns), "ms_warp_next": med(nw), "ms_total_next": med(nt),
+            "ms_sweep20": med(t20),
             "angle_error_deg_before": metrics::angle_error_deg(&mesh.p_init, &mesh.x3d, &mesh.faces),
             "angle_error_deg_after": metrics::angle_error_deg(&p, &mesh.x3d, &mesh.faces),
             "delta_area": metrics::delta_area(&p, &mesh.p_init, &mesh.faces), "n_flipped": metrics::n_flipped(&p, &mesh.faces),

@@ -1,7 +1,7 @@
 //! `laparo-bench depth`: per-image RoDEM evaluation time (3 alignments, all metrics) on the input
 //! of `../shared/bench/depth_eval_ref.py`'s own timing, optionally against that numpy reference
 //! run on the same arrays (formerly `laparo depth bench` and `laparo_depth::bench`).
-use crate::timing::{median, vmin};
+use crate::timing::{med, vmin};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use laparo_depth::align::PredKind;
@@ -56,7 +56,7 @@ fn latency(pred: &[f64], gt: &[f64], opts: &PairOptions, reps: usize) -> (f64, f
         ts.push(t0.elapsed().as_secs_f64() * 1e3);
         std::hint::black_box(r);
     }
-    (vmin(&ts), median(ts))
+    (vmin(&ts), med(ts))
 }
 
 /// Time `evaluate_pair` on (pred, gt): `reps` runs on a one-thread pool, `reps` runs with all

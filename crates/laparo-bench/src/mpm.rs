@@ -1,7 +1,7 @@
 //! `laparo-bench mpm`: forward and forward+backward wall time per iteration of the DiffTaichi
 //! RODS box problem (`../shared/bench/taichi_mpm/mpm{2,3}d_rods.py`), with the peak RSS
 //! (formerly `laparo mpm bench`).
-use crate::timing::{median, peak_rss_mb};
+use crate::timing::{med, peak_rss_mb};
 use anyhow::{bail, Result};
 use clap::Args;
 use laparo_mpm::reference::rods_scene;
@@ -54,7 +54,7 @@ fn time_scene<const D: usize, L: Loss<D>>(scene: &Scene<D>, loss: &L, repeats: u
             bail!("forward and forward+backward losses differ");
         }
     }
-    Ok((median(fwd), median(fb), lossv))
+    Ok((med(fwd), med(fb), lossv))
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {

@@ -1,7 +1,7 @@
 //! `laparo-bench stereo`: rectification timing (Bouguet rectification, remap tables of both
 //! cameras, bilinear remap of both images) on a real pair (formerly `laparo stereo bench`; OpenCV
 //! `initUndistortRectifyMap` + `remap` figures on the same input are in benchmarks/stereo_stats.md).
-use crate::timing::median;
+use crate::timing::med;
 use anyhow::{Context, Result};
 use clap::Args;
 use laparo_core::calib::StereoCalibration;
@@ -83,9 +83,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
             left.height,
             left.channels,
             rayon::current_num_threads(),
-            median(t_rect),
-            median(t_maps),
-            median(t_remap)
+            med(t_rect),
+            med(t_maps),
+            med(t_remap)
         );
         Ok(())
     })

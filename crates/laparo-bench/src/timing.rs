@@ -7,7 +7,7 @@ pub fn vmin(v: &[f64]) -> f64 {
 }
 
 /// Median of timings (the workspace's one median, `laparo_core::stats::median`).
-pub fn median(mut v: Vec<f64>) -> f64 {
+pub fn med(mut v: Vec<f64>) -> f64 {
     laparo_core::stats::median(&mut v)
 }
 
@@ -21,7 +21,7 @@ pub fn time_min_median(runs: usize, mut f: impl FnMut()) -> (f64, f64) {
             t.elapsed().as_secs_f64() * 1e3
         })
         .collect();
-    (vmin(&ts), median(ts))
+    (vmin(&ts), med(ts))
 }
 
 /// Peak resident set size (VmHWM) of this process in MiB (NaN where /proc is unavailable).
@@ -42,10 +42,10 @@ mod tests {
     #[test]
     fn min_and_median_of_timings() {
         assert_eq!(vmin(&[3.0, 1.5, 2.0]), 1.5);
-        assert_eq!(median(vec![3.0, 1.0, 2.0, 10.0]), 2.5);
+        assert_eq!(med(vec![3.0, 1.0, 2.0, 10.0]), 2.5);
         let mut calls = 0;
-        let (lo, med) = time_min_median(4, || calls += 1);
+        let (lo, mid) = time_min_median(4, || calls += 1);
         assert_eq!(calls, 5); // warm-up + 4 timed runs
-        assert!(lo <= med && lo >= 0.0);
+        assert!(lo <= mid && lo >= 0.0);
     }
 }
