@@ -1,7 +1,7 @@
 //! Solver stage profile on the bumpy bowl (development aid):
 //! `cargo run --release -p laparo-bench --example solver_prof -- [STEP] [REPEATS] [MODE]`.
-use laparo_cpc::scene::bumpy_bowl_spec;
 use laparo_cpc::ordering::nested_dissection_leaf;
+use laparo_cpc::scene::bumpy_bowl_spec;
 use laparo_cpc::{ConformalParams, CpcMesh, CpcSystem, CpcTopology, MeshParams};
 use std::time::Instant;
 

@@ -23,11 +23,11 @@
 //! solves. The system is block-diagonal over connected components, so one factorisation solves
 //! every component separately.
 use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
+pub use crate::dd::MIN_SPLIT_VERTICES;
 use crate::error::{CpcError, Result};
 use crate::factor_buffers::FactorPool;
 use crate::mesh::{signed_area, CpcMesh};
 use crate::ordering::nested_dissection_points;
-pub use crate::dd::MIN_SPLIT_VERTICES;
 pub use crate::topology::CpcTopology;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;

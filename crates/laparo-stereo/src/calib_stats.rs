@@ -304,7 +304,19 @@ pub fn table_3_6_markdown(rows: &[(String, StatsSummary)]) -> String {
 /// [`laparo_core::table::Table::to_html`]).
 pub fn table_3_6(rows: &[(String, StatsSummary)]) -> laparo_core::table::Table {
     let mut t = laparo_core::table::Table::new([
-        "", "n", "R_x^l2s μ", "σ", "R_y^l2s μ", "σ", "R_z^l2s μ", "σ", "R_x^r2s μ", "σ", "R_y^r2s μ", "σ", "R_z^r2s μ",
+        "",
+        "n",
+        "R_x^l2s μ",
+        "σ",
+        "R_y^l2s μ",
+        "σ",
+        "R_z^l2s μ",
+        "σ",
+        "R_x^r2s μ",
+        "σ",
+        "R_y^r2s μ",
+        "σ",
+        "R_z^r2s μ",
         "σ",
     ]);
     for (label, m) in rows {

@@ -45,11 +45,7 @@ pub(crate) fn shared_data(rel: &str) -> Option<PathBuf> {
     let beside_exe = std::env::current_exe()
         .ok()
         .and_then(|e| e.parent()?.parent()?.parent()?.parent().map(|r| r.join("shared/data")));
-    env.into_iter()
-        .chain([PathBuf::from("../shared/data")])
-        .chain(beside_exe)
-        .map(|d| d.join(rel))
-        .find(|p| p.exists())
+    env.into_iter().chain([PathBuf::from("../shared/data")]).chain(beside_exe).map(|d| d.join(rel)).find(|p| p.exists())
 }
 
 /// Run the demo.

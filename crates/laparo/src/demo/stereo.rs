@@ -14,9 +14,7 @@ use laparo_core::{io, Distortion, Image, Intrinsics};
 use laparo_stereo::augment::{
     augment_stereo, disparity_difference, AugmentedDisparity, AugmentedStereo, GtRule, StereoAugmentation, StereoSample,
 };
-use laparo_stereo::calib_stats::{
-    calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6, MeanStd,
-};
+use laparo_stereo::calib_stats::{calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6, MeanStd};
 use laparo_stereo::cats_params::{sample_rng, CatsConfig, Dist, TABLE_3_6};
 use laparo_stereo::synthetic::{default_camera, Scene};
 use std::fmt::Write as _;
