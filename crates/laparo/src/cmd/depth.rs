@@ -118,7 +118,7 @@ pub struct EvalPairArgs {
     /// Unit of the GT values.
     #[arg(long, default_value = "m")]
     pub gt_unit: DepthUnit,
-    /// ROI mask (8-bit image, non-zero = evaluated; or a float map, non-zero = evaluated).
+    /// ROI mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero).
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Alignments: none, s, st or all.

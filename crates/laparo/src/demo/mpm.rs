@@ -7,7 +7,6 @@ use anyhow::Result;
 use laparo_core::colormap::Colormap;
 use laparo_core::io;
 use laparo_core::plot::with_colorbar;
-use laparo_mpm::linalg::det;
 use laparo_mpm::render::{plot_loss_curve, render_particles_2d};
 use laparo_mpm::*;
 use serde_json::json;
