@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Same-session speed comparison of laparo against the peer scripts of ../shared/bench/ for the two
+# Same-session speed comparison of laparo (the `laparo-bench` binary) against the peer scripts of ../shared/bench/ for the two
 # issue goals measured per iteration / frame: CPC (numpy/scipy `cpc_ref/bench.py`, 4 px) and MPM 2D
 # and 3D (DiffTaichi `taichi_mpm/mpm{2,3}d_rods.py`). Peer and laparo alternate, ROUNDS times, so
 # that both see the same machine load; every raw output is kept in OUT.
@@ -17,8 +17,8 @@ mkdir -p "$OUT"
 if [ ! -x "$VENV/bin/python" ]; then
   python3 -m venv "$VENV" && "$VENV/bin/pip" install -q numpy scipy libigl taichi
 fi
-(cd "$ROOT" && cargo build --release -q -p laparo)
-LAPARO="$ROOT/target/release/laparo"
+(cd "$ROOT" && cargo build --release -q -p laparo-bench)
+BENCH="$ROOT/target/release/laparo-bench"
 # CPC peer scripts run from a copy (scene.py writes scene.npz next to itself).
 mkdir -p "$OUT/cpc_ref"
 cp "$SHARED"/bench/cpc_ref/*.py "$OUT/cpc_ref/"
@@ -27,16 +27,16 @@ TM="$SHARED/bench/taichi_mpm"
 for r in $(seq 1 "$ROUNDS"); do
   echo "== round $r, $(date -u +%H:%M:%S) UTC, load $(cut -d' ' -f1-3 /proc/loadavg)"
   (cd "$OUT/cpc_ref" && "$VENV/bin/python" bench.py 4 >"$OUT/cpc_peer_$r.json" 2>&1)
-  "$LAPARO" cpc bench --scene-npz "$OUT/cpc_ref/scene.npz" --steps 4 --repeats 15 --json "$OUT/cpc_laparo_$r.json" \
+  "$BENCH" cpc --scene-npz "$OUT/cpc_ref/scene.npz" --steps 4 --repeats 15 --json "$OUT/cpc_laparo_$r.json" \
     >"$OUT/cpc_laparo_$r.txt"
   "$VENV/bin/python" "$TM/mpm2d_rods.py" --n-grid 120 --steps 200 --iters 10 --fwd-reps 5 --lr 1e4 \
     >"$OUT/mpm2d_peer_$r.txt" 2>&1
-  "$LAPARO" mpm bench --dim 2 --repeats 7 --json >"$OUT/mpm2d_laparo_$r.json"
-  "$LAPARO" mpm bench --dim 2 --repeats 7 --threads 1 --json >"$OUT/mpm2d_laparo_t1_$r.json"
+  "$BENCH" mpm --dim 2 --repeats 7 --json >"$OUT/mpm2d_laparo_$r.json"
+  "$BENCH" mpm --dim 2 --repeats 7 --threads 1 --json >"$OUT/mpm2d_laparo_t1_$r.json"
   if [ "${MPM3D:-0}" = 1 ]; then
     "$VENV/bin/python" "$TM/mpm3d_rods.py" --n-grid 120 --steps 200 --iters 4 --fwd-reps 2 --lr 4e4 \
       >"$OUT/mpm3d_peer_$r.txt" 2>&1
-    "$LAPARO" mpm bench --dim 3 --repeats 3 --json >"$OUT/mpm3d_laparo_$r.json"
+    "$BENCH" mpm --dim 3 --repeats 3 --json >"$OUT/mpm3d_laparo_$r.json"
   fi
   "$VENV/bin/python" - "$OUT" "$r" <<'PY'
 import json, sys, re

@@ -1,6 +1,7 @@
 //! Writes one colour-mapped gradient with a colour bar per colour map:
 //! `cargo run --release -p laparo-core --example colormaps -- OUT_DIR`
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
+use laparo_core::plot::with_colorbar;
 use laparo_core::{io, Image};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -1,4 +1,5 @@
-//! Colour maps for scalar images (depth, disparity, error maps) and colour bars.
+//! Colour maps for scalar images (depth, disparity, error maps); colour bars are drawn by
+//! [`crate::plot::with_colorbar`] (plot depends on colormap, never the reverse).
 //!
 //! Turbo interpolates every 8th entry of Google's published table (A. Mikhailov, 2019); Viridis
 //! and Magma use the published 6th-order polynomial fits of the matplotlib maps (M. Zucker).
@@ -283,13 +284,6 @@ fn decimals_for(step: f64) -> usize {
         d += 1;
     }
     d
-}
-
-/// Append a vertical colour bar for [lo, hi] to the right of `img` (gray, RGB or RGBA), with
-/// tick labels and `label` (e.g. "depth [mm]") written along it. Returns an RGB image of the same
-/// height and larger width. Uses the bundled DejaVu Sans (see [`crate::plot::ensure_fonts`]).
-pub fn with_colorbar(img: &Image<u8>, lo: f64, hi: f64, cmap: Colormap, label: &str) -> Image<u8> {
-    crate::plot::colorbar_panel(img, lo, hi, cmap, label)
 }
 
 #[cfg(test)]

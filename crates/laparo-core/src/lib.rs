@@ -20,6 +20,8 @@ pub mod par;
 pub mod plot;
 pub mod remap;
 pub mod se3;
+pub mod stats;
+pub mod table;
 
 pub use calib::StereoCalibration;
 pub use camera::{Distortion, Intrinsics};
@@ -29,3 +31,26 @@ pub use error::{CoreError, Result};
 pub use homography::Homography;
 pub use image::Image;
 pub use se3::Se3;
+
+/// The types and functions most programs need: `use laparo_core::prelude::*;`.
+///
+/// ```
+/// use laparo_core::prelude::*;
+/// let k = Intrinsics::new(500.0, 500.0, 320.0, 240.0, 640, 480).unwrap();
+/// assert_eq!(k.width, 640);
+/// assert_eq!(median(&mut [3.0, 1.0, 2.0, 10.0]), 2.5);
+/// ```
+pub mod prelude {
+    pub use crate::atomic::write_atomic;
+    pub use crate::calib::StereoCalibration;
+    pub use crate::camera::{Distortion, Intrinsics};
+    pub use crate::colormap::{colorize, Colormap};
+    pub use crate::depth::{DepthMap, DepthUnit};
+    pub use crate::error::{CoreError, Result};
+    pub use crate::homography::Homography;
+    pub use crate::image::{Image, Mask};
+    pub use crate::plot::with_colorbar;
+    pub use crate::se3::Se3;
+    pub use crate::stats::{fast_median, median};
+    pub use crate::table::Table;
+}

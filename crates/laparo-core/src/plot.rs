@@ -143,7 +143,10 @@ pub(crate) fn bar_layout(img_w: usize, h: usize, labels: &[String], label: &str,
     BarLayout { bar_left, bar_right, bar_top, bar_bottom, label_left, width }
 }
 
-pub(crate) fn colorbar_panel(img: &Image<u8>, lo: f64, hi: f64, cmap: Colormap, label: &str) -> Image<u8> {
+/// Append a vertical colour bar for [lo, hi] to the right of `img` (gray, RGB or RGBA), with
+/// tick labels and `label` (e.g. "depth [mm]") written along it. Returns an RGB image of the same
+/// height and larger width. Uses the bundled DejaVu Sans (see [`ensure_fonts`]).
+pub fn with_colorbar(img: &Image<u8>, lo: f64, hi: f64, cmap: Colormap, label: &str) -> Image<u8> {
     ensure_fonts();
     let (w, h) = (img.width, img.height);
     let font_px = (h as f64 / 28.0).clamp(11.0, 26.0);
@@ -216,7 +219,7 @@ pub(crate) fn colorbar_panel(img: &Image<u8>, lo: f64, hi: f64, cmap: Colormap, 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::colormap::{colorize, with_colorbar};
+    use crate::colormap::colorize;
 
     fn is_dark(p: &[u8]) -> bool {
         p.iter().all(|&v| v < 110)

@@ -9,7 +9,7 @@
 //! A x = b is solved by y_i = L_ii⁻¹ b_i, x_3 = Ŝ⁻¹ (b_3 − L_31 y_1 − L_32 y_2),
 //! x_i = L_ii⁻ᴴ (y_i − L_3iᴴ x_3), all through the halves' own triangular solves. Every step has
 //! a fixed operation order, so the result does not depend on the number of threads.
-use crate::factor_buffers::FactorBuffers;
+use crate::factor_buffers::{FactorBuffers, FactorPool};
 use faer::dyn_stack::MemStack;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::linalg::solvers::Solve;
@@ -20,7 +20,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{c64, Accum, Conj, Mat, MatMut, Par, Side};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// Smallest system (vertices) split in two.
 pub const MIN_SPLIT_VERTICES: usize = 2000;
@@ -36,6 +36,8 @@ struct Half {
     src: Vec<(u32, bool)>,
     symbolic: SymbolicCholesky<usize>,
     scratch: Mutex<Option<FactorBuffers>>,
+    /// The owning solver's buffer pool (see [`crate::factor_buffers`]).
+    pool: Option<Arc<FactorPool>>,
 }
 
 pub(crate) struct DomainSplit {
@@ -47,8 +49,8 @@ pub(crate) struct DomainSplit {
 
 impl Drop for Half {
     fn drop(&mut self) {
-        if let Some(b) = self.scratch.get_mut().ok().and_then(Option::take) {
-            b.give_back();
+        if let (Some(pool), Some(b)) = (&self.pool, self.scratch.get_mut().ok().and_then(Option::take)) {
+            pool.give_back(b);
         }
     }
 }
@@ -74,6 +76,7 @@ impl DomainSplit {
         fwd: &[usize],
         n1: usize,
         n2: usize,
+        pool: Option<Arc<FactorPool>>,
     ) -> Option<DomainSplit> {
         let n = fwd.len();
         let k = n - n1 - n2;
@@ -190,7 +193,16 @@ impl DomainSplit {
             if !matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) {
                 return None;
             }
-            Some(Half { n_int, glob, col_ptr: cp, row_idx: ri, src, symbolic, scratch: Mutex::new(None) })
+            Some(Half {
+                n_int,
+                glob,
+                col_ptr: cp,
+                row_idx: ri,
+                src,
+                symbolic,
+                scratch: Mutex::new(None),
+                pool: pool.clone(),
+            })
         };
         let (h0, h1) = rayon::join(|| build_half(0), || build_half(1));
         Some(DomainSplit { halves: [h0?, h1?], k, a33 })
@@ -220,7 +232,7 @@ impl DomainSplit {
                     .symbolic
                     .factorize_numeric_llt_scratch::<c64>(par, Default::default())
                     .or(h.symbolic.solve_in_place_scratch::<c64>(1, par));
-                FactorBuffers::take(h.symbolic.len_val(), req)
+                FactorBuffers::take(h.pool.as_deref(), h.symbolic.len_val(), req)
             });
             h.symbolic
                 .factorize_numeric_llt(

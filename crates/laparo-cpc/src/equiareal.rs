@@ -34,10 +34,13 @@ impl Default for EquiarealParams {
 
 /// Result of the refinement.
 pub struct Refined {
+    /// Flattened vertex positions (px).
     pub p: Vec<[f64; 2]>,
+    /// Gauss–Newton iterations performed.
     pub iterations: usize,
     /// Cost of eq. 4.9 before and after.
     pub cost_before: f64,
+    /// Cost of eq. 4.9 after the refinement.
     pub cost_after: f64,
 }
 

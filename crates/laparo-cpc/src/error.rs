@@ -6,7 +6,12 @@ use laparo_core::error::CoreError;
 pub enum CpcError {
     /// A parameter or input is invalid (the message names it).
     #[error("invalid {what}: {msg}")]
-    Invalid { what: String, msg: String },
+    Invalid {
+        /// The parameter or input.
+        what: String,
+        /// What is wrong with it.
+        msg: String,
+    },
     /// Two inputs that must agree in size do not.
     #[error("size mismatch: {0}")]
     SizeMismatch(String),

@@ -25,12 +25,19 @@ pub fn default_lambda_grid() -> Vec<f64> {
 /// The fitted model of eq. 4.14.
 #[derive(Clone, Debug, Serialize)]
 pub struct GompertzExpFit {
+    /// Gompertz branch (λ < ℓ): a1 · exp(−b1 · exp(−c1 λ)); a1 = median δ_area (eq. 4.15).
     pub a1: f64,
+    /// Gompertz displacement b1 (> 0).
     pub b1: f64,
+    /// Gompertz growth rate c1 (> 0).
     pub c1: f64,
+    /// Exponential branch (λ ≥ ℓ): a2 · exp(b2 (λ + c2)) + d2; amplitude a2.
     pub a2: f64,
+    /// Exponential rate b2.
     pub b2: f64,
+    /// Exponential shift c2.
     pub c2: f64,
+    /// Exponential offset d2.
     pub d2: f64,
     /// Transition point ℓ (the selected λ).
     pub ell: f64,
@@ -52,16 +59,22 @@ impl GompertzExpFit {
 /// One row of the sweep.
 #[derive(Clone, Debug, Serialize)]
 pub struct SweepPoint {
+    /// λ of this solve.
     pub lambda: f64,
+    /// δ_area (eq. 4.13) of the flattened mesh.
     pub delta_area: f64,
+    /// Mean |2D − 3D| corner angle (deg) of the flattened mesh.
     pub angle_error_deg: f64,
+    /// Number of flipped triangles.
     pub n_flipped: usize,
 }
 
 /// Result of the automatic λ selection.
 #[derive(Clone, Debug, Serialize)]
 pub struct LambdaSweep {
+    /// One row per λ of the grid.
     pub points: Vec<SweepPoint>,
+    /// The model of eq. 4.14 fitted to the sweep.
     pub fit: GompertzExpFit,
     /// The selected λ = ℓ.
     pub ell: f64,
@@ -80,17 +93,6 @@ pub fn sweep(system: &CpcSystem, mesh: &CpcMesh, grid: &[f64]) -> Result<Vec<Swe
             })
         })
         .collect()
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
 }
 
 /// Build the constrained model from the free parameters (b1, c1, ℓ); `None` if infeasible.
@@ -191,7 +193,7 @@ pub fn fit_gompertz_exp(lambdas: &[f64], delta: &[f64]) -> Result<GompertzExpFit
     if lambdas.iter().chain(delta).any(|v| !v.is_finite()) {
         return Err(CpcError::invalid("lambda sweep", "contains non-finite values"));
     }
-    let a1 = median(delta);
+    let a1 = laparo_core::stats::median(&mut delta.to_vec());
     if !(a1 > 0.0 && a1 < 1.0) {
         return Err(CpcError::invalid("lambda sweep", format!("median delta_area {a1} is not in (0, 1)")));
     }

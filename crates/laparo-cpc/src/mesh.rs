@@ -48,15 +48,23 @@ impl Default for MeshParams {
 /// What happened while building the mesh (reported to the user).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct MeshReport {
+    /// Grid step (px).
     pub grid_step_px: usize,
     /// Triangles whose three corners are inside the ROI.
     pub n_candidate_triangles: usize,
+    /// Candidate triangles dropped for a corner without valid depth.
     pub dropped_invalid_depth: usize,
+    /// Candidate triangles dropped for a relative depth jump along an edge.
     pub dropped_depth_jump: usize,
+    /// Candidate triangles dropped as degenerate in 3D.
     pub dropped_degenerate: usize,
+    /// Candidate triangles dropped as seen at a grazing angle (flip guard).
     pub dropped_grazing: usize,
+    /// Triangles dropped with connected components below the minimum size.
     pub dropped_small_components: usize,
+    /// Vertices of the kept mesh.
     pub n_vertices: usize,
+    /// Triangles of the kept mesh.
     pub n_triangles: usize,
     /// Triangle count of every kept connected component (largest first).
     pub component_triangles: Vec<usize>,
@@ -69,6 +77,7 @@ pub struct CpcMesh {
     pub grid_step_px: usize,
     /// Number of grid nodes along u and v.
     pub grid_cols: usize,
+    /// Number of grid nodes along v.
     pub grid_rows: usize,
     /// Initial 2D vertex positions P_init (px, u right, v down).
     pub p_init: Vec<[f64; 2]>,

@@ -30,8 +30,11 @@ pub const DEFAULT_LAMBDA: f64 = 0.95;
 /// All parameters of a CPC run.
 #[derive(Clone, Debug, Serialize)]
 pub struct CpcParams {
+    /// Mesh construction (grid step, triangle filters).
     pub mesh: MeshParams,
+    /// Conformal basis (θ, row convention).
     pub conformal: ConformalParams,
+    /// λ: fixed or selected automatically (§4.5.4).
     pub lambda: LambdaChoice,
     /// Equiareal refinement (eq. 4.9); `None` (default) keeps the convex solution.
     pub equiareal: Option<EquiarealParams>,
@@ -58,9 +61,13 @@ impl CpcParams {
 /// Figures of one CPC run (written as `stats.json` by the CLI).
 #[derive(Clone, Debug, Serialize)]
 pub struct CpcStats {
+    /// λ used for the solve.
     pub lambda: f64,
+    /// Vertices of the mesh.
     pub n_vertices: usize,
+    /// Triangles of the mesh.
     pub n_triangles: usize,
+    /// Connected components of the mesh.
     pub n_components: usize,
     /// Mean |2D corner angle − 3D corner angle| (deg) of the initial grid.
     pub angle_error_deg_before: f64,
@@ -68,23 +75,35 @@ pub struct CpcStats {
     pub angle_error_deg_after: f64,
     /// δ_area (eq. 4.13) of the flattened mesh.
     pub delta_area: f64,
+    /// Number of flipped triangles of the flattened mesh.
     pub n_flipped: usize,
+    /// Mean vertex displacement |p − P_init| (px).
     pub mean_displacement_px: f64,
+    /// Maximum vertex displacement (px).
     pub max_displacement_px: f64,
+    /// Width of the output canvas (px).
     pub canvas_width: usize,
+    /// Height of the output canvas (px).
     pub canvas_height: usize,
     /// Flattened coordinates of canvas pixel (0, 0).
     pub canvas_origin: [f64; 2],
+    /// Iterations of the equiareal refinement (0 without it).
     pub equiareal_iterations: usize,
+    /// What happened while building the mesh.
     pub mesh: MeshReport,
+    /// Wall time of each stage (ms), by stage name.
     pub timings_ms: BTreeMap<String, f64>,
 }
 
 /// Output of [`cpc_warp`].
 pub struct CpcResult {
+    /// The piecewise-affine warp (flattened mesh, canvas).
     pub warp: Warp,
+    /// The warped image on the canvas.
     pub warped: Image<u8>,
+    /// Canvas pixels covered by the warped mesh.
     pub mask: Mask,
+    /// Summary numbers of the run.
     pub stats: CpcStats,
     /// The λ sweep when λ was selected automatically.
     pub sweep: Option<LambdaSweep>,

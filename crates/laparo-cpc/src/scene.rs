@@ -24,9 +24,13 @@ use rayon::prelude::*;
 /// One Gaussian bump: centre (mm), signed amplitude (mm), width σ (mm).
 #[derive(Clone, Copy, Debug)]
 pub struct Bump {
+    /// Centre x (mm, patch frame).
     pub cx: f64,
+    /// Centre y (mm, patch frame).
     pub cy: f64,
+    /// Signed amplitude (mm).
     pub amp: f64,
+    /// Width σ (mm).
     pub sigma: f64,
 }
 
@@ -49,10 +53,18 @@ pub enum Surface {
     Plane,
     /// Half cylinder with its axis along local y, concave towards the camera:
     /// z = r − √(r² − x²) (needs half < r).
-    Cylinder { radius_mm: f64 },
+    Cylinder {
+        /// Cylinder radius (mm).
+        radius_mm: f64,
+    },
     /// Paraboloid bowl of curvature radius `rcurv_mm` plus Gaussian bumps (non-developable,
     /// organ-like): z = (x² + y²)/(2 r) + Σ A_k exp(−|(x, y) − c_k|² / (2σ_k²)).
-    Bumpy { rcurv_mm: f64, bumps: Vec<Bump> },
+    Bumpy {
+        /// Curvature radius of the bowl (mm).
+        rcurv_mm: f64,
+        /// The Gaussian bumps.
+        bumps: Vec<Bump>,
+    },
 }
 
 impl Surface {
@@ -96,20 +108,29 @@ pub enum Texture {
     /// A photograph stretched over the whole patch.
     Photo(Image<u8>),
     /// scene.py's checkerboard (squares of `square_mm`) with colour ramps.
-    Checker { square_mm: f64 },
+    Checker {
+        /// Square size (mm).
+        square_mm: f64,
+    },
     /// Deterministic multi-scale value noise with colour blobs (rich in corners), seeded.
-    Procedural { seed: u64 },
+    Procedural {
+        /// Seed of the noise.
+        seed: u64,
+    },
 }
 
 /// What to render.
 #[derive(Clone, Debug)]
 pub struct SceneSpec {
+    /// Camera intrinsics (px).
     pub intrinsics: Intrinsics,
+    /// Surface shape.
     pub surface: Surface,
     /// Half-size of the square patch (mm).
     pub half_mm: f64,
     /// Camera-from-surface pose: X_cam = R X_local + T (mm).
     pub pose: Se3,
+    /// Texture painted on the surface.
     pub texture: Texture,
     /// Ray-march step (mm of depth).
     pub march_step_mm: f64,
@@ -124,6 +145,7 @@ pub struct Scene {
     pub depth: DepthMap,
     /// Pixels whose ray hits the patch.
     pub roi: Mask,
+    /// Camera intrinsics (px).
     pub intrinsics: Intrinsics,
     /// Camera-from-surface pose (mm).
     pub pose: Se3,
@@ -156,15 +178,10 @@ pub fn bumpy_bowl_spec() -> SceneSpec {
     }
 }
 
-/// The texture photographs shipped in `../shared/data/textures/` (relative to the workspace).
-pub fn shared_texture_path(name: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/textures").join(name)
-}
-
-/// Load a texture photograph from `../shared/data/textures/<name>` if present, else the
-/// procedural texture with `seed` (so that the demo works without the shared data).
-pub fn photo_or_procedural(name: &str, seed: u64) -> Texture {
-    match laparo_core::io::read_rgb8(shared_texture_path(name)) {
+/// The texture photograph at `path` (e.g. `../shared/data/textures/retina.jpg`) if it can be
+/// read, else the procedural texture with `seed` (so that demos work without the shared data).
+pub fn photo_or_procedural(path: &std::path::Path, seed: u64) -> Texture {
+    match laparo_core::io::read_rgb8(path) {
         Ok(img) => Texture::Photo(img),
         Err(_) => Texture::Procedural { seed },
     }

@@ -23,26 +23,19 @@
 //! solves. The system is block-diagonal over connected components, so one factorisation solves
 //! every component separately.
 use crate::conformal::{triangle_rows, triangle_rows_cs, ConformalParams, RowConvention};
-use crate::dd::DomainSplit;
+pub use crate::dd::MIN_SPLIT_VERTICES;
 use crate::error::{CpcError, Result};
-use crate::factor_buffers::FactorBuffers;
+use crate::factor_buffers::FactorPool;
 use crate::mesh::{signed_area, CpcMesh};
+use crate::ordering::nested_dissection_points;
+pub use crate::topology::CpcTopology;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
-};
-use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{c64, Conj, MatMut, Par, Side};
 use rayon::prelude::*;
-use std::sync::{Arc, Mutex, OnceLock};
-
-/// Parts of at most this many vertices are left undivided by the nested dissection (measured with
-/// the stable partitions, 4 px, second solve on a new topology: leaf 4 4.20 ms, 8 3.84–4.01,
-/// 16 3.67–3.70, 24 3.68–3.79, 32 3.79–3.89, 48 4.00–4.04 ms: larger leaves add a little fill
-/// but give faer larger supernodes).
-pub const ND_LEAF: usize = 16;
+use std::sync::{Arc, OnceLock};
 
 /// Displacements are measured in units of this fraction of √(mesh area).
 pub const DISPLACEMENT_SCALE: f64 = 0.1;
@@ -56,274 +49,6 @@ pub fn validate_lambda(lambda: f64) -> Result<()> {
     Ok(())
 }
 
-/// The pattern and symbolic Cholesky factorisation of one mesh topology (faces, grid positions and
-/// step), shared by every [`CpcSystem`] built on it. Build it once per ROI / mesh topology and
-/// reuse it across the frames of a video through [`CpcSolver`].
-///
-/// The normal matrix is stored as a complex Hermitian n × n matrix (one unknown z_v = x_v + i y_v
-/// per vertex; see [`CpcSystem`]), lower triangle only, in the original vertex order; the
-/// fill-reducing ordering is the geometric nested dissection of the grid.
-pub struct CpcTopology {
-    n: usize,
-    grid_step_px: usize,
-    faces: Vec<[usize; 3]>,
-    p_init: Vec<[f64; 2]>,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    /// Per face, position in the value array of the entry (row f[r], column f[c]) at index 3r + c,
-    /// or `u32::MAX` when that entry lies in the (unstored) upper triangle.
-    face_pos: Vec<[u32; 9]>,
-    /// Symbolic factorisation of the whole system (built on first use when the system is split).
-    symbolic: OnceLock<SymbolicCholesky<usize>>,
-    /// Nested-dissection ordering (forward and inverse).
-    fwd: Vec<usize>,
-    inv: Vec<usize>,
-    /// Numeric factor values and workspace, reused by consecutive solves.
-    scratch: Mutex<Option<FactorBuffers>>,
-    /// Two-domain split of the top nested-dissection level (factorised on two threads), if any.
-    split: Option<DomainSplit>,
-}
-
-impl Drop for CpcTopology {
-    fn drop(&mut self) {
-        if let Some(b) = self.scratch.get_mut().ok().and_then(Option::take) {
-            b.give_back();
-        }
-    }
-}
-
-impl CpcTopology {
-    /// Analyse the sparsity pattern of `mesh` (adjacency, nested-dissection ordering, symbolic Cholesky).
-    pub fn new(mesh: &CpcMesh) -> Result<CpcTopology> {
-        let n = mesh.n_vertices();
-        if n == 0 || mesh.faces.is_empty() {
-            return Err(CpcError::invalid("mesh", "has no triangle"));
-        }
-        let ((col_ptr, row_idx, face_pos), (fwd, top)) = rayon::join(
-            || lower_pattern(n, &mesh.faces),
-            || nested_dissection_split(&mesh.p_init, mesh.grid_step_px, ND_LEAF),
-        );
-        let mut inv = vec![0usize; n];
-        for (k, &o) in fwd.iter().enumerate() {
-            inv[o] = k;
-        }
-        let split = top.and_then(|(n1, n2)| DomainSplit::new(&col_ptr, &row_idx, &fwd, n1, n2));
-        let symbolic = OnceLock::new();
-        // Without a split, the whole-system analysis now (its errors surface at assembly);
-        // with one, on first use (a fallback or `set_domain_split(false)`).
-        if split.is_none() {
-            let _ = symbolic.set(whole_symbolic(&col_ptr, &row_idx, &fwd, &inv)?);
-        }
-        Ok(CpcTopology {
-            n,
-            grid_step_px: mesh.grid_step_px,
-            faces: mesh.faces.clone(),
-            p_init: mesh.p_init.clone(),
-            col_ptr,
-            row_idx,
-            face_pos,
-            symbolic,
-            fwd,
-            inv,
-            scratch: Mutex::new(None),
-            split,
-        })
-    }
-
-    /// The whole-system symbolic factorisation (built on first use).
-    fn whole(&self) -> Result<&SymbolicCholesky<usize>> {
-        if let Some(s) = self.symbolic.get() {
-            return Ok(s);
-        }
-        let s = whole_symbolic(&self.col_ptr, &self.row_idx, &self.fwd, &self.inv)?;
-        Ok(self.symbolic.get_or_init(|| s))
-    }
-
-    /// Whether `mesh` has this topology (same grid step, vertex positions and faces).
-    pub fn matches(&self, mesh: &CpcMesh) -> bool {
-        self.grid_step_px == mesh.grid_step_px && self.faces == mesh.faces && self.p_init == mesh.p_init
-    }
-
-    /// Number of stored (lower-triangle) entries of the complex normal matrix.
-    pub fn nnz_lower(&self) -> usize {
-        self.row_idx.len()
-    }
-
-    /// Whether the system is factorised as two halves and a separator on two threads (the top
-    /// nested-dissection level; systems of at least [`crate::dd::MIN_SPLIT_VERTICES`] vertices).
-    pub fn is_split(&self) -> bool {
-        self.split.is_some()
-    }
-
-    /// Number of (complex) entries of the Cholesky factor.
-    pub fn factor_len(&self) -> usize {
-        self.whole().map_or(0, |s| s.len_val())
-    }
-
-    /// Multiply–add count of the numeric factorisation of the whole system, Σ_j c_j² over the
-    /// factor's column counts c_j (a machine-independent cost measure of an ordering).
-    pub fn factor_flops(&self) -> f64 {
-        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
-        let Ok(sym) = self.whole() else { return 0.0 };
-        match sym.raw() {
-            SymbolicCholeskyRaw::Supernodal(s) => (0..s.n_supernodes())
-                .map(|i| {
-                    let (b, e) = (s.supernode_begin()[i], s.supernode_end()[i]);
-                    let (c, r) = ((e - b) as f64, s.supernode(i).pattern().len() as f64);
-                    (0..c as usize).map(|j| (c - j as f64 + r).powi(2)).sum::<f64>()
-                })
-                .sum(),
-            SymbolicCholeskyRaw::Simplicial(_) => 0.0,
-        }
-    }
-
-    /// Factorise the Hermitian matrix with lower-triangle values `vals` and solve for `rhs` in place.
-    fn factor_solve(&self, vals: &[c64], rhs: &mut [c64], threads: usize, split: bool) -> Result<()> {
-        let n = self.n;
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let mat = SparseColMatRef::new(sym, vals);
-        // Sequential by default: on the shared, loaded 2-core machine faer's rayon path was not
-        // faster (see benchmarks/cpc.md). Its result is bitwise identical for any thread count.
-        let par = if threads > 1 { Par::rayon(threads) } else { Par::Seq };
-        if let (true, Some(dd)) = (split, &self.split) {
-            let mut x = vec![c64::new(0.0, 0.0); n];
-            // (A failed split factorisation, e.g. a separator Schur complement that is not
-            // numerically positive definite, falls back to the whole-system factorisation.)
-            if dd.factor_solve(vals, rhs, &mut x, par).is_ok() {
-                rhs.copy_from_slice(&x);
-                return Ok(());
-            }
-        }
-        let symbolic = self.whole()?;
-        // Reuse the factor buffer and workspace unless another solve holds them.
-        let mut guard = self.scratch.try_lock().ok();
-        let mut local = None;
-        let slot: &mut Option<FactorBuffers> = match guard.as_deref_mut() {
-            Some(s) => s,
-            None => &mut local,
-        };
-        let sc = slot.get_or_insert_with(|| {
-            let req = symbolic
-                .factorize_numeric_llt_scratch::<c64>(par, Default::default())
-                .or(symbolic.solve_in_place_scratch::<c64>(1, par));
-            FactorBuffers::take(symbolic.len_val(), req)
-        });
-        let llt = symbolic
-            .factorize_numeric_llt(
-                &mut sc.vals,
-                mat,
-                Side::Lower,
-                Default::default(),
-                par,
-                MemStack::new(&mut sc.mem),
-                Default::default(),
-            )
-            .map_err(|e| CpcError::Solver(format!("Cholesky failed (matrix not positive definite?): {e:?}")))?;
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            par,
-            MemStack::new(&mut sc.mem),
-        );
-        Ok(())
-    }
-}
-
-/// The lower-triangle pattern (rows ≥ column, diagonal first in every column, rows sorted) of the
-/// vertex adjacency of `faces` over `n` vertices, and per face the value positions of its 3×3 block
-/// (entry 3r + c for rows/columns in face order, `u32::MAX` for the unstored upper entries).
-fn lower_pattern(n: usize, faces: &[[usize; 3]]) -> (Vec<usize>, Vec<usize>, Vec<[u32; 9]>) {
-    // Lower-triangle adjacency (rows ≥ column, including the diagonal), at most 8 per vertex on
-    // a triangulated grid (7 in practice); spill to a sorted Vec otherwise.
-    let mut nbr = vec![[u32::MAX; 8]; n];
-    let mut cnt = vec![0u8; n];
-    let mut spill: Vec<(usize, usize)> = Vec::new();
-    for v in 0..n {
-        nbr[v][0] = v as u32;
-        cnt[v] = 1;
-    }
-    for f in faces {
-        for &c in f {
-            for &r in f {
-                if r <= c {
-                    continue;
-                }
-                let k = cnt[c] as usize;
-                if nbr[c][..k].contains(&(r as u32)) {
-                    continue;
-                }
-                if k < 8 {
-                    nbr[c][k] = r as u32;
-                    cnt[c] += 1;
-                } else {
-                    spill.push((c, r));
-                }
-            }
-        }
-    }
-    spill.sort_unstable();
-    spill.dedup();
-    let mut col_ptr = Vec::with_capacity(n + 1);
-    col_ptr.push(0usize);
-    let mut row_idx = Vec::with_capacity(4 * n);
-    let mut si = 0;
-    let mut tmp: Vec<usize> = Vec::with_capacity(16);
-    for c in 0..n {
-        tmp.clear();
-        tmp.extend(nbr[c][..cnt[c] as usize].iter().map(|&r| r as usize));
-        while si < spill.len() && spill[si].0 == c {
-            if !tmp.contains(&spill[si].1) {
-                tmp.push(spill[si].1);
-            }
-            si += 1;
-        }
-        tmp.sort_unstable();
-        row_idx.extend_from_slice(&tmp);
-        col_ptr.push(row_idx.len());
-    }
-    // Per face, the value positions of its 3×3 block (independent per face: parallel).
-    let face_pos: Vec<[u32; 9]> = faces
-        .par_iter()
-        .with_min_len(2048)
-        .map(|f| {
-            let mut fp = [u32::MAX; 9];
-            for (rl, &r) in f.iter().enumerate() {
-                for (cl, &c) in f.iter().enumerate() {
-                    if r < c {
-                        continue;
-                    }
-                    let rows = &row_idx[col_ptr[c]..col_ptr[c + 1]];
-                    let k = rows.binary_search(&r).expect("adjacency contains every face pair");
-                    fp[3 * rl + cl] = (col_ptr[c] + k) as u32;
-                }
-            }
-            fp
-        })
-        .collect();
-    (col_ptr, row_idx, face_pos)
-}
-
-/// Symbolic supernodal Cholesky factorisation of the lower pattern (`col_ptr`, `row_idx`) in the
-/// nested-dissection order `fwd` (inverse `inv`).
-fn whole_symbolic(
-    col_ptr: &[usize],
-    row_idx: &[usize],
-    fwd: &[usize],
-    inv: &[usize],
-) -> Result<SymbolicCholesky<usize>> {
-    let n = fwd.len();
-    let sym = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
-    let perm = PermRef::new_checked(fwd, inv, n);
-    // Supernodal always: faer's flop-ratio heuristic picks the simplicial factorisation for
-    // this complex system, which is 1.5× slower here (13.3 vs 8.8 ms CPU at 4 px).
-    let params = CholeskySymbolicParams {
-        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-        ..Default::default()
-    };
-    factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), params)
-        .map_err(|e| CpcError::Solver(format!("{e:?}")))
-}
-
 /// Per-face M_t and w_t, per-vertex displacement weights, and the time taken (ms).
 type FaceTerms = (Vec<[[f64; 6]; 2]>, Vec<f64>, Vec<f64>, f64);
 
@@ -334,6 +59,8 @@ type FaceTerms = (Vec<[[f64; 6]; 2]>, Vec<f64>, Vec<f64>, f64);
 pub struct CpcSolver {
     topo: Option<Arc<CpcTopology>>,
     factor_threads: usize,
+    /// Factor buffers of this solver's dropped topologies, handed to its next new topology.
+    pool: Arc<FactorPool>,
 }
 
 impl CpcSolver {
@@ -346,7 +73,7 @@ impl CpcSolver {
     /// ([`CpcSystem::topology_reused`] tells which).
     pub fn assemble(&mut self, mesh: &CpcMesh, params: &ConformalParams) -> Result<CpcSystem> {
         let cached = self.topo.as_ref().filter(|t| t.matches(mesh)).cloned();
-        let mut sys = CpcSystem::assemble_with(mesh, params, cached)?;
+        let mut sys = CpcSystem::assemble_with(mesh, params, cached, Some(&self.pool))?;
         sys.set_factor_threads(self.factor_threads);
         self.topo = Some(sys.topo.clone());
         Ok(sys)
@@ -358,7 +85,7 @@ impl CpcSolver {
         self.factor_threads = threads;
     }
 
-    /// Forget the cached topology.
+    /// Forget the cached topology (its factor buffers stay in this solver's pool for the next one).
     pub fn clear(&mut self) {
         self.topo = None;
     }
@@ -408,10 +135,15 @@ struct RealSystem {
 impl CpcSystem {
     /// Assemble the conformal and displacement terms of `mesh` and analyse the sparsity pattern.
     pub fn assemble(mesh: &CpcMesh, params: &ConformalParams) -> Result<CpcSystem> {
-        CpcSystem::assemble_with(mesh, params, None)
+        CpcSystem::assemble_with(mesh, params, None, None)
     }
 
-    fn assemble_with(mesh: &CpcMesh, params: &ConformalParams, topo: Option<Arc<CpcTopology>>) -> Result<CpcSystem> {
+    fn assemble_with(
+        mesh: &CpcMesh,
+        params: &ConformalParams,
+        topo: Option<Arc<CpcTopology>>,
+        pool: Option<&Arc<FactorPool>>,
+    ) -> Result<CpcSystem> {
         let th = params.theta_rad;
         if !(th.is_finite() && th > 0.0 && th < std::f64::consts::PI) {
             return Err(CpcError::invalid("theta", format!("{th} rad (must be in (0, π))")));
@@ -501,7 +233,7 @@ impl CpcSystem {
             Some(t) => (terms(), Ok((t, 0.0))),
             None => rayon::join(terms, || {
                 let t = std::time::Instant::now();
-                CpcTopology::new(mesh).map(|tp| (Arc::new(tp), t.elapsed().as_secs_f64() * 1e3))
+                CpcTopology::with_pool(mesh, pool.cloned()).map(|tp| (Arc::new(tp), t.elapsed().as_secs_f64() * 1e3))
             }),
         };
         let (tri_rows, tri_w, disp_w, ms_terms) = terms?;
@@ -815,108 +547,4 @@ impl RealSystem {
                 .map_err(|e| format!("{e:?}"))?;
         Ok(RealSystem { col_ptr, row_idx, conf_vals, diag_pos, symbolic })
     }
-}
-
-/// Geometric nested-dissection order of the mesh vertices (old index at each new position):
-/// split the grid box along its longer side by one grid line (a vertex separator of the
-/// triangulated grid), order both halves recursively, then the separator.
-pub fn nested_dissection(mesh: &CpcMesh) -> Vec<usize> {
-    nested_dissection_points(&mesh.p_init, mesh.grid_step_px)
-}
-
-/// [`nested_dissection`] of grid points `p_init` (px) on a grid of step `grid_step_px`.
-pub fn nested_dissection_points(p_init: &[[f64; 2]], grid_step_px: usize) -> Vec<usize> {
-    nested_dissection_leaf(p_init, grid_step_px, ND_LEAF)
-}
-
-/// Parts larger than this are ordered on two threads (`rayon::join`); the order is the same
-/// whatever the thread count.
-const ND_PARALLEL_MIN: usize = 2048;
-
-/// One nested-dissection level of `ids` (grid coordinates `gc`): split the bounding box along its
-/// longer side by the middle grid line and stably partition `ids` in place into
-/// [left | right | separator] (`scratch`: same length). Returns the sizes (left, right), or `None`
-/// when the part is not split (at most `leaf` vertices, or a single point).
-fn nd_partition(ids: &mut [u32], scratch: &mut [u32], gc: &[[i32; 2]], leaf: usize) -> Option<(usize, usize)> {
-    if ids.len() <= leaf {
-        return None;
-    }
-    let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
-    for &v in ids.iter() {
-        let g = gc[v as usize];
-        for k in 0..2 {
-            lo[k] = lo[k].min(g[k]);
-            hi[k] = hi[k].max(g[k]);
-        }
-    }
-    let ax = if hi[0] - lo[0] >= hi[1] - lo[1] { 0 } else { 1 };
-    if hi[ax] == lo[ax] {
-        return None;
-    }
-    let mid = (lo[ax] + hi[ax]) / 2;
-    let (mut nl, mut nr) = (0, 0);
-    for &v in ids.iter() {
-        let c = gc[v as usize][ax];
-        nl += (c < mid) as usize;
-        nr += (c > mid) as usize;
-    }
-    let (mut il, mut ir, mut is) = (0, nl, nl + nr);
-    for &v in ids.iter() {
-        let c = gc[v as usize][ax];
-        let slot = if c < mid {
-            &mut il
-        } else if c > mid {
-            &mut ir
-        } else {
-            &mut is
-        };
-        scratch[*slot] = v;
-        *slot += 1;
-    }
-    ids.copy_from_slice(scratch);
-    Some((nl, nr))
-}
-
-/// Order `ids` in place: [order(left) | order(right) | separator], recursively.
-fn nd_recurse(ids: &mut [u32], scratch: &mut [u32], gc: &[[i32; 2]], leaf: usize) {
-    let Some((nl, nr)) = nd_partition(ids, scratch, gc, leaf) else {
-        return;
-    };
-    let (left, rest) = ids.split_at_mut(nl);
-    let (sl, srest) = scratch.split_at_mut(nl);
-    let right = &mut rest[..nr];
-    let sr = &mut srest[..nr];
-    if nl + nr >= ND_PARALLEL_MIN {
-        rayon::join(|| nd_recurse(left, sl, gc, leaf), || nd_recurse(right, sr, gc, leaf));
-    } else {
-        nd_recurse(left, sl, gc, leaf);
-        nd_recurse(right, sr, gc, leaf);
-    }
-}
-
-/// The nested-dissection order of [`nested_dissection_leaf`] and the sizes (left, right) of the
-/// two parts of its top level (the separator follows them), `None` when the top is not split.
-/// Linear work per level (stable in-place partitions), the two halves of large parts on two threads.
-fn nested_dissection_split(
-    p_init: &[[f64; 2]],
-    grid_step_px: usize,
-    leaf: usize,
-) -> (Vec<usize>, Option<(usize, usize)>) {
-    let s = grid_step_px as f64;
-    let gc: Vec<[i32; 2]> = p_init.iter().map(|p| [(p[0] / s).round() as i32, (p[1] / s).round() as i32]).collect();
-    let n = p_init.len();
-    let mut ids: Vec<u32> = (0..n as u32).collect();
-    let mut scratch = vec![0u32; n];
-    let top = nd_partition(&mut ids, &mut scratch, &gc, leaf);
-    if let Some((nl, nr)) = top {
-        let (left, rest) = ids.split_at_mut(nl);
-        let (sl, srest) = scratch.split_at_mut(nl);
-        rayon::join(|| nd_recurse(left, sl, &gc, leaf), || nd_recurse(&mut rest[..nr], &mut srest[..nr], &gc, leaf));
-    }
-    (ids.into_iter().map(|v| v as usize).collect(), top)
-}
-
-/// [`nested_dissection_points`] with parts of at most `leaf` vertices left undivided.
-pub fn nested_dissection_leaf(p_init: &[[f64; 2]], grid_step_px: usize, leaf: usize) -> Vec<usize> {
-    nested_dissection_split(p_init, grid_step_px, leaf).0
 }

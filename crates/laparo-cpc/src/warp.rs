@@ -32,11 +32,13 @@ pub struct Warp {
     pub p_flat: Vec<[f64; 2]>,
     /// Canvas origin in the flattened frame (integer).
     pub origin: [f64; 2],
-    /// Canvas size (px).
+    /// Canvas width (px).
     pub width: usize,
+    /// Canvas height (px).
     pub height: usize,
-    /// Original image size (px).
+    /// Original image width (px).
     pub src_width: usize,
+    /// Original image height (px).
     pub src_height: usize,
     /// Per face: affine map canvas → original, [A_x, A_y, a_x, a_y, l00, l01, l10, l11]: original
     /// anchor A, canvas anchor a and linear part (q ↦ A + L (q − a)); one cache line per face.

@@ -121,7 +121,7 @@ fn video_pipeline_matches_single_frame() {
 #[test]
 fn two_domain_split_matches_the_whole_system_factorisation() {
     let (_, mesh) = bowl_mesh(2);
-    assert!(mesh.n_vertices() >= laparo_cpc::dd::MIN_SPLIT_VERTICES);
+    assert!(mesh.n_vertices() >= laparo_cpc::solve::MIN_SPLIT_VERTICES);
     let mut sys = CpcSystem::assemble(&mesh, &ConformalParams::default()).unwrap();
     assert!(sys.topology().is_split());
     let gap = |p: &[[f64; 2]], q: &[[f64; 2]]| {

@@ -213,7 +213,7 @@ fn nested_dissection_is_a_permutation() {
     let (k, depth) = flat_scene(120, 90);
     let roi = Image::filled(120, 90, 1, true);
     let m = CpcMesh::build(&roi, &depth, &k, &MeshParams { grid_step_px: 3, ..Default::default() }).unwrap();
-    let mut o = solve::nested_dissection(&m);
+    let mut o = ordering::nested_dissection(&m);
     assert_eq!(o.len(), m.n_vertices());
     o.sort_unstable();
     assert!(o.iter().enumerate().all(|(i, &v)| i == v));

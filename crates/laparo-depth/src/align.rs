@@ -15,6 +15,7 @@
 //! An aligned disparity `d̂ ≤ 0` (or NaN, e.g. from a zero median) means "too far": its
 //! depth is `+∞`, clamped to the far end of the range.
 use crate::error::{DepthError, Result};
+use laparo_core::stats::fast_median;
 use serde::{Deserialize, Serialize};
 
 /// Depth range (metres) to which aligned predicted depth is clamped.
@@ -140,7 +141,9 @@ impl std::fmt::Display for PredKind {
 /// Clamp range of aligned predicted depth, in metres.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DepthRange {
+    /// Near clamp (m).
     pub min_m: f64,
+    /// Far clamp (m).
     pub max_m: f64,
 }
 
@@ -173,7 +176,9 @@ impl DepthRange {
 /// Scale and shift applied in disparity space: `d̂ = scale · d + shift`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AlignParams {
+    /// Scale s of the aligned disparity s d + t.
     pub scale: f64,
+    /// Shift t of the aligned disparity s d + t.
     pub shift: f64,
 }
 
@@ -191,87 +196,8 @@ impl AlignParams {
     }
 }
 
-/// Median of `v` (reorders `v`); the mean of the two middle values for an even count (numpy).
-/// NaN for an empty slice.
-pub fn median(v: &mut [f64]) -> f64 {
-    let n = v.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    let k = n / 2;
-    let (lo, mid, _) = v.select_nth_unstable_by(k, |a, b| a.partial_cmp(b).unwrap_or_else(|| a.total_cmp(b)));
-    let hi = *mid;
-    if n % 2 == 1 {
-        hi
-    } else {
-        let below = lo.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        (below + hi) / 2.0
-    }
-}
-
-/// Order-preserving u64 key of an f64 (for non-NaN values: `a < b` ⇔ `key(a) < key(b)`).
-#[inline(always)]
-fn order_key(x: f64) -> u64 {
-    let b = x.to_bits();
-    if b >> 63 == 1 {
-        !b
-    } else {
-        b | (1 << 63)
-    }
-}
-
 thread_local! {
-    static HIST: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
     static GT_SCRATCH: std::cell::Cell<Vec<f64>> = const { std::cell::Cell::new(Vec::new()) };
-}
-
-/// Median of `v` (not reordered; same value as [`median`]) by one radix-histogram pass on the
-/// top 16 bits of the order key, then a selection among the few values of the median's
-/// bucket(s). `scratch` is reused. Hand-written: a full copy + quickselect costs ~3× more.
-pub fn median_of(v: &[f64], scratch: &mut Vec<f64>) -> f64 {
-    let n = v.len();
-    scratch.clear();
-    if n < 4096 {
-        scratch.extend_from_slice(v);
-        return median(scratch);
-    }
-    HIST.with(|h| {
-        let mut hist = h.borrow_mut();
-        hist.clear();
-        hist.resize(1 << 16, 0);
-        for &x in v {
-            hist[(order_key(x) >> 48) as usize] += 1;
-        }
-        let (rlo, rhi) = ((n - 1) / 2, n / 2);
-        let (mut cum, mut blo, mut below_lo, mut bhi) = (0usize, usize::MAX, 0usize, 0usize);
-        for (b, &c) in hist.iter().enumerate() {
-            let c = c as usize;
-            if blo == usize::MAX && cum + c > rlo {
-                blo = b;
-                below_lo = cum;
-            }
-            if cum + c > rhi {
-                bhi = b;
-                break;
-            }
-            cum += c;
-        }
-        for &x in v {
-            let b = (order_key(x) >> 48) as usize;
-            if b >= blo && b <= bhi {
-                scratch.push(x);
-            }
-        }
-        let (k_lo, k_hi) = (rlo - below_lo, rhi - below_lo);
-        let (lo, mid, _) = scratch.select_nth_unstable_by(k_hi, |a, b| order_key(*a).cmp(&order_key(*b)));
-        let hi = *mid;
-        if k_lo == k_hi {
-            hi
-        } else {
-            let below = lo.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            (below + hi) / 2.0
-        }
-    })
 }
 
 /// s-alignment: `s̃ = med(d*) / med(d)` (NaN when `med(d) = 0`, as the reference).
@@ -280,16 +206,16 @@ pub fn fit_scale(d: &[f64], d_gt: &[f64], scratch: &mut Vec<f64>) -> AlignParams
     // The two medians are independent: one per core for large inputs.
     let (md, mg) = if d.len() >= 1 << 16 {
         rayon::join(
-            || median_of(d, scratch),
+            || fast_median(d, scratch),
             || {
                 let mut own = GT_SCRATCH.with(|c| c.take());
-                let m = median_of(d_gt, &mut own);
+                let m = fast_median(d_gt, &mut own);
                 GT_SCRATCH.with(|c| c.replace(own));
                 m
             },
         )
     } else {
-        (median_of(d, scratch), median_of(d_gt, scratch))
+        (fast_median(d, scratch), fast_median(d_gt, scratch))
     };
     let scale = if md != 0.0 { mg / md } else { f64::NAN };
     AlignParams { scale, shift: 0.0 }
@@ -334,31 +260,6 @@ pub fn fit(alignment: Alignment, d: &[f64], d_gt: &[f64], scratch: &mut Vec<f64>
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn median_odd_even() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
-        assert_eq!(median(&mut [5.0]), 5.0);
-        assert!(median(&mut []).is_nan());
-        assert_eq!(median(&mut [-1.0, 7.0]), 3.0);
-    }
-
-    #[test]
-    fn radix_median_equals_sorting_median() {
-        let (pred, gt) = crate::bench::synthetic_pair(101, 97, 3);
-        let mut s = Vec::new();
-        for v in [pred.clone(), gt.clone(), pred[..9000].to_vec(), pred[..9001].to_vec()] {
-            let mut sorted = v.clone();
-            sorted.sort_by(f64::total_cmp);
-            let n = sorted.len();
-            let expect = if n % 2 == 1 { sorted[n / 2] } else { (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0 };
-            assert_eq!(median_of(&v, &mut s), expect);
-        }
-        // Many ties, negative values.
-        let v: Vec<f64> = (0..10000).map(|i| ((i % 7) as f64 - 3.0) * 0.5).collect();
-        assert_eq!(median_of(&v, &mut s), 0.0);
-    }
 
     #[test]
     fn scale_is_ratio_of_medians() {

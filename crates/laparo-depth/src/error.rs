@@ -9,13 +9,28 @@ pub enum DepthError {
     Core(#[from] laparo_core::CoreError),
     /// An input that names a file is unusable (size mismatch, all invalid, ...).
     #[error("{path}: {msg}")]
-    File { path: PathBuf, msg: String },
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        msg: String,
+    },
     /// A parameter or an in-memory value is invalid (the message names it).
     #[error("invalid {what}: {msg}")]
-    Invalid { what: String, msg: String },
+    Invalid {
+        /// The parameter or input.
+        what: String,
+        /// What is wrong with it.
+        msg: String,
+    },
     /// The manifest failed validation; every problem is listed.
     #[error("manifest {path}: {} problem(s):\n  {}", problems.len(), problems.join("\n  "))]
-    Manifest { path: PathBuf, problems: Vec<String> },
+    Manifest {
+        /// The manifest file.
+        path: PathBuf,
+        /// Every problem found.
+        problems: Vec<String>,
+    },
 }
 
 /// Result alias for laparo-depth.

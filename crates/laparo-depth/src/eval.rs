@@ -65,7 +65,9 @@ fn check_size(a: (usize, usize), a_path: &Path, b: (usize, usize), b_path: &Path
 
 /// Loaded ground truth of one frame.
 pub struct LoadedGt {
+    /// Ground-truth depth (m), 0 / non-finite = invalid.
     pub gt_m: Image<f64>,
+    /// ROI mask, if any (true = evaluated).
     pub mask: Option<Mask>,
 }
 
@@ -119,7 +121,9 @@ pub fn evaluate_files(
 pub struct EvalConfig {
     /// Methods to evaluate (manifest names); all when empty.
     pub methods: Vec<String>,
+    /// Alignments to evaluate.
     pub alignments: Vec<Alignment>,
+    /// Handling of invalid predictions on valid GT pixels.
     pub invalid_pred: InvalidPredPolicy,
 }
 
@@ -136,19 +140,26 @@ pub struct ImageResult {
     pub frame: usize,
     /// Index in [`EvalOutput::methods`].
     pub method: usize,
+    /// Metrics of this image under every evaluated alignment.
     pub metrics: PairMetrics,
 }
 
 /// Everything an evaluation produced, in deterministic order.
 #[derive(Clone, Debug)]
 pub struct EvalOutput {
+    /// The evaluated methods.
     pub methods: Vec<MethodSpec>,
+    /// The evaluated alignments.
     pub alignments: Vec<Alignment>,
+    /// Names of scenes and perturbations (indices of the frames).
     pub layout: Layout,
+    /// The evaluated frames.
     pub frames: Vec<ResolvedFrame>,
     /// Sorted by (frame, method).
     pub images: Vec<ImageResult>,
+    /// Options used for every image.
     pub options: PairOptions,
+    /// The manifest that was evaluated.
     pub manifest: PathBuf,
 }
 

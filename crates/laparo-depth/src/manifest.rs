@@ -44,6 +44,10 @@
 //! `<root>/predictions/<method>/<scene>/<perturbation>/<level>/<name>.<ext>`, where `<level>`
 //! is `s0`/`clean`/`0` (severity 0), `s<k>` or `<k>` (severity k), or any other name (a
 //! sequence; an optional `<level>/gesture_start.txt` holds the first perturbed frame name).
+//!
+//! Length (~650 lines): ~50 lines of format documentation above, the manifest types, their
+//! resolution/validation and the scaffolding from a folder layout, which must produce exactly what
+//! the validation accepts.
 use crate::align::{DepthRange, PredKind};
 use crate::error::{DepthError, Result};
 use crate::robustness::{Layout, CLEAN};
@@ -73,7 +77,9 @@ pub fn perturbation_title(key: &str) -> String {
 /// A benchmarked method.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MethodSpec {
+    /// Method name (column / legend label).
     pub name: String,
+    /// Whether predictions are depth or disparity.
     pub kind: PredKind,
     /// Path template of a frame's prediction, relative to the manifest folder.
     pub predictions: String,
@@ -82,8 +88,11 @@ pub struct MethodSpec {
 /// A deformation/incision sequence: frames before `gesture_start` are the clean reference.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SequenceSpec {
+    /// Scene the sequence belongs to.
     pub scene: String,
+    /// Perturbation (gesture) the sequence shows.
     pub perturbation: String,
+    /// Sequence name.
     pub name: String,
     /// Name of the first frame at or after the gesture (frames are ordered by name).
     #[serde(default)]
@@ -93,19 +102,29 @@ pub struct SequenceSpec {
 /// One image with its ground truth.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FrameSpec {
+    /// Unique frame id.
     pub id: String,
+    /// Scene name.
     pub scene: String,
+    /// Perturbation name (`clean` for unperturbed frames).
     pub perturbation: String,
+    /// Severity level 1..L (0 = clean); assigned for sequence frames.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub severity: Option<u32>,
+    /// Sequence this frame belongs to, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sequence: Option<String>,
+    /// Frame name (default: last `/` component of the id).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
+    /// RGB image, relative to the manifest folder.
     pub rgb: PathBuf,
+    /// Ground-truth depth, relative to the manifest folder.
     pub gt: PathBuf,
+    /// ROI mask, relative to the manifest folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mask: Option<PathBuf>,
+    /// Unit of this frame's GT (default: the manifest's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gt_unit: Option<DepthUnit>,
 }
@@ -124,21 +143,30 @@ fn default_version() -> u32 {
 /// A RoDEM evaluation manifest (see the module documentation for the format).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
+    /// Manifest format version (1).
     #[serde(default = "default_version")]
     pub version: u32,
+    /// Unit of the GT depth files.
     pub gt_unit: DepthUnit,
+    /// Near clamp of aligned depth (m; default 0.01).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub depth_min_m: Option<f64>,
+    /// Far clamp of aligned depth (m; default 0.5).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub depth_max_m: Option<f64>,
+    /// Baseline method of mCE (default: the first method).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub baseline: Option<String>,
+    /// Frames (ids) drawn as colour error maps.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub error_map_frames: Vec<String>,
+    /// The benchmarked methods.
     #[serde(default)]
     pub methods: Vec<MethodSpec>,
+    /// Deformation/incision sequences.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sequences: Vec<SequenceSpec>,
+    /// The frames with their ground truth.
     #[serde(default)]
     pub frames: Vec<FrameSpec>,
     /// Folder the relative paths are resolved against (the manifest's folder).
@@ -152,32 +180,49 @@ pub struct Manifest {
 /// A frame with its indices and resolved paths.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ResolvedFrame {
+    /// Position in the manifest.
     pub index: usize,
+    /// Unique frame id.
     pub id: String,
+    /// Scene index into the layout.
     pub scene: usize,
+    /// Perturbation index into the layout.
     pub perturbation: usize,
+    /// Severity (0 = clean).
     pub severity: u32,
+    /// RGB image (resolved path).
     pub rgb: PathBuf,
+    /// Ground-truth depth (resolved path).
     pub gt: PathBuf,
+    /// ROI mask (resolved path), if any.
     pub mask: Option<PathBuf>,
+    /// Unit of the GT file.
     pub gt_unit: DepthUnit,
 }
 
 /// The manifest with names turned into indices and severities of sequence frames assigned.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Resolved {
+    /// Names of scenes and perturbations.
     pub layout: Layout,
+    /// The frames, in manifest order.
     pub frames: Vec<ResolvedFrame>,
+    /// Depth clamp of aligned predictions.
     pub range: DepthRange,
 }
 
 /// Problems found by [`Manifest::validate`]; `problems` make the manifest unusable.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct ValidationReport {
+    /// Problems that make the manifest unusable.
     pub problems: Vec<String>,
+    /// Suspicious but usable entries.
     pub warnings: Vec<String>,
+    /// Number of frames.
     pub n_frames: usize,
+    /// Number of methods.
     pub n_methods: usize,
+    /// Number of files checked for existence.
     pub n_files_checked: usize,
 }
 

@@ -1,6 +1,11 @@
 //! Reports of a RoDEM evaluation: `results.json`, a per-image CSV, markdown tables shaped like
 //! thesis Tables 3.3–3.5 (accuracy and robustness per alignment) and C.3–C.16 (per
 //! perturbation and severity), radar charts (Fig. 3.4) and colour error maps (Fig. C.1).
+//!
+//! Length (~690 lines): text outputs (JSON, CSV, markdown, terminal; first half) and figures (radar
+//! charts, error maps; second half) of one evaluation share the [`Summary`] types and the
+//! figure/table naming; both halves are under 450 lines. To be split into `report/{text,figures}`
+//! once the radar-chart rework of issue 10 has landed.
 use crate::align::Alignment;
 use crate::error::{DepthError, Result};
 use crate::eval::EvalOutput;
@@ -14,7 +19,9 @@ use std::path::{Path, PathBuf};
 /// Mean of every metric over all images of a method (one alignment).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MethodMeans {
+    /// Method name.
     pub method: String,
+    /// Number of images averaged.
     pub n_images: usize,
     /// Sum of invalid predictions on valid GT pixels over all images.
     pub n_invalid_pred: usize,
@@ -25,15 +32,20 @@ pub struct MethodMeans {
 /// Accuracy and robustness of every method under one alignment.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlignmentSummary {
+    /// The alignment these results are for.
     pub alignment: Alignment,
+    /// Mean accuracy of every method.
     pub means: Vec<MethodMeans>,
+    /// Robustness of every method against the baseline.
     pub robustness: Vec<MethodRobustness>,
 }
 
 /// The summary of an evaluation.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Summary {
+    /// Baseline method of mCE.
     pub baseline: String,
+    /// Results per alignment.
     pub alignments: Vec<AlignmentSummary>,
 }
 
@@ -402,8 +414,9 @@ pub fn remove_stale_results(dir: &Path) -> Result<()> {
 use crate::eval::{load_gt, read_prediction};
 use crate::manifest::Manifest;
 use crate::metrics::aligned_depth_map;
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
 use laparo_core::image::Image;
+use laparo_core::plot::with_colorbar;
 use laparo_core::plot::PlotResult;
 use plotters::coord::Shift;
 use plotters::prelude::*;

@@ -73,22 +73,29 @@ pub struct Observation {
 /// Names of scenes and perturbations referenced by [`Observation`] indices.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Layout {
+    /// Scene names.
     pub scenes: Vec<String>,
+    /// Perturbation names.
     pub perturbations: Vec<String>,
 }
 
 /// Mean error of one severity level of one (scene, perturbation) cell.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SeverityError {
+    /// Severity level (0 = clean reference).
     pub severity: u32,
+    /// Frames averaged.
     pub n_frames: usize,
+    /// Mean error of those frames.
     pub mean: ByError<f64>,
 }
 
 /// Robustness of one method on one (scene, perturbation) cell.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CellRobustness {
+    /// Scene name.
     pub scene: String,
+    /// Perturbation name.
     pub perturbation: String,
     /// Mean error of the clean reference (None when the cell has none).
     pub clean: Option<ByError<f64>>,
@@ -105,8 +112,11 @@ pub struct CellRobustness {
 /// Per-perturbation robustness averaged over scenes (the axes of the radar charts, Fig. 3.4).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PerturbationRobustness {
+    /// Perturbation name.
     pub perturbation: String,
+    /// CE (eq. 3.3) averaged over scenes.
     pub ce: ByError<Option<f64>>,
+    /// RR (eq. 3.4) averaged over scenes.
     pub rr: ByError<Option<f64>>,
     /// Mean error per severity over scenes, severity 0 = clean reference (Tables C.3–C.16).
     pub by_severity: Vec<SeverityError>,
@@ -115,16 +125,21 @@ pub struct PerturbationRobustness {
 /// Accuracy and robustness of one method (one row of Tables 3.3–3.5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MethodRobustness {
+    /// Method name.
     pub method: String,
+    /// Baseline method of CE/mCE.
     pub baseline: String,
     /// Mean error over the distinct clean frames.
     pub clean_error: ByError<Option<f64>>,
+    /// Number of distinct clean frames.
     pub n_clean_frames: usize,
     /// mCE (eq. 3.3).
     pub mce: ByError<Option<f64>>,
     /// mRR (eq. 3.4).
     pub mrr: ByError<Option<f64>>,
+    /// Robustness per (scene, perturbation) cell.
     pub cells: Vec<CellRobustness>,
+    /// Robustness per perturbation (averaged over scenes).
     pub perturbations: Vec<PerturbationRobustness>,
 }
 

@@ -14,6 +14,8 @@
 //!   eq. 3.4 for gesture perturbations).
 //!
 //! Everything is deterministic per seed (ChaCha8).
+//!
+//! Length: ~540 lines of code; the rest are its tests.
 use crate::align::PredKind;
 use crate::perturb::{Fbm, ValueNoise};
 use laparo_core::{CoreError, DepthMap, DepthUnit, Image, Intrinsics, Result};
@@ -344,7 +346,9 @@ impl Gesture {
 /// A gesture sequence: frames `..gesture_frame` show the untouched scene (clean reference).
 #[derive(Clone, Debug)]
 pub struct SyntheticSequence {
+    /// The gesture shown.
     pub gesture: Gesture,
+    /// The frames, untouched scene first.
     pub frames: Vec<SyntheticScene>,
     /// Index of the first frame at or after the gesture.
     pub gesture_frame: usize,
@@ -410,12 +414,19 @@ pub fn organ_sequence(
 /// The output is `scale·q̃ + shift` (disparity) or `scale/q̃ + shift` (depth).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SyntheticMethod {
+    /// Method name.
     pub name: String,
+    /// Whether the output is depth or disparity.
     pub kind: PredKind,
+    /// Output scale.
     pub scale: f64,
+    /// Output shift.
     pub shift: f64,
+    /// Relative noise amplitude a0.
     pub noise_rel: f64,
+    /// Base flattening f0 towards the mean disparity.
     pub flatten: f64,
+    /// Extra flattening and noise per unit of image degradation.
     pub sensitivity: f64,
 }
 

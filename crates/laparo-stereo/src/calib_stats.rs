@@ -308,19 +308,37 @@ pub fn summarize(stats: &[CalibStats]) -> StatsSummary {
 /// A markdown table shaped like thesis Table 3.6 (μ, σ of the six Euler angles, degrees), one row
 /// per `(label, summary)`.
 pub fn table_3_6_markdown(rows: &[(String, StatsSummary)]) -> String {
-    let mut s = String::new();
-    s.push_str(
-        "| | n | R_x^l2s μ | σ | R_y^l2s μ | σ | R_z^l2s μ | σ | R_x^r2s μ | σ | R_y^r2s μ | σ | R_z^r2s μ | σ |\n",
-    );
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    table_3_6(rows).to_markdown()
+}
+
+/// Table 3.6 as data (rendered by [`table_3_6_markdown`], or to HTML with
+/// [`laparo_core::table::Table::to_html`]).
+pub fn table_3_6(rows: &[(String, StatsSummary)]) -> laparo_core::table::Table {
+    let mut t = laparo_core::table::Table::new([
+        "",
+        "n",
+        "R_x^l2s μ",
+        "σ",
+        "R_y^l2s μ",
+        "σ",
+        "R_z^l2s μ",
+        "σ",
+        "R_x^r2s μ",
+        "σ",
+        "R_y^r2s μ",
+        "σ",
+        "R_z^r2s μ",
+        "σ",
+    ]);
     for (label, m) in rows {
-        s.push_str(&format!("| {label} | {} |", m.n));
+        let mut r = vec![label.clone(), m.n.to_string()];
         for a in m.left_euler_deg.iter().chain(m.right_euler_deg.iter()) {
-            s.push_str(&format!(" {:.4} | {:.4} |", a.mean, a.std));
+            r.push(format!("{:.4}", a.mean));
+            r.push(format!("{:.4}", a.std));
         }
-        s.push('\n');
+        t.push_row(r);
     }
-    s
+    t
 }
 
 /// A markdown table of the other quantities (principal-point offset, baseline, distortion).

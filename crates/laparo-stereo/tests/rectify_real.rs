@@ -85,11 +85,6 @@ fn vertical_offsets(
     out
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 #[test]
 fn rectified_scared_pair_rows_agree_with_opencv_rectification() {
     let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"));
@@ -113,6 +108,7 @@ fn rectified_scared_pair_rows_agree_with_opencv_rectification() {
         (-R..=R).all(|j| (-R..=R).all(|i| m.get((x + i) as usize, (y + j) as usize, 0)))
     };
     let fixed = vertical_offsets(&gray(&lr), &gray(&rr), &|x, y| ok(&ml, x, y) && ok(&mr, x, y), (-130, 30));
+    let median = |mut v: Vec<f64>| laparo_core::stats::median(&mut v);
     let (m_raw, m_fix) = (median(raw.clone()), median(fixed.clone()));
     let abs_fix = median(fixed.iter().map(|v| v.abs()).collect());
     eprintln!(

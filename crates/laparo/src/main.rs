@@ -38,6 +38,12 @@ enum Command {
     Mpm(cmd::mpm::MpmCmd),
     /// Run every module on built-in data and write an HTML report.
     Demo(demo::DemoArgs),
+    /// Benchmarks moved to the separate `laparo-bench` binary (this only says how to run it).
+    Bench {
+        /// Ignored; pass them to `laparo-bench`.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+        args: Vec<String>,
+    },
 }
 
 fn main() {
@@ -49,6 +55,10 @@ fn main() {
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
         Command::Demo(a) => demo::run(a),
+        Command::Bench { .. } => Err(anyhow::anyhow!(
+            "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \
+             (`cargo run --release -p laparo-bench -- --help`, see BENCHMARKS.md)"
+        )),
     };
     // The command runs on a worker of the rayon pool, not on the main thread: the library's
     // parallel regions (thousands per MPM run, a dozen per CPC frame) then start and end on a pool

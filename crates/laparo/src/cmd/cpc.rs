@@ -3,11 +3,9 @@
 //! * `warp`: CPC on one frame (image + metric depth + intrinsics + ROI) → warped PNG, validity mask,
 //!   dense coordinate maps (.npy) and `stats.json`;
 //! * `lambda`: the λ sweep of §4.5.4 (δ_area curve, Gompertz/exponential fit, ℓ) as CSV + PNG;
-//! * `scene`: render a synthetic scene (plane, cylinder, bumpy bowl) to files usable by `warp`;
-//! * `bench`: mesh + assembly + solve + warp timings at several grid steps on the bumpy-bowl scene.
+//! * `scene`: render a synthetic scene (plane, cylinder, bumpy bowl) to files usable by `warp`.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::atomic::write_atomic;
 use laparo_core::camera::Intrinsics;
 use laparo_core::depth::{DepthMap, DepthUnit};
@@ -16,7 +14,7 @@ use laparo_core::io;
 use laparo_cpc::lambda::{auto_lambda, default_lambda_grid};
 use laparo_cpc::pipeline::LambdaChoice;
 use laparo_cpc::scene::{self, SceneSpec, Surface, Texture};
-use laparo_cpc::{cpc_warp, metrics, ConformalParams, CpcMesh, CpcParams, CpcSolver, CpcSystem, MeshParams, Warp};
+use laparo_cpc::{cpc_warp, ConformalParams, CpcMesh, CpcParams, CpcSystem, MeshParams};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -29,8 +27,6 @@ pub enum CpcCmd {
     Lambda(LambdaArgs),
     /// Render a synthetic textured surface (image.png, depth.npy in mm, mask.png, intrinsics.json, pose.json).
     Scene(SceneArgs),
-    /// Time mesh + assembly + solve + warp at several grid steps on the bumpy-bowl scene.
-    Bench(BenchArgs),
 }
 
 #[derive(Args, Clone)]
@@ -122,34 +118,11 @@ pub struct SceneArgs {
     pub out: PathBuf,
 }
 
-#[derive(Args)]
-pub struct BenchArgs {
-    /// scene.npz written by ../shared/bench/cpc_ref/scene.py (default: the Rust port of that scene).
-    #[arg(long)]
-    pub scene_npz: Option<PathBuf>,
-    /// Grid steps (px).
-    #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 4, 2])]
-    pub steps: Vec<usize>,
-    /// Repeats per measurement (median reported).
-    #[arg(long, default_value_t = 9)]
-    pub repeats: usize,
-    /// λ used for the timed solve.
-    #[arg(long, default_value_t = 0.9)]
-    pub lambda: f64,
-    /// Write the figures as JSON here.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Threads of the numeric Cholesky factorisation (1 = sequential; the result is the same).
-    #[arg(long, default_value_t = 1)]
-    pub solver_threads: usize,
-}
-
 pub fn run(c: CpcCmd) -> Result<()> {
     match c {
         CpcCmd::Warp(a) => warp(a),
         CpcCmd::Lambda(a) => lambda(a),
         CpcCmd::Scene(a) => render_scene(a),
-        CpcCmd::Bench(a) => bench(a),
     }
 }
 
@@ -305,7 +278,10 @@ fn render_scene(a: SceneArgs) -> Result<()> {
     spec.texture = match a.texture.as_str() {
         "checker" => Texture::Checker { square_mm: 5.0 },
         "procedural" => Texture::Procedural { seed: 1 },
-        name => scene::photo_or_procedural(name, 1),
+        name => match crate::demo::shared_data(&format!("textures/{name}")) {
+            Some(p) => scene::photo_or_procedural(&p, 1),
+            None => Texture::Procedural { seed: 1 },
+        },
     };
     if a.surface == "bowl" {
         spec.texture = Texture::Checker { square_mm: 5.0 };
@@ -324,177 +300,5 @@ fn render_scene(a: SceneArgs) -> Result<()> {
     write_atomic(&out.join("pose.json"), serde_json::to_string_pretty(&pose)?.as_bytes())?;
     io::write_npy_f32(out.join("surface_xy.npy"), &f32_map(&sc.surface_xy))?;
     println!("scene {} ({} ROI px) written to {}", a.surface, sc.roi.count(), out.display());
-    Ok(())
-}
-
-fn vmin(v: &[f64]) -> f64 {
-    v.iter().cloned().fold(f64::INFINITY, f64::min)
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    v[v.len() / 2]
-}
-
-fn bench(a: BenchArgs) -> Result<()> {
-    laparo_cpc::solve::validate_lambda(a.lambda)?;
-    if a.repeats == 0 {
-        bail!("--repeats must be at least 1");
-    }
-    let spec = scene::bumpy_bowl_spec();
-    let (image, depth, roi, source) = match &a.scene_npz {
-        Some(p) => {
-            let d = io::read_npz(p, Some("depth")).with_context(|| format!("reading depth from {}", p.display()))?;
-            let depth = DepthMap::new(
-                d.width,
-                d.height,
-                DepthUnit::Mm,
-                d.data.iter().map(|&z| if z.is_finite() { z } else { f64::NAN }).collect(),
-            )?;
-            let img = io::read_npz(p, Some("img")).with_context(|| format!("reading img from {}", p.display()))?;
-            let image = img.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8);
-            let roi = depth.valid_mask();
-            (image, depth, roi, p.display().to_string())
-        }
-        None => {
-            let sc = spec.render()?;
-            (sc.image, sc.depth, sc.roi, "Rust port of scene.py".to_string())
-        }
-    };
-    let k = spec.intrinsics;
-    println!(
-        "bumpy bowl 640x480 ({source}), ROI {} px ({:.1} %), λ = {}, median of {} repeats, {} rayon threads, {} solver thread(s)",
-        roi.count(),
-        100.0 * roi.count() as f64 / (640.0 * 480.0),
-        a.lambda,
-        a.repeats,
-        rayon::current_num_threads(),
-        a.solver_threads
-    );
-    let pb = ProgressBar::new((a.steps.len() * a.repeats) as u64);
-    pb.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} {msg}").unwrap());
-    let mut rows = Vec::new();
-    let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
-    for &s in &a.steps {
-        let mp = MeshParams { grid_step_px: s, ..MeshParams::default() };
-        let conf = ConformalParams::default();
-        // Per stage, for a first frame (new topology) and for a next video frame with the same
-        // topology (CpcSolver reuses pattern, ordering, symbolic factorisation and buffers).
-        let (mut tm, mut ta, mut ts, mut tw, mut tt, mut t20) = (vec![], vec![], vec![], vec![], vec![], vec![]);
-        let (mut ta0, mut ta1, mut ta2, mut twn, mut twi) = (vec![], vec![], vec![], vec![], vec![]);
-        let (mut nm, mut na, mut ns, mut nw, mut nt) = (vec![], vec![], vec![], vec![], vec![]);
-        let mut video = CpcSolver::new();
-        video.set_factor_threads(a.solver_threads);
-        video.assemble(&CpcMesh::build(&roi, &depth, &k, &mp)?, &conf)?;
-        let mut last = None;
-        for _ in 0..a.repeats {
-            pb.set_message(format!("step {s} px"));
-            for next in [false, true] {
-                let mut fresh = CpcSolver::new();
-                fresh.set_factor_threads(a.solver_threads);
-                let solver = if next { &mut video } else { &mut fresh };
-                let t0 = Instant::now();
-                let mesh = CpcMesh::build(&roi, &depth, &k, &mp)?;
-                let t1 = Instant::now();
-                let sys = solver.assemble(&mesh, &conf)?;
-                let t2 = Instant::now();
-                let p = sys.solve(a.lambda)?;
-                let t3 = Instant::now();
-                let w = Warp::new(&mesh, p.clone(), 640, 480)?;
-                let t3b = Instant::now();
-                let (wi, _) = w.warp_image(&image)?;
-                let t4 = Instant::now();
-                std::hint::black_box(wi);
-                if next {
-                    if !sys.topology_reused {
-                        bail!("the topology was not reused on an identical frame");
-                    }
-                    nm.push(ms(t0, t1));
-                    na.push(ms(t1, t2));
-                    ns.push(ms(t2, t3));
-                    nw.push(ms(t3, t4));
-                    nt.push(ms(t0, t4));
-                    continue;
-                }
-                tm.push(ms(t0, t1));
-                ta0.push(sys.assembly_ms[0]);
-                ta1.push(sys.assembly_ms[1]);
-                ta2.push(sys.assembly_ms[2]);
-                ta.push(ms(t1, t2));
-                ts.push(ms(t2, t3));
-                tw.push(ms(t3, t4));
-                twn.push(ms(t3, t3b));
-                twi.push(ms(t3b, t4));
-                tt.push(ms(t0, t4));
-                let t5 = Instant::now();
-                for l in (0..20).map(|i| 0.05 + 0.94 * i as f64 / 19.0) {
-                    let q = sys.solve(l)?;
-                    std::hint::black_box(metrics::delta_area(&q, &mesh.p_init, &mesh.faces));
-                }
-                t20.push(t5.elapsed().as_secs_f64() * 1e3);
-                last = Some((mesh, sys, p));
-            }
-            pb.inc(1);
-        }
-        let (mesh, sys, p) = last.unwrap();
-        let row = json!({
-            "grid_step_px": s, "n_vertices": mesh.n_vertices(), "n_triangles": mesh.n_triangles(), "n_unknowns": sys.n_unknowns(), "nnz": sys.nnz(),
-            "complex_unknowns": mesh.n_vertices(), "complex_nnz_lower": sys.topology().nnz_lower(), "complex_factor_len": sys.topology().factor_len(),
-            "min_ms_mesh": vmin(&tm), "min_ms_assemble": vmin(&ta), "min_ms_solve": vmin(&ts), "min_ms_warp": vmin(&tw), "min_ms_total": vmin(&tt),
-            "min_ms_sweep20": vmin(&t20),
-            "min_ms_total_next": vmin(&nt),
-            "ms_mesh": median(tm), "ms_assemble": median(ta),
-            "ms_assemble_terms": median(ta0), "ms_assemble_values": median(ta1), "ms_assemble_symbolic": median(ta2), "ms_solve": median(ts),
-            "ms_warp": median(tw), "ms_warp_new": median(twn), "ms_warp_image": median(twi), "ms_total": median(tt),
-            "ms_mesh_next": median(nm), "ms_assemble_next": median(na), "ms_solve_next": median(ns), "ms_warp_next": median(nw), "ms_total_next": median(nt),
-            "ms_sweep20": median(t20),
-            "angle_error_deg_before": metrics::angle_error_deg(&mesh.p_init, &mesh.x3d, &mesh.faces),
-            "angle_error_deg_after": metrics::angle_error_deg(&p, &mesh.x3d, &mesh.faces),
-            "delta_area": metrics::delta_area(&p, &mesh.p_init, &mesh.faces), "n_flipped": metrics::n_flipped(&p, &mesh.faces),
-        });
-        rows.push(row);
-    }
-    pb.finish_and_clear();
-    println!("first frame (new topology), then next frame with the same topology (cached symbolic factorisation):");
-    println!(
-        "{:>5} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>9} {:>11} {:>11} {:>11} {:>7} {:>6}",
-        "step",
-        "verts",
-        "tris",
-        "mesh ms",
-        "asm ms",
-        "solve ms",
-        "warp ms",
-        "total ms",
-        "asm next",
-        "total next",
-        "sweep20 ms",
-        "angle°",
-        "flips"
-    );
-    for r in &rows {
-        let f = |k: &str| r[k].as_f64().unwrap();
-        println!(
-            "{:>5} {:>8} {:>8} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>11.2} {:>11.2} {:>11.1} {:>7.3} {:>6}",
-            r["grid_step_px"],
-            r["n_vertices"],
-            r["n_triangles"],
-            f("ms_mesh"),
-            f("ms_assemble"),
-            f("ms_solve"),
-            f("ms_warp"),
-            f("ms_total"),
-            f("ms_assemble_next"),
-            f("ms_total_next"),
-            f("ms_sweep20"),
-            f("angle_error_deg_after"),
-            r["n_flipped"]
-        );
-    }
-    println!("(medians; minima and the per-stage split of the warp are in --json)");
-    if let Some(p) = &a.json {
-        let v = json!({"scene": source, "lambda": a.lambda, "repeats": a.repeats, "threads": rayon::current_num_threads(), "solver_threads": a.solver_threads, "rows": rows});
-        write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
-    }
     Ok(())
 }

@@ -3,7 +3,6 @@
 //! * `manifest scaffold|validate`: build a dataset manifest from a folder layout, check it;
 //! * `eval`: evaluate methods over a manifest (results.json, per-image CSV, tables, figures);
 //! * `eval-pair`: one prediction against one GT, printing the metrics of depth_eval_ref.py;
-//! * `bench`: per-image evaluation time against the numpy reference;
 //! * `perturb`, `reproject`: see `depth_tools.rs`.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
@@ -25,8 +24,6 @@ pub enum DepthCmd {
     Eval(EvalArgs),
     /// Evaluate one prediction against one ground-truth depth map.
     EvalPair(EvalPairArgs),
-    /// Time the per-image evaluation (3 alignments, 640x480) against the numpy reference.
-    Bench(BenchArgs),
     /// Seeded synthetic perturbations (smoke, blood, light, blur, lens dirt) of clean RGB images.
     Perturb(super::depth_tools::PerturbArgs),
     /// Depth-sensor depth to laparoscope-aligned GT depth (thesis §3.2.6).
@@ -141,35 +138,12 @@ pub struct EvalPairArgs {
     pub json: bool,
 }
 
-#[derive(Args)]
-pub struct BenchArgs {
-    /// Image width (px).
-    #[arg(long, default_value_t = 640)]
-    pub width: usize,
-    /// Image height (px).
-    #[arg(long, default_value_t = 480)]
-    pub height: usize,
-    /// Repetitions (the minimum and the median are reported).
-    #[arg(long, default_value_t = 20)]
-    pub reps: usize,
-    /// Python interpreter with numpy, to time ../shared/bench/depth_eval_ref.py on the same input.
-    #[arg(long)]
-    pub python: Option<PathBuf>,
-    /// Path of depth_eval_ref.py.
-    #[arg(long, default_value = "../shared/bench/depth_eval_ref.py")]
-    pub reference: PathBuf,
-    /// Write the figures as JSON to this file.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-}
-
 pub fn run(c: DepthCmd) -> Result<()> {
     match c {
         DepthCmd::Manifest(ManifestCmd::Scaffold(a)) => run_scaffold(a),
         DepthCmd::Manifest(ManifestCmd::Validate(a)) => run_validate(a),
         DepthCmd::Eval(a) => run_eval(a),
         DepthCmd::EvalPair(a) => run_eval_pair(a),
-        DepthCmd::Bench(a) => run_bench(a),
         DepthCmd::Perturb(a) => super::depth_tools::perturb(a),
         DepthCmd::Reproject(a) => super::depth_tools::reproject(a),
     }
@@ -324,105 +298,4 @@ fn run_eval_pair(a: EvalPairArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-const PY_BENCH: &str = r#"
-import json, sys, time
-import numpy as np
-sys.path.insert(0, sys.argv[1])
-from depth_eval_ref import evaluate
-pred, gt = np.load(sys.argv[2]), np.load(sys.argv[3])
-reps = int(sys.argv[4])
-r = evaluate(pred, gt)
-ts = []
-for _ in range(reps):
-    t0 = time.perf_counter(); evaluate(pred, gt); ts.append(time.perf_counter() - t0)
-print(json.dumps({"min_ms": min(ts) * 1e3, "median_ms": float(np.median(ts)) * 1e3, "result": r}))
-"#;
-
-fn run_bench(a: BenchArgs) -> Result<()> {
-    use laparo_depth::bench::{synthetic_pair, time_evaluation};
-    let (pred, gt) = synthetic_pair(a.width, a.height, 0);
-    let opts = PairOptions::default();
-    let (t, rust) = time_evaluation(&pred, &gt, &opts, a.reps);
-    println!(
-        "laparo: {}x{} per image (3 alignments): min {:.2} ms, median {:.2} ms on 1 thread; min {:.2} ms, median {:.2} ms on {} threads; {:.0} images/s on {} threads",
-        a.width,
-        a.height,
-        t.min_ms,
-        t.median_ms,
-        t.parallel_min_ms,
-        t.parallel_median_ms,
-        t.threads,
-        t.images_per_s_parallel,
-        t.threads
-    );
-    let mut out = serde_json::json!({"width": a.width, "height": a.height, "laparo": t});
-    if let Some(py) = &a.python {
-        let dir = tempfile_dir()?;
-        let (pp, gp) = (dir.join("pred.npy"), dir.join("gt.npy"));
-        let img = |v: &Vec<f64>| laparo_core::Image::from_vec(a.width, a.height, 1, v.clone());
-        laparo_core::io::write_npy_f64(&pp, &img(&pred)?)?;
-        laparo_core::io::write_npy_f64(&gp, &img(&gt)?)?;
-        let ref_dir = a.reference.parent().map(|p| p.to_path_buf()).unwrap_or_default();
-        if !a.reference.is_file() {
-            bail!("{}: reference script not found", a.reference.display());
-        }
-        let o = std::process::Command::new(py)
-            .arg("-c")
-            .arg(PY_BENCH)
-            .arg(&ref_dir)
-            .arg(&pp)
-            .arg(&gp)
-            .arg(a.reps.to_string())
-            .output()
-            .with_context(|| format!("running {}", py.display()))?;
-        let _ = std::fs::remove_dir_all(&dir);
-        if !o.status.success() {
-            bail!("{} failed: {}", py.display(), String::from_utf8_lossy(&o.stderr));
-        }
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).context("reading the reference's output")?;
-        let np_min = v["min_ms"].as_f64().unwrap_or(f64::NAN);
-        let np_med = v["median_ms"].as_f64().unwrap_or(f64::NAN);
-        // Agreement of the two on this input.
-        let mut worst: f64 = 0.0;
-        let rj = serde_json::to_value(&rust)?;
-        for al in ["none", "scale", "scale_shift"] {
-            for k in METRIC_NAMES {
-                let (x, y) = (rj[al][k].as_f64().unwrap_or(f64::NAN), v["result"][al][k].as_f64().unwrap_or(f64::NAN));
-                worst = worst.max((x - y).abs() / y.abs().max(1e-12));
-            }
-        }
-        let np_ips = 1e3 / np_min;
-        println!("numpy depth_eval_ref.py: min {np_min:.2} ms, median {np_med:.2} ms per image (1 thread)");
-        println!(
-            "ratio (numpy / laparo): single-thread latency {:.1}x (min), {:.1}x (median); latency on {} threads {:.1}x (min), {:.1}x (median); throughput {:.1}x ({:.0} vs {:.0} images/s)",
-            np_min / t.min_ms,
-            np_med / t.median_ms,
-            t.threads,
-            np_min / t.parallel_min_ms,
-            np_med / t.parallel_median_ms,
-            t.images_per_s_parallel / np_ips,
-            t.images_per_s_parallel,
-            np_ips
-        );
-        println!("max relative difference of all metrics vs the reference: {worst:.2e}");
-        out["numpy"] = serde_json::json!({"min_ms": np_min, "median_ms": np_med});
-        out["ratio_latency_min"] = serde_json::json!(np_min / t.min_ms);
-        out["ratio_latency_parallel_min"] = serde_json::json!(np_min / t.parallel_min_ms);
-        out["ratio_throughput"] = serde_json::json!(t.images_per_s_parallel / np_ips);
-        out["max_rel_diff"] = serde_json::json!(worst);
-    } else {
-        eprintln!("(pass --python /path/to/python-with-numpy to time depth_eval_ref.py on the same input)");
-    }
-    if let Some(j) = &a.json {
-        laparo_core::atomic::write_atomic(j, serde_json::to_string_pretty(&out)?.as_bytes())?;
-    }
-    Ok(())
-}
-
-fn tempfile_dir() -> Result<PathBuf> {
-    let d = std::env::temp_dir().join(format!("laparo-depth-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&d).with_context(|| d.display().to_string())?;
-    Ok(d)
 }

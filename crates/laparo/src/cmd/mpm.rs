@@ -2,13 +2,11 @@
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use indicatif::{ProgressBar, ProgressStyle};
-use laparo_core::colormap::{with_colorbar, Colormap};
-use laparo_mpm::reference::{rods_scene, TaichiFixture};
+use laparo_core::colormap::Colormap;
+use laparo_core::plot::with_colorbar;
+use laparo_mpm::reference::TaichiFixture;
 use laparo_mpm::render::{ply_bytes, render_particles_2d, render_particles_3d, View3d};
-use laparo_mpm::{
-    diagnostics, load_scene_file, simulate_observed, simulate_with_gradient_in, GradientWorkspace, LoadedScene, Loss,
-    ParticleState, Scene, Vector,
-};
+use laparo_mpm::{diagnostics, load_scene_file, simulate_observed, LoadedScene, ParticleState, Scene, Vector};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -28,30 +26,6 @@ pub enum MpmCmd {
         #[arg(long)]
         every: Option<usize>,
     },
-    /// Forward and forward+backward wall time per iteration on the DiffTaichi RODS box problem.
-    Bench {
-        /// 2 or 3.
-        #[arg(long, default_value_t = 3)]
-        dim: usize,
-        /// Approximate particle count (default: thesis 6800 in 3D, 6400 in 2D).
-        #[arg(long)]
-        particles: Option<usize>,
-        /// Grid cells per axis.
-        #[arg(long, default_value_t = 120)]
-        n_grid: usize,
-        /// Horizon T.
-        #[arg(long, default_value_t = 200)]
-        steps: usize,
-        /// Timed repetitions (median reported).
-        #[arg(long, default_value_t = 5)]
-        repeats: usize,
-        /// Rayon threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Print one JSON object.
-        #[arg(long)]
-        json: bool,
-    },
     /// Compare with a DiffTaichi fixture written by scripts/check_mpm_taichi.sh.
     TaichiCompare {
         /// Fixture JSON.
@@ -63,10 +37,6 @@ pub enum MpmCmd {
 pub fn run(c: MpmCmd) -> Result<()> {
     match c {
         MpmCmd::Simulate { scene, out, every } => simulate_cmd(&scene, &out, every),
-        MpmCmd::Bench { dim, particles, n_grid, steps, repeats, threads, json } => {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-            pool.install(|| bench(dim, particles, n_grid, steps, repeats, json))
-        }
         MpmCmd::TaichiCompare { fixture } => {
             let s = std::fs::read_to_string(&fixture).with_context(|| format!("reading {}", fixture.display()))?;
             let fx: TaichiFixture =
@@ -94,89 +64,6 @@ pub fn run(c: MpmCmd) -> Result<()> {
             Ok(())
         }
     }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Peak resident set size (VmHWM) in MiB.
-pub fn peak_rss_mb() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        })
-        .map(|kb| kb / 1024.0)
-        .unwrap_or(f64::NAN)
-}
-
-fn time_scene<const D: usize, L: Loss<D>>(scene: &Scene<D>, loss: &L, repeats: usize) -> Result<(f64, f64, f64)> {
-    let mut fwd = Vec::new();
-    let mut lossv = 0.0;
-    for _ in 0..repeats.max(1) {
-        let t0 = Instant::now();
-        let sim = laparo_mpm::simulate(scene)?;
-        let mut g = vec![Vector::<D>::zeros(); scene.n_particles()];
-        lossv = loss.evaluate(scene.steps, &sim.final_state.x, &mut g);
-        fwd.push(t0.elapsed().as_secs_f64());
-    }
-    let mut fb = Vec::new();
-    let mut ws = GradientWorkspace::new();
-    for _ in 0..repeats.max(1) {
-        let t0 = Instant::now();
-        let g = simulate_with_gradient_in(&mut ws, scene, loss)?;
-        fb.push(t0.elapsed().as_secs_f64());
-        if (g.loss - lossv).abs() > 1e-9 * lossv.abs() {
-            bail!("forward and forward+backward losses differ");
-        }
-    }
-    Ok((median(fwd), median(fb), lossv))
-}
-
-fn bench(dim: usize, particles: Option<usize>, n_grid: usize, steps: usize, repeats: usize, json: bool) -> Result<()> {
-    let dt = 2e-4;
-    let (fwd, fb, n, lossv) = match dim {
-        2 => {
-            let base = [80usize, 80];
-            let s = particles.map(|p| (p as f64 / 6400.0).sqrt()).unwrap_or(1.0);
-            let counts = base.map(|c| ((c as f64 * s).round() as usize).max(2));
-            let (scene, loss) = rods_scene::<2>(counts, n_grid, steps, dt);
-            scene.validate()?;
-            let (f, b, l) = time_scene(&scene, &loss, repeats)?;
-            (f, b, scene.n_particles(), l)
-        }
-        3 => {
-            let base = [16usize, 25, 17];
-            let s = particles.map(|p| (p as f64 / 6800.0).cbrt()).unwrap_or(1.0);
-            let counts = base.map(|c| ((c as f64 * s).round() as usize).max(2));
-            let (scene, loss) = rods_scene::<3>(counts, n_grid, steps, dt);
-            scene.validate()?;
-            let (f, b, l) = time_scene(&scene, &loss, repeats)?;
-            (f, b, scene.n_particles(), l)
-        }
-        d => bail!("--dim must be 2 or 3 (got {d})"),
-    };
-    let rss = peak_rss_mb();
-    if json {
-        println!(
-            "{}",
-            serde_json::json!({"dim": dim, "particles": n, "n_grid": n_grid, "steps": steps, "forward_s": fwd,
-                "forward_backward_s": fb, "peak_rss_mb": rss, "loss": lossv, "threads": rayon::current_num_threads()})
-        );
-    } else {
-        println!(
-            "{dim}D, {n} particles, n_grid {n_grid}, T = {steps}, {} threads: forward {fwd:.3} s, forward+backward {fb:.3} s per iteration (median of {repeats}); peak RSS {rss:.0} MiB; loss {lossv:.6e}",
-            rayon::current_num_threads()
-        );
-    }
-    Ok(())
 }
 
 fn simulate_cmd(scene_path: &Path, out: &Path, every: Option<usize>) -> Result<()> {

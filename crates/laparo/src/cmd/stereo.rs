@@ -5,8 +5,9 @@ use super::cats_stats::read_calibration;
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand};
 use laparo_core::calib::StereoCalibration;
-use laparo_core::colormap::{colorize, percentile_range, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, percentile_range, Colormap};
 use laparo_core::image::{Image, Mask};
+use laparo_core::plot::with_colorbar;
 use laparo_stereo::eval::{evaluate_maps, EvalOptions, StereoMetrics};
 use laparo_stereo::rectify::{DisparityGeometry, Rectification, RectifyOptions, Side};
 use std::io::Write;
@@ -23,27 +24,6 @@ pub enum StereoCmd {
     /// Convert a left disparity map to depth (mm) with d = f b / z + (c_x^L − c_x^R) (§3.3.8),
     /// optionally to a point cloud (PLY).
     Disp2depth(Disp2DepthArgs),
-    /// Time rectification (map building and bilinear remap of both images) on a real pair; compare
-    /// with OpenCV initUndistortRectifyMap + remap on the same input (benchmarks/stereo_stats.md).
-    Bench(BenchArgs),
-}
-
-#[derive(Args, Debug)]
-pub struct BenchArgs {
-    #[command(flatten)]
-    pub calib: CalibArgs,
-    /// Left image.
-    #[arg(long)]
-    pub left: PathBuf,
-    /// Right image.
-    #[arg(long)]
-    pub right: PathBuf,
-    /// Repetitions (the median is reported).
-    #[arg(long, default_value_t = 10)]
-    pub repeat: usize,
-    /// Rayon threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
 }
 
 /// Calibration arguments shared by the subcommands.
@@ -162,7 +142,6 @@ pub fn run(c: StereoCmd) -> anyhow::Result<()> {
         StereoCmd::Rectify(a) => run_rectify(a),
         StereoCmd::Eval(a) => run_eval(a),
         StereoCmd::Disp2depth(a) => run_disp2depth(a),
-        StereoCmd::Bench(a) => run_bench(a),
     }
 }
 
@@ -434,46 +413,4 @@ fn run_disp2depth(a: Disp2DepthArgs) -> anyhow::Result<()> {
         println!("point cloud: {} points -> {}", cloud.len(), ply.display());
     }
     Ok(())
-}
-
-fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
-    let left = laparo_core::io::read_image(&a.left)?;
-    let right = laparo_core::io::read_image(&a.right)?;
-    let calib = need_calib(&a.calib, left.width, left.height)?;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build()?;
-    let n = a.repeat.max(1);
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(|x, y| x.total_cmp(y));
-        v[v.len() / 2]
-    };
-    pool.install(|| -> anyhow::Result<()> {
-        let (mut t_rect, mut t_maps, mut t_remap) = (Vec::new(), Vec::new(), Vec::new());
-        for _ in 0..n {
-            let t0 = std::time::Instant::now();
-            let rect = Rectification::new(&calib, RectifyOptions::default())?;
-            let t1 = std::time::Instant::now();
-            let (ml, mr) = (rect.remap_table(Side::Left), rect.remap_table(Side::Right));
-            let t2 = std::time::Instant::now();
-            use laparo_core::remap::{remap, Interp};
-            let (l, _) = remap(&left, &ml, Interp::Bilinear, 0)?;
-            let (r, _) = remap(&right, &mr, Interp::Bilinear, 0)?;
-            let t3 = std::time::Instant::now();
-            std::hint::black_box((l, r));
-            t_rect.push((t1 - t0).as_secs_f64() * 1e3);
-            t_maps.push((t2 - t1).as_secs_f64() * 1e3);
-            t_remap.push((t3 - t2).as_secs_f64() * 1e3);
-        }
-        println!(
-            "{}x{}x{} pair, {} threads, median of {n}: stereoRectify-like {:.3} ms, maps (both cameras) {:.2} ms, \
-             bilinear remap (both images) {:.2} ms",
-            left.width,
-            left.height,
-            left.channels,
-            rayon::current_num_threads(),
-            median(t_rect),
-            median(t_maps),
-            median(t_remap)
-        );
-        Ok(())
-    })
 }

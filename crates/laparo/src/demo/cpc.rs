@@ -16,7 +16,10 @@ use std::path::Path;
 pub fn section(out: &Path) -> Result<DemoSection> {
     let dir = out.join("cpc");
     std::fs::create_dir_all(&dir)?;
-    let texture = scene::photo_or_procedural("retina.jpg", 7);
+    let texture = match super::shared_data("textures/retina.jpg") {
+        Some(p) => scene::photo_or_procedural(&p, 7),
+        None => scene::Texture::Procedural { seed: 7 },
+    };
     let tex_name = match &texture {
         Texture::Photo(_) => "retina.jpg photograph (../shared/data/textures)",
         _ => "procedural texture (shared photographs absent)",

@@ -5,13 +5,15 @@
 //! would. Intermediate files go to `<out>/depth/work/` and are removed at the end.
 use super::DemoSection;
 use anyhow::{Context, Result};
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
+use laparo_core::plot::with_colorbar;
+use laparo_core::table::Table;
 use laparo_core::Image;
 use laparo_depth::align::Alignment;
 use laparo_depth::eval::{evaluate_manifest, EvalConfig};
 use laparo_depth::manifest::{perturbation_title, FrameSpec, Manifest, MethodSpec, SequenceSpec};
 use laparo_depth::perturb::{self as pt, Perturbation};
-use laparo_depth::report::{self, Summary};
+use laparo_depth::report::{self, AlignmentSummary, Summary};
 use laparo_depth::synthetic::{self as syn, Gesture, SyntheticMethod};
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -158,37 +160,51 @@ fn fmt(v: Option<f64>) -> String {
     v.filter(|x| x.is_finite()).map(|x| format!("{x:.3}")).unwrap_or_else(|| "-".into())
 }
 
-/// HTML tables: per-method accuracy (Abs Rel, δ) and robustness (mCE, mRR) per alignment.
+/// Per-method accuracy (Abs Rel, δ) and robustness (mCE, mRR) of one alignment, as data.
+fn alignment_table(al: &AlignmentSummary, methods: &[SyntheticMethod]) -> Table {
+    let kind = |name: &str| methods.iter().find(|m| m.name == name).map(|m| m.kind.to_string()).unwrap_or_default();
+    let mut t = Table::new([
+        "method",
+        "output",
+        "Abs Rel ↓",
+        "δ_0.25 ↑",
+        "δ_1 ↑",
+        "clean Abs Rel ↓",
+        "mCE (Abs Rel) ↓",
+        "mRR (Abs Rel) ↑",
+        "clean 1−δ_0.25 ↓",
+        "mCE (1−δ_0.25) ↓",
+        "mRR (1−δ_0.25) ↑",
+    ]);
+    for (mm, r) in al.means.iter().zip(&al.robustness) {
+        t.push_row([
+            mm.method.clone(),
+            kind(&mm.method),
+            format!("{:.3}", mm.mean.abs_rel),
+            format!("{:.3}", mm.mean.delta_0_25),
+            format!("{:.3}", mm.mean.delta_1),
+            fmt(r.clean_error.abs_rel),
+            fmt(r.mce.abs_rel),
+            fmt(r.mrr.abs_rel),
+            fmt(r.clean_error.one_minus_delta),
+            fmt(r.mce.one_minus_delta),
+            fmt(r.mrr.one_minus_delta),
+        ]);
+    }
+    t
+}
+
+/// HTML tables: one [`alignment_table`] per alignment, with its heading.
 fn tables_html(summary: &Summary, methods: &[SyntheticMethod]) -> String {
     let mut s = String::new();
-    let kind = |name: &str| methods.iter().find(|m| m.name == name).map(|m| m.kind.to_string()).unwrap_or_default();
     for al in &summary.alignments {
         let _ = write!(
             s,
-            "<h4>{} — accuracy (mean over all frames) and robustness (baseline {})</h4>\n<table><tr><th>method</th><th>output</th>\
-             <th>Abs Rel ↓</th><th>δ<sub>0.25</sub> ↑</th><th>δ<sub>1</sub> ↑</th><th>clean Abs Rel ↓</th><th>mCE (Abs Rel) ↓</th>\
-             <th>mRR (Abs Rel) ↑</th><th>clean 1−δ<sub>0.25</sub> ↓</th><th>mCE (1−δ<sub>0.25</sub>) ↓</th><th>mRR (1−δ<sub>0.25</sub>) ↑</th></tr>\n",
+            "<h4>{} — accuracy (mean over all frames) and robustness (baseline {})</h4>\n{}",
             al.alignment.title().replace('&', "&amp;"),
-            summary.baseline
+            summary.baseline,
+            alignment_table(al, methods).to_html()
         );
-        for (mm, r) in al.means.iter().zip(&al.robustness) {
-            let _ = writeln!(
-                s,
-                "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                mm.method,
-                kind(&mm.method),
-                mm.mean.abs_rel,
-                mm.mean.delta_0_25,
-                mm.mean.delta_1,
-                fmt(r.clean_error.abs_rel),
-                fmt(r.mce.abs_rel),
-                fmt(r.mrr.abs_rel),
-                fmt(r.clean_error.one_minus_delta),
-                fmt(r.mce.one_minus_delta),
-                fmt(r.mrr.one_minus_delta),
-            );
-        }
-        s.push_str("</table>\n");
     }
     s
 }

@@ -35,14 +35,17 @@ pub struct DemoSection {
 
 type SectionFn = fn(&Path) -> Result<DemoSection>;
 
-/// `../shared/data/<rel>` beside the repository (looked up from the working directory, then
-/// from the source tree), if present. Demo sections use real data from there when they can and
-/// fall back to built-in data otherwise.
+/// `<shared>/data/<rel>`, if present, where `<shared>` is `$LAPARO_SHARED_DATA`, else
+/// `../shared/data` from the working directory, else `../shared/data` beside the repository the
+/// executable was built in (`<repo>/target/<profile>/laparo`). Looked up at run time (no
+/// compile-time source paths). Demo sections use real data from there when they can and fall back
+/// to built-in data otherwise.
 pub(crate) fn shared_data(rel: &str) -> Option<PathBuf> {
-    [PathBuf::from("../shared/data"), Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")]
-        .into_iter()
-        .map(|d| d.join(rel))
-        .find(|p| p.exists())
+    let env = std::env::var_os("LAPARO_SHARED_DATA").map(PathBuf::from);
+    let beside_exe = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent()?.parent()?.parent()?.parent().map(|r| r.join("shared/data")));
+    env.into_iter().chain([PathBuf::from("../shared/data")]).chain(beside_exe).map(|d| d.join(rel)).find(|p| p.exists())
 }
 
 /// Run the demo.
@@ -75,7 +78,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let page = format!(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>laparo demo report</title>\n<style>\
 body{{font-family:sans-serif;max-width:1200px;margin:2em auto;line-height:1.4}}img{{max-width:100%}}\
-table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}\
+table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}}td:first-child{{text-align:left}}\
 .t{{color:#777;font-size:small}}figure{{display:inline-block;margin:4px}}</style></head><body>\n\
 <h1>laparo demo report</h1><p>laparo {} — every module run on built-in data.</p><ul>{toc}</ul>\n{html}</body></html>\n",
         env!("CARGO_PKG_VERSION")

@@ -4,8 +4,9 @@
 //! landmark particles reach targets, with the exact adjoint gradient.
 use super::DemoSection;
 use anyhow::Result;
-use laparo_core::colormap::{with_colorbar, Colormap};
+use laparo_core::colormap::Colormap;
 use laparo_core::io;
+use laparo_core::plot::with_colorbar;
 use laparo_mpm::render::{plot_loss_curve, render_particles_2d};
 use laparo_mpm::*;
 use serde_json::json;

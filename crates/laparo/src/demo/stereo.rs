@@ -6,15 +6,15 @@
 use super::DemoSection;
 use anyhow::{Context, Result};
 use laparo_core::calib::StereoCalibration;
-use laparo_core::colormap::{colorize, with_colorbar, Colormap};
+use laparo_core::colormap::{colorize, Colormap};
+use laparo_core::plot::with_colorbar;
 use laparo_core::se3::rotation_zyx;
+use laparo_core::table::Table;
 use laparo_core::{io, Distortion, Image, Intrinsics};
 use laparo_stereo::augment::{
     augment_stereo, disparity_difference, AugmentedDisparity, AugmentedStereo, GtRule, StereoAugmentation, StereoSample,
 };
-use laparo_stereo::calib_stats::{
-    calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6_markdown, MeanStd,
-};
+use laparo_stereo::calib_stats::{calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6, MeanStd};
 use laparo_stereo::cats_params::{sample_rng, CatsConfig, Dist, TABLE_3_6};
 use laparo_stereo::synthetic::{default_camera, Scene};
 use std::fmt::Write as _;
@@ -110,27 +110,9 @@ fn photometric(
     s / n.max(1) as f64
 }
 
-fn md_table_to_html(md: &str) -> String {
-    let mut h = String::from("<table>\n");
-    for (i, line) in md.lines().filter(|l| l.starts_with('|')).enumerate() {
-        if i == 1 {
-            continue; // the |---| separator
-        }
-        let cells: Vec<&str> = line.trim().trim_matches('|').split('|').map(|c| c.trim()).collect();
-        let tag = if i == 0 { "th" } else { "td" };
-        h.push_str("<tr>");
-        for c in cells {
-            let _ = write!(h, "<{tag}>{c}</{tag}>");
-        }
-        h.push_str("</tr>\n");
-    }
-    h.push_str("</table>\n");
-    h
-}
-
 /// Synthesise `n` calibrations with camera rotations drawn from a Table 3.6 row (SCARED-like
 /// 1280×1024 intrinsics, c_x^L − c_x^R ~ U(−100, 0) px), and summarise them with `calib_stats`.
-fn synthesised_table(n: usize) -> Result<(String, serde_json::Value)> {
+fn synthesised_table(n: usize) -> Result<(Table, serde_json::Value)> {
     let (_, row) = TABLE_3_6.iter().find(|(r, _)| *r == "SCARED+StMIS").expect("row exists");
     let mut rng = sample_rng(SEED, "calibrations");
     let mut normal = |m: f64, s: f64| Dist::normal(m, s).sample(&mut rng);
@@ -178,13 +160,13 @@ fn synthesised_table(n: usize) -> Result<(String, serde_json::Value)> {
             sample.right_euler_deg[i - 3] = m;
         }
     }
-    let md = table_3_6_markdown(&[
+    let mut table = table_3_6(&[
         ("thesis Table 3.6, SCARED+StMIS (the Gaussians)".to_string(), thesis),
         ("angles drawn for the synthesised calibrations".to_string(), sample),
         ("recovered by calib_stats from the calibrations (R, T, K)".to_string(), s.clone()),
-    ])
-    .replace("(the Gaussians) | 40 |", "(the Gaussians) | – |");
-    Ok((md, serde_json::to_value(&s)?))
+    ]);
+    table.rows[0][1] = "–".into(); // the thesis row is a distribution, not n calibrations
+    Ok((table, serde_json::to_value(&s)?))
 }
 
 /// A sample augmented under both GT rules, with the photometric checks of the transformed GT.
@@ -299,7 +281,7 @@ fn middlebury_subsection(dir: &Path, cfg: &CatsConfig) -> Result<Option<(String,
 
 /// Table 3.6 computed by `calib_stats` from the real calibrations in `../shared/data/calib`
 /// (SCARED datasets and the EndoVis 2017 kidney calibration); `None` when absent.
-fn real_calibration_table() -> Result<Option<(String, serde_json::Value)>> {
+fn real_calibration_table() -> Result<Option<(Table, serde_json::Value)>> {
     let Some(d) = super::shared_data("calib") else { return Ok(None) };
     let mut files: Vec<_> = std::fs::read_dir(&d)
         .with_context(|| format!("reading {}", d.display()))?
@@ -318,8 +300,8 @@ fn real_calibration_table() -> Result<Option<(String, serde_json::Value)>> {
         return Ok(None);
     }
     let s = summarize(&stats);
-    let md = table_3_6_markdown(&[(format!("real calibrations ({})", names.join(", ")), s.clone())]);
-    Ok(Some((md, serde_json::to_value(&s)?)))
+    let table = table_3_6(&[(format!("real calibrations ({})", names.join(", ")), s.clone())]);
+    Ok(Some((table, serde_json::to_value(&s)?)))
 }
 
 pub fn section(out: &Path) -> Result<DemoSection> {
@@ -411,7 +393,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
     let neg = dev.iter().filter(|&&v| v < 0.0).count() as f64 / dev.len().max(1) as f64;
     let (r0, r1) = (range(&d0v), range(&dev));
     let vmax = vres.data.iter().filter(|v| v.is_finite()).fold(0.0f32, |m, v| m.max(v.abs()));
-    let (table_md, table_json) = synthesised_table(40)?;
+    let (table, table_json) = synthesised_table(40)?;
 
     let middlebury = middlebury_subsection(&dir, &cfg)?;
     let real_table = real_calibration_table()?;
@@ -467,15 +449,15 @@ pub fn section(out: &Path) -> Result<DemoSection> {
          from the thesis' SCARED+StMIS Gaussians; <code>laparo_stereo::calib_stats</code> (the library behind <code>laparo cats \
          stats</code>) computes each camera's rotation from the ideal rectified frame (μ, σ in degrees) from R, T alone and recovers the drawn angles \
          to within 1e-3 degrees.</p>\n{}",
-        md_table_to_html(&table_md)
+        table.to_html()
     );
     match &real_table {
-        Some((md, _)) => {
+        Some((t, _)) => {
             let _ = write!(
                 html,
                 "<p>The same statistics from the real stereo-endoscope calibrations in <code>../shared/data/calib</code> \
                  (<code>laparo cats stats</code>):</p>\n{}",
-                md_table_to_html(md)
+                t.to_html()
             );
         }
         None => html.push_str("<p>(../shared/data/calib is absent: the real-calibration table is skipped.)</p>\n"),

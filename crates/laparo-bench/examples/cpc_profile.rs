@@ -1,5 +1,5 @@
 //! Stage profile of one CPC frame on raw scene files (development tool):
-//! `cargo run --release -p laparo-cpc --example cpc_profile -- DEPTH.f64 IMG.u8 [STEP] [REPEATS] [LAMBDA]`
+//! `cargo run --release -p laparo-bench --example cpc_profile -- DEPTH.f64 IMG.u8 [STEP] [REPEATS] [LAMBDA]`
 //! (640×480 little-endian f64 depth in mm, NaN outside the ROI; 640×480×3 u8 image), or
 //! `... -- scene [STEP] [REPEATS] [LAMBDA]` for the rendered bumpy bowl (`scene::bumpy_bowl_spec`).
 //!
@@ -31,9 +31,8 @@ fn proc_cpu_ns() -> f64 {
     clock_ns(libc::CLOCK_PROCESS_CPUTIME_ID)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+fn med_of(mut v: Vec<f64>) -> f64 {
+    laparo_core::stats::median(&mut v)
 }
 
 fn main() {
@@ -115,7 +114,7 @@ fn main() {
             .map(|(i, p)| (p[0] - pr[2 * i]).abs().max((p[1] - pr[2 * i + 1]).abs()))
             .fold(0.0, f64::max);
         println!("real interleaved solve (previous solver) {:.2} ms CPU; max |complex − real| = {dmax:.3e} px; complex factor {} entries",
-            median(tr), sys.topology().factor_len());
+            med_of(tr), sys.topology().factor_len());
     }
     for pass in ["first frame", "same topology"] {
         let mut t: Vec<Vec<f64>> = vec![vec![]; names.len()];
@@ -176,7 +175,7 @@ fn main() {
         }
         print!("{pass:>14}:");
         for (n, v) in names.iter().zip(t) {
-            print!("  {n} {:.2}", median(v));
+            print!("  {n} {:.2}", med_of(v));
         }
         println!();
     }
@@ -270,7 +269,7 @@ fn stage_times(
             cpu.push((proc_cpu_ns() - c) * 1e-6);
             wall.push(t.elapsed().as_secs_f64() * 1e3);
         }
-        println!("{name:>12}: wall {:.3} ms (min {:.3})  CPU {:.3} ms", median(wall.clone()), vmin(&wall), median(cpu));
+        println!("{name:>12}: wall {:.3} ms (min {:.3})  CPU {:.3} ms", med_of(wall.clone()), vmin(&wall), med_of(cpu));
     };
     let mesh = CpcMesh::build(roi, depth, k, mp).unwrap();
     let mut solver = CpcSolver::new();

@@ -1,5 +1,5 @@
-//! Rectification timing on the real SCARED ds1-3 pair (same work as `laparo stereo bench`):
-//! `cargo run --release -p laparo-stereo --example rectify_bench -- THREADS`.
+//! Rectification timing on the real SCARED ds1-3 pair (same work as `laparo-bench stereo`):
+//! `cargo run --release -p laparo-bench --example rectify_bench -- THREADS`.
 use laparo_core::calib::StereoCalibration;
 use laparo_core::remap::{remap, Interp};
 use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
@@ -27,11 +27,13 @@ fn main() {
             tm.push((t1 - t0).as_secs_f64() * 1e3);
             tr.push((t2 - t1).as_secs_f64() * 1e3);
         }
-        tm.sort_by(f64::total_cmp);
-        tr.sort_by(f64::total_cmp);
         println!(
             "laparo {}x{}x{} threads={threads}: rectify + maps x2 {:.2} ms, remap bilinear x2 {:.2} ms (median of 15)",
-            left.width, left.height, left.channels, tm[7], tr[7]
+            left.width,
+            left.height,
+            left.channels,
+            laparo_core::stats::median(&mut tm),
+            laparo_core::stats::median(&mut tr)
         );
     });
 }

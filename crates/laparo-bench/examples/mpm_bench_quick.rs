@@ -1,5 +1,5 @@
 //! Quick timing of the RODS box problem without the CLI (development aid): `cargo run --release
-//! -p laparo-mpm --example mpm_bench_quick -- DIM REPEATS [THREADS [STEPS]]`. Besides wall times it prints the
+//! -p laparo-bench --example mpm_bench_quick -- DIM REPEATS [THREADS [STEPS]]`. Besides wall times it prints the
 //! process CPU time per forward+backward iteration (less sensitive to a loaded machine).
 use laparo_mpm::reference::rods_scene;
 use laparo_mpm::*;
@@ -31,17 +31,18 @@ fn run<const D: usize>(counts: [usize; D], reps: usize, steps: usize) {
         fb.push(t.elapsed().as_secs_f64());
         cpu_fb += cpu_s() - c;
     }
-    fwd.sort_by(f64::total_cmp);
-    fb.sort_by(f64::total_cmp);
+    let (fwd_min, fb_min) =
+        (fwd.iter().cloned().fold(f64::INFINITY, f64::min), fb.iter().cloned().fold(f64::INFINITY, f64::min));
+    let (fwd_med, fb_med) = (laparo_core::stats::median(&mut fwd), laparo_core::stats::median(&mut fb));
     let g = g.unwrap();
     let checksum: f64 = g.d_velocities.iter().map(|v| v.sum()).sum::<f64>() + g.d_youngs_modulus;
     println!(
         "{D}D forward min {:.3} med {:.3} cpu {:.3}  fwd+bwd min {:.3} med {:.3} cpu {:.3}  loss {:e} grad checksum {:e}",
-        fwd[0],
-        fwd[reps / 2],
+        fwd_min,
+        fwd_med,
         cpu_f / reps as f64,
-        fb[0],
-        fb[reps / 2],
+        fb_min,
+        fb_med,
         cpu_fb / reps as f64,
         g.loss,
         checksum
@@ -52,7 +53,7 @@ fn main() {
     let a: Vec<usize> = std::env::args().skip(1).map(|s| s.parse().unwrap()).collect();
     let reps = a.get(1).copied().unwrap_or(3);
     let steps = a.get(3).copied().unwrap_or(200);
-    // As `laparo mpm bench`: run inside the pool (THREADS, 0 = all cores).
+    // As `laparo-bench mpm`: run inside the pool (THREADS, 0 = all cores).
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.get(2).copied().unwrap_or(0)).build().unwrap();
     pool.install(|| {
         if a.first().copied().unwrap_or(3) == 2 {

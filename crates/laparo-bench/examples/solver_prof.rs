@@ -1,13 +1,12 @@
 //! Solver stage profile on the bumpy bowl (development aid):
-//! `cargo run --release -p laparo-cpc --example solver_prof -- [STEP] [REPEATS] [MODE]`.
+//! `cargo run --release -p laparo-bench --example solver_prof -- [STEP] [REPEATS] [MODE]`.
+use laparo_cpc::ordering::nested_dissection_leaf;
 use laparo_cpc::scene::bumpy_bowl_spec;
-use laparo_cpc::solve::nested_dissection_leaf;
 use laparo_cpc::{ConformalParams, CpcMesh, CpcSystem, CpcTopology, MeshParams};
 use std::time::Instant;
 
 fn med(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    laparo_core::stats::median(&mut v)
 }
 
 fn main() {

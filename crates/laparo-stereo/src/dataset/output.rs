@@ -1,0 +1,172 @@
+//! Per-sample CATS augmentation with atomic outputs mirroring the input tree and the JSON sidecar
+//! written last (a sample is finished iff its sidecar exists).
+use super::layout::{load_sample, source_cameras, Layout, SampleFiles};
+use super::DatasetError;
+use crate::augment::{augment_stereo, AugmentedDisparity, GtRule, Mat3Rows, StereoAugmentation};
+use crate::cats_params::{sample_rng, sample_seed, CatsConfig};
+use laparo_core::image::Mask;
+use laparo_core::{io, Distortion, Image};
+use nalgebra::Matrix3;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Summary numbers of one augmented sample (stored in the sidecar).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SampleStats {
+    pub valid_fraction_left: f64,
+    pub valid_fraction_right: f64,
+    /// Fraction of augmented left pixels with a known disparity.
+    pub disparity_valid_fraction: Option<f64>,
+    pub disparity_min_px: Option<f64>,
+    pub disparity_max_px: Option<f64>,
+    /// Exact rule: mean and max |vertical residual| (px).
+    pub vertical_residual_mean_abs_px: Option<f64>,
+    pub vertical_residual_max_abs_px: Option<f64>,
+}
+
+/// The JSON sidecar of an augmented sample.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Sidecar {
+    pub laparo_version: String,
+    pub sample_id: String,
+    pub seed: u64,
+    /// The ChaCha8 seed derived from (seed, sample_id).
+    pub sample_seed: u64,
+    pub gt_rule: GtRule,
+    pub config_source: String,
+    /// The sampled parameters (re-apply with `laparo cats apply --params`).
+    pub params: StereoAugmentation,
+    /// H = K_rel K R K⁻¹ of each camera, row-major.
+    pub homography_left: Mat3Rows,
+    pub homography_right: Mat3Rows,
+    pub stats: SampleStats,
+}
+
+fn rows(m: &Matrix3<f64>) -> Mat3Rows {
+    [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]]
+}
+
+fn mask_png(m: &Mask) -> Image<u8> {
+    m.map(|b| if b { 255 } else { 0 })
+}
+
+fn disp_stats(d: &AugmentedDisparity, st: &mut SampleStats) {
+    let n = d.valid.data.len().max(1);
+    let vals: Vec<f64> =
+        d.disparity.data.iter().zip(&d.valid.data).filter(|(_, &v)| v).map(|(&x, _)| x as f64).collect();
+    st.disparity_valid_fraction = Some(vals.len() as f64 / n as f64);
+    st.disparity_min_px = vals.iter().cloned().reduce(f64::min);
+    st.disparity_max_px = vals.iter().cloned().reduce(f64::max);
+    if let Some(r) = &d.vertical_residual {
+        let a: Vec<f64> = r.data.iter().filter(|v| v.is_finite()).map(|v| v.abs() as f64).collect();
+        if !a.is_empty() {
+            st.vertical_residual_mean_abs_px = Some(a.iter().sum::<f64>() / a.len() as f64);
+            st.vertical_residual_max_abs_px = a.iter().cloned().reduce(f64::max);
+        }
+    }
+}
+
+/// Output locations of one sample.
+pub struct OutputPaths {
+    pub left: PathBuf,
+    pub right: PathBuf,
+    pub disp_left: Option<PathBuf>,
+    pub disp_right: Option<PathBuf>,
+    pub sidecar: PathBuf,
+    pub aux_dir: PathBuf,
+}
+
+/// Where the outputs of sample `f` (from `root`) go under `out`.
+pub fn output_paths(f: &SampleFiles, root: &Path, out: &Path) -> OutputPaths {
+    let m = |p: &Path| out.join(p.strip_prefix(root).unwrap_or(p));
+    let png = |p: &Path| m(p).with_extension("png");
+    OutputPaths {
+        left: png(&f.left),
+        right: png(&f.right),
+        disp_left: f.disp_left.as_ref().map(|p| m(p).with_extension("pfm")),
+        disp_right: f.disp_right.as_ref().map(|p| m(p).with_extension("pfm")),
+        sidecar: out.join(format!("{}.cats.json", f.id)),
+        aux_dir: out.join("cats_aux"),
+    }
+}
+
+/// True when sample `f` already has a readable sidecar and all its outputs (resumability).
+pub fn is_done(f: &SampleFiles, root: &Path, out: &Path) -> bool {
+    let o = output_paths(f, root, out);
+    let Ok(text) = std::fs::read_to_string(&o.sidecar) else { return false };
+    serde_json::from_str::<Sidecar>(&text).is_ok()
+        && o.left.is_file()
+        && o.right.is_file()
+        && o.disp_left.as_ref().is_none_or(|p| p.is_file())
+        && o.disp_right.as_ref().is_none_or(|p| p.is_file())
+}
+
+/// Write an augmented sample (images, disparities, masks) and, last, its sidecar; atomic writes.
+pub fn write_augmented(
+    f: &SampleFiles,
+    root: &Path,
+    out: &Path,
+    a: &crate::augment::AugmentedStereo,
+    mut sidecar: Sidecar,
+) -> Result<Sidecar, DatasetError> {
+    let o = output_paths(f, root, out);
+    io::write_png(&o.left, &a.left.image)?;
+    io::write_png(&o.right, &a.right.image)?;
+    let aux = |suffix: &str| o.aux_dir.join(format!("{}_{suffix}", f.id));
+    io::write_png(aux("valid_left.png"), &mask_png(&a.left.valid))?;
+    io::write_png(aux("valid_right.png"), &mask_png(&a.right.valid))?;
+    let mut st = SampleStats {
+        valid_fraction_left: a.left.valid.count() as f64 / a.left.valid.data.len().max(1) as f64,
+        valid_fraction_right: a.right.valid.count() as f64 / a.right.valid.data.len().max(1) as f64,
+        ..Default::default()
+    };
+    for (d, p, side) in [(&a.disp_left, &o.disp_left, "left"), (&a.disp_right, &o.disp_right, "right")] {
+        if let (Some(d), Some(p)) = (d, p) {
+            io::write_pfm(p, &d.disparity)?;
+            if let Some(r) = &d.vertical_residual {
+                io::write_pfm(aux(&format!("vres_{side}.pfm")), r)?;
+            }
+            if side == "left" {
+                disp_stats(d, &mut st);
+            }
+        }
+    }
+    sidecar.stats = st;
+    let text = serde_json::to_string_pretty(&sidecar).expect("sidecar serialises");
+    laparo_core::atomic::write_atomic(&o.sidecar, text.as_bytes())?;
+    Ok(sidecar)
+}
+
+/// Augment one sample of a dataset with parameters drawn from `config` (seeded by
+/// (`seed`, sample id)) and write it. Returns the sidecar.
+pub fn augment_sample(
+    f: &SampleFiles,
+    root: &Path,
+    out: &Path,
+    layout: Layout,
+    config: &CatsConfig,
+    seed: u64,
+    rule: GtRule,
+) -> Result<Sidecar, DatasetError> {
+    let s = load_sample(f)?;
+    let (kl, kr) = source_cameras(f, layout, config, s.left.width, s.left.height)?;
+    let mut rng = sample_rng(seed, &f.id);
+    let p = config.sample(&mut rng, &kl, &Distortion::default(), &kr, &Distortion::default());
+    let a = augment_stereo(&s, &p, rule)?;
+    let sidecar = Sidecar {
+        laparo_version: env!("CARGO_PKG_VERSION").into(),
+        sample_id: f.id.clone(),
+        seed,
+        sample_seed: sample_seed(seed, &f.id),
+        gt_rule: rule,
+        config_source: config.source.clone(),
+        homography_left: rows(&p.left.homography()),
+        homography_right: rows(&p.right.homography()),
+        params: p,
+        stats: SampleStats::default(),
+    };
+    write_augmented(f, root, out, &a, sidecar)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hand-written parameters (`laparo cats apply --params`).
