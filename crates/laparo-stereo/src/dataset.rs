@@ -45,8 +45,8 @@ pub enum Layout {
     /// One folder per scene: `im0.png`, `im1.png`, `disp0.pfm` (or `disp0GT.pfm`), optional
     /// `disp1.pfm`, `calib.txt` (cam0, cam1).
     Middlebury,
-    /// `left/*.png`, `right/*.png` (same names), optional `disp/<stem>.pfm` (or `disp_left/`),
-    /// `disp_right/<stem>.pfm`; the camera comes from the config's `[camera]`.
+    /// `left/*.png`, `right/*.png` (same names), optional `disp/<stem>.{pfm,npy,npz,tif,tiff}`
+    /// (or `disp_left/`), `disp_right/<stem>.*`; the camera comes from the config's `[camera]`.
     Generic,
 }
 
@@ -183,7 +183,12 @@ pub fn discover(root: &Path, layout: Layout) -> Result<Vec<SampleFiles>, Dataset
                 if !right.is_file() {
                     return Err(ferr(p, format!("no right image {}", right.display())));
                 }
-                let pfm = |dir: &str| existing(root.join(dir).join(stem).with_extension("pfm"));
+                // Disparities in any format `read_disparity` reads (outputs are PFM).
+                let pfm = |dir: &str| {
+                    ["pfm", "npy", "npz", "tif", "tiff"]
+                        .iter()
+                        .find_map(|e| existing(root.join(dir).join(stem).with_extension(e)))
+                };
                 out.push(SampleFiles {
                     id: rel_id(root, p),
                     left: p.clone(),
@@ -338,6 +343,46 @@ pub struct Sidecar {
     pub homography_left: Mat3Rows,
     pub homography_right: Mat3Rows,
     pub stats: SampleStats,
+    /// [`run_params_hash`] of the run that wrote this sample (resume check); empty in sidecars
+    /// of older versions.
+    #[serde(default)]
+    pub params_hash: String,
+}
+
+/// Hash of everything an augmented sample depends on besides its input files: seed, GT rule,
+/// layout and the CATS configuration (its TOML form). Stored in each sidecar.
+pub fn run_params_hash(config: &CatsConfig, seed: u64, rule: GtRule, layout: Layout) -> String {
+    let text = format!("v1;seed={seed};gt_rule={rule:?};layout={layout:?};config={}", config.to_toml_string());
+    laparo_core::atomic::fnv1a64_hex(text.as_bytes())
+}
+
+/// Resume state of one sample of an output folder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResumeState {
+    /// Not (completely) written yet.
+    Todo,
+    /// Complete, written with the same parameters.
+    Done,
+    /// Complete, but written with other parameters (or by a version without a parameter hash).
+    Stale,
+}
+
+/// [`is_done`], distinguishing outputs written with other parameters (`hash` from
+/// [`run_params_hash`]).
+pub fn resume_state(f: &SampleFiles, root: &Path, out: &Path, hash: &str) -> ResumeState {
+    if !is_done(f, root, out) {
+        return ResumeState::Todo;
+    }
+    let o = output_paths(f, root, out);
+    let same = std::fs::read_to_string(&o.sidecar)
+        .ok()
+        .and_then(|t| serde_json::from_str::<Sidecar>(&t).ok())
+        .is_some_and(|sc| sc.params_hash == hash);
+    if same {
+        ResumeState::Done
+    } else {
+        ResumeState::Stale
+    }
 }
 
 fn rows(m: &Matrix3<f64>) -> Mat3Rows {
@@ -450,6 +495,7 @@ pub fn augment_sample(
     let (kl, kr) = source_cameras(f, layout, config, s.left.width, s.left.height)?;
     let mut rng = sample_rng(seed, &f.id);
     let p = config.sample(&mut rng, &kl, &Distortion::default(), &kr, &Distortion::default());
+    check_homographies(&p).map_err(|e| ferr(&f.left, format!("sampled parameters: {e}")))?;
     let a = augment_stereo(&s, &p, rule)?;
     let sidecar = Sidecar {
         laparo_version: env!("CARGO_PKG_VERSION").into(),
@@ -462,6 +508,7 @@ pub fn augment_sample(
         homography_right: rows(&p.right.homography()),
         params: p,
         stats: SampleStats::default(),
+        params_hash: run_params_hash(config, seed, rule, layout),
     };
     write_augmented(f, root, out, &a, sidecar)
 }
@@ -595,7 +642,31 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
         dx_right_px: dx,
     };
     a.validate().map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
+    check_homographies(&a).map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
     Ok(a)
+}
+
+/// Check that both cameras' K are numerically invertible and that the homographies
+/// H = K_rel K R K⁻¹ (eq. 3.6) and their inverses are finite and non-singular. A tiny or huge
+/// focal length passes [`Intrinsics::validate`] but makes K⁻¹ overflow or K singular in f64.
+pub fn check_homographies(a: &StereoAugmentation) -> Result<(), String> {
+    for (side, c) in [("left", &a.left), ("right", &a.right)] {
+        let k = c.k.matrix();
+        let ki = k.try_inverse().filter(|m| m.iter().all(|v| v.is_finite()));
+        if ki.is_none() || k.determinant().abs() < 1e-12 {
+            return Err(format!(
+                "{side}.k (fx = {}, fy = {}) is not numerically invertible; focal lengths are in px",
+                c.k.fx, c.k.fy
+            ));
+        }
+        let h = c.homography();
+        let hi = c.homography_inverse().map_err(|e| format!("{side}: {e}"))?;
+        let det = h.determinant();
+        if h.iter().chain(hi.iter()).any(|v| !v.is_finite()) || !det.is_finite() || det == 0.0 {
+            return Err(format!("{side}: the homography H = K_rel K R K⁻¹ is not finite and invertible: {h:?}"));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
