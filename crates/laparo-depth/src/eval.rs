@@ -211,8 +211,9 @@ pub struct GtRangeCheck {
 
 /// Fraction of valid GT outside the clamp range above which a warning is due.
 pub const GT_OUTSIDE_WARN_FRACTION: f64 = 0.05;
-/// Median GT depth (m) below which the GT unit is implausible (metres read as millimetres).
-pub const GT_MEDIAN_MIN_PLAUSIBLE_M: f64 = 0.002;
+/// Median GT depth (m) below which the GT unit is implausible (metres read as millimetres):
+/// nearer than the 1 cm near clamp of the surgical default.
+pub const GT_MEDIAN_MIN_PLAUSIBLE_M: f64 = 0.01;
 /// Median GT depth (m) above which the GT unit is implausible (millimetres read as metres).
 pub const GT_MEDIAN_MAX_PLAUSIBLE_M: f64 = 20.0;
 

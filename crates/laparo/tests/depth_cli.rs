@@ -337,7 +337,11 @@ fn eval_pair_warns_about_gt_outside_the_clamp_range_and_implausible_units() {
     assert!(err.contains("median ground-truth depth is 3500.0 m, implausible: millimetres read as metres"), "{err}");
     // --json=FILE writes the file and keeps the table on stdout.
     let jf = d.path().join("r.json");
-    let o = run(&["--gt-unit", "mm", "--depth-min-m", "1", "--depth-max-m", "10", &format!("--json={}", s(&jf))]);
+    let jarg = format!("--json={}", s(&jf));
+    let o = laparo(&[
+        "depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "mm", "--depth-min-m", "1", "--depth-max-m",
+        "10", &jarg,
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("alignment"));
     assert!(read_json(&jf)["scale"]["abs_rel"].as_f64().unwrap() < 1e-12);

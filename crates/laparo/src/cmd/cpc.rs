@@ -180,9 +180,15 @@ struct Inputs {
     params: CpcParams,
 }
 
-fn load_inputs(a: &InputArgs) -> Result<Inputs> {
-    let depth =
+/// `resize`: bring the depth map to (width, height) px first (a prediction at network resolution).
+fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::ResizeFilter)>) -> Result<Inputs> {
+    let mut depth =
         io::read_depth(&a.depth, a.depth_unit).with_context(|| format!("reading depth {}", a.depth.display()))?;
+    if let Some((w, h, f)) = resize {
+        if (depth.width, depth.height) != (w, h) {
+            depth = resize_depth(&depth, w, h, f)?;
+        }
+    }
     let k = read_intrinsics(&a.intrinsics)?;
     let roi = match &a.mask {
         Some(p) => read_mask(p)?,
@@ -334,15 +340,21 @@ fn warp_one(
 ) -> Result<laparo_cpc::CpcStats> {
     let t0 = Instant::now();
     let image = io::read_image(image_path).with_context(|| format!("reading image {}", image_path.display()))?;
-    let mut inp = load_inputs(input)?;
-    if let Some(f) = a.resize_depth {
-        if (inp.depth.width, inp.depth.height) != (image.width, image.height) {
-            inp.depth = resize_depth(&inp.depth, image.width, image.height, f)?;
-            if input.mask.is_none() {
-                inp.roi = inp.depth.valid_mask();
+    let mut inp = match load_inputs(input, a.resize_depth.map(|f| (image.width, image.height, f))) {
+        Ok(i) => i,
+        Err(e) => {
+            // A depth map at another resolution (a network's): say how to use it.
+            if let (None, Ok(d)) = (a.resize_depth, io::read_depth(&input.depth, input.depth_unit)) {
+                if (d.width, d.height) != (image.width, image.height) {
+                    return Err(e.context(format!(
+                        "depth {} is {}x{} but image {} is {}x{} (use --resize-depth bilinear|nearest for a prediction at network resolution)",
+                        input.depth.display(), d.width, d.height, image_path.display(), image.width, image.height
+                    )));
+                }
             }
+            return Err(e);
         }
-    }
+    };
     if (inp.depth.width, inp.depth.height) != (image.width, image.height) {
         bail!(
             "depth {} is {}x{} but image {} is {}x{} (use --resize-depth bilinear|nearest for a prediction at network resolution)",
@@ -410,7 +422,7 @@ fn warp_one(
 }
 
 fn lambda(a: LambdaArgs) -> Result<()> {
-    let inp = load_inputs(&a.input)?;
+    let inp = load_inputs(&a.input, None)?;
     let grid = if a.lambdas.is_empty() { default_lambda_grid() } else { a.lambdas.clone() };
     for &l in &grid {
         laparo_cpc::solve::validate_lambda(l)?;

@@ -317,6 +317,7 @@ fn run_eval(a: EvalArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     report::remove_stale_results(&a.out)?;
+    laparo_core::atomic::remove_stale_temps(&a.out)?;
     let range = match (a.depth_min_m, a.depth_max_m) {
         (None, None) => None,
         (lo, hi) => {
