@@ -55,6 +55,12 @@ fn a_huge_ce_does_not_turn_the_radar_into_a_disc() {
     let normal = write_radar(&dir.path().join("n"), &method(&[1.1, 0.9, 1.3, 0.8, 1.0]), Alignment::Scale).unwrap();
     let huge = write_radar(&dir.path().join("h"), &method(&[1.1, 5000.0, 1.3, 0.8, 1.0]), Alignment::Scale).unwrap();
     let (fn_, fh) = (dark_fraction(&normal[0]), dark_fraction(&huge[0]));
+    if let Ok(keep) = std::env::var("LAPARO_KEEP_FIGURES") {
+        std::fs::copy(&huge[0], std::path::Path::new(&keep).join("radar_huge.png")).unwrap();
+        std::fs::copy(&normal[0], std::path::Path::new(&keep).join("radar_normal.png")).unwrap();
+        let bars = write_radar(&dir.path().join("b"), &method(&[1.4, 0.7]), Alignment::Scale).unwrap();
+        std::fs::copy(&bars[0], std::path::Path::new(&keep).join("radar_bars.png")).unwrap();
+    }
     // Thousands of rings (one per 0.25) used to paint most of the panel dark.
     assert!(fh < 0.05 && fh < 2.0 * fn_ + 0.01, "dark fraction {fh} (ordinary chart: {fn_})");
 }
@@ -78,6 +84,6 @@ fn fewer_than_three_perturbations_draw_bars() {
         }
         assert!(best >= 40, "{n} perturbation(s): no CE bar (longest red column {best} px)");
         let svg = std::fs::read_to_string(&files[1]).unwrap();
-        assert!(svg.contains("smoke"));
+        assert!(svg.contains("Smoke"));
     }
 }

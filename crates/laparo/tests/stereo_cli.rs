@@ -425,3 +425,27 @@ fn stereo_rectify_rejects_a_calibration_of_another_size_and_takes_folders() {
         laparo(&["stereo", "rectify", "--calib", s(&calib), "--left", s(&ld), "--right", s(&rd), "--out", s(&ld)]);
     assert!(!ok && err.contains("would overwrite the input"), "{err}");
 }
+
+/// Issue 10: `cats stats --config-out` on one of its own inputs overwrote the calibration.
+#[test]
+fn cats_stats_refuses_to_overwrite_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let (c, ..) = synthetic(0, 1280, 1024);
+    let calib = dir.path().join("calib.yaml");
+    c.write_opencv_yaml(&calib).unwrap();
+    let before = std::fs::read(&calib).unwrap();
+    let (ok, _, err) = laparo(&["cats", "stats", s(&calib), "--config-out", s(&calib)]);
+    assert!(!ok && err.contains("calib.yaml") && err.contains("would overwrite the input"), "{err}");
+    assert_eq!(std::fs::read(&calib).unwrap(), before);
+    // --json=FILE writes the JSON there; a bare --json before a positional takes no value.
+    let j = dir.path().join("stats.json");
+    let (ok, stdout, err) = laparo(&["cats", "stats", &format!("--json={}", s(&j)), s(&calib)]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("Table 3.6"), "{stdout}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
+    assert_eq!(v["files"].as_array().unwrap().len(), 1);
+    let (ok, stdout, err) = laparo(&["cats", "stats", "--json", s(&calib)]);
+    assert!(ok, "{err}");
+    assert!(serde_json::from_str::<serde_json::Value>(&stdout).is_ok());
+    assert_eq!(std::fs::read(&calib).unwrap(), before);
+}
