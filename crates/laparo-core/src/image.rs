@@ -92,39 +92,20 @@ impl<T: Copy> Image<T> {
     }
 }
 
-impl<T: Copy + Into<f64>> Image<T> {
-    /// Bilinear sample of channel `c` at real pixel coordinates (x, y); `None` outside
-    /// the convex hull of pixel centres `[0, w-1] x [0, h-1]`.
+impl<T: crate::remap::Texel> Image<T> {
+    /// Bilinear sample of channel `c` at real pixel coordinates (x, y); `None` outside the
+    /// convex hull of pixel centres `[0, w-1] x [0, h-1]` (the contract of [`crate::remap`]).
     #[inline]
     pub fn sample_bilinear(&self, x: f64, y: f64, c: usize) -> Option<f64> {
-        if !(x >= 0.0 && y >= 0.0 && x <= (self.width - 1) as f64 && y <= (self.height - 1) as f64) {
-            return None;
-        }
-        let x0 = (x.floor() as usize).min(self.width.saturating_sub(2));
-        let y0 = (y.floor() as usize).min(self.height.saturating_sub(2));
-        let x1 = (x0 + 1).min(self.width - 1);
-        let y1 = (y0 + 1).min(self.height - 1);
-        let ax = x - x0 as f64;
-        let ay = y - y0 as f64;
-        let v00: f64 = self.get(x0, y0, c).into();
-        let v10: f64 = self.get(x1, y0, c).into();
-        let v01: f64 = self.get(x0, y1, c).into();
-        let v11: f64 = self.get(x1, y1, c).into();
-        // Exact at integer positions: weights of 0 contribute exactly 0.
-        let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
-        let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
-        Some(if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay })
+        crate::remap::sample_bilinear(self, x, y, c)
     }
+}
 
-    /// Nearest-neighbour sample of channel `c`; `None` outside the image.
+impl<T: Copy> Image<T> {
+    /// Nearest-neighbour sample of channel `c` (round half up); `None` outside the image.
     #[inline]
     pub fn sample_nearest(&self, x: f64, y: f64, c: usize) -> Option<T> {
-        let xr = x.round();
-        let yr = y.round();
-        if !(xr >= 0.0 && yr >= 0.0 && xr < self.width as f64 && yr < self.height as f64) {
-            return None;
-        }
-        Some(self.get(xr as usize, yr as usize, c))
+        crate::remap::sample_nearest(self, x, y, c)
     }
 }
 

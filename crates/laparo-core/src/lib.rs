@@ -18,6 +18,7 @@ pub mod io;
 pub mod mesh;
 pub mod par;
 pub mod plot;
+pub mod remap;
 pub mod se3;
 
 pub use calib::StereoCalibration;

@@ -10,6 +10,7 @@
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
 use laparo_core::image::{Image, Mask};
+use laparo_core::remap::{remap_rows, Interp, Texel};
 use rayon::prelude::*;
 
 const NONE: u32 = u32::MAX;
@@ -164,101 +165,14 @@ fn inv_apply(af: &[f64; 8], q: [f64; 2]) -> [f64; 2] {
     [af[0] + (af[4] * d[0] + af[5] * d[1]), af[1] + (af[6] * d[0] + af[7] * d[1])]
 }
 
-/// Bilinear sample of `image` at original point `q` into `out` (one value per channel).
-#[inline(always)]
-fn bilinear_into(image: &Image<u8>, q: [f64; 2], out: &mut [u8], ch: usize) {
-    let (iw, ih) = (image.width, image.height);
-    let src = &image.data;
-    // Clamp round-off just outside the pixel-centre hull; bilinear weights shared by all channels
-    // (exact at integer positions).
-    let qx = q[0].clamp(0.0, (iw - 1) as f64);
-    let qy = q[1].clamp(0.0, (ih - 1) as f64);
-    // qx, qy ≥ 0: truncation is floor (and avoids a libm call per pixel).
-    let x0 = (qx as usize).min(iw.saturating_sub(2));
-    let y0 = (qy as usize).min(ih.saturating_sub(2));
-    let x1 = (x0 + 1).min(iw - 1);
-    let y1 = (y0 + 1).min(ih - 1);
-    let (ax, ay) = (qx - x0 as f64, qy - y0 as f64);
-    let (i00, i10, i01, i11) = ((y0 * iw + x0) * ch, (y0 * iw + x1) * ch, (y1 * iw + x0) * ch, (y1 * iw + x1) * ch);
-    for (c, o) in out.iter_mut().enumerate().take(ch) {
-        let (v00, v10, v01, v11) = (src[i00 + c] as f64, src[i10 + c] as f64, src[i01 + c] as f64, src[i11 + c] as f64);
-        let top = if ax == 0.0 { v00 } else { v00 * (1.0 - ax) + v10 * ax };
-        let bot = if ax == 0.0 { v01 } else { v01 * (1.0 - ax) + v11 * ax };
-        let v = if ay == 0.0 { top } else { top * (1.0 - ay) + bot * ay };
-        // v ∈ [0, 255]: v + 0.5 truncated is round-half-up.
-        *o = (v + 0.5) as u8;
-    }
-}
-
-/// Warp one canvas row (`CH` channels known at compile time; source at least 2×2 pixels). Same
-/// arithmetic as [`bilinear_into`], with the two source rows read as two contiguous slices.
-#[inline(always)]
-fn sample_row<const CH: usize>(
-    fid: &[u32],
-    inv_aff: &[[f64; 8]],
-    image: &Image<u8>,
-    y: usize,
-    row: &mut [u8],
-    mrow: &mut [bool],
-) {
-    let (iw, ih) = (image.width, image.height);
-    if iw < 2 || ih < 2 {
-        return sample_row_dyn(fid, inv_aff, image, y, row, mrow, CH, 0);
-    }
-    let src = &image.data;
-    let (wmax, hmax) = ((iw - 1) as f64, (ih - 1) as f64);
-    let yf = y as i32 as f64;
-    for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(CH)).zip(mrow.iter_mut()).enumerate() {
-        if t == NONE {
-            continue;
-        }
-        // Conversions through i32 (one instruction each; canvas and image sizes fit easily) instead
-        // of usize ↔ f64, which need a multi-instruction sequence for the unsigned 64-bit range.
-        let q = inv_apply(&inv_aff[t as usize], [x as i32 as f64, yf]);
-        let qx = q[0].clamp(0.0, wmax);
-        let qy = q[1].clamp(0.0, hmax);
-        let x0 = (qx as i32 as usize).min(iw - 2);
-        let y0 = (qy as i32 as usize).min(ih - 2);
-        let (ax, ay) = (qx - x0 as i32 as f64, qy - y0 as i32 as f64);
-        let i0 = (y0 * iw + x0) * CH;
-        let i1 = i0 + iw * CH;
-        let (r0, r1) = (&src[i0..i0 + 2 * CH], &src[i1..i1 + 2 * CH]);
-        // Branch-free form of `bilinear_into`: with a zero weight v·(1 − 0) + w·0 = v exactly, so
-        // the result is bitwise the same (exact at integer positions).
-        let (bx, by) = (1.0 - ax, 1.0 - ay);
-        for c in 0..CH {
-            let (v00, v10, v01, v11) = (r0[c] as f64, r0[CH + c] as f64, r1[c] as f64, r1[CH + c] as f64);
-            let top = v00 * bx + v10 * ax;
-            let bot = v01 * bx + v11 * ax;
-            let v = top * by + bot * ay;
-            px[c] = (v + 0.5) as u8;
-        }
-        *m = true;
-    }
-}
-
-/// AVX2 sampling of RGB rows (x86-64): the three channels of a pixel are the first three lanes of
-/// one 4 × f64 vector, so the per-channel bilinear arithmetic of [`sample_row`] runs once per pixel,
-/// lane by lane with the same IEEE operations in the same order (no FMA): bitwise the same result.
+/// AVX2 rasterisation (x86-64): the inside test of [`RowTest`] on 4 pixels at once.
 #[cfg(target_arch = "x86_64")]
 mod simd {
-    use super::NONE;
-    use laparo_core::image::Image;
     use std::arch::x86_64::*;
 
-    /// Whether the CPU has what [`sample_row_rgb`] needs (AVX2 implies SSE4.1).
+    /// Whether the CPU has AVX2.
     pub fn available() -> bool {
         std::is_x86_feature_detected!("avx2")
-    }
-
-    /// The four bytes at `p` as 4 × f64.
-    ///
-    /// # Safety
-    /// `p..p + 4` must be readable.
-    #[inline(always)]
-    unsafe fn load4(p: *const u8) -> __m256d {
-        let w = std::ptr::read_unaligned(p as *const i32);
-        _mm256_cvtepi32_pd(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(w)))
     }
 
     /// [`super::RasterBand::raster`] with AVX2 rows.
@@ -311,92 +225,6 @@ mod simd {
         if x <= x1 {
             test.fill_scalar(row, x, x1, t);
         }
-    }
-
-    /// [`super::sample_row`] for 3 channels; the source must be at least 2×2 pixels. Per pixel,
-    /// the same operations as the scalar code: q = A + L (q − a) (x and y in the two lanes of one
-    /// vector, the horizontal add sums l00·d0 + l01·d1 in the scalar order), clamp, truncation,
-    /// weights, bilinear blend.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 ([`available`]).
-    #[target_feature(enable = "avx2")]
-    pub unsafe fn sample_row_rgb(
-        fid: &[u32],
-        inv_aff: &[[f64; 8]],
-        image: &Image<u8>,
-        y: usize,
-        row: &mut [u8],
-        mrow: &mut [bool],
-    ) {
-        const CH: usize = 3;
-        let (iw, ih) = (image.width, image.height);
-        let src = &image.data[..];
-        let qmax = _mm_set_pd((ih - 1) as f64, (iw - 1) as f64);
-        let imax = _mm_set_epi32(0, 0, (ih - 2) as i32, (iw - 2) as i32);
-        let (zero, one) = (_mm_setzero_pd(), _mm_set1_pd(1.0));
-        let yf = y as i32 as f64;
-        let half = _mm256_set1_pd(0.5);
-        for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(CH)).zip(mrow.iter_mut()).enumerate() {
-            if t == NONE {
-                continue;
-            }
-            let af = inv_aff[t as usize].as_ptr();
-            // d = q − a; (L d) by rows: [l00·d0, l01·d1] and [l10·d0, l11·d1] summed pairwise.
-            let d = _mm_sub_pd(_mm_set_pd(yf, x as i32 as f64), _mm_loadu_pd(af.add(2)));
-            let ld = _mm_hadd_pd(_mm_mul_pd(_mm_loadu_pd(af.add(4)), d), _mm_mul_pd(_mm_loadu_pd(af.add(6)), d));
-            let q = _mm_add_pd(_mm_loadu_pd(af), ld);
-            // Clamp to the pixel-centre hull (q is finite), truncate (q ≥ 0: floor), cap at w − 2, h − 2.
-            let qc = _mm_min_pd(_mm_max_pd(q, zero), qmax);
-            let i01 = _mm_min_epi32(_mm_cvttpd_epi32(qc), imax);
-            let a = _mm_sub_pd(qc, _mm_cvtepi32_pd(i01));
-            let b = _mm_sub_pd(one, a);
-            let (x0, y0) = (_mm_cvtsi128_si32(i01) as usize, _mm_extract_epi32::<1>(i01) as usize);
-            let i0 = (y0 * iw + x0) * CH;
-            let i1 = i0 + iw * CH;
-            if i1 + 2 * CH + 1 > src.len() {
-                // The last source pixel: a 4-byte load of its right neighbour would read past the
-                // end of the image.
-                super::sample_row_dyn(&fid[x..x + 1], inv_aff, image, y, px, std::slice::from_mut(m), CH, x);
-                continue;
-            }
-            let (ax, bx) = (_mm256_broadcastsd_pd(a), _mm256_broadcastsd_pd(b));
-            let (ay, by) = (_mm256_broadcastsd_pd(_mm_unpackhi_pd(a, a)), _mm256_broadcastsd_pd(_mm_unpackhi_pd(b, b)));
-            let p = src.as_ptr();
-            // SAFETY (reads): i0 < i1 and i1 + 7 ≤ src.len() (checked above), so the four 4-byte
-            // reads at i0, i0 + 3, i1, i1 + 3 are in bounds.
-            let top = _mm256_add_pd(_mm256_mul_pd(load4(p.add(i0)), bx), _mm256_mul_pd(load4(p.add(i0 + CH)), ax));
-            let bot = _mm256_add_pd(_mm256_mul_pd(load4(p.add(i1)), bx), _mm256_mul_pd(load4(p.add(i1 + CH)), ax));
-            let v = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(top, by), _mm256_mul_pd(bot, ay)), half);
-            // v + 0.5 ∈ [0.5, 255.5]: truncation is the scalar `as u8`; lane 3 (the next pixel's
-            // first channel) is dropped.
-            let i32x4 = _mm256_cvttpd_epi32(v);
-            let bytes = _mm_cvtsi128_si32(_mm_packus_epi16(_mm_packus_epi32(i32x4, i32x4), i32x4)) as u32;
-            px.copy_from_slice(&bytes.to_le_bytes()[..CH]);
-            *m = true;
-        }
-    }
-}
-
-/// [`sample_row`] for any channel count; `fid`, `row` and `mrow` start at canvas column `x_first`.
-#[allow(clippy::too_many_arguments)]
-fn sample_row_dyn(
-    fid: &[u32],
-    inv_aff: &[[f64; 8]],
-    image: &Image<u8>,
-    y: usize,
-    row: &mut [u8],
-    mrow: &mut [bool],
-    ch: usize,
-    x_first: usize,
-) {
-    for (x, ((&t, px), m)) in fid.iter().zip(row.chunks_exact_mut(ch.max(1))).zip(mrow.iter_mut()).enumerate() {
-        if t == NONE {
-            continue;
-        }
-        let q = inv_apply(&inv_aff[t as usize], [(x_first + x) as f64, y as f64]);
-        bilinear_into(image, q, px, ch);
-        *m = true;
     }
 }
 
@@ -672,46 +500,32 @@ impl Warp {
         Some(self.inv_affine(t as usize, [x as f64, y as f64]))
     }
 
-    /// Warp `image` (any number of channels, same size as the depth/ROI): piecewise-affine,
-    /// inverse mapping, bilinear sampling. Returns the warped image and its validity mask.
-    pub fn warp_image(&self, image: &Image<u8>) -> Result<(Image<u8>, Mask)> {
-        self.warp_image_with(image, simd_available())
-    }
-
-    /// [`Warp::warp_image`]; `avx2` (only honoured when the CPU has it) picks the vectorised RGB
-    /// sampling, which gives the same image.
-    fn warp_image_with(&self, image: &Image<u8>, avx2: bool) -> Result<(Image<u8>, Mask)> {
+    /// Warp `image` (any number of channels and texel type, same size as the depth/ROI):
+    /// piecewise-affine inverse mapping, bilinear sampling by [`laparo_core::remap`] (source
+    /// positions in f32, clamped to the pixel-centre hull against round-off). Returns the warped
+    /// image and its validity mask (uncovered canvas pixels are 0 / false).
+    pub fn warp_image<T: Texel + Default>(&self, image: &Image<T>) -> Result<(Image<T>, Mask)> {
         if image.width != self.src_width || image.height != self.src_height {
             return Err(CpcError::SizeMismatch(format!(
                 "image is {}x{}, the mesh was built on {}x{}",
                 image.width, image.height, self.src_width, self.src_height
             )));
         }
-        let ch = image.channels;
-        let mut out = Image::filled(self.width, self.height, ch, 0u8);
-        let mut mask = Image::filled(self.width, self.height, 1, false);
-        let width = self.width;
-        #[cfg(target_arch = "x86_64")]
-        let rgb_simd = avx2 && ch == 3 && image.width >= 2 && image.height >= 2 && simd::available();
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = avx2;
-        out.data.par_chunks_mut(width * ch).zip(mask.data.par_chunks_mut(width)).enumerate().for_each(
-            |(y, (row, mrow))| {
-                let fid = &self.face_id[y * width..(y + 1) * width];
-                #[cfg(target_arch = "x86_64")]
-                if rgb_simd {
-                    // SAFETY: `rgb_simd` implies the CPU supports AVX2.
-                    return unsafe { simd::sample_row_rgb(fid, &self.inv_aff, image, y, row, mrow) };
+        let (width, wmax, hmax) = (self.width, (image.width - 1) as f64, (image.height - 1) as f64);
+        let coords = |y: usize, sx: &mut [f32], sy: &mut [f32]| {
+            let fid = &self.face_id[y * width..(y + 1) * width];
+            let yf = y as i32 as f64;
+            for (x, ((&t, a), b)) in fid.iter().zip(sx.iter_mut()).zip(sy.iter_mut()).enumerate() {
+                if t == NONE {
+                    (*a, *b) = (f32::NAN, f32::NAN);
+                } else {
+                    let q = inv_apply(&self.inv_aff[t as usize], [x as i32 as f64, yf]);
+                    (*a, *b) = (q[0].clamp(0.0, wmax) as f32, q[1].clamp(0.0, hmax) as f32);
                 }
-                match ch {
-                    1 => sample_row::<1>(fid, &self.inv_aff, image, y, row, mrow),
-                    3 => sample_row::<3>(fid, &self.inv_aff, image, y, row, mrow),
-                    4 => sample_row::<4>(fid, &self.inv_aff, image, y, row, mrow),
-                    _ => sample_row_dyn(fid, &self.inv_aff, image, y, row, mrow, ch, 0),
-                }
-            },
-        );
-        Ok((out, mask))
+            }
+        };
+        remap_rows(image, self.width, self.height, Interp::Bilinear, T::default(), coords)
+            .map_err(|e| CpcError::SizeMismatch(e.to_string()))
     }
 
     /// Dense coordinate maps (see [`WarpMaps`]).
@@ -806,45 +620,38 @@ mod tests {
         (*seed >> 11) as f64 / (1u64 << 53) as f64
     }
 
-    /// Edge cases of the AVX2 sampling against the scalar code: source points clamped outside
-    /// the image, on its last row / column and on its last pixel (the scalar fallback), and
-    /// uncovered pixels.
+    /// The warp samples exactly what the contract of `laparo_core::remap` gives at the affine
+    /// source position of every covered canvas pixel (f32, clamped to the pixel-centre hull).
     #[test]
-    fn simd_sampling_matches_the_scalar_code_on_the_image_border() {
-        let mut seed = 0x9e3779b97f4a7c15u64;
-        let (iw, ih) = (7, 5);
-        let data: Vec<u8> = (0..iw * ih * 3).map(|_| (rng(&mut seed) * 256.0) as u8).collect();
-        let image = Image { width: iw, height: ih, channels: 3, data };
-        // Face 0 maps the canvas onto [−1.3, 7.4] × [−0.9, 5.6]; face 1 is the exact identity.
-        let inv_aff = vec![[-1.3, -0.9, 0.0, 0.0, 0.29, 0.013, 0.007, 0.27], [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0]];
-        let width = 33;
-        for y in 0..26 {
-            let fid: Vec<u32> = (0..width)
-                .map(|x| {
-                    if (x + y) % 11 == 5 {
-                        NONE
-                    } else if y % 5 == 4 {
-                        1
-                    } else {
-                        0
+    fn warp_samples_the_shared_kernel_at_the_affine_source_positions() {
+        let sc = bumpy_bowl_spec().render().unwrap();
+        let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &CpcParams::default()).unwrap();
+        let w = &r.warp;
+        let (out, mask) = w.warp_image(&sc.image).unwrap();
+        let (wmax, hmax) = ((sc.image.width - 1) as f64, (sc.image.height - 1) as f64);
+        let mut checked = 0;
+        for y in (0..w.height).step_by(7) {
+            for x in (0..w.width).step_by(5) {
+                match w.backward_pixel(x, y) {
+                    None => assert!(!mask.get(x, y, 0) && out.pixel(x, y).iter().all(|&v| v == 0)),
+                    Some(q) => {
+                        let (qx, qy) = (q[0].clamp(0.0, wmax), q[1].clamp(0.0, hmax));
+                        let one =
+                            laparo_core::remap::CoordMap { width: 1, height: 1, xy: vec![[qx as f32, qy as f32]] };
+                        let (v, m) = laparo_core::remap::remap(&sc.image, &one, Interp::Bilinear, 0).unwrap();
+                        assert!(m.data[0] && mask.get(x, y, 0));
+                        assert_eq!(out.pixel(x, y), &v.data[..], "pixel ({x}, {y})");
+                        // And within half a grey level (+ f32 rounding) of the f64 bilinear value.
+                        for c in 0..sc.image.channels {
+                            let exact = sc.image.sample_bilinear(qx, qy, c).unwrap();
+                            assert!((out.get(x, y, c) as f64 - exact).abs() <= 0.51, "{exact}");
+                        }
+                        checked += 1;
                     }
-                })
-                .collect();
-            let (mut a, mut b) = (vec![0u8; 3 * width], vec![0u8; 3 * width]);
-            let (mut ma, mut mb) = (vec![false; width], vec![false; width]);
-            sample_row::<3>(&fid, &inv_aff, &image, y, &mut a, &mut ma);
-            if simd_available() {
-                // SAFETY: the CPU supports AVX2.
-                #[cfg(target_arch = "x86_64")]
-                unsafe {
-                    simd::sample_row_rgb(&fid, &inv_aff, &image, y, &mut b, &mut mb)
-                };
-            } else {
-                sample_row::<3>(&fid, &inv_aff, &image, y, &mut b, &mut mb);
+                }
             }
-            assert_eq!(a, b, "row {y}");
-            assert_eq!(ma, mb, "row {y}");
         }
+        assert!(checked > 1000, "{checked}");
     }
 
     /// Random triangles (rows whose length is not a multiple of 4, faces overlapping, slivers):
@@ -871,8 +678,8 @@ mod tests {
         assert!(scalar.iter().filter(|&&t| t != NONE).count() > width * height / 2);
     }
 
-    /// The AVX2 rasterisation and sampling give bitwise the same raster and image as the scalar
-    /// code (on a CPU without AVX2 both calls take the scalar path).
+    /// The AVX2 rasterisation gives bitwise the same raster as the scalar code (on a CPU without
+    /// AVX2 both calls take the scalar path).
     #[test]
     fn simd_paths_match_the_scalar_code() {
         let sc = bumpy_bowl_spec().render().unwrap();
@@ -900,9 +707,5 @@ mod tests {
         assert_eq!(scalar, vector);
         assert_eq!(scalar, w.face_id);
         assert!(scalar.iter().filter(|&&t| t != NONE).count() > 100_000);
-        let (a, ma) = w.warp_image_with(&sc.image, false).unwrap();
-        let (b, mb) = w.warp_image_with(&sc.image, true).unwrap();
-        assert_eq!(a.data, b.data);
-        assert_eq!(ma.data, mb.data);
     }
 }

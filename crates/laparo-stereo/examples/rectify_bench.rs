@@ -1,7 +1,8 @@
 //! Rectification timing on the real SCARED ds1-3 pair (same work as `laparo stereo bench`):
 //! `cargo run --release -p laparo-stereo --example rectify_bench -- THREADS`.
 use laparo_core::calib::StereoCalibration;
-use laparo_stereo::rectify::{remap_bilinear_u8, Rectification, RectifyOptions, Side};
+use laparo_core::remap::{remap, Interp};
+use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
 
 fn main() {
     let d = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/");
@@ -19,7 +20,8 @@ fn main() {
             let rect = Rectification::new(&calib, RectifyOptions::default()).unwrap();
             let (ml, mr) = (rect.remap_table(Side::Left), rect.remap_table(Side::Right));
             let t1 = std::time::Instant::now();
-            let out = (remap_bilinear_u8(&left, &ml), remap_bilinear_u8(&right, &mr));
+            let out =
+                (remap(&left, &ml, Interp::Bilinear, 0).unwrap(), remap(&right, &mr, Interp::Bilinear, 0).unwrap());
             let t2 = std::time::Instant::now();
             std::hint::black_box(out);
             tm.push((t1 - t0).as_secs_f64() * 1e3);

@@ -11,14 +11,13 @@
 //!   left image to the disparity GT, then add Δx_right").
 //! - `Exact`: p = A_L⁻¹(p'), p_R = (p_x − d(p), p_y), p'_R = A_R(p_R), d' = p'_x − p'_R,x; the
 //!   vertical residual p'_R,y − p'_y is reported (0 for a rectified result).
-use crate::warp_kernels::{bilinear_row, nearest_row_f32};
 use laparo_core::image::Mask;
+use laparo_core::remap::{self, Interp, Texel};
 use laparo_core::se3::{euler_zyx, rotation_zyx};
 use laparo_core::{Distortion, Image, Intrinsics};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::mem::MaybeUninit;
 
 /// Errors of camera augmentation.
 #[derive(Debug, thiserror::Error)]
@@ -287,34 +286,33 @@ impl CameraMap {
         }
     }
 
-    /// f32 coefficients of row `y` of H⁻¹: x_s = (a0 x + c0) / (a2 x + c2), y_s = (a1 x + c1) / (a2 x + c2).
-    #[inline]
-    fn row_coeffs(&self, y: usize) -> ([f32; 3], [f32; 3]) {
-        let (h, yf) = (&self.h_inv, y as f64);
-        (
-            [h[(0, 0)] as f32, h[(1, 0)] as f32, h[(2, 0)] as f32],
-            [
-                (h[(0, 1)] * yf + h[(0, 2)]) as f32,
-                (h[(1, 1)] * yf + h[(1, 2)]) as f32,
-                (h[(2, 1)] * yf + h[(2, 2)]) as f32,
-            ],
-        )
-    }
-
-    /// Source coordinates of augmented row `y` in f32 structure-of-arrays form (fast path).
+    /// Source coordinates of augmented row `y` in f32 (the sampler's row callback).
     #[inline]
     fn row_sources_f32(&self, y: usize, sx: &mut [f32], sy: &mut [f32]) {
-        let yf = y as f64;
         if self.is_homography() {
-            let (a, c) = self.row_coeffs(y);
-            crate::warp_kernels::homography_row(a, c, sx, sy);
+            let (a, c) = remap::homography_row_coeffs(&to_rows(&self.h_inv), y);
+            remap::homography_row(a, c, sx, sy);
         } else {
+            let yf = y as f64;
             for (x, (a, b)) in sx.iter_mut().zip(sy.iter_mut()).enumerate() {
                 let (u, v) = self.inverse(x as f64, yf).unwrap_or((f64::NAN, f64::NAN));
                 *a = u as f32;
                 *b = v as f32;
             }
         }
+    }
+
+    /// Inverse-mapping warp through [`laparo_core::remap`] (fused homography rows when possible).
+    fn warp<T: Texel>(&self, img: &Image<T>, interp: Interp, fill: T, what: &str) -> Result<Warped<T>, AugmentError> {
+        self.check_size(img.width, img.height, what)?;
+        let (w, h) = (self.width, self.height);
+        let r = if self.is_homography() {
+            remap::warp_homography(img, &to_rows(&self.h_inv), w, h, interp, fill)
+        } else {
+            remap::remap_rows(img, w, h, interp, fill, |y, sx, sy| self.row_sources_f32(y, sx, sy))
+        };
+        let (image, valid) = r.map_err(|e| invalid(what, e.to_string()))?;
+        Ok(Warped { image, valid })
     }
 
     /// Source coordinates of every augmented pixel (row-major, NaN when undefined).
@@ -327,112 +325,13 @@ impl CameraMap {
     /// Bilinear warp of an 8-bit image (any channel count) by inverse mapping. Pixels whose
     /// source lies outside the convex hull of pixel centres are 0 and invalid in the mask.
     pub fn warp_bilinear_u8(&self, img: &Image<u8>) -> Result<Warped<u8>, AugmentError> {
-        self.check_size(img.width, img.height, "image")?;
-        let (w, h, c) = (self.width, self.height, img.channels);
-        let mut out = Image::filled(w, h, c, 0u8);
-        let mut mask = Image::filled(w, h, 1, false);
-        out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks_mut(w)).enumerate().for_each_init(
-            || (vec![0f32; w], vec![0f32; w]),
-            |(sx, sy), (y, (orow, mrow))| {
-                let (d, iw, ih) = (&img.data[..], img.width, img.height);
-                if c == 3 && self.is_homography() {
-                    let (a, cc) = self.row_coeffs(y);
-                    if crate::warp_kernels::homography_bilinear_rgb_row(a, cc, d, iw, ih, orow, mrow) {
-                        return;
-                    }
-                }
-                self.row_sources_f32(y, sx, sy);
-                match c {
-                    1 => bilinear_row::<1>(d, iw, ih, sx, sy, orow, mrow),
-                    2 => bilinear_row::<2>(d, iw, ih, sx, sy, orow, mrow),
-                    3 => bilinear_row::<3>(d, iw, ih, sx, sy, orow, mrow),
-                    4 => bilinear_row::<4>(d, iw, ih, sx, sy, orow, mrow),
-                    _ => bilinear_row_dyn(img, sx, sy, orow, mrow),
-                }
-            },
-        );
-        Ok(Warped { image: out, valid: mask })
+        self.warp(img, Interp::Bilinear, 0, "image")
     }
 
     /// Nearest-neighbour warp of a float map (disparity): invalid where the source is outside
     /// the image or not finite; invalid output pixels are `fill`. Source positions round half up.
     pub fn warp_nearest_f32(&self, img: &Image<f32>, fill: f32) -> Result<Warped<f32>, AugmentError> {
-        self.check_size(img.width, img.height, "float map")?;
-        let (w, h, c) = (self.width, self.height, img.channels);
-        if c == 1 {
-            return Ok(self.warp_nearest_f32_1(img, fill));
-        }
-        let mut out = Image::filled(w, h, c, fill);
-        let mut mask = Image::filled(w, h, 1, false);
-        out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks_mut(w)).enumerate().for_each_init(
-            || (vec![0f32; w], vec![0f32; w]),
-            |(sx, sy), (y, (orow, mrow))| {
-                self.row_sources_f32(y, sx, sy);
-                let (wf, hf) = (img.width as f32 - 0.5, img.height as f32 - 0.5);
-                for x in 0..w {
-                    let (fx, fy) = (sx[x], sy[x]);
-                    if fx >= -0.5 && fy >= -0.5 && fx < wf && fy < hf {
-                        let ix = ((fx + 0.5) as usize).min(img.width - 1);
-                        let iy = ((fy + 0.5) as usize).min(img.height - 1);
-                        let src = &img.data[(iy * img.width + ix) * c..(iy * img.width + ix) * c + c];
-                        if src.iter().all(|v| v.is_finite()) {
-                            orow[x * c..x * c + c].copy_from_slice(src);
-                            mrow[x] = true;
-                        }
-                    }
-                }
-            },
-        );
-        Ok(Warped { image: out, valid: mask })
-    }
-
-    /// One-channel [`Self::warp_nearest_f32`]: the row kernels write every pixel, so the
-    /// output buffers are allocated without being cleared first (a 2.5 MB memset at 960×540).
-    fn warp_nearest_f32_1(&self, img: &Image<f32>, fill: f32) -> Warped<f32> {
-        let (w, h) = (self.width, self.height);
-        let mut data: Vec<f32> = Vec::with_capacity(w * h);
-        let mut valid: Vec<bool> = Vec::with_capacity(w * h);
-        {
-            let orows = &mut data.spare_capacity_mut()[..w * h];
-            let mrows = &mut valid.spare_capacity_mut()[..w * h];
-            orows.par_chunks_mut(w).zip(mrows.par_chunks_mut(w)).enumerate().for_each_init(
-                || (vec![0f32; w], vec![0f32; w]),
-                |(sx, sy), (y, (orow, mrow))| {
-                    if self.is_homography() {
-                        let (a, cc) = self.row_coeffs(y);
-                        if crate::warp_kernels::homography_nearest_f32_row_uninit(
-                            a, cc, &img.data, img.width, img.height, fill, orow, mrow,
-                        ) {
-                            return;
-                        }
-                    }
-                    // Initialise the row, then the general kernel (which writes every pixel too).
-                    for (o, m) in orow.iter_mut().zip(mrow.iter_mut()) {
-                        o.write(fill);
-                        m.write(false);
-                    }
-                    // SAFETY: every element was just initialised; MaybeUninit<T> has T's layout.
-                    let (orow, mrow) = unsafe {
-                        (
-                            &mut *(orow as *mut [MaybeUninit<f32>] as *mut [f32]),
-                            &mut *(mrow as *mut [MaybeUninit<bool>] as *mut [bool]),
-                        )
-                    };
-                    self.row_sources_f32(y, sx, sy);
-                    nearest_row_f32(&img.data, img.width, img.height, fill, sx, sy, orow, mrow);
-                },
-            );
-        }
-        // SAFETY: every row of the first w * h elements was written above (the kernels write
-        // every pixel of their row, the fallback initialises it first); capacity >= w * h.
-        unsafe {
-            data.set_len(w * h);
-            valid.set_len(w * h);
-        }
-        Warped {
-            image: Image { width: w, height: h, channels: 1, data },
-            valid: Image { width: w, height: h, channels: 1, data: valid },
-        }
+        self.warp(img, Interp::Nearest, fill, "float map")
     }
 
     /// Nearest-neighbour warp of a mask (e.g. an occlusion mask); outside → `false`.
@@ -450,21 +349,6 @@ impl CameraMap {
             )));
         }
         Ok(())
-    }
-}
-
-fn bilinear_row_dyn(img: &Image<u8>, sxs: &[f32], sys: &[f32], orow: &mut [u8], mrow: &mut [bool]) {
-    let c = img.channels;
-    for (x, (&sx, &sy)) in sxs.iter().zip(sys).enumerate() {
-        let (sx, sy) = (sx as f64, sy as f64);
-        let mut ok = true;
-        for ch in 0..c {
-            match img.sample_bilinear(sx, sy, ch) {
-                Some(v) => orow[x * c + ch] = (v + 0.5) as u8,
-                None => ok = false,
-            }
-        }
-        mrow[x] = ok;
     }
 }
 
@@ -594,11 +478,8 @@ fn sample_disparity(d: &Image<f32>, x: f64, y: f64) -> Option<f64> {
         let lo = v.iter().cloned().fold(f32::INFINITY, f32::min);
         let hi = v.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
         if hi - lo <= 1.0 {
-            let ax = x - x0 as f64;
-            let ay = y - y0 as f64;
-            let top = v[0] as f64 * (1.0 - ax) + v[1] as f64 * ax;
-            let bot = v[2] as f64 * (1.0 - ax) + v[3] as f64 * ax;
-            return Some(top * (1.0 - ay) + bot * ay);
+            let [p00, p10, p01, p11] = v.map(f64::from);
+            return Some(remap::bilerp(p00, p10, p01, p11, x - x0 as f64, y - y0 as f64, true));
         }
     }
     nearest()

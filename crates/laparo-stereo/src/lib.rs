@@ -3,6 +3,7 @@
 
 // Calibration statistics, rectification, disparity<->depth, evaluation.
 pub mod calib_stats;
+pub mod disparity;
 pub mod eval;
 pub mod rectify;
 
@@ -11,7 +12,6 @@ pub mod augment;
 pub mod cats_params;
 pub mod dataset;
 pub mod synthetic;
-mod warp_kernels;
 
 // Middlebury calib.txt reader (stereo calibration statistics / evaluation).
 pub mod middlebury;

@@ -26,11 +26,12 @@
 //! For a rectified pair, or a near-rectified raw pair "for reference only" (Table 3.7):
 //! `d = f b / z + (c_x^L − c_x^R)`, so `z = f b / (d − (c_x^L − c_x^R))`. Middlebury calls
 //! `doffs = c_x^R − c_x^L` (then `z = f b / (d + doffs)`); laparo stores `doffs` with that sign.
+pub use crate::disparity::DisparityGeometry;
 use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
-use laparo_core::depth::{DepthMap, DepthUnit};
 use laparo_core::error::{CoreError, Result};
 use laparo_core::image::{Image, Mask};
+use laparo_core::remap::{remap, CoordMap, Interp, Texel};
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Rotation3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -316,7 +317,7 @@ impl Rectification {
     /// The inverse map of camera `s`: for every rectified pixel, its source image position
     /// (f32 like OpenCV's `CV_32FC1` maps; NaN when the ray goes behind the camera). The ray
     /// `R_sᵀ K'⁻¹ (u, v, 1)` is affine in u, so each row is built incrementally; parallel over rows.
-    pub fn remap_table(&self, s: Side) -> RemapTable {
+    pub fn remap_table(&self, s: Side) -> CoordMap {
         let (k, d, r, kn) = self.side(s);
         let (w, h) = (kn.width, kn.height);
         let rt = r.transpose();
@@ -364,7 +365,7 @@ impl Rectification {
                 }
             },
         );
-        RemapTable { width: w, height: h, xy }
+        CoordMap { width: w, height: h, xy }
     }
 
     /// 3×4 projection matrices of the rectified cameras in the rectified left frame (OpenCV P1, P2):
@@ -465,9 +466,11 @@ impl Rectification {
         }
     }
 
-    /// Rectify an 8-bit image of camera `s` (bilinear; pixels without source are 0) and return
-    /// it with its validity mask. The image must have the calibration's size.
-    pub fn rectify_image(&self, s: Side, img: &Image<u8>) -> Result<(Image<u8>, Mask)> {
+    /// Rectify an image of camera `s` (bilinear, the contract of [`laparo_core::remap`]; pixels
+    /// without source are 0) and return it with its validity mask. The image must have the
+    /// calibration's size. For many frames, build [`Self::remap_table`] once and call
+    /// [`laparo_core::remap::remap`] per frame.
+    pub fn rectify_image<T: Texel + Default>(&self, s: Side, img: &Image<T>) -> Result<(Image<T>, Mask)> {
         if (img.width, img.height) != (self.calib.left.width, self.calib.left.height) {
             return Err(CoreError::SizeMismatch(format!(
                 "{} image is {}x{}, the calibration is {}x{}",
@@ -478,243 +481,7 @@ impl Rectification {
                 self.calib.left.height
             )));
         }
-        Ok(remap_bilinear_u8(img, &self.remap_table(s)))
-    }
-}
-
-/// An inverse map: for each output pixel, the source position (NaN = none).
-#[derive(Clone, Debug, PartialEq)]
-pub struct RemapTable {
-    pub width: usize,
-    pub height: usize,
-    /// Row-major `[x, y]` source positions (px).
-    pub xy: Vec<[f32; 2]>,
-}
-
-/// Bilinear weights at (x, y) inside the hull of pixel centres of a `w`×`h` image:
-/// `(x0, y0, x1, y1, ax, ay)`; `None` outside.
-#[inline]
-fn bilinear_setup(x: f64, y: f64, w: usize, h: usize) -> Option<(usize, usize, usize, usize, f64, f64)> {
-    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
-        return None;
-    }
-    // x, y >= 0 here, so truncation is floor (and avoids a libm call without SSE4.1).
-    let x0 = (x as usize).min(w.saturating_sub(2));
-    let y0 = (y as usize).min(h.saturating_sub(2));
-    let x1 = (x0 + 1).min(w - 1);
-    let y1 = (y0 + 1).min(h - 1);
-    Some((x0, y0, x1, y1, x - x0 as f64, y - y0 as f64))
-}
-
-/// Fractional bits of the fixed-point bilinear weights of [`remap_bilinear_u8`] (OpenCV uses 5).
-const WEIGHT_BITS: u32 = 11;
-
-/// One output row of [`remap_bilinear_u8`] for `C` channels: fixed-point weights with
-/// [`WEIGHT_BITS`] fractional bits per axis (products fit in u32: 255 · 2^22 < 2^32).
-#[inline(always)]
-fn remap_row_u8<const C: usize>(img: &Image<u8>, xy: &[[f32; 2]], row: &mut [u8], mrow: &mut [bool]) {
-    let (w, h) = (img.width, img.height);
-    let (wm, hm) = ((w - 1) as f32, (h - 1) as f32);
-    let stride = w * C;
-    let data = &img.data[..];
-    let one = (1u32 << WEIGHT_BITS) as f32;
-    let dx = if w > 1 { C } else { 0 };
-    let dy = if h > 1 { stride } else { 0 };
-    let round = 1u32 << (2 * WEIGHT_BITS - 1);
-    for ((&[sx, sy], o), m) in xy.iter().zip(row.chunks_exact_mut(C)).zip(mrow.iter_mut()) {
-        if !(sx >= 0.0 && sy >= 0.0 && sx <= wm && sy <= hm) {
-            continue;
-        }
-        let x0 = (sx as usize).min(w.saturating_sub(2));
-        let y0 = (sy as usize).min(h.saturating_sub(2));
-        let ax = ((sx - x0 as f32) * one + 0.5) as u32;
-        let ay = ((sy - y0 as f32) * one + 0.5) as u32;
-        let (bx, by) = ((1 << WEIGHT_BITS) - ax, (1 << WEIGHT_BITS) - ay);
-        let (w00, w10, w01, w11) = (bx * by, ax * by, bx * ay, ax * ay);
-        let i00 = y0 * stride + x0 * C;
-        let p00: &[u8; C] = data[i00..i00 + C].try_into().unwrap();
-        let p10: &[u8; C] = data[i00 + dx..i00 + dx + C].try_into().unwrap();
-        let p01: &[u8; C] = data[i00 + dy..i00 + dy + C].try_into().unwrap();
-        let p11: &[u8; C] = data[i00 + dy + dx..i00 + dy + dx + C].try_into().unwrap();
-        for k in 0..C {
-            let v = w00 * p00[k] as u32 + w10 * p10[k] as u32 + w01 * p01[k] as u32 + w11 * p11[k] as u32;
-            o[k] = ((v + round) >> (2 * WEIGHT_BITS)) as u8;
-        }
-        *m = true;
-    }
-}
-
-/// Remap an 8-bit image through `table` with bilinear sampling (fixed-point weights with 11
-/// fractional bits per axis, rounded; within 0.5 grey level + 2⁻¹¹·255 of the exact bilinear
-/// value). 0 and mask false where the source position is outside the hull of pixel centres or
-/// undefined. Parallel over rows.
-pub fn remap_bilinear_u8(img: &Image<u8>, table: &RemapTable) -> (Image<u8>, Mask) {
-    let (w, c) = (table.width, img.channels);
-    let mut out = Image::filled(table.width, table.height, c, 0u8);
-    let mut mask = Image::filled(table.width, table.height, 1, false);
-    out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks_mut(w)).enumerate().for_each(|(y, (row, mrow))| {
-        let xy = &table.xy[y * w..(y + 1) * w];
-        match c {
-            1 => remap_row_u8::<1>(img, xy, row, mrow),
-            3 => remap_row_u8::<3>(img, xy, row, mrow),
-            4 => remap_row_u8::<4>(img, xy, row, mrow),
-            2 => remap_row_u8::<2>(img, xy, row, mrow),
-            _ => {
-                for (x, &[sx, sy]) in xy.iter().enumerate() {
-                    if let Some((x0, y0, x1, y1, ax, ay)) = bilinear_setup(sx as f64, sy as f64, img.width, img.height)
-                    {
-                        for k in 0..c {
-                            let g = |xx: usize, yy: usize| img.data[(yy * img.width + xx) * c + k] as f64;
-                            let v = (1.0 - ay) * ((1.0 - ax) * g(x0, y0) + ax * g(x1, y0))
-                                + ay * ((1.0 - ax) * g(x0, y1) + ax * g(x1, y1));
-                            row[x * c + k] = (v + 0.5) as u8;
-                        }
-                        mrow[x] = true;
-                    }
-                }
-            }
-        }
-    });
-    (out, mask)
-}
-
-/// Remap a float image through `table` with bilinear sampling (NaN outside or undefined; a NaN
-/// neighbour with non-zero weight gives NaN).
-pub fn remap_bilinear_f64(img: &Image<f64>, table: &RemapTable) -> Image<f64> {
-    let (w, c) = (table.width, img.channels);
-    let mut out = Image::filled(table.width, table.height, c, f64::NAN);
-    out.data.par_chunks_mut(w * c).enumerate().for_each(|(y, row)| {
-        for x in 0..w {
-            let [sx, sy] = table.xy[y * w + x];
-            if let Some((x0, y0, x1, y1, ax, ay)) = bilinear_setup(sx as f64, sy as f64, img.width, img.height) {
-                for k in 0..c {
-                    let g = |xx: usize, yy: usize| img.data[(yy * img.width + xx) * c + k];
-                    let mut acc = 0.0;
-                    for (wt, v) in [
-                        ((1.0 - ax) * (1.0 - ay), g(x0, y0)),
-                        (ax * (1.0 - ay), g(x1, y0)),
-                        ((1.0 - ax) * ay, g(x0, y1)),
-                        (ax * ay, g(x1, y1)),
-                    ] {
-                        if wt != 0.0 {
-                            acc += wt * v;
-                        }
-                    }
-                    row[x * c + k] = acc;
-                }
-            }
-        }
-    });
-    out
-}
-
-/// The disparity ↔ depth geometry of a (near-)rectified pair (§3.3.8):
-/// `d = f b / z + (c_x^L − c_x^R)`. Depth in the baseline's unit (mm).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct DisparityGeometry {
-    /// Focal length along x (px).
-    pub f_px: f64,
-    /// Focal length along y (px), for back-projection.
-    pub fy_px: f64,
-    /// Baseline (mm).
-    pub baseline_mm: f64,
-    /// Principal points (px).
-    pub cx_left: f64,
-    pub cx_right: f64,
-    pub cy: f64,
-}
-
-impl DisparityGeometry {
-    /// From a calibration used as is ("static calibration parameters", Table 3.7): f = left f_x,
-    /// b = |T|, the two principal points. Exact only for a rectified pair; for a raw
-    /// near-rectified pair it is the §3.3.8 approximation.
-    pub fn from_calibration(c: &StereoCalibration) -> Result<Self> {
-        c.left.validate()?;
-        c.right.validate()?;
-        let b = c.t_mm.norm();
-        if !(b.is_finite() && b > 0.0) {
-            return Err(CoreError::invalid("T", format!("baseline |T| = {b} mm")));
-        }
-        Ok(DisparityGeometry {
-            f_px: c.left.fx,
-            fy_px: c.left.fy,
-            baseline_mm: b,
-            cx_left: c.left.cx,
-            cx_right: c.right.cx,
-            cy: c.left.cy,
-        })
-    }
-
-    /// Middlebury-style parameters: f, baseline (mm), `doffs = c_x^R − c_x^L`, left c_x, c_y.
-    pub fn middlebury(f_px: f64, baseline_mm: f64, doffs_px: f64, cx_left: f64, cy: f64) -> Self {
-        DisparityGeometry { f_px, fy_px: f_px, baseline_mm, cx_left, cx_right: cx_left + doffs_px, cy }
-    }
-
-    /// `c_x^L − c_x^R` (px).
-    pub fn offset_px(&self) -> f64 {
-        self.cx_left - self.cx_right
-    }
-
-    /// Depth (mm) of disparity `d` (px): `z = f b / (d − (c_x^L − c_x^R))`; NaN when `d` is not
-    /// finite or the point would be at or beyond infinity (`d ≤ c_x^L − c_x^R`).
-    #[inline]
-    pub fn depth_mm(&self, d: f64) -> f64 {
-        let den = d - self.offset_px();
-        if d.is_finite() && den > 0.0 {
-            self.f_px * self.baseline_mm / den
-        } else {
-            f64::NAN
-        }
-    }
-
-    /// Disparity (px) of depth `z` (mm): `d = f b / z + (c_x^L − c_x^R)` (§3.3.8); NaN when z ≤ 0.
-    #[inline]
-    pub fn disparity_px(&self, z_mm: f64) -> f64 {
-        if z_mm.is_finite() && z_mm > 0.0 {
-            self.f_px * self.baseline_mm / z_mm + self.offset_px()
-        } else {
-            f64::NAN
-        }
-    }
-
-    /// Depth map (mm) of a left disparity map (channel 0).
-    pub fn depth_map(&self, disp: &Image<f64>) -> DepthMap {
-        let data: Vec<f64> = (0..disp.n_pixels()).map(|i| self.depth_mm(disp.data[i * disp.channels])).collect();
-        DepthMap { width: disp.width, height: disp.height, unit: DepthUnit::Mm, data }
-    }
-
-    /// Left disparity map (px) of a depth map (any unit; converted to mm).
-    pub fn disparity_map(&self, depth: &DepthMap) -> Image<f64> {
-        let s = depth.unit.to_metres() * 1e3;
-        Image {
-            width: depth.width,
-            height: depth.height,
-            channels: 1,
-            data: depth.data.iter().map(|&z| self.disparity_px(z * s)).collect(),
-        }
-    }
-
-    /// Left-camera 3D point (mm) of left pixel (x, y) with disparity d:
-    /// `X = (x − c_x^L) z / f`, `Y = (y − c_y) z / f_y`, `Z = z`. `None` when the depth is invalid.
-    pub fn point_mm(&self, x: f64, y: f64, d: f64) -> Option<Vector3<f64>> {
-        let z = self.depth_mm(d);
-        if !z.is_finite() {
-            return None;
-        }
-        Some(Vector3::new((x - self.cx_left) * z / self.f_px, (y - self.cy) * z / self.fy_px, z))
-    }
-
-    /// Point cloud (mm) of every valid pixel of a left disparity map: `(x, y, point)`.
-    pub fn point_cloud(&self, disp: &Image<f64>) -> Vec<(usize, usize, Vector3<f64>)> {
-        let mut out = Vec::new();
-        for y in 0..disp.height {
-            for x in 0..disp.width {
-                if let Some(p) = self.point_mm(x as f64, y as f64, disp.get(x, y, 0)) {
-                    out.push((x, y, p));
-                }
-            }
-        }
-        out
+        remap(img, &self.remap_table(s), Interp::Bilinear, T::default())
     }
 }
 
@@ -740,19 +507,23 @@ mod tests {
         assert!((p - Vector3::new(5.0, -5.0, 50.0)).norm() < 1e-12);
     }
 
-    #[test]
-    fn identity_pair_keeps_cameras() {
-        let k = Intrinsics::new(1000.0, 1000.0, 319.5, 239.5, 640, 480).unwrap();
-        let c = StereoCalibration {
-            width: 640,
-            height: 480,
+    /// Two identical distortion-free cameras, the right one 5 mm along +x.
+    fn parallel_pair(k: Intrinsics) -> StereoCalibration {
+        StereoCalibration {
+            width: k.width,
+            height: k.height,
             left: k,
             left_dist: Distortion::default(),
             right: k,
             right_dist: Distortion::default(),
             r: Matrix3::identity(),
             t_mm: Vector3::new(-5.0, 0.0, 0.0),
-        };
+        }
+    }
+
+    #[test]
+    fn identity_pair_keeps_cameras() {
+        let c = parallel_pair(Intrinsics::new(1000.0, 1000.0, 319.5, 239.5, 640, 480).unwrap());
         let r = Rectification::new(&c, RectifyOptions { alpha: -1.0, align_principal_points: true }).unwrap();
         assert!((r.r1 - Matrix3::identity()).norm() < 1e-15 && (r.r2 - Matrix3::identity()).norm() < 1e-15);
         assert!((r.k1.cx - 319.5).abs() < 1e-12 && (r.k1.cy - 239.5).abs() < 1e-12 && r.k1.fx == 1000.0);
@@ -766,32 +537,15 @@ mod tests {
     }
 
     #[test]
-    fn fixed_point_remap_matches_exact_bilinear() {
-        let (w, h) = (37, 23);
-        let data: Vec<u8> = (0..w * h * 3).map(|i| ((i * 7919) % 256) as u8).collect();
-        let img = Image::from_vec(w, h, 3, data).unwrap();
-        let mut xy = Vec::new();
-        for i in 0..500 {
-            let t = i as f32 * 0.618;
-            xy.push([(t * 3.7) % (w as f32 + 2.0) - 1.0, (t * 1.3) % (h as f32 + 2.0) - 1.0]);
-        }
-        xy.push([f32::NAN, 3.0]);
-        let table = RemapTable { width: xy.len(), height: 1, xy: xy.clone() };
-        let (out, mask) = remap_bilinear_u8(&img, &table);
-        for (x, p) in xy.iter().enumerate() {
-            for c in 0..3 {
-                match img.sample_bilinear(p[0] as f64, p[1] as f64, c) {
-                    Some(v) => {
-                        assert!(mask.data[x]);
-                        assert!((out.get(x, 0, c) as f64 - v).abs() <= 0.5 + 255.0 / 2048.0, "{p:?}: {v}");
-                    }
-                    None => assert!(!mask.data[x] && out.get(x, 0, c) == 0),
-                }
-            }
-        }
-        // Integer positions copy exactly.
-        let ident =
-            RemapTable { width: w, height: h, xy: (0..w * h).map(|i| [(i % w) as f32, (i / w) as f32]).collect() };
-        assert_eq!(remap_bilinear_u8(&img, &ident).0, img);
+    fn rectifying_an_unrotated_distortion_free_pair_copies_the_image() {
+        let c = parallel_pair(Intrinsics::new(1000.0, 1000.0, 18.0, 11.0, 37, 23).unwrap());
+        let r = Rectification::new(&c, RectifyOptions { alpha: -1.0, align_principal_points: true }).unwrap();
+        let data: Vec<u8> = (0..37 * 23 * 3).map(|i| ((i * 7919) % 256) as u8).collect();
+        let img = Image::from_vec(37, 23, 3, data).unwrap();
+        let (out, mask) = r.rectify_image(Side::Left, &img).unwrap();
+        assert_eq!(out, img);
+        assert!(mask.data.iter().all(|&v| v));
+        let wrong = Image::filled(36, 23, 3, 0u8);
+        assert!(r.rectify_image(Side::Left, &wrong).is_err());
     }
 }

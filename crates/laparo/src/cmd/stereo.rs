@@ -570,8 +570,9 @@ fn run_bench(a: BenchArgs) -> anyhow::Result<()> {
             let t1 = std::time::Instant::now();
             let (ml, mr) = (rect.remap_table(Side::Left), rect.remap_table(Side::Right));
             let t2 = std::time::Instant::now();
-            let (l, _) = laparo_stereo::rectify::remap_bilinear_u8(&left, &ml);
-            let (r, _) = laparo_stereo::rectify::remap_bilinear_u8(&right, &mr);
+            use laparo_core::remap::{remap, Interp};
+            let (l, _) = remap(&left, &ml, Interp::Bilinear, 0)?;
+            let (r, _) = remap(&right, &mr, Interp::Bilinear, 0)?;
             let t3 = std::time::Instant::now();
             std::hint::black_box((l, r));
             t_rect.push((t1 - t0).as_secs_f64() * 1e3);

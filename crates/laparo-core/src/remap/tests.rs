@@ -1,0 +1,323 @@
+use super::kernel::{homography_px, nearest_row, safe_span};
+use super::*;
+
+/// xorshift in [0, 1).
+fn rng(seed: u64) -> impl FnMut() -> f64 {
+    let mut st = seed | 1;
+    move || {
+        st ^= st << 13;
+        st ^= st >> 7;
+        st ^= st << 17;
+        (st >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The contract written out per pixel in plain code (f32, x first then y, round half up).
+fn reference_bilinear_u8(img: &Image<u8>, fx: f32, fy: f32) -> Option<Vec<u8>> {
+    let (w, h, c) = (img.width, img.height, img.channels);
+    if !(fx >= 0.0 && fy >= 0.0 && fx <= (w - 1) as f32 && fy <= (h - 1) as f32) {
+        return None;
+    }
+    let x0 = (fx.floor() as usize).min(w.saturating_sub(2));
+    let y0 = (fy.floor() as usize).min(h.saturating_sub(2));
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
+    let l = |a: f32, b: f32, t: f32| a + t * (b - a);
+    Some(
+        (0..c)
+            .map(|k| {
+                let g = |x: usize, y: usize| img.get(x, y, k) as f32;
+                let v = l(l(g(x0, y0), g(x1, y0), ax), l(g(x0, y1), g(x1, y1), ax), ay);
+                (v + 0.5) as u8
+            })
+            .collect(),
+    )
+}
+
+fn random_u8(w: usize, h: usize, c: usize, seed: u64) -> Image<u8> {
+    let mut r = rng(seed);
+    Image::from_vec(w, h, c, (0..w * h * c).map(|_| (r() * 256.0) as u8).collect()).unwrap()
+}
+
+#[test]
+fn hand_values_every_type() {
+    // 2x2: 0 10 / 20 30. At (0.5, 0.5): lerp(lerp(0,10,.5), lerp(20,30,.5), .5) = 15.
+    let u8img = Image::from_vec(2, 2, 1, vec![0u8, 10, 20, 30]).unwrap();
+    let map = CoordMap { width: 4, height: 1, xy: vec![[0.5, 0.5], [0.25, 0.0], [0.05, 0.0], [1.01, 0.0]] };
+    let (o, m) = remap(&u8img, &map, Interp::Bilinear, 7).unwrap();
+    // 0.25·10 = 2.5 → 3 (half up); 0.05·10 = 0.5 → 1; outside → fill 7.
+    assert_eq!(o.data, vec![15, 3, 1, 7]);
+    assert_eq!(m.data, vec![true, true, true, false]);
+    let u16img = u8img.map(|v| v as u16 * 1000);
+    let (o, _) = remap(&u16img, &map, Interp::Bilinear, 0).unwrap();
+    assert_eq!(o.data, vec![15000, 2500, 500, 0]);
+    let f32img = u8img.map(|v| v as f32);
+    let (o, m) = remap(&f32img, &map, Interp::Bilinear, f32::NAN).unwrap();
+    assert_eq!(&o.data[..3], &[15.0, 2.5, 0.5]);
+    assert!(o.data[3].is_nan() && !m.data[3]);
+    let f64img = u8img.map(|v| v as f64);
+    assert_eq!(f64img.sample_bilinear(0.5, 0.5, 0), Some(15.0));
+    assert_eq!(f64img.sample_bilinear(0.25, 0.0, 0), Some(2.5));
+    assert_eq!(f64img.sample_bilinear(1.0, 1.0, 0), Some(30.0));
+    assert_eq!(f64img.sample_bilinear(1.01, 0.0, 0), None);
+    // Nearest: round half up, domain [-0.5, w-0.5).
+    let map = CoordMap { width: 4, height: 1, xy: vec![[0.5, 0.0], [0.49, 0.6], [-0.5, 0.0], [1.5, 0.0]] };
+    let (o, m) = remap(&u8img, &map, Interp::Nearest, 99).unwrap();
+    assert_eq!(o.data, vec![10, 20, 0, 99]);
+    assert_eq!(m.data, vec![true, true, true, false]);
+}
+
+#[test]
+fn float_texels_are_exact_at_integer_positions_next_to_non_finite_values() {
+    let img = Image::from_vec(3, 1, 1, vec![1.5f32, f32::INFINITY, 2.0]).unwrap();
+    // x = 0 and x = 2 take their pixel untouched although a neighbour is inf; x = 0.5 is invalid.
+    let map = CoordMap { width: 3, height: 1, xy: vec![[0.0, 0.0], [2.0, 0.0], [0.5, 0.0]] };
+    let (o, m) = remap(&img, &map, Interp::Bilinear, -1.0).unwrap();
+    assert_eq!(o.data, vec![1.5, 2.0, -1.0]);
+    assert_eq!(m.data, vec![true, true, false]);
+    let (o, m) = remap(&img, &CoordMap::identity(3, 1), Interp::Nearest, -1.0).unwrap();
+    assert_eq!((o.data, m.data), (vec![1.5, -1.0, 2.0], vec![true, false, true]));
+}
+
+#[test]
+fn identity_reproduces_every_type_bit_for_bit() {
+    for c in [1, 2, 3, 4, 5] {
+        let img = random_u8(13, 7, c, 3 + c as u64);
+        for interp in [Interp::Bilinear, Interp::Nearest] {
+            let (o, m) = remap(&img, &CoordMap::identity(13, 7), interp, 0).unwrap();
+            assert_eq!(o, img, "{c} channels {interp:?}");
+            assert!(m.data.iter().all(|&v| v));
+            let h = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+            assert_eq!(warp_homography(&img, &h, 13, 7, interp, 0).unwrap().0, img);
+        }
+    }
+    let f = random_u8(9, 5, 1, 1).map(|v| v as f32 * 0.37 - 3.0);
+    assert_eq!(remap(&f, &CoordMap::identity(9, 5), Interp::Bilinear, 0.0).unwrap().0, f);
+    let g = random_u8(9, 5, 1, 2).map(|v| v as u16 * 257);
+    assert_eq!(remap(&g, &CoordMap::identity(9, 5), Interp::Bilinear, 0).unwrap().0, g);
+}
+
+#[test]
+fn bilinear_rows_match_the_written_out_contract() {
+    // SSE2 RGB(A) pixels, scalar 1/2/5 channels, border pixels (scalar tail of the SIMD path).
+    let mut r = rng(11);
+    for c in [1, 2, 3, 4, 5] {
+        let img = random_u8(17, 11, c, c as u64);
+        let xy: Vec<[f32; 2]> = (0..2000)
+            .map(|i| match i {
+                0 => [16.0, 10.0],
+                1 => [15.5, 10.0],
+                2 => [16.0, 9.999],
+                _ => [(r() * 18.0 - 0.5) as f32, (r() * 12.0 - 0.5) as f32],
+            })
+            .collect();
+        let map = CoordMap { width: xy.len(), height: 1, xy: xy.clone() };
+        let (o, m) = remap(&img, &map, Interp::Bilinear, 0).unwrap();
+        for (k, p) in xy.iter().enumerate() {
+            match reference_bilinear_u8(&img, p[0], p[1]) {
+                Some(v) => {
+                    assert!(m.data[k]);
+                    assert_eq!(&o.data[k * c..k * c + c], &v[..], "{c} ch at {p:?}");
+                }
+                None => assert!(!m.data[k] && o.data[k * c..k * c + c].iter().all(|&v| v == 0)),
+            }
+        }
+    }
+}
+
+#[test]
+fn bilinear_is_within_half_a_grey_level_of_the_exact_value() {
+    // f64 closed form of the same interpolation; the f32 contract + rounding stays within 0.5 + 1e-3.
+    let img = random_u8(31, 23, 3, 5);
+    let mut r = rng(5);
+    for _ in 0..5000 {
+        let (x, y) = (r() * 30.0, r() * 22.0);
+        let (xf, yf) = (x as f32, y as f32);
+        let v = reference_bilinear_u8(&img, xf, yf).unwrap();
+        for (k, &vk) in v.iter().enumerate() {
+            let exact = img.sample_bilinear(xf as f64, yf as f64, k).unwrap();
+            assert!((vk as f64 - exact).abs() <= 0.5 + 1e-3, "{vk} vs {exact}");
+        }
+    }
+}
+
+#[test]
+fn fused_homography_rows_equal_the_two_pass_path() {
+    // CATS-like and strong homographies; RGB u8 bilinear (fused AVX2) and f32 nearest (fused
+    // AVX2 with the safe span) against remap_rows with the same f32 row coordinates (scalar).
+    let mut r = rng(9);
+    for t in 0..60 {
+        let (w, h) = if t % 5 == 0 { (160, 90) } else { (2 + (r() * 70.0) as usize, 2 + (r() * 50.0) as usize) };
+        let img = random_u8(w, h, 3, t);
+        let fmap = Image::from_vec(
+            w,
+            h,
+            1,
+            (0..w * h)
+                .map(|i| match (r() * 30.0) as u32 {
+                    0 => f32::INFINITY,
+                    1 => f32::NAN,
+                    _ => i as f32 * 0.37 - 11.0,
+                })
+                .collect(),
+        )
+        .unwrap();
+        let deg: f64 = [0.3, 5.0, 45.0, 170.0][t as usize % 4] * (2.0 * r() - 1.0);
+        let (sn, cs) = deg.to_radians().sin_cos();
+        let s = 1.0 + 0.2 * (2.0 * r() - 1.0);
+        let p = [0.0, 1e-4, 2e-3][t as usize % 3] * (2.0 * r() - 1.0);
+        let (tx, ty) = ((2.0 * r() - 1.0) * w as f64 * 0.3, (2.0 * r() - 1.0) * h as f64 * 0.3);
+        let h_inv = [[s * cs, -s * sn, tx], [s * sn, s * cs, ty], [p, p * 0.5, 1.0]];
+        let (ow, oh) = (w + 3, h + 1);
+        let rows = |y: usize, sx: &mut [f32], sy: &mut [f32]| {
+            let (a, c) = homography_row_coeffs(&h_inv, y);
+            homography_row(a, c, sx, sy)
+        };
+        let fused = warp_homography(&img, &h_inv, ow, oh, Interp::Bilinear, 4).unwrap();
+        let two_pass = remap_rows(&img, ow, oh, Interp::Bilinear, 4, rows).unwrap();
+        assert_eq!(fused, two_pass, "case {t}: RGB bilinear");
+        let fused = warp_homography(&fmap, &h_inv, ow, oh, Interp::Nearest, -7.0).unwrap();
+        let two_pass = remap_rows(&fmap, ow, oh, Interp::Nearest, -7.0, rows).unwrap();
+        let bits = |i: &Image<f32>| i.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!((bits(&fused.0), &fused.1), (bits(&two_pass.0), &two_pass.1), "case {t}: f32 nearest");
+    }
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let img = random_u8(257, 131, 3, 77);
+    let h_inv = [[0.98, 0.05, 3.2], [-0.04, 1.01, -2.5], [1e-4, -2e-5, 1.0]];
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| warp_homography(&img, &h_inv, 257, 131, Interp::Bilinear, 0).unwrap())
+    };
+    assert_eq!(run(1), run(2));
+    assert_eq!(run(1), run(5));
+}
+
+#[test]
+fn bad_inputs_are_errors() {
+    let img = random_u8(4, 4, 1, 1);
+    let map = CoordMap { width: 3, height: 3, xy: vec![[0.0; 2]; 8] };
+    assert!(remap(&img, &map, Interp::Bilinear, 0).is_err());
+    let nan = [[f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    assert!(warp_homography(&img, &nan, 4, 4, Interp::Bilinear, 0).is_err());
+    let empty: Image<u8> = Image { width: 0, height: 0, channels: 1, data: vec![] };
+    assert!(remap(&empty, &CoordMap::identity(2, 2), Interp::Nearest, 0).is_err());
+    assert!(warp_homography(
+        &img,
+        &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        usize::MAX,
+        2,
+        Interp::Nearest,
+        0
+    )
+    .is_err());
+}
+
+/// Plain per-pixel reference of the nearest f32 row.
+fn nearest_reference(
+    a: [f32; 3],
+    c: [f32; 3],
+    data: &[f32],
+    w: usize,
+    h: usize,
+    fill: f32,
+    n: usize,
+) -> (Vec<u32>, Vec<bool>) {
+    let (mut o, mut m) = (vec![fill.to_bits(); n], vec![false; n]);
+    for x in 0..n {
+        let (fx, fy) = homography_px(a, c, x as i32 as f32);
+        if fx >= -0.5 && fy >= -0.5 && fx < w as f32 - 0.5 && fy < h as f32 - 0.5 {
+            let ix = ((fx + 0.5).floor() as usize).min(w - 1);
+            let iy = ((fy + 0.5).floor() as usize).min(h - 1);
+            let v = data[iy * w + ix];
+            if v.is_finite() {
+                o[x] = v.to_bits();
+                m[x] = true;
+            }
+        }
+    }
+    (o, m)
+}
+
+#[test]
+fn nearest_rows_equal_the_per_pixel_reference_and_the_safe_span_is_safe() {
+    let mut rnd = rng(0x9E37_79B9_7F4A_7C15);
+    let mut fast_rows = 0;
+    for t in 0..300 {
+        let (w, h) = if t % 5 == 0 { (640, 360) } else { (1 + (rnd() * 90.0) as usize, 1 + (rnd() * 60.0) as usize) };
+        let n = if t % 7 == 0 { 1 + (rnd() * 100.0) as usize } else { w };
+        let data: Vec<f32> = (0..w * h)
+            .map(|i| match (rnd() * 40.0) as u32 {
+                0 => f32::INFINITY,
+                1 => f32::NAN,
+                2 => f32::NEG_INFINITY,
+                _ => i as f32 * 0.37 - 11.0,
+            })
+            .collect();
+        let img = Image::from_vec(w, h, 1, data.clone()).unwrap();
+        let deg = [0.3, 5.0, 45.0, 170.0][t % 4] * (2.0 * rnd() - 1.0);
+        let (sn, cs) = f64::to_radians(deg).sin_cos();
+        let s = 1.0 + [0.0, 0.001, 0.2, -0.5][(t / 4) % 4] * rnd();
+        let p = [0.0, 1e-5, 1e-3, 2e-2][(t / 16) % 4] * (2.0 * rnd() - 1.0);
+        let (tx, ty) = ((2.0 * rnd() - 1.0) * w as f64 * 0.3, (2.0 * rnd() - 1.0) * h as f64 * 0.3);
+        let q = p * (2.0 * rnd() - 1.0);
+        for y in 0..h {
+            let yf = y as f64;
+            let a = [(s * cs) as f32, (s * sn) as f32, p as f32];
+            let c = [(-s * sn * yf + tx) as f32, (s * cs * yf + ty) as f32, (q * yf + 1.0) as f32];
+            let fill = -7.0;
+            let (ro, rm) = nearest_reference(a, c, &data, w, h, fill, n);
+            // Fused path (when the CPU has AVX2).
+            let (mut o, mut m) = (vec![MaybeUninit::new(1.5f32); n], vec![MaybeUninit::new(true); n]);
+            if f32::homography_row_simd(a, c, &img, Interp::Nearest, fill, &mut o, &mut m) {
+                // SAFETY: initialised above.
+                let o: Vec<u32> = o.iter().map(|v| unsafe { v.assume_init() }.to_bits()).collect();
+                let m: Vec<bool> = m.iter().map(|v| unsafe { v.assume_init() }).collect();
+                assert_eq!((&o, &m), (&ro, &rm), "case {t} row {y} ({w}x{h}, n {n}, {deg} deg)");
+            }
+            // Portable path.
+            let (mut sx, mut sy) = (vec![0f32; n], vec![0f32; n]);
+            homography_row(a, c, &mut sx, &mut sy);
+            let (mut o, mut m) = (vec![1.5f32; n], vec![true; n]);
+            nearest_row::<f32, 1>(&data, w, h, 1, fill, &sx, &sy, &mut o, &mut m);
+            let o: Vec<u32> = o.iter().map(|v| v.to_bits()).collect();
+            assert_eq!((&o, &m), (&ro, &rm), "portable: case {t} row {y}");
+            let (xs, xe) = safe_span(a, c, w, h, n);
+            assert!(xs <= xe && xe <= n);
+            if xe > xs + 8 {
+                fast_rows += 1;
+            }
+            for x in xs..xe {
+                let (fx, fy) = (sx[x], sy[x]);
+                assert!(fx > -0.5 && fy > -0.5 && fx < w as f32 - 0.5 && fy < h as f32 - 0.5, "span {t} {y} {x}");
+            }
+        }
+    }
+    assert!(fast_rows > 1000, "the safe span was exercised ({fast_rows} rows)");
+}
+
+#[test]
+fn safe_span_rejects_degenerate_rows() {
+    let nan = f32::NAN;
+    assert_eq!(safe_span([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0, 10, 10), (0, 0));
+    assert_eq!(safe_span([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], 10, 10, 0), (0, 0));
+    assert_eq!(safe_span([nan, 0.0, 0.0], [0.0, 0.0, 1.0], 10, 10, 10), (0, 0));
+    assert_eq!(safe_span([1.0, 0.0, f32::INFINITY], [0.0, 0.0, 1.0], 10, 10, 10), (0, 0));
+    assert_eq!(safe_span([1.0, 0.0, -0.01], [0.0, 5.0, 0.05], 100, 10, 100), (0, 0));
+    assert_eq!(safe_span([1.0, 0.0, 0.0], [0.0, 5.0, -1.0], 100, 10, 100), (0, 0));
+    // Identity row 5 of a 100x10 image: all but the end pixels (one-pixel shrink).
+    assert_eq!(safe_span([1.0, 0.0, 0.0], [0.0, 5.0, 1.0], 100, 10, 100), (1, 99));
+    assert_eq!(safe_span([1.0, 0.0, 0.0], [0.0, 10.0, 1.0], 100, 10, 100), (0, 0));
+}
+
+#[test]
+fn homography_row_identity_is_exact() {
+    let mut sx = vec![0.0; 1000];
+    let mut sy = vec![0.0; 1000];
+    homography_row([1.0, 0.0, 0.0], [-7.0, 3.0, 1.0], &mut sx, &mut sy);
+    for (i, (&a, &b)) in sx.iter().zip(&sy).enumerate() {
+        assert_eq!((a, b), (i as f32 - 7.0, 3.0));
+    }
+}
