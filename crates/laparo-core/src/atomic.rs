@@ -100,11 +100,7 @@ pub fn refuse_overwrite(output: &Path, inputs: &[&Path], output_is_dir: bool) ->
         if clash {
             return Err(CoreError::invalid(
                 "output",
-                format!(
-                    "{} would overwrite the input {}; choose another output",
-                    output.display(),
-                    i.display()
-                ),
+                format!("{} would overwrite the input {}; choose another output", output.display(), i.display()),
             ));
         }
     }

@@ -483,7 +483,11 @@ where
     area.draw(&Rectangle::new([(10, ly), (24, ly + 10)], ce_col.filled()))?;
     area.draw(&Text::new("perturbation error CE (eq. 3.3)", (28, ly - 2), ("sans-serif", 12).into_font()))?;
     area.draw(&Rectangle::new([(aw as i32 / 2 + 10, ly), (aw as i32 / 2 + 24, ly + 10)], rr_col.filled()))?;
-    area.draw(&Text::new("resilience rate RR (eq. 3.4)", (aw as i32 / 2 + 28, ly - 2), ("sans-serif", 12).into_font()))?;
+    area.draw(&Text::new(
+        "resilience rate RR (eq. 3.4)",
+        (aw as i32 / 2 + 28, ly - 2),
+        ("sans-serif", 12).into_font(),
+    ))?;
     Ok(())
 }
 
@@ -501,7 +505,8 @@ where
     let (x0, x1, y0, y1) = (60i32, aw as i32 - 20, 40i32, ah as i32 - 70);
     let ypx = |v: f64| y1 - ((y1 - y0) as f64 * (v / rmax).clamp(0.0, 1.0)).round() as i32;
     for &t in std::iter::once(&0.0).chain(&rings) {
-        let style = if (t - 1.0).abs() < 1e-9 { BLACK.mix(0.6).stroke_width(1) } else { BLACK.mix(0.15).stroke_width(1) };
+        let style =
+            if (t - 1.0).abs() < 1e-9 { BLACK.mix(0.6).stroke_width(1) } else { BLACK.mix(0.15).stroke_width(1) };
         area.draw(&PathElement::new(vec![(x0, ypx(t)), (x1, ypx(t))], style))?;
         area.draw(&Text::new(ring_label(t), (8, ypx(t) - 6), ("sans-serif", 11).into_font().color(&BLACK.mix(0.6))))?;
     }
@@ -565,8 +570,11 @@ where
         // Rings, labelled, and the value 1 highlighted (CE = 1 is the baseline, RR = 1 no
         // degradation) whether or not it is one of the rings.
         for &ring in &rings {
-            let style =
-                if (ring - 1.0).abs() < 1e-9 { BLACK.mix(0.6).stroke_width(1) } else { BLACK.mix(0.15).stroke_width(1) };
+            let style = if (ring - 1.0).abs() < 1e-9 {
+                BLACK.mix(0.6).stroke_width(1)
+            } else {
+                BLACK.mix(0.15).stroke_width(1)
+            };
             area.draw(&PathElement::new(circle(ring), style))?;
             let (x, y) = (cx as i32 + 3, (cy - radius * ring / rmax) as i32 - 12);
             area.draw(&Text::new(ring_label(ring), (x, y), ("sans-serif", 11).into_font().color(&BLACK.mix(0.6))))?;

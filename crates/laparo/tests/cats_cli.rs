@@ -320,8 +320,11 @@ fn apply_rejects_a_singular_camera_without_panicking() {
     let input = dir.path().join("in");
     make_dataset(&input, 1);
     let params = dir.path().join("tiny.json");
-    std::fs::write(&params, r#"{"k": {"fx": 1e-200, "fy": 1e-200, "cx": 32, "cy": 24}, "left": {"euler_deg": [1, 2, 3]}}"#)
-        .unwrap();
+    std::fs::write(
+        &params,
+        r#"{"k": {"fx": 1e-200, "fy": 1e-200, "cx": 32, "cy": 24}, "left": {"euler_deg": [1, 2, 3]}}"#,
+    )
+    .unwrap();
     let out = dir.path().join("a");
     let (ok, err) = run(
         &[

@@ -179,7 +179,17 @@ fn cpc_warp_guards_inputs_resizes_depth_and_takes_folders() {
     let tmp = tempfile::tempdir().unwrap();
     let sc = tmp.path().join("scene");
     let (ok, _, err) = laparo(&[
-        "cpc", "scene", "--surface", "bumpy", "--texture", "procedural", "--width", "120", "--height", "90", "--out",
+        "cpc",
+        "scene",
+        "--surface",
+        "bumpy",
+        "--texture",
+        "procedural",
+        "--width",
+        "120",
+        "--height",
+        "90",
+        "--out",
         s(&sc),
     ]);
     assert!(ok, "scene: {err}");

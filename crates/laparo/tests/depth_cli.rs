@@ -339,8 +339,19 @@ fn eval_pair_warns_about_gt_outside_the_clamp_range_and_implausible_units() {
     let jf = d.path().join("r.json");
     let jarg = format!("--json={}", s(&jf));
     let o = laparo(&[
-        "depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "mm", "--depth-min-m", "1", "--depth-max-m",
-        "10", &jarg,
+        "depth",
+        "eval-pair",
+        "--pred",
+        s(&p),
+        "--gt",
+        s(&g),
+        "--gt-unit",
+        "mm",
+        "--depth-min-m",
+        "1",
+        "--depth-max-m",
+        "10",
+        &jarg,
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("alignment"));
@@ -393,7 +404,8 @@ fn eval_range_flags_and_scaffolded_range() {
     // GT is 5–17 cm: inside the default range, no warning.
     let out = d.path().join("out");
     let args = |extra: &[&str]| {
-        let mut a = vec!["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out), "--no-figures"];
+        let mut a =
+            vec!["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out), "--no-figures"];
         a.extend_from_slice(extra);
         laparo(&a)
     };

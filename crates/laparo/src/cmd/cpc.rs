@@ -223,8 +223,15 @@ fn f32_map(m: &Image<f64>) -> Image<f32> {
 }
 
 /// Files `cpc warp` writes into its output folder.
-const WARP_OUTPUTS: [&str; 7] =
-    ["warped.png", "mask.png", "map_backward.npy", "map_forward.npy", "lambda_sweep.csv", "lambda_sweep.png", "stats.json"];
+const WARP_OUTPUTS: [&str; 7] = [
+    "warped.png",
+    "mask.png",
+    "map_backward.npy",
+    "map_forward.npy",
+    "lambda_sweep.csv",
+    "lambda_sweep.png",
+    "stats.json",
+];
 
 /// Refuse an output folder where a written file would replace one of the inputs.
 fn refuse_overwriting_inputs(out: &Path, inputs: &[&Path]) -> Result<()> {
@@ -254,11 +261,7 @@ fn warp(a: WarpArgs) -> Result<()> {
     spinner.set_style(
         ProgressStyle::with_template("{spinner} {msg} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
-    spinner.set_message(format!(
-        "CPC warp of {}{}",
-        a.image.display(),
-        if a.auto_lambda { " (λ sweep)" } else { "" }
-    ));
+    spinner.set_message(format!("CPC warp of {}{}", a.image.display(), if a.auto_lambda { " (λ sweep)" } else { "" }));
     spinner.enable_steady_tick(std::time::Duration::from_millis(120));
     let r = warp_one(&mut CpcSolver::new(), &a, &a.image, &a.input, &a.out);
     spinner.finish_and_clear();
@@ -294,7 +297,14 @@ fn warp_batch(a: WarpArgs) -> Result<()> {
                 .iter()
                 .map(|e| a.input.depth.join(format!("{}.{e}", stem(f))))
                 .find(|p| p.is_file())
-                .with_context(|| format!("--depth {}: no depth map named '{}.*' for {}", a.input.depth.display(), stem(f), f.display()))
+                .with_context(|| {
+                    format!(
+                        "--depth {}: no depth map named '{}.*' for {}",
+                        a.input.depth.display(),
+                        stem(f),
+                        f.display()
+                    )
+                })
         })
         .collect::<Result<_>>()?;
     laparo_core::atomic::refuse_overwrite(&a.out, &[&a.image, &a.input.depth], true).context("--out")?;
@@ -318,12 +328,7 @@ fn warp_batch(a: WarpArgs) -> Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
-    println!(
-        "cpc warp: {} of {} frames warped -> {}",
-        frames.len() - failures.len(),
-        frames.len(),
-        a.out.display()
-    );
+    println!("cpc warp: {} of {} frames warped -> {}", frames.len() - failures.len(), frames.len(), a.out.display());
     if !failures.is_empty() {
         bail!("{} frame(s) failed:\n  {}", failures.len(), failures.join("\n  "));
     }

@@ -189,9 +189,8 @@ fn check_perturb_resume(out: &Path, seed: u64, kinds: &[Perturbation], sevs: &[u
             let key = format!("{}/s{s}", k.name());
             let h = perturb_hash(seed, k, s);
             let dir = out.join(k.name()).join(format!("s{s}"));
-            let has_outputs = std::fs::read_dir(&dir).is_ok_and(|mut d| {
-                d.any(|e| e.is_ok_and(|e| !e.file_name().to_string_lossy().starts_with('.')))
-            });
+            let has_outputs = std::fs::read_dir(&dir)
+                .is_ok_and(|mut d| d.any(|e| e.is_ok_and(|e| !e.file_name().to_string_lossy().starts_with('.'))));
             let recorded = rec.get(&key).and_then(|v| v.as_str());
             if has_outputs && recorded != Some(h.as_str()) {
                 stale.push(key.clone());
@@ -436,7 +435,9 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
         None,
         laparo_depth::align::DepthRange { min_m: a.depth_min_m, max_m: a.depth_max_m },
     );
-    for w in check.warnings(&format!("--depth {} (--depth-unit {depth_unit})", a.depth.display()), "--depth-min-m/--depth-max-m") {
+    for w in check
+        .warnings(&format!("--depth {} (--depth-unit {depth_unit})", a.depth.display()), "--depth-min-m/--depth-max-m")
+    {
         eprintln!("warning: {w}");
     }
     if depth.width != sensor.width || depth.height != sensor.height {

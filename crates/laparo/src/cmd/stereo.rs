@@ -185,7 +185,12 @@ fn need_calib(c: &CalibArgs, w: usize, h: usize) -> anyhow::Result<StereoCalibra
 /// Reject a calibration that cannot belong to `w`×`h` images: a principal point outside the
 /// image is an error; one farther than a quarter of the size from the image centre is
 /// reported as a warning (returned), the usual sign of a calibration made at another resolution.
-pub fn check_calibration_fits(calib: &StereoCalibration, w: usize, h: usize, label: &str) -> anyhow::Result<Vec<String>> {
+pub fn check_calibration_fits(
+    calib: &StereoCalibration,
+    w: usize,
+    h: usize,
+    label: &str,
+) -> anyhow::Result<Vec<String>> {
     let mut warnings = Vec::new();
     for (side, k) in [("left", &calib.left), ("right", &calib.right)] {
         let (cx, cy) = (k.cx, k.cy);
@@ -289,8 +294,8 @@ fn run_rectify(a: RectifyArgs) -> anyhow::Result<()> {
                 );
             }
         }
-        let (l, mask_l) = laparo_stereo::rectify::remap_bilinear_u8(&l_img, &tl);
-        let (r, mask_r) = laparo_stereo::rectify::remap_bilinear_u8(&r_img, &tr);
+        let (l, mask_l) = laparo_core::remap::remap(&l_img, &tl, laparo_core::remap::Interp::Bilinear, 0)?;
+        let (r, mask_r) = laparo_core::remap::remap(&r_img, &tr, laparo_core::remap::Interp::Bilinear, 0)?;
         if batch {
             let name = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             laparo_core::io::write_png(a.out.join("left").join(format!("{}.png", name(lp))), &l)?;
@@ -401,8 +406,7 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
         None => None,
         Some(c) => Some(DisparityGeometry::from_calibration(&c).context("calibration")?),
     };
-    let (lo_mm, hi_mm) =
-        (a.depth_min_mm.unwrap_or(a.depth_min_m * 1e3), a.depth_max_mm.unwrap_or(a.depth_max_m * 1e3));
+    let (lo_mm, hi_mm) = (a.depth_min_mm.unwrap_or(a.depth_min_m * 1e3), a.depth_max_mm.unwrap_or(a.depth_max_m * 1e3));
     let range = if lo_mm <= 0.0 && hi_mm.is_infinite() { None } else { Some((lo_mm, hi_mm)) };
     let opts = EvalOptions { depth_range_mm: range, zero_is_invalid: a.zero_invalid, ..EvalOptions::default() };
     let (m, maps) = evaluate_maps(&pred, &gt, mask.as_ref(), geometry.as_ref(), &opts)
