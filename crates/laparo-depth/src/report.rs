@@ -450,9 +450,7 @@ pub fn radar_rings(vmax: f64) -> (Vec<f64>, f64) {
 pub const MAX_RINGS: usize = 6;
 
 fn ring_label(v: f64) -> String {
-    if v >= 1000.0 {
-        format!("{v:.0}")
-    } else if (v - v.round()).abs() < 1e-9 {
+    if v >= 1000.0 || (v - v.round()).abs() < 1e-9 {
         format!("{v:.0}")
     } else if (v * 10.0 - (v * 10.0).round()).abs() < 1e-9 {
         format!("{v:.1}")
