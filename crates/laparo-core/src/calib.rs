@@ -1,4 +1,4 @@
-//! Stereo calibration and OpenCV FileStorage YAML.
+//! Stereo calibration.
 //!
 //! [`StereoCalibration`] holds the two pinhole cameras (K, distortion) and the pose of the right
 //! camera with respect to the left exactly as OpenCV's `stereoCalibrate` returns it:
@@ -12,795 +12,15 @@
 //!   (`K1`, `CameraMatrix1`, `DistCoeffs1`, ...);
 //! - laparo's JSON format (see the crate README and [`StereoCalibration::write_json`]).
 //!
-//! The FileStorage reader is hand-written: no maintained crate parses OpenCV's YAML dialect
-//! (`%YAML:1.0` header, `!!opencv-matrix` tags); generic YAML crates reject the header.
+//! The FileStorage parser lives in [`crate::io::opencv_yaml`] (re-exported here).
 use crate::atomic::write_atomic;
 use crate::camera::{Distortion, Intrinsics};
 use crate::error::{CoreError, Result};
+pub use crate::io::opencv_yaml::{read_filestorage, FileStorage, FsMatrix, FsNode};
 use crate::se3::{se3_from_rt, Se3};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-// ---------------------------------------------------------------------------------------------
-// FileStorage value tree
-// ---------------------------------------------------------------------------------------------
-
-/// A dense matrix from a `!!opencv-matrix` node (row-major, `channels` interleaved).
-#[derive(Clone, Debug, PartialEq)]
-pub struct FsMatrix {
-    pub rows: usize,
-    pub cols: usize,
-    pub channels: usize,
-    /// OpenCV element type code as written (`d`, `f`, `i`, `u`, `3d`, ...).
-    pub dt: String,
-    pub data: Vec<f64>,
-}
-
-impl FsMatrix {
-    /// A single-channel f64 matrix (`dt: d`).
-    pub fn new(rows: usize, cols: usize, data: Vec<f64>) -> Result<Self> {
-        if rows.checked_mul(cols) != Some(data.len()) {
-            return Err(CoreError::SizeMismatch(format!(
-                "matrix {rows}x{cols} needs {} values, got {}",
-                rows as u128 * cols as u128,
-                data.len()
-            )));
-        }
-        Ok(FsMatrix { rows, cols, channels: 1, dt: "d".into(), data })
-    }
-
-    /// Element (r, c) of a single-channel matrix.
-    pub fn get(&self, r: usize, c: usize) -> f64 {
-        self.data[(r * self.cols + c) * self.channels]
-    }
-
-    /// As a 3×3 matrix, if it is one.
-    pub fn to_matrix3(&self) -> Option<Matrix3<f64>> {
-        (self.rows == 3 && self.cols == 3 && self.channels == 1).then(|| Matrix3::from_row_slice(&self.data))
-    }
-
-    /// As a 3-vector if it is 3×1 or 1×3.
-    pub fn to_vector3(&self) -> Option<Vector3<f64>> {
-        (self.rows * self.cols * self.channels == 3).then(|| Vector3::new(self.data[0], self.data[1], self.data[2]))
-    }
-}
-
-/// One node of an OpenCV FileStorage document.
-#[derive(Clone, Debug, PartialEq)]
-pub enum FsNode {
-    Int(i64),
-    Real(f64),
-    Str(String),
-    Seq(Vec<FsNode>),
-    /// A mapping, keys in file order.
-    Map(Vec<(String, FsNode)>),
-    Mat(FsMatrix),
-    /// `key:` with nothing after it.
-    Empty,
-}
-
-impl FsNode {
-    /// Numeric value of an Int or Real node.
-    pub fn as_f64(&self) -> Option<f64> {
-        match self {
-            FsNode::Int(i) => Some(*i as f64),
-            FsNode::Real(r) => Some(*r),
-            _ => None,
-        }
-    }
-    /// Non-negative integer value (a Real with an integral value is accepted).
-    pub fn as_usize(&self) -> Option<usize> {
-        match self {
-            FsNode::Int(i) if *i >= 0 => Some(*i as usize),
-            FsNode::Real(r) if *r >= 0.0 && r.fract() == 0.0 && *r < 1e15 => Some(*r as usize),
-            _ => None,
-        }
-    }
-    /// String value.
-    pub fn as_str(&self) -> Option<&str> {
-        match self {
-            FsNode::Str(s) => Some(s),
-            _ => None,
-        }
-    }
-    /// Value of `key` in a Map node.
-    pub fn get(&self, key: &str) -> Option<&FsNode> {
-        match self {
-            FsNode::Map(m) => m.iter().find(|(k, _)| k == key).map(|(_, v)| v),
-            _ => None,
-        }
-    }
-    /// All numbers of a Mat, or of a Seq of numbers.
-    pub fn numbers(&self) -> Option<Vec<f64>> {
-        match self {
-            FsNode::Mat(m) => Some(m.data.clone()),
-            FsNode::Seq(s) => s.iter().map(|v| v.as_f64()).collect(),
-            _ => None,
-        }
-    }
-}
-
-/// A parsed OpenCV FileStorage YAML document: its top-level mapping, keys in file order.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FileStorage {
-    /// The file it was read from (used in error messages; empty for in-memory documents).
-    pub path: PathBuf,
-    pub entries: Vec<(String, FsNode)>,
-}
-
-impl FileStorage {
-    /// Value of a top-level key.
-    pub fn get(&self, key: &str) -> Option<&FsNode> {
-        self.entries.iter().find(|(k, _)| k == key).map(|(_, v)| v)
-    }
-
-    /// The first of `keys` present at the top level, with its name.
-    pub fn get_any<'a>(&'a self, keys: &[&'a str]) -> Option<(&'a str, &'a FsNode)> {
-        keys.iter().find_map(|k| self.get(k).map(|v| (*k, v)))
-    }
-
-    /// Top-level keys in file order.
-    pub fn keys(&self) -> Vec<&str> {
-        self.entries.iter().map(|(k, _)| k.as_str()).collect()
-    }
-
-    /// The matrix stored under `key` (an `!!opencv-matrix`, or a flow sequence of numbers read as
-    /// a column); an error naming the file when the key is missing or holds something else.
-    pub fn matrix(&self, key: &str) -> Result<FsMatrix> {
-        match self.get(key) {
-            Some(FsNode::Mat(m)) => Ok(m.clone()),
-            Some(n @ FsNode::Seq(_)) => match n.numbers() {
-                Some(v) => Ok(FsMatrix { rows: v.len(), cols: 1, channels: 1, dt: "d".into(), data: v }),
-                None => Err(CoreError::format(&self.path, format!("'{key}' is a sequence but not of numbers"))),
-            },
-            Some(_) => Err(CoreError::format(&self.path, format!("'{key}' is not a matrix"))),
-            None => Err(CoreError::format(&self.path, format!("no '{key}' entry (keys: {:?})", self.keys()))),
-        }
-    }
-
-    /// Parse FileStorage YAML text; `path` only names the source in errors.
-    pub fn parse(text: &str, path: impl Into<PathBuf>) -> Result<Self> {
-        let path = path.into();
-        let lines = logical_lines(text, &path)?;
-        let mut p = BlockParser { lines, i: 0, path: &path };
-        if p.lines.is_empty() {
-            return Err(CoreError::format(&path, "no entries in the FileStorage document"));
-        }
-        let indent = p.lines[0].indent;
-        let entries = p.parse_map(indent)?;
-        if p.i < p.lines.len() {
-            let l = &p.lines[p.i];
-            return Err(CoreError::format(&path, format!("line {}: unexpected indentation", l.no)));
-        }
-        Ok(FileStorage { path, entries })
-    }
-
-    /// Serialise as OpenCV FileStorage YAML (readable by `cv::FileStorage` and [`read_filestorage`]).
-    pub fn to_yaml(&self) -> String {
-        let mut s = String::from("%YAML:1.0\n---\n");
-        for (k, v) in &self.entries {
-            emit(&mut s, k, v, 0);
-        }
-        s
-    }
-
-    /// Write the document to `path` atomically.
-    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
-        write_atomic(path.as_ref(), self.to_yaml().as_bytes())
-    }
-}
-
-/// Read an OpenCV FileStorage YAML file (`%YAML:1.0` header optional).
-pub fn read_filestorage(path: impl AsRef<Path>) -> Result<FileStorage> {
-    let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|e| CoreError::io(path, e))?;
-    let text = String::from_utf8(bytes).map_err(|_| CoreError::format(path, "not UTF-8 text"))?;
-    let first = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'));
-    match first {
-        None => return Err(CoreError::format(path, "empty file")),
-        Some(l) if l.starts_with('<') => {
-            return Err(CoreError::format(path, "XML FileStorage is not supported; save it as YAML"))
-        }
-        Some(l) if l.starts_with('{') => {
-            return Err(CoreError::format(path, "looks like JSON, not OpenCV FileStorage YAML"))
-        }
-        _ => {}
-    }
-    FileStorage::parse(&text, path)
-}
-
-// ----- parsing -------------------------------------------------------------------------------
-
-struct Line {
-    no: usize,
-    indent: usize,
-    text: String,
-}
-
-/// Quote state while scanning YAML text: handles `"..."` with backslash escapes and `'...'`.
-#[derive(Default)]
-struct QuoteScan {
-    quote: Option<char>,
-    escaped: bool,
-}
-
-impl QuoteScan {
-    /// Feed one character; true if it is outside any quoted string (and not a quote itself).
-    fn outside(&mut self, ch: char) -> bool {
-        match self.quote {
-            Some(_) if self.escaped => {
-                self.escaped = false;
-                false
-            }
-            Some('"') if ch == '\\' => {
-                self.escaped = true;
-                false
-            }
-            Some(q) if ch == q => {
-                self.quote = None;
-                false
-            }
-            Some(_) => false,
-            None if ch == '"' || ch == '\'' => {
-                self.quote = Some(ch);
-                false
-            }
-            None => true,
-        }
-    }
-}
-
-/// Position of a YAML comment `#` (at the start or after whitespace, outside quotes).
-fn comment_start(s: &str) -> Option<usize> {
-    let mut q = QuoteScan::default();
-    let mut prev_ws = true;
-    for (i, ch) in s.char_indices() {
-        if q.outside(ch) && ch == '#' && prev_ws {
-            return Some(i);
-        }
-        prev_ws = ch.is_whitespace();
-    }
-    None
-}
-
-/// Bracket depth change of `s` outside quotes.
-fn bracket_balance(s: &str) -> i64 {
-    let mut q = QuoteScan::default();
-    let mut depth = 0i64;
-    for ch in s.chars() {
-        if q.outside(ch) {
-            match ch {
-                '[' | '{' => depth += 1,
-                ']' | '}' => depth -= 1,
-                _ => {}
-            }
-        }
-    }
-    depth
-}
-
-/// Strip comments, directives and document markers; join flow collections spanning lines.
-fn logical_lines(text: &str, path: &Path) -> Result<Vec<Line>> {
-    let mut out: Vec<Line> = Vec::new();
-    let mut pending: Option<(Line, i64)> = None;
-    for (idx, raw) in text.lines().enumerate() {
-        let no = idx + 1;
-        let raw = raw.trim_end_matches('\r');
-        let body = match comment_start(raw) {
-            Some(c) => &raw[..c],
-            None => raw,
-        };
-        let trimmed = body.trim();
-        if let Some((mut l, depth)) = pending.take() {
-            if trimmed.is_empty() {
-                pending = Some((l, depth));
-                continue;
-            }
-            l.text.push(' ');
-            l.text.push_str(trimmed);
-            let d = depth + bracket_balance(trimmed);
-            if d > 0 {
-                pending = Some((l, d));
-            } else {
-                out.push(l);
-            }
-            continue;
-        }
-        if trimmed.is_empty() {
-            continue;
-        }
-        let indent = body.len() - body.trim_start().len();
-        if indent == 0
-            && (trimmed.starts_with('%') || trimmed == "---" || trimmed == "..." || trimmed.starts_with("--- "))
-        {
-            continue;
-        }
-        let l = Line { no, indent, text: trimmed.to_string() };
-        let d = bracket_balance(trimmed);
-        if d > 0 {
-            pending = Some((l, d));
-        } else if d < 0 {
-            return Err(CoreError::format(path, format!("line {no}: unbalanced closing bracket")));
-        } else {
-            out.push(l);
-        }
-    }
-    if let Some((l, _)) = pending {
-        return Err(CoreError::format(path, format!("line {}: '[' or '{{' never closed (file truncated?)", l.no)));
-    }
-    Ok(out)
-}
-
-/// Split `key: rest` at the first `:` followed by whitespace or end of line, outside quotes.
-fn split_key(s: &str) -> Option<(String, &str)> {
-    let mut q = QuoteScan::default();
-    let mut it = s.char_indices().peekable();
-    while let Some((i, ch)) = it.next() {
-        if !q.outside(ch) {
-            continue;
-        }
-        match ch {
-            '[' | '{' => return None,
-            ':' if !matches!(it.peek(), Some((_, n)) if !n.is_whitespace()) => {
-                let key = unquote(s[..i].trim());
-                if key.is_empty() {
-                    return None;
-                }
-                return Some((key, s[i + 1..].trim()));
-            }
-            _ => {}
-        }
-    }
-    None
-}
-
-fn unquote(s: &str) -> String {
-    let b = s.as_bytes();
-    if b.len() >= 2 && b[0] == b'\'' && b[b.len() - 1] == b'\'' {
-        return s[1..s.len() - 1].replace("''", "'");
-    }
-    if b.len() >= 2 && b[0] == b'"' && b[b.len() - 1] == b'"' {
-        let mut out = String::with_capacity(s.len());
-        let mut chars = s[1..s.len() - 1].chars();
-        while let Some(c) = chars.next() {
-            if c != '\\' {
-                out.push(c);
-                continue;
-            }
-            match chars.next() {
-                Some('n') => out.push('\n'),
-                Some('t') => out.push('\t'),
-                Some('"') => out.push('"'),
-                Some('\\') => out.push('\\'),
-                Some(o) => {
-                    out.push('\\');
-                    out.push(o);
-                }
-                None => out.push('\\'),
-            }
-        }
-        return out;
-    }
-    s.to_string()
-}
-
-/// A plain scalar: integer, real (including `.Inf`, `-.Inf`, `.NaN`) or string.
-fn scalar(s: &str) -> FsNode {
-    let s = s.trim();
-    if s.starts_with('"') || s.starts_with('\'') {
-        return FsNode::Str(unquote(s));
-    }
-    if let Ok(i) = s.parse::<i64>() {
-        return FsNode::Int(i);
-    }
-    match s.to_ascii_lowercase().as_str() {
-        ".inf" | "+.inf" => return FsNode::Real(f64::INFINITY),
-        "-.inf" => return FsNode::Real(f64::NEG_INFINITY),
-        ".nan" => return FsNode::Real(f64::NAN),
-        _ => {}
-    }
-    let numeric = s.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '+' || c == '.');
-    if numeric {
-        if let Ok(r) = s.parse::<f64>() {
-            return FsNode::Real(r);
-        }
-    }
-    FsNode::Str(s.to_string())
-}
-
-/// Parser for one flow collection `[ ... ]` / `{ ... }` (already joined onto one line).
-struct FlowParser<'a> {
-    s: &'a [u8],
-    src: &'a str,
-    pos: usize,
-}
-
-impl FlowParser<'_> {
-    fn ws(&mut self) {
-        while self.pos < self.s.len() && self.s[self.pos].is_ascii_whitespace() {
-            self.pos += 1;
-        }
-    }
-    fn value(&mut self) -> std::result::Result<FsNode, String> {
-        self.ws();
-        // Tags inside flow collections (rare) are skipped.
-        if self.src[self.pos..].starts_with("!!") {
-            while self.pos < self.s.len() && !self.s[self.pos].is_ascii_whitespace() {
-                self.pos += 1;
-            }
-            self.ws();
-        }
-        match self.s.get(self.pos) {
-            Some(b'[') => {
-                self.pos += 1;
-                let mut items = Vec::new();
-                loop {
-                    self.ws();
-                    match self.s.get(self.pos) {
-                        Some(b']') => {
-                            self.pos += 1;
-                            return Ok(FsNode::Seq(items));
-                        }
-                        None => return Err("unterminated '['".into()),
-                        _ => {}
-                    }
-                    items.push(self.value()?);
-                    self.ws();
-                    match self.s.get(self.pos) {
-                        Some(b',') => self.pos += 1,
-                        Some(b']') => {}
-                        _ => return Err(format!("expected ',' or ']' at column {}", self.pos + 1)),
-                    }
-                }
-            }
-            Some(b'{') => {
-                self.pos += 1;
-                let mut items = Vec::new();
-                loop {
-                    self.ws();
-                    match self.s.get(self.pos) {
-                        Some(b'}') => {
-                            self.pos += 1;
-                            return Ok(FsNode::Map(items));
-                        }
-                        None => return Err("unterminated '{'".into()),
-                        _ => {}
-                    }
-                    let start = self.pos;
-                    while self.pos < self.s.len() && self.s[self.pos] != b':' {
-                        self.pos += 1;
-                    }
-                    if self.pos >= self.s.len() {
-                        return Err("expected 'key: value' inside '{ }'".into());
-                    }
-                    let key = unquote(self.src[start..self.pos].trim());
-                    self.pos += 1;
-                    let v = self.value()?;
-                    items.push((key, v));
-                    self.ws();
-                    match self.s.get(self.pos) {
-                        Some(b',') => self.pos += 1,
-                        Some(b'}') => {}
-                        _ => return Err(format!("expected ',' or '}}' at column {}", self.pos + 1)),
-                    }
-                }
-            }
-            Some(b'"') | Some(b'\'') => {
-                let q = self.s[self.pos];
-                let start = self.pos;
-                self.pos += 1;
-                while self.pos < self.s.len() && self.s[self.pos] != q {
-                    // backslash escapes inside double quotes
-                    self.pos += if q == b'"' && self.s[self.pos] == b'\\' { 2 } else { 1 };
-                }
-                if self.pos >= self.s.len() {
-                    self.pos = self.s.len();
-                    return Err("unterminated quoted string".into());
-                }
-                self.pos += 1;
-                Ok(FsNode::Str(unquote(&self.src[start..self.pos])))
-            }
-            Some(_) => {
-                let start = self.pos;
-                while self.pos < self.s.len() && !matches!(self.s[self.pos], b',' | b']' | b'}') {
-                    self.pos += 1;
-                }
-                let tok = self.src[start..self.pos].trim();
-                if tok.is_empty() {
-                    return Err(format!("empty value at column {}", start + 1));
-                }
-                Ok(scalar(tok))
-            }
-            None => Err("missing value".into()),
-        }
-    }
-}
-
-fn parse_flow(s: &str) -> std::result::Result<FsNode, String> {
-    let mut p = FlowParser { s: s.as_bytes(), src: s, pos: 0 };
-    let v = p.value()?;
-    p.ws();
-    if p.pos != s.len() {
-        return Err(format!("unexpected text after the closing bracket: '{}'", &s[p.pos..]));
-    }
-    Ok(v)
-}
-
-struct BlockParser<'a> {
-    lines: Vec<Line>,
-    i: usize,
-    path: &'a Path,
-}
-
-impl BlockParser<'_> {
-    fn err(&self, no: usize, msg: impl std::fmt::Display) -> CoreError {
-        CoreError::format(self.path, format!("line {no}: {msg}"))
-    }
-
-    fn is_seq_item(text: &str) -> bool {
-        text == "-" || text.starts_with("- ")
-    }
-
-    fn parse_map(&mut self, indent: usize) -> Result<Vec<(String, FsNode)>> {
-        let mut out: Vec<(String, FsNode)> = Vec::new();
-        while self.i < self.lines.len() && self.lines[self.i].indent == indent {
-            let (no, text) = (self.lines[self.i].no, self.lines[self.i].text.clone());
-            if Self::is_seq_item(&text) {
-                return Err(self.err(no, "a sequence item where a 'key: value' was expected"));
-            }
-            let Some((key, rest)) = split_key(&text) else {
-                return Err(self.err(no, format!("expected 'key: value', found '{text}'")));
-            };
-            if out.iter().any(|(k, _)| *k == key) {
-                return Err(self.err(no, format!("duplicate key '{key}'")));
-            }
-            self.i += 1;
-            let v = self.parse_value(rest, indent, no, true)?;
-            out.push((key, v));
-        }
-        Ok(out)
-    }
-
-    fn parse_seq(&mut self, indent: usize) -> Result<Vec<FsNode>> {
-        let mut out = Vec::new();
-        while self.i < self.lines.len()
-            && self.lines[self.i].indent == indent
-            && Self::is_seq_item(&self.lines[self.i].text)
-        {
-            let (no, text) = (self.lines[self.i].no, self.lines[self.i].text.clone());
-            let rest = text[1..].trim_start();
-            let offset = text.len() - rest.len();
-            if !rest.is_empty() && !rest.starts_with(['[', '{', '"', '\'', '!']) && split_key(rest).is_some() {
-                // "- key: value" starts a mapping indented at the key's column.
-                self.lines[self.i].indent = indent + offset;
-                self.lines[self.i].text = rest.to_string();
-                out.push(FsNode::Map(self.parse_map(indent + offset)?));
-            } else {
-                self.i += 1;
-                out.push(self.parse_value(rest, indent, no, false)?);
-            }
-        }
-        Ok(out)
-    }
-
-    /// The value after `key:` (or `-`) on line `no`, whose block children are indented more
-    /// than `indent`.
-    fn parse_value(&mut self, rest: &str, indent: usize, no: usize, in_map: bool) -> Result<FsNode> {
-        let (tag, rest) = match rest.strip_prefix("!!") {
-            Some(tagged) => match tagged.find(char::is_whitespace) {
-                Some(p) => (Some(&tagged[..p]), tagged[p..].trim()),
-                None => (Some(tagged), ""),
-            },
-            None => (None, rest),
-        };
-        let node = if rest.is_empty() {
-            match self.lines.get(self.i) {
-                Some(next) if next.indent > indent => {
-                    let ind = next.indent;
-                    if Self::is_seq_item(&next.text) {
-                        FsNode::Seq(self.parse_seq(ind)?)
-                    } else {
-                        FsNode::Map(self.parse_map(ind)?)
-                    }
-                }
-                // YAML allows "key:\n- a\n- b" with the items at the key's own indentation.
-                Some(next) if in_map && next.indent == indent && Self::is_seq_item(&next.text) => {
-                    FsNode::Seq(self.parse_seq(indent)?)
-                }
-                _ => FsNode::Empty,
-            }
-        } else if rest.starts_with('[') || rest.starts_with('{') {
-            parse_flow(rest).map_err(|m| self.err(no, m))?
-        } else {
-            scalar(rest)
-        };
-        match tag {
-            Some("opencv-matrix") => self.to_matrix(node, no),
-            Some("opencv-nd-matrix") => self.nd_to_matrix(node, no),
-            _ => Ok(node),
-        }
-    }
-
-    fn to_matrix(&self, node: FsNode, no: usize) -> Result<FsNode> {
-        let field = |k: &str| node.get(k).ok_or_else(|| self.err(no, format!("opencv-matrix without '{k}'")));
-        let rows = field("rows")?.as_usize().ok_or_else(|| self.err(no, "opencv-matrix 'rows' is not an integer"))?;
-        let cols = field("cols")?.as_usize().ok_or_else(|| self.err(no, "opencv-matrix 'cols' is not an integer"))?;
-        let dt = match field("dt")? {
-            FsNode::Str(s) => s.clone(),
-            FsNode::Int(i) => i.to_string(),
-            _ => return Err(self.err(no, "opencv-matrix 'dt' is not a type code")),
-        };
-        let data = match field("data")? {
-            FsNode::Empty => Vec::new(),
-            d => d.numbers().ok_or_else(|| self.err(no, "opencv-matrix 'data' is not a list of numbers"))?,
-        };
-        let channels = channels_of(&dt);
-        let n = rows.checked_mul(cols).and_then(|v| v.checked_mul(channels));
-        if n != Some(data.len()) {
-            return Err(self.err(
-                no,
-                format!(
-                    "opencv-matrix {rows}x{cols} ({dt}) needs {} values, 'data' has {}",
-                    rows as u128 * cols as u128 * channels as u128,
-                    data.len()
-                ),
-            ));
-        }
-        Ok(FsNode::Mat(FsMatrix { rows, cols, channels, dt, data }))
-    }
-
-    fn nd_to_matrix(&self, node: FsNode, no: usize) -> Result<FsNode> {
-        let sizes: Vec<usize> = node
-            .get("sizes")
-            .and_then(|s| s.numbers())
-            .map(|v| v.iter().map(|&x| x as usize).collect())
-            .ok_or_else(|| self.err(no, "opencv-nd-matrix without 'sizes'"))?;
-        let (rows, cols) = match sizes.as_slice() {
-            [n] => (*n, 1),
-            [r, c] => (*r, *c),
-            [r, rest @ ..] => (*r, rest.iter().product()),
-            [] => (0, 0),
-        };
-        let mut m = node.clone();
-        if let FsNode::Map(ref mut kv) = m {
-            kv.push(("rows".into(), FsNode::Int(rows as i64)));
-            kv.push(("cols".into(), FsNode::Int(cols as i64)));
-        }
-        self.to_matrix(m, no)
-    }
-}
-
-fn channels_of(dt: &str) -> usize {
-    let digits: String = dt.chars().take_while(|c| c.is_ascii_digit()).collect();
-    digits.parse().unwrap_or(1).max(1)
-}
-
-// ----- writing -------------------------------------------------------------------------------
-
-fn fmt_real(v: f64) -> String {
-    if v.is_nan() {
-        ".Nan".into()
-    } else if v.is_infinite() {
-        if v > 0.0 { ".Inf" } else { "-.Inf" }.into()
-    } else {
-        // Shortest representation that reads back to the same f64.
-        let s = format!("{v:?}");
-        if s.contains(['.', 'e', 'E']) {
-            s
-        } else {
-            format!("{s}.")
-        }
-    }
-}
-
-fn fmt_scalar(n: &FsNode) -> Option<String> {
-    Some(match n {
-        FsNode::Int(i) => i.to_string(),
-        FsNode::Real(r) => fmt_real(*r),
-        FsNode::Str(s) => {
-            let plain = !s.is_empty()
-                && matches!(scalar(s), FsNode::Str(_))
-                && !s.contains([':', '#', '[', ']', '{', '}', ',', '"', '\'', '\n'])
-                && !s.starts_with(['!', '-', '%', '&', '*', ' '])
-                && !s.ends_with(' ');
-            if plain {
-                s.clone()
-            } else {
-                format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\"").replace('\n', "\\n"))
-            }
-        }
-        FsNode::Empty => String::new(),
-        _ => return None,
-    })
-}
-
-fn flow_list(items: &[String], indent: usize) -> String {
-    // Wrap long lists like OpenCV does (a few values per line).
-    let mut s = String::from("[ ");
-    let mut line_len = 0;
-    for (i, it) in items.iter().enumerate() {
-        if i > 0 {
-            s.push_str(", ");
-            if line_len > 70 {
-                s.push('\n');
-                s.push_str(&" ".repeat(indent + 4));
-                line_len = 0;
-            }
-        }
-        s.push_str(it);
-        line_len += it.len() + 2;
-    }
-    s.push_str(" ]");
-    s
-}
-
-/// Block sequence items `- x` at `indent`; nested collections go on the following lines.
-fn emit_items(s: &mut String, items: &[FsNode], indent: usize) {
-    let pad = " ".repeat(indent);
-    for it in items {
-        match (fmt_scalar(it), it) {
-            (Some(t), _) => {
-                let _ = writeln!(s, "{pad}- {t}");
-            }
-            (None, FsNode::Map(kv)) => {
-                let _ = writeln!(s, "{pad}-");
-                for (k, x) in kv {
-                    emit(s, k, x, indent + 3);
-                }
-            }
-            (None, FsNode::Seq(inner)) => {
-                let _ = writeln!(s, "{pad}-");
-                emit_items(s, inner, indent + 3);
-            }
-            (None, FsNode::Mat(m)) => {
-                // A matrix item: "- !!opencv-matrix" then its fields.
-                let mut tmp = String::new();
-                emit(&mut tmp, "x", &FsNode::Mat(m.clone()), indent + 2);
-                let tmp = tmp.replacen(&format!("{}x: ", " ".repeat(indent + 2)), &format!("{pad}- "), 1);
-                s.push_str(&tmp);
-            }
-            (None, _) => {}
-        }
-    }
-}
-
-fn emit(s: &mut String, key: &str, v: &FsNode, indent: usize) {
-    let pad = " ".repeat(indent);
-    let key = fmt_scalar(&FsNode::Str(key.to_string())).unwrap_or_default();
-    match v {
-        FsNode::Mat(m) => {
-            let _ = writeln!(s, "{pad}{key}: !!opencv-matrix");
-            let _ = writeln!(s, "{pad}   rows: {}", m.rows);
-            let _ = writeln!(s, "{pad}   cols: {}", m.cols);
-            let _ = writeln!(s, "{pad}   dt: {}", m.dt);
-            let items: Vec<String> = m.data.iter().map(|&x| fmt_real(x)).collect();
-            let _ = writeln!(s, "{pad}   data: {}", flow_list(&items, indent + 3));
-        }
-        FsNode::Map(kv) => {
-            let _ = writeln!(s, "{pad}{key}:");
-            for (k, x) in kv {
-                emit(s, k, x, indent + 3);
-            }
-        }
-        FsNode::Seq(items) => {
-            let flat: Option<Vec<String>> = items.iter().map(fmt_scalar).collect();
-            match flat {
-                Some(f) => {
-                    let _ = writeln!(s, "{pad}{key}: {}", flow_list(&f, indent));
-                }
-                None => {
-                    let _ = writeln!(s, "{pad}{key}:");
-                    emit_items(s, items, indent + 3);
-                }
-            }
-        }
-        other => {
-            let _ = writeln!(s, "{pad}{key}: {}", fmt_scalar(other).unwrap_or_default());
-        }
-    }
-}
 
 // ---------------------------------------------------------------------------------------------
 // Stereo calibration
@@ -849,9 +69,7 @@ const ROTATION_TOL: f64 = 1e-3;
 impl StereoCalibration {
     /// Check sizes, intrinsics, distortion finiteness, that R is a rotation and T finite.
     pub fn validate(&self) -> Result<()> {
-        if self.width == 0 || self.height == 0 {
-            return Err(CoreError::invalid("stereo calibration", format!("image size {}x{}", self.width, self.height)));
-        }
+        crate::io::camera_io::check_image_size(self.width as u64, self.height as u64, "stereo calibration")?;
         self.left.validate()?;
         self.right.validate()?;
         if self.left_dist.to_opencv().iter().chain(self.right_dist.to_opencv().iter()).any(|v| !v.is_finite()) {
@@ -886,7 +104,9 @@ impl StereoCalibration {
         ((self.r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
     }
 
-    /// Read a calibration: JSON (by `.json` extension or a leading `{`) or OpenCV FileStorage YAML.
+    /// Read a calibration: JSON (by `.json` extension or a leading `{`), the EndoVis 2017
+    /// `camera_calibration.txt` (`Camera-0-F: ...` lines), Middlebury `calib.txt` (`cam0=[...]`)
+    /// or OpenCV FileStorage YAML.
     /// The image size must be in the file; otherwise use [`StereoCalibration::read_with_size`].
     pub fn read(path: impl AsRef<Path>) -> Result<Self> {
         Self::read_impl(path.as_ref(), None)
@@ -902,6 +122,28 @@ impl StereoCalibration {
         let bytes = std::fs::read(path).map_err(|e| CoreError::io(path, e))?;
         let text = String::from_utf8(bytes).map_err(|_| CoreError::format(path, "not UTF-8 text"))?;
         let is_json = crate::io::extension(path) == "json" || text.trim_start().starts_with('{');
+        if text.lines().any(|l| l.trim_start().starts_with("Camera-0-F")) {
+            return crate::io::calib_formats::parse_endovis_txt(&text, path, size);
+        }
+        if text.lines().any(|l| l.trim_start().starts_with("cam0") && l.contains('=')) {
+            let c = crate::io::calib_formats::parse_middlebury_calib(&text, path)?;
+            if let Some((w, h)) = size {
+                if (w, h) != (c.width, c.height) {
+                    return Err(CoreError::format(
+                        path,
+                        format!("file says {}x{}, caller says {w}x{h}", c.width, c.height),
+                    ));
+                }
+            }
+            return Ok(c);
+        }
+        if !is_json && crate::io::extension(path) == "txt" {
+            return Err(CoreError::format(
+                path,
+                "a text file that is not an EndoVis camera_calibration.txt: COLMAP cameras.txt holds no stereo \
+                 extrinsics (use it as --intrinsics); a stereo calibration needs R and T",
+            ));
+        }
         let c = if is_json {
             let j: StereoJson = serde_json::from_str(&text)
                 .map_err(|e| CoreError::format(path, format!("not a laparo stereo calibration JSON: {e}")))?;
@@ -917,13 +159,21 @@ impl StereoCalibration {
             c
         } else {
             let fs = FileStorage::parse(&text, path)?;
+            if crate::io::calib_formats::is_ros_camera_info(&fs) {
+                return Err(CoreError::format(
+                    path,
+                    "a ROS camera_info file describes one camera: give the left and the right file as a pair",
+                ));
+            }
             Self::from_filestorage(&fs, size)?
         };
         Ok(c)
     }
 
-    /// Read OpenCV's `stereo_calib` two-file layout: `intrinsics` (M1 D1 M2 D2) and `extrinsics`
-    /// (R T, plus rectification R1 R2 P1 P2 Q which are ignored). The size must be in one of them.
+    /// Read a two-file calibration: OpenCV's `stereo_calib` layout, `intrinsics` (M1 D1 M2 D2) and
+    /// `extrinsics` (R T, plus rectification R1 R2 P1 P2 Q which are ignored), or a left/right
+    /// pair of ROS `camera_info` YAML files (see [`crate::io::calib_formats`]). The size must be
+    /// in one of them.
     pub fn read_pair(intrinsics: impl AsRef<Path>, extrinsics: impl AsRef<Path>) -> Result<Self> {
         Self::read_pair_impl(intrinsics.as_ref(), extrinsics.as_ref(), None)
     }
@@ -941,6 +191,9 @@ impl StereoCalibration {
     fn read_pair_impl(intr: &Path, extr: &Path, size: Option<(usize, usize)>) -> Result<Self> {
         let a = read_filestorage(intr)?;
         let b = read_filestorage(extr)?;
+        if crate::io::calib_formats::is_ros_camera_info(&a) && crate::io::calib_formats::is_ros_camera_info(&b) {
+            return crate::io::calib_formats::read_ros_pair(&a, &b, size);
+        }
         let mut merged = a.clone();
         merged.path = PathBuf::from(format!("{} + {}", intr.display(), extr.display()));
         for (k, v) in b.entries {
@@ -983,6 +236,14 @@ impl StereoCalibration {
             m.to_matrix3()
                 .ok_or_else(|| CoreError::format(path, format!("{what} is {}x{}, expected 3x3", m.rows, m.cols)))
         };
+        let k3 = |m: &FsMatrix, what: &str| -> Result<Matrix3<f64>> {
+            let k = m3(m, what)?;
+            crate::io::camera_io::check_k_matrix(&k).map_err(|e| CoreError::format(path, format!("{what}: {e}")))?;
+            Ok(k)
+        };
+        let dist = |m: &FsMatrix, what: &str| -> Result<Distortion> {
+            crate::io::camera_io::distortion_from(&m.data).map_err(|e| CoreError::format(path, format!("{what}: {e}")))
+        };
         let file_size = Self::size_from(fs)?;
         let (width, height) = match (file_size, size) {
             (Some(f), Some(s)) if f != s => {
@@ -1008,10 +269,10 @@ impl StereoCalibration {
         let c = StereoCalibration {
             width,
             height,
-            left: Intrinsics::from_matrix(&m3(&k1, "left camera matrix")?, width, height).map_err(fmt)?,
-            left_dist: Distortion::from_opencv(&d1.data).map_err(fmt)?,
-            right: Intrinsics::from_matrix(&m3(&k2, "right camera matrix")?, width, height).map_err(fmt)?,
-            right_dist: Distortion::from_opencv(&d2.data).map_err(fmt)?,
+            left: Intrinsics::from_matrix(&k3(&k1, "left camera matrix")?, width, height).map_err(fmt)?,
+            left_dist: dist(&d1, "left distortion")?,
+            right: Intrinsics::from_matrix(&k3(&k2, "right camera matrix")?, width, height).map_err(fmt)?,
+            right_dist: dist(&d2, "right distortion")?,
             r: m3(&r, "R")?,
             t_mm,
         };
@@ -1027,7 +288,9 @@ impl StereoCalibration {
             fs.get_any(&["image_height", "imageHeight", "height", "ImageHeight"]),
         ) {
             return match (w.1.as_usize(), h.1.as_usize()) {
-                (Some(w), Some(h)) if w > 0 && h > 0 => Ok(Some((w, h))),
+                (Some(w), Some(h)) if w > 0 && h > 0 => {
+                    crate::io::camera_io::check_image_size(w as u64, h as u64, &fs.path.display().to_string()).map(Some)
+                }
                 _ => Err(bad("image_width/image_height")),
             };
         }
@@ -1042,8 +305,9 @@ impl StereoCalibration {
                 _ => v.numbers().ok_or_else(|| bad(k))?,
             };
             return match wh.as_slice() {
-                [w, h] if *w >= 1.0 && *h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 => {
-                    Ok(Some((*w as usize, *h as usize)))
+                [w, h] if *w >= 1.0 && *h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 && *w < 1e15 && *h < 1e15 => {
+                    crate::io::camera_io::check_image_size(*w as u64, *h as u64, &fs.path.display().to_string())
+                        .map(Some)
                 }
                 _ => Err(bad(k)),
             };
@@ -1142,6 +406,10 @@ impl TryFrom<StereoJson> for StereoCalibration {
             return Err(format!("unknown format tag '{}'", j.format));
         }
         let m = |a: &[[f64; 3]; 3]| Matrix3::from_fn(|r, c| a[r][c]);
+        crate::io::camera_io::check_image_size(j.width as u64, j.height as u64, "width/height")
+            .map_err(|e| e.to_string())?;
+        crate::io::camera_io::check_k_matrix(&m(&j.left.k)).map_err(|e| format!("left: {e}"))?;
+        crate::io::camera_io::check_k_matrix(&m(&j.right.k)).map_err(|e| format!("right: {e}"))?;
         let c = StereoCalibration {
             width: j.width,
             height: j.height,
@@ -1163,93 +431,6 @@ mod tests {
 
     fn data_dir() -> PathBuf {
         PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/calib"))
-    }
-
-    const SAMPLE: &str = "%YAML:1.0\n---\n# comment line\nimage_width: 640\nimage_height: 480 # trailing\n\
-name: \"left cam: a\"\nM1: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 500., 0., 320.5,\n       0., 510.,\n       240., 0., 0., 1. ]\n\
-vals: [ 1, -2.5e-3, .Inf ]\nnested:\n   a: 1\n   b: [ x, \"y z\" ]\nitems:\n   - 1\n   - two\n   - { k: 3 }\ncolor: !!opencv-matrix\n   rows: 1\n   cols: 1\n   dt: 3u\n   data: [ 1, 2, 3 ]\n";
-
-    #[test]
-    fn filestorage_parses_matrices_scalars_sequences() {
-        let fs = FileStorage::parse(SAMPLE, "sample.yml").unwrap();
-        assert_eq!(fs.keys(), vec!["image_width", "image_height", "name", "M1", "vals", "nested", "items", "color"]);
-        assert_eq!(fs.get("image_width"), Some(&FsNode::Int(640)));
-        assert_eq!(fs.get("name").unwrap().as_str(), Some("left cam: a"));
-        let m = fs.matrix("M1").unwrap();
-        assert_eq!((m.rows, m.cols), (3, 3));
-        assert_eq!(m.get(0, 2), 320.5);
-        assert_eq!(m.get(1, 1), 510.0);
-        let v = fs.get("vals").unwrap().numbers().unwrap();
-        assert_eq!(v[0], 1.0);
-        assert_eq!(v[1], -2.5e-3);
-        assert!(v[2].is_infinite());
-        let n = fs.get("nested").unwrap();
-        assert_eq!(n.get("a"), Some(&FsNode::Int(1)));
-        assert_eq!(n.get("b"), Some(&FsNode::Seq(vec![FsNode::Str("x".into()), FsNode::Str("y z".into())])));
-        match fs.get("items").unwrap() {
-            FsNode::Seq(s) => {
-                assert_eq!(s.len(), 3);
-                assert_eq!(s[1], FsNode::Str("two".into()));
-                assert_eq!(s[2].get("k"), Some(&FsNode::Int(3)));
-            }
-            other => panic!("{other:?}"),
-        }
-        let c = fs.matrix("color").unwrap();
-        assert_eq!((c.channels, c.data.len()), (3, 3));
-    }
-
-    #[test]
-    fn filestorage_writer_round_trip() {
-        let fs = FileStorage::parse(SAMPLE, "sample.yml").unwrap();
-        let text = fs.to_yaml();
-        let back = FileStorage::parse(&text, "back.yml").unwrap();
-        assert_eq!(back.keys(), fs.keys());
-        for (k, v) in &fs.entries {
-            if k == "vals" {
-                continue; // contains inf; compared below
-            }
-            assert_eq!(back.get(k), Some(v), "{k}\n{text}");
-        }
-        assert!(back.get("vals").unwrap().numbers().unwrap()[2].is_infinite());
-        // nested collections inside sequences
-        let nested = FsNode::Seq(vec![
-            FsNode::Seq(vec![FsNode::Int(1), FsNode::Seq(vec![FsNode::Str("a b".into())])]),
-            FsNode::Mat(FsMatrix::new(1, 2, vec![0.5, -1.0]).unwrap()),
-            FsNode::Map(vec![("k".into(), FsNode::Real(2.5)), ("e".into(), FsNode::Empty)]),
-            FsNode::Str("-starts with dash".into()),
-            FsNode::Str("123".into()),
-        ]);
-        let fs = FileStorage { path: PathBuf::new(), entries: vec![("n".into(), nested.clone())] };
-        let text = fs.to_yaml();
-        assert_eq!(FileStorage::parse(&text, "n").unwrap().get("n"), Some(&nested), "{text}");
-        // bit-exact reals with many digits and a long wrapped data list
-        let data: Vec<f64> = (0..40).map(|i| (i as f64 * 0.731).sin() * 1e-7 + 1.0 / 3.0).collect();
-        let fs = FileStorage {
-            path: PathBuf::new(),
-            entries: vec![("A".into(), FsNode::Mat(FsMatrix::new(5, 8, data.clone()).unwrap()))],
-        };
-        let back = FileStorage::parse(&fs.to_yaml(), "x").unwrap();
-        assert_eq!(back.matrix("A").unwrap().data, data);
-    }
-
-    #[test]
-    fn filestorage_errors_name_the_file_and_line() {
-        let cases = [
-            "%YAML:1.0\nM: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1., 2.,\n",
-            "%YAML:1.0\nM: !!opencv-matrix\n   rows: 2\n   cols: 2\n   dt: d\n   data: [ 1., 2., 3. ]\n",
-            "%YAML:1.0\njust some words\n",
-            "%YAML:1.0\na: 1\na: 2\n",
-            "%YAML:1.0\na: [ 1, 2 ] ]\n",
-        ];
-        for c in cases {
-            let e = FileStorage::parse(c, "broken.yml").unwrap_err().to_string();
-            assert!(e.contains("broken.yml") && e.contains("line"), "{e}");
-        }
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("empty.yml");
-        std::fs::write(&p, "%YAML:1.0\n").unwrap();
-        assert!(read_filestorage(&p).unwrap_err().to_string().contains("empty.yml"));
-        assert!(read_filestorage(dir.path().join("nope.yml")).unwrap_err().to_string().contains("nope.yml"));
     }
 
     fn sample_calib() -> StereoCalibration {
@@ -1301,6 +482,53 @@ vals: [ 1, -2.5e-3, .Inf ]\nnested:\n   a: 1\n   b: [ x, \"y z\" ]\nitems:\n   -
         sample_calib().write_opencv_yaml(&ok).unwrap();
         let e = StereoCalibration::read_with_size(&ok, 640, 480).unwrap_err().to_string();
         assert!(e.contains("1280x1024") && e.contains("640x480"), "{e}");
+    }
+
+    /// Regression (issue 10): a K whose last row is not [0 0 1], an empty distortion vector and
+    /// absurd image sizes were accepted (or panicked / allocated without bound downstream).
+    #[test]
+    fn malformed_calibration_values_are_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.yaml");
+        sample_calib().write_opencv_yaml(&p).unwrap();
+        let good = std::fs::read_to_string(&p).unwrap();
+        let fs = FileStorage::parse(&good, "c.yaml").unwrap();
+        let with = |key: &str, node: FsNode| {
+            let mut f = fs.clone();
+            for (k, v) in f.entries.iter_mut() {
+                if k == key {
+                    *v = node.clone();
+                }
+            }
+            f.write(&p).unwrap();
+            StereoCalibration::read(&p).unwrap_err().to_string()
+        };
+        let mut k = sample_calib().left.matrix();
+        k[(2, 2)] = 2.0;
+        let m = FsNode::Mat(FsMatrix::new(3, 3, (0..9).map(|i| k[(i / 3, i % 3)]).collect()).unwrap());
+        let e = with("M1", m);
+        assert!(e.contains("c.yaml") && e.contains("[0, 0, 1]"), "{e}");
+        let e = with("D2", FsNode::Mat(FsMatrix::new(0, 0, vec![]).unwrap()));
+        assert!(e.contains("c.yaml") && e.contains("empty"), "{e}");
+        let e = with("image_width", FsNode::Int(i64::MAX));
+        assert!(e.contains("c.yaml") && e.contains("out of range"), "{e}");
+        let e = with("image_height", FsNode::Int(100_000));
+        assert!(e.contains("out of range"), "{e}");
+        let e = with("T", FsNode::Mat(FsMatrix::new(3, 1, vec![f64::NAN, 0.0, 0.0]).unwrap()));
+        assert!(e.contains("c.yaml") && e.contains("non-finite"), "{e}");
+        // Caller-given sizes are bounded too (cats stats --width/--height, stereo --width).
+        let scared = "%YAML:1.0\nM1: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 600., 0., 1000., 500., 0., 0., 1. ]\n\
+D1: [ 0., 0., 0., 0., 0. ]\nM2: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 600., 0., 1000., 500., 0., 0., 1. ]\n\
+D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5., 0., 0. ]\n";
+        std::fs::write(&p, scared).unwrap();
+        assert!(StereoCalibration::read_with_size(&p, 1280, 1024).is_ok());
+        let e = StereoCalibration::read_with_size(&p, i64::MAX as usize, 1).unwrap_err().to_string();
+        assert!(e.contains("out of range"), "{e}");
+        let e = StereoCalibration::read_with_size(&p, 100_000, 100_000).unwrap_err().to_string();
+        assert!(e.contains("out of range"), "{e}");
+        // imageSize with i64::MAX
+        std::fs::write(&p, format!("{scared}imageSize: [ 9223372036854775807, 1024 ]\n")).unwrap();
+        assert!(StereoCalibration::read(&p).unwrap_err().to_string().contains("c.yaml"));
     }
 
     #[test]

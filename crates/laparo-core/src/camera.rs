@@ -39,9 +39,7 @@ impl Intrinsics {
         if !(self.cx.is_finite() && self.cy.is_finite() && self.skew.is_finite()) {
             return Err(CoreError::invalid("principal point", format!("cx = {}, cy = {}", self.cx, self.cy)));
         }
-        if self.width == 0 || self.height == 0 {
-            return Err(CoreError::invalid("image size", format!("{}x{}", self.width, self.height)));
-        }
+        crate::io::check_image_size(self.width as u64, self.height as u64, "image size")?;
         Ok(())
     }
 

@@ -31,25 +31,10 @@ pub fn read_gt_m(path: &Path, unit: DepthUnit) -> Result<Image<f64>> {
     Ok(d.to_unit(DepthUnit::M).to_image())
 }
 
-/// Read an ROI mask: an 8-bit image (non-zero in the first channel = inside) or a float map
-/// (finite and non-zero = inside).
+/// Read an ROI mask with the shared reader ([`laparo_core::io::read_mask`]): image files are
+/// inside where channel 0 is non-zero, float maps (npy/npz/pfm/exr/float TIFF) where finite and non-zero.
 pub fn read_mask(path: &Path) -> Result<Mask> {
-    let ext = laparo_core::io::extension(path);
-    if matches!(ext.as_str(), "png" | "jpg" | "jpeg") {
-        let img = laparo_core::io::read_image(path)?;
-        let c = img.channels;
-        return Ok(Image {
-            width: img.width,
-            height: img.height,
-            channels: 1,
-            data: img.data.chunks(c).map(|p| p[0] != 0).collect(),
-        });
-    }
-    let img = laparo_core::io::read_float_map(path)?;
-    if img.channels != 1 {
-        return Err(DepthError::file(path, format!("mask has {} channels, expected 1", img.channels)));
-    }
-    Ok(img.map(|v| v.is_finite() && v != 0.0))
+    Ok(laparo_core::io::read_mask(path)?)
 }
 
 /// Attach file names to the in-memory errors of [`select_valid`].

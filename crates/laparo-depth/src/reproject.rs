@@ -281,30 +281,14 @@ fn raster_triangle(zbuf: &mut [f64], w: usize, h: usize, a: &Vert, b: &Vert, c: 
     }
 }
 
-/// Parse pinhole intrinsics (px) from JSON: `{"fx","fy","cx","cy","width","height"[,"skew"]}`
-/// or `{"K": [[..],[..],[..]] (or 9 numbers), "width", "height"}`. `what` names the source in errors.
+/// Parse pinhole intrinsics (px) from JSON with the shared camera reader
+/// ([`laparo_core::io::camera_io::camera_from_json`]): `{"fx","fy","cx","cy","width","height"[,"skew"]}`
+/// or `{"K": [[..],[..],[..]] (or 9 numbers), "width", "height"}`, numbers or numeric strings.
+/// The size is required here; distortion, if any, is the caller's to apply
+/// (see [`laparo_core::io::read_camera`]). `what` names the source in errors.
 pub fn intrinsics_from_json(v: &serde_json::Value, what: &str) -> Result<Intrinsics> {
-    let num = |k: &str| v.get(k).and_then(|x| x.as_f64());
-    let size = |k: &str| {
-        v.get(k)
-            .and_then(|x| x.as_u64())
-            .map(|x| x as usize)
-            .ok_or_else(|| CoreError::invalid(what, format!("missing integer field \"{k}\"")))
-    };
-    let (w, h) = (size("width")?, size("height")?);
-    if let Some(k) = v.get("K").or_else(|| v.get("k")) {
-        let m = matrix_from_json(k, 3, what, "K")?;
-        return Intrinsics::from_matrix(&Matrix3::from_row_slice(&m), w, h)
-            .map_err(|e| CoreError::invalid(what, e.to_string()));
-    }
-    match (num("fx"), num("fy"), num("cx"), num("cy")) {
-        (Some(fx), Some(fy), Some(cx), Some(cy)) => {
-            let k = Intrinsics { fx, fy, cx, cy, skew: num("skew").unwrap_or(0.0), width: w, height: h };
-            k.validate().map_err(|e| CoreError::invalid(what, e.to_string()))?;
-            Ok(k)
-        }
-        _ => Err(CoreError::invalid(what, "expected fields fx, fy, cx, cy (or K) and width, height")),
-    }
+    let cam = laparo_core::io::camera_io::camera_from_json(v, std::path::Path::new(what))?;
+    Ok(cam.intrinsics(None)?)
 }
 
 /// Parse T_DS→L from JSON: `{"T": 4×4}` or `{"R": 3×3, "t": [x,y,z]}` (rows, nested or flat),

@@ -6,9 +6,10 @@ use crate::backward::{
     p2g::p2g_adjoint,
     p2g::StateAdjoint,
 };
-use crate::cfl::{self, Warning};
+use crate::cfl;
 use crate::constitutive::{lame_vjp, ConstitutiveModel};
 use crate::error::MpmError;
+use crate::error::Warning;
 use crate::linalg::{Matrix, Vector};
 use crate::loss::Loss;
 use crate::scene::{Model, Scene};
@@ -208,6 +209,6 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
         d_mu: mu_bar,
         d_lambda: la_bar,
         final_state,
-        warnings: cfl::check(scene),
+        warnings: cfl::cfl_warnings(scene),
     })
 }

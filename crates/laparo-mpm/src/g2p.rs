@@ -2,7 +2,8 @@
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{base_of, bspline, for_stencil, node_at, prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{node_at, prefetch, SparseGrid, SyncPtr};
+use crate::stencil::{base_of, bspline, for_stencil};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep

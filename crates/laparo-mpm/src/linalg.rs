@@ -8,6 +8,7 @@ pub type Vector<const D: usize> = SVector<f64, D>;
 pub type Matrix<const D: usize> = SMatrix<f64, D, D>;
 
 /// Number of grid nodes a quadratic B-spline touches: 3^D.
+#[cfg(test)]
 pub const fn stencil_len(d: usize) -> usize {
     let mut n = 1;
     let mut i = 0;

@@ -5,7 +5,8 @@ use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{affine_at, affine_terms, base_of, bspline, for_stencil, prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{prefetch, SparseGrid, SyncPtr};
+use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil};
 use rayon::prelude::*;
 
 /// Stress scale of eq. 5.6 for particle p: −Δt V_p 4/Δx² (quadratic B-splines: D_p⁻¹ = 4/Δx²), with

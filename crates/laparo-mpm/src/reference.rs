@@ -1,9 +1,10 @@
 //! Fixtures dumped from the DiffTaichi reference scripts (`scripts/check_mpm_taichi.sh`) and the
 //! comparison of laparo-mpm against them.
 use crate::error::MpmError;
+use crate::grid_spec::GridSpec;
 use crate::linalg::Vector;
 use crate::loss::LandmarkLoss;
-use crate::scene::{Boundary, GridSpec, Material, Model, Scene, WallKind};
+use crate::scene::{Boundary, Material, Model, Scene, WallKind};
 use crate::simulate_with_gradient;
 
 /// One DiffTaichi run: scene parameters, initial particles, final positions, loss and ∂L/∂v₀.

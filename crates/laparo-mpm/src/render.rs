@@ -1,4 +1,5 @@
-//! Particle frames: 2D particle images (PNG via laparo_core) and 3D point clouds (PLY).
+//! Particle frames: 2D particle images and orthographic 3D views (PNG via laparo_core), 3D point
+//! clouds (binary PLY), and the loss curve of an optimisation.
 use crate::linalg::Vector;
 use laparo_core::colormap::Colormap;
 use laparo_core::image::Image;
@@ -50,16 +51,114 @@ pub fn render_particles_2d(
     img
 }
 
-/// ASCII PLY point cloud with per-vertex velocity and J.
+/// Binary (little-endian) PLY point cloud of particles: per vertex `double x y z vx vy vz J`
+/// (positions and velocities in the scene's length and time units, J = det F).
 pub fn ply_bytes(x: &[Vector<3>], v: &[Vector<3>], j: &[f64]) -> Vec<u8> {
-    let mut s = format!(
-        "ply\nformat ascii 1.0\ncomment laparo mpm particle frame\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty double vx\nproperty double vy\nproperty double vz\nproperty double J\nend_header\n",
-        x.len()
+    let n = x.len().min(v.len()).min(j.len());
+    let header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment laparo mpm particle frame\nelement vertex {n}\nproperty double x\nproperty double y\nproperty double z\nproperty double vx\nproperty double vy\nproperty double vz\nproperty double J\nend_header\n"
     );
+    let mut out = Vec::with_capacity(header.len() + n * 56);
+    out.extend_from_slice(header.as_bytes());
     for ((p, vel), jj) in x.iter().zip(v).zip(j) {
-        s += &format!("{} {} {} {} {} {} {}\n", p[0], p[1], p[2], vel[0], vel[1], vel[2], jj);
+        for c in [p[0], p[1], p[2], vel[0], vel[1], vel[2], *jj] {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
     }
-    s.into_bytes()
+    out
+}
+
+/// An orthographic view of 3D particles: azimuth `azimuth_deg` about +z, elevation
+/// `elevation_deg` above the x–y plane, +z up in the image.
+#[derive(Clone, Copy, Debug)]
+pub struct View3d {
+    /// Rotation of the viewing direction about +z (degrees; 0 looks along +y, x to the right).
+    pub azimuth_deg: f64,
+    /// Elevation of the viewer above the x–y plane (degrees).
+    pub elevation_deg: f64,
+}
+
+impl Default for View3d {
+    fn default() -> Self {
+        View3d { azimuth_deg: -35.0, elevation_deg: 25.0 }
+    }
+}
+
+impl View3d {
+    /// Screen right, screen up and towards-the-viewer unit vectors.
+    fn axes(&self) -> (Vector<3>, Vector<3>, Vector<3>) {
+        let (t, f) = (self.azimuth_deg.to_radians(), self.elevation_deg.to_radians());
+        let r = Vector::<3>::new(t.cos(), t.sin(), 0.0);
+        let u = Vector::<3>::new(-t.sin() * f.sin(), t.cos() * f.sin(), f.cos());
+        (r, u, r.cross(&u))
+    }
+}
+
+/// Render 3D particles in an orthographic `view` into a `size`×`size` RGB image (white
+/// background), fitted to the bounding box of `x` and `frame` (e.g. the initial positions, so that
+/// successive frames share the fit): each particle a disc of `dot_size` length units
+/// (at least 2 px), coloured by `values` mapped from [lo, hi] with Turbo, nearer particles drawn
+/// over farther ones. `ghost` particles (e.g. the initial state) are drawn first in light grey.
+#[allow(clippy::too_many_arguments)]
+pub fn render_particles_3d(
+    x: &[Vector<3>],
+    values: &[f64],
+    lo: f64,
+    hi: f64,
+    ghost: &[Vector<3>],
+    view: &View3d,
+    size: usize,
+    dot_size: f64,
+) -> Image<u8> {
+    let (r, u, w) = view.axes();
+    let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for p in x.iter().chain(ghost) {
+        let (a, b) = (p.dot(&r), p.dot(&u));
+        if a.is_finite() && b.is_finite() {
+            umin = umin.min(a);
+            umax = umax.max(a);
+            vmin = vmin.min(b);
+            vmax = vmax.max(b);
+        }
+    }
+    let mut img = Image::filled(size, size, 3, 255u8);
+    if !(umin <= umax) {
+        return img;
+    }
+    let span = (umax - umin).max(vmax - vmin).max(dot_size) * 1.1;
+    let scale = size as f64 / span;
+    let (uc, vc) = (0.5 * (umin + umax), 0.5 * (vmin + vmax));
+    let rad = (0.5 * dot_size * scale).max(1.0);
+    let disc = |img: &mut Image<u8>, p: &Vector<3>, c: [u8; 3]| {
+        let px = (p.dot(&r) - uc) * scale + 0.5 * size as f64;
+        let py = 0.5 * size as f64 - (p.dot(&u) - vc) * scale;
+        if !(px.is_finite() && py.is_finite()) {
+            return;
+        }
+        let (x0, x1) = ((px - rad).floor().max(0.0) as i64, (px + rad).ceil().min(size as f64 - 1.0) as i64);
+        let (y0, y1) = ((py - rad).floor().max(0.0) as i64, (py + rad).ceil().min(size as f64 - 1.0) as i64);
+        for yy in y0..=y1 {
+            for xx in x0..=x1 {
+                let (dx, dy) = (xx as f64 + 0.5 - px, yy as f64 + 0.5 - py);
+                if dx * dx + dy * dy <= rad * rad {
+                    let o = 3 * (yy as usize * size + xx as usize);
+                    img.data[o..o + 3].copy_from_slice(&c);
+                }
+            }
+        }
+    };
+    let mut order: Vec<usize> = (0..ghost.len()).collect();
+    order.sort_by(|&a, &b| ghost[a].dot(&w).total_cmp(&ghost[b].dot(&w)));
+    for &i in &order {
+        disc(&mut img, &ghost[i], [215, 215, 215]);
+    }
+    let mut order: Vec<usize> = (0..x.len().min(values.len())).collect();
+    order.sort_by(|&a, &b| x[a].dot(&w).total_cmp(&x[b].dot(&w)));
+    for &i in &order {
+        let t = if hi > lo { ((values[i] - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 0.5 };
+        disc(&mut img, &x[i], Colormap::Turbo.rgb(t));
+    }
+    img
 }
 
 /// Line chart of an optimisation's loss per iteration (log-scale y), saved as PNG.

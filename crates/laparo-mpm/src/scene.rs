@@ -1,6 +1,7 @@
 //! The simulation scene: particles, material, background grid, boundary conditions, time stepping.
 use crate::constitutive::lame;
 use crate::error::MpmError;
+use crate::grid_spec::GridSpec;
 use crate::linalg::{Matrix, Vector};
 
 /// Constitutive model of the body.
@@ -51,26 +52,6 @@ impl Material {
             return bad("density", self.density, "density must be finite and > 0");
         }
         Ok(())
-    }
-}
-
-/// Background grid: `n_grid` cells of size `dx` per axis, domain [0, n_grid·dx]^D, nodes at i·dx.
-#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
-pub struct GridSpec {
-    /// Number of cells per axis.
-    pub n_grid: usize,
-    /// Cell width Δx (length units).
-    pub dx: f64,
-}
-
-impl GridSpec {
-    /// A grid of `n_grid` cells covering [0, 1]^D (DiffTaichi's normalised domain).
-    pub fn unit(n_grid: usize) -> Self {
-        GridSpec { n_grid, dx: 1.0 / n_grid as f64 }
-    }
-    /// Domain side length n_grid·Δx.
-    pub fn extent(&self) -> f64 {
-        self.n_grid as f64 * self.dx
     }
 }
 
@@ -138,7 +119,7 @@ pub struct Scene<const D: usize> {
     /// ε in v_i = p_i / (m_i + ε) (DiffTaichi uses 1e-10 in its normalised units; 0 = exact division on
     /// nodes with mass).
     pub mass_epsilon: f64,
-    /// CFL number above which [`crate::cfl::check`] warns (c Δt / Δx).
+    /// CFL number above which [`crate::cfl_warnings`] warns (c Δt / Δx).
     pub cfl_limit: f64,
 }
 
@@ -209,6 +190,24 @@ impl<const D: usize> Scene<D> {
                 self.grid.n_grid, self.grid.dx
             )));
         }
+        // Block keys are u32 (u32::MAX marks "outside") and node coordinates i32.
+        let blocks_per_axis = self.grid.n_grid.div_ceil(crate::sparse_grid::BLOCK) as f64;
+        if blocks_per_axis.powi(D as i32) >= u32::MAX as f64 || !(1.0 / self.grid.dx).is_finite() {
+            return Err(MpmError::InvalidScene(format!(
+                "grid too large or too fine: n_grid = {} ({}D), dx = {:e}",
+                self.grid.n_grid, D, self.grid.dx
+            )));
+        }
+        if self.boundary.thickness > self.grid.n_grid / 2 {
+            return Err(MpmError::InvalidParameter {
+                name: "boundary.thickness".into(),
+                value: self.boundary.thickness as f64,
+                reason: format!("must be <= n_grid/2 = {}", self.grid.n_grid / 2),
+            });
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return Err(MpmError::InvalidScene(format!("gravity {:?} is not finite", self.gravity.as_slice())));
+        }
         if !(self.dt > 0.0 && self.dt.is_finite()) {
             return Err(MpmError::InvalidParameter {
                 name: "dt".into(),
@@ -216,7 +215,7 @@ impl<const D: usize> Scene<D> {
                 reason: "dt must be > 0".into(),
             });
         }
-        if !(self.mass_epsilon >= 0.0) {
+        if !(self.mass_epsilon >= 0.0 && self.mass_epsilon.is_finite()) {
             return Err(MpmError::InvalidParameter {
                 name: "mass_epsilon".into(),
                 value: self.mass_epsilon,
@@ -233,13 +232,22 @@ impl<const D: usize> Scene<D> {
             if !self.velocities[p].iter().all(|v| v.is_finite()) {
                 return Err(MpmError::InvalidScene(format!("particle {p}: non-finite initial velocity")));
             }
+            if let Some(f) = self.external_forces.get(p) {
+                if !f.iter().all(|v| v.is_finite()) {
+                    return Err(MpmError::InvalidScene(format!("particle {p}: non-finite external force")));
+                }
+            }
+            if let Some(c) = self.affine.get(p) {
+                if !c.iter().all(|v| v.is_finite()) {
+                    return Err(MpmError::InvalidScene(format!("particle {p}: non-finite affine matrix C")));
+                }
+            }
             if let Some(f) = self.initial_deformation.get(p) {
                 if !(crate::linalg::det(f) > 0.0) {
                     return Err(MpmError::InvalidScene(format!("particle {p}: initial deformation has det <= 0")));
                 }
             }
-            crate::sparse_grid::particle_base(&self.positions[p], &self.grid)
-                .ok_or(MpmError::OutsideDomain { particle: p, step: 0 })?;
+            self.grid.stencil_base(&self.positions[p]).ok_or(MpmError::OutsideDomain { particle: p, step: 0 })?;
         }
         Ok(())
     }

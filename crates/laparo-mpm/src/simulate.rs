@@ -1,7 +1,8 @@
 //! Forward simulation (`simulate`): P2G → grid update → G2P per step.
-use crate::cfl::{self, Warning};
+use crate::cfl;
 use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
+use crate::error::Warning;
 use crate::linalg::{det, vee_antisym, Matrix, Vector};
 use crate::scene::{Model, Scene};
 use crate::sparse_grid::SparseGrid;
@@ -155,7 +156,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>>(
         std::mem::swap(&mut cur, &mut next);
         observer(s + 1, &cur)?;
     }
-    Ok(Simulation { final_state: cur, warnings: cfl::check(scene) })
+    Ok(Simulation { final_state: cur, warnings: cfl::cfl_warnings(scene) })
 }
 
 /// Conserved quantities and energies of a particle state.

@@ -225,7 +225,7 @@ fn blow_up_is_detected_and_cfl_warned() {
         s.velocities[p] = Vector::<2>::new(30.0 * r[0], -30.0 * r[1]);
     }
     s.dt *= 40.0;
-    assert!(!cfl::check(&s).is_empty(), "CFL warning expected");
+    assert!(!cfl_warnings(&s).is_empty(), "CFL warning expected");
     match simulate(&s) {
         Err(MpmError::BlowUp { step, .. }) | Err(MpmError::OutsideDomain { step, .. }) => assert!(step < 400),
         other => panic!("expected a blow-up error, got {:?}", other.map(|_| ())),

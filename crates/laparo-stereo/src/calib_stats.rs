@@ -28,8 +28,10 @@
 //! # Other quantities
 //! Principal-point offset `c_x^L − c_x^R` (px; the disparity offset of §3.3.8, negative for the
 //! da Vinci laparoscopes), baseline (mm), and the largest displacement (px) that lens distortion
-//! causes inside the image: `max |D(p) − p|` over every pixel p of the image, D the distortion
-//! of an ideal pixel ([`laparo_core::camera::Distortion::max_displacement_px`] with a 1-px step).
+//! causes inside the image: `max |D(p) − p|` over a grid of pixels p of the image (at most
+//! [`DISTORTION_GRID`] + 1 samples per side, always including the border rows and columns where
+//! radial distortion peaks), D the distortion of an ideal pixel
+//! ([`laparo_core::camera::Distortion::max_displacement_px`]).
 use crate::cats_params::{CameraDist, CatsConfig, DisparityOffsetDist, Dist, EulerDist};
 use laparo_core::calib::StereoCalibration;
 use laparo_core::error::{CoreError, Result};
@@ -153,6 +155,15 @@ pub struct CalibStats {
     pub warnings: Vec<String>,
 }
 
+/// Samples per image side of the distortion-displacement grid (the cost is bounded whatever the
+/// image size: 513² evaluations at most, plus the border).
+pub const DISTORTION_GRID: usize = 512;
+
+/// Grid step (px) of the distortion statistics for camera `k`: 1 px up to 512 px, then coarser.
+pub fn distortion_grid_step(k: &laparo_core::camera::Intrinsics) -> usize {
+    k.width.max(k.height).div_ceil(DISTORTION_GRID).max(1)
+}
+
 /// Compute the statistics of one calibration. Never fails on an odd but valid calibration (the
 /// oddities go to `warnings`); fails on invalid intrinsics, a non-rotation R or a zero baseline.
 pub fn calib_stats(c: &StereoCalibration) -> Result<CalibStats> {
@@ -184,8 +195,8 @@ pub fn calib_stats(c: &StereoCalibration) -> Result<CalibStats> {
     }
     let rel = nearest_rotation(&c.r);
     let relative_rotation_deg = ((rel.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
-    let left_max = c.left_dist.max_displacement_px(&c.left, 1);
-    let right_max = c.right_dist.max_displacement_px(&c.right, 1);
+    let left_max = c.left_dist.max_displacement_px(&c.left, distortion_grid_step(&c.left));
+    let right_max = c.right_dist.max_displacement_px(&c.right, distortion_grid_step(&c.right));
     for (name, v) in [("left", left_max), ("right", right_max)] {
         if !v.is_finite() {
             warnings.push(format!("{name} lens distortion is not finite inside the image (degenerate model)"));
@@ -440,5 +451,23 @@ mod tests {
         assert!((m.mean - 2.5).abs() < 1e-15);
         assert!((m.std - 1.25f64.sqrt()).abs() < 1e-15);
         assert_eq!((m.min, m.max), (1.0, 4.0));
+    }
+
+    /// Regression (issue 10): a 100000² image size made the distortion statistics visit every
+    /// pixel (~7 min); the grid bounds the work, and it still finds the corner maximum.
+    #[test]
+    fn distortion_stats_sample_a_bounded_grid() {
+        use laparo_core::camera::{Distortion, Intrinsics};
+        let k = Intrinsics::new(1000.0, 1000.0, 639.5, 511.5, 1280, 1024).unwrap();
+        assert_eq!(distortion_grid_step(&k), 3);
+        let big = Intrinsics::new(1000.0, 1000.0, 32767.5, 32767.5, 65536, 4096).unwrap();
+        assert_eq!(distortion_grid_step(&big), 128);
+        // Pure radial k1: the displacement grows with r, so the maximum is at a corner, which the
+        // grid always contains: r² = (639.5² + 511.5²)/1000², |D(p) − p| = k1 r² · r · f.
+        let d = Distortion::brown_conrady(-0.1, 0.0, 0.0, 0.0, 0.0);
+        let r2: f64 = (639.5f64.powi(2) + 511.5f64.powi(2)) / 1e6;
+        let want = 0.1 * r2 * r2.sqrt() * 1000.0;
+        let got = d.max_displacement_px(&k, distortion_grid_step(&k));
+        assert!((got - want).abs() < 1e-9, "{got} vs {want}");
     }
 }

@@ -6,6 +6,7 @@
 //! | `.npz` | first array (see [`read_npz`](super::read_npz) for a named one) | exact | float64 `depth` array |
 //! | `.pfm` | float32, rows bottom-to-top | exact | float32 |
 //! | `.tif` / `.tiff` | float32 (or integer) gray | exact | float32 gray |
+//! | `.exr` | OpenEXR, one channel (half/float/uint) | exact | float32 |
 //! | `.png` | 16-bit integer, **no scaling**: the value is the depth in the caller's unit; 0 = invalid | exact | uint16 **millimetres**, rounded, 0 = invalid |
 use crate::depth::{DepthMap, DepthUnit};
 use crate::error::{CoreError, Result};
@@ -13,7 +14,8 @@ use crate::image::{Image, Mask};
 use std::path::Path;
 
 /// Read a single- or multi-channel float map (depth, disparity, ...) by extension:
-/// `npy`, `npz` (first array), `pfm`, `tif`/`tiff`, `png` (16-bit integer values as stored).
+/// `npy` (any numeric dtype incl. float16), `npz` (first array), `pfm`, `tif`/`tiff`, `exr`,
+/// `png` (16-bit integer values as stored).
 pub fn read_float_map(path: impl AsRef<Path>) -> Result<Image<f64>> {
     let path = path.as_ref();
     match super::extension(path).as_str() {
@@ -21,10 +23,11 @@ pub fn read_float_map(path: impl AsRef<Path>) -> Result<Image<f64>> {
         "npz" => super::read_npz(path, None),
         "pfm" => Ok(super::read_pfm(path)?.map(f64::from)),
         "tif" | "tiff" => Ok(super::read_tiff_f32(path)?.map(f64::from)),
+        "exr" => super::read_exr(path),
         "png" => Ok(super::read_png16(path)?.map(f64::from)),
         other => Err(CoreError::format(
             path,
-            format!("unsupported float-map extension '{other}' (expected npy, npz, pfm, tif, tiff or png)"),
+            format!("unsupported float-map extension '{other}' (expected npy, npz, pfm, tif, tiff, exr or png)"),
         )),
     }
 }
@@ -39,30 +42,37 @@ pub fn write_float_map(path: impl AsRef<Path>, img: &Image<f64>) -> Result<()> {
         "npz" => super::write_npz_f64(path, &[("arr_0", img)]),
         "pfm" => super::write_pfm(path, &f32img()),
         "tif" | "tiff" => super::write_tiff_f32(path, &f32img()),
+        "exr" => super::write_exr(path, img),
         other => Err(CoreError::format(
             path,
-            format!("cannot write a float map as '{other}' (expected npy, npz, pfm, tif or tiff)"),
+            format!("cannot write a float map as '{other}' (expected npy, npz, pfm, tif, tiff or exr)"),
         )),
     }
 }
 
-/// Read a validity / region-of-interest mask: image files (png, jpg, tif, ...) are true where
-/// channel 0 is non-zero; `npy`/`npz`/`pfm` where the value is finite and non-zero. Multi-channel
-/// float maps are rejected.
+/// Read a validity / region-of-interest mask — the one mask reader of every command. Image files
+/// (png, jpg, jpeg, 8/16-bit tif, ...) are true where channel 0 is non-zero; `npy` (incl. bool),
+/// `npz`, `pfm`, `exr` and float TIFF where the value is finite and non-zero. Multi-channel float
+/// maps are rejected.
 pub fn read_mask(path: impl AsRef<Path>) -> Result<Mask> {
     let path = path.as_ref();
     let (w, h, data) = match super::extension(path).as_str() {
-        "npy" | "npz" | "pfm" => {
+        "npy" | "npz" | "pfm" | "exr" => {
             let m = read_float_map(path)?;
             if m.channels != 1 {
                 return Err(CoreError::format(path, format!("mask has {} channels, expected 1", m.channels)));
             }
             (m.width, m.height, m.data.iter().map(|v| v.is_finite() && *v != 0.0).collect())
         }
-        _ => {
-            let m = super::read_png16(path)?;
-            (m.width, m.height, m.data.chunks_exact(m.channels).map(|p| p[0] != 0).collect())
-        }
+        ext => match super::read_png16(path) {
+            Ok(m) => (m.width, m.height, m.data.chunks_exact(m.channels).map(|p| p[0] != 0).collect()),
+            // A float TIFF mask (0.0 / 1.0).
+            Err(e) if matches!(ext, "tif" | "tiff") => {
+                let m = super::read_tiff_f32(path).map_err(|_| e)?;
+                (m.width, m.height, m.data.chunks_exact(m.channels).map(|p| p[0].is_finite() && p[0] != 0.0).collect())
+            }
+            Err(e) => return Err(e),
+        },
     };
     Ok(Image { width: w, height: h, channels: 1, data })
 }
@@ -175,9 +185,9 @@ mod tests {
     #[test]
     fn unknown_extension_and_multichannel_errors() {
         let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("d.exr");
+        let p = dir.path().join("d.xyz");
         std::fs::write(&p, b"x").unwrap();
-        assert!(read_float_map(&p).unwrap_err().to_string().contains("d.exr"));
+        assert!(read_float_map(&p).unwrap_err().to_string().contains("d.xyz"));
         let q = dir.path().join("rgb.pfm");
         super::super::write_pfm(&q, &Image::filled(2, 2, 3, 1.0f32)).unwrap();
         assert!(read_depth(&q, DepthUnit::M).unwrap_err().to_string().contains("rgb.pfm"));

@@ -1,26 +1,14 @@
 //! NumPy `.npy` and `.npz` arrays as images: shape (H, W) → 1 channel, (H, W, C) → C channels
-//! (leading singleton axes of 4-D+ arrays are dropped; a 3-D (1, H, W) with W > 4 is read as (H, W)). Any of f32, f64, u8, u16, u32, u64, i8, i16, i32, i64
+//! (leading singleton axes of 4-D+ arrays are dropped; a 3-D (1, H, W) with W > 4 is read as (H, W)). Any of f16, f32, f64, u8, u16, u32, u64, i8, i16, i32, i64
 //! and bool, little- or big-endian, C or Fortran order; values are converted to f64 on reading.
+use super::npy_header;
 use crate::atomic::write_atomic;
 use crate::error::{CoreError, Result};
 use crate::image::Image;
 use ndarray::{ArrayD, IxDyn};
-use ndarray_npy::{ReadNpyError, ReadNpyExt, WritableElement, WriteNpyExt};
+use ndarray_npy::{WritableElement, WriteNpyExt};
 use std::io::{Cursor, Read};
 use std::path::Path;
-
-fn npy_error(what: &str, e: ReadNpyError) -> String {
-    match e {
-        ReadNpyError::MissingData => format!("{what}truncated: less data than the header announces"),
-        ReadNpyError::Io(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
-            format!("{what}truncated: unexpected end of file")
-        }
-        ReadNpyError::ExtraBytes(n) => format!("{what}{n} unexpected bytes after the array data"),
-        ReadNpyError::ParseHeader(e) => format!("{what}not a valid .npy file: {e}"),
-        ReadNpyError::WrongDescriptor(d) => format!("{what}unsupported dtype {d}"),
-        e => format!("{what}{e}"),
-    }
-}
 
 fn shape_to_image(path: &Path, what: &str, shape: &[usize], data: Vec<f64>) -> Result<Image<f64>> {
     let mut dims: Vec<usize> = shape.to_vec();
@@ -46,78 +34,15 @@ fn shape_to_image(path: &Path, what: &str, shape: &[usize], data: Vec<f64>) -> R
     Image::from_vec(w, h, c, data).map_err(|e| CoreError::format(path, format!("{what}{e}")))
 }
 
-/// Check, before ndarray-npy allocates, that the data announced by the header (shape × item
-/// size) is present, so a corrupt header cannot request a huge allocation.
-fn check_npy_length(bytes: &[u8]) -> std::result::Result<(), String> {
-    if bytes.len() < 10 || !bytes.starts_with(b"\x93NUMPY") {
-        return Ok(()); // ndarray-npy reports the bad magic
-    }
-    let (hlen, start) = match bytes[6] {
-        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        _ if bytes.len() >= 12 => (u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize, 12),
-        _ => return Ok(()),
-    };
-    let Some(header) = bytes.get(start..start + hlen) else {
-        return Err("truncated: header is cut short".into());
-    };
-    let header = String::from_utf8_lossy(header);
-    let field = |key: &str| header.find(key).map(|i| &header[i + key.len()..]);
-    let Some(shape) = field("'shape'") else { return Ok(()) };
-    let Some(open) = shape.find('(') else { return Ok(()) };
-    let Some(close) = shape.find(')') else { return Ok(()) };
-    let mut count: u128 = 1;
-    for d in shape[open + 1..close].split(',').map(str::trim).filter(|d| !d.is_empty()) {
-        let Ok(d) = d.trim_end_matches('L').parse::<u128>() else { return Ok(()) };
-        count = count.saturating_mul(d);
-    }
-    let item: u128 = field("'descr'")
-        .and_then(|d| d.split('\'').nth(1))
-        .map(|d| d.chars().rev().take_while(|c| c.is_ascii_digit()).collect::<String>())
-        .and_then(|digits| digits.chars().rev().collect::<String>().parse().ok())
-        .unwrap_or(1);
-    let need = count.saturating_mul(item);
-    let have = (bytes.len() - (start + hlen)) as u128;
-    if need > have {
-        return Err(format!("truncated: the header announces {need} bytes of data, the file has {have}"));
-    }
-    Ok(())
-}
-
 /// Decode `.npy` bytes into an image; `what` prefixes messages (e.g. the array name in a .npz).
+/// The header is parsed by the bounded reader of [`super::npy_header`] and the data length is
+/// checked against the shape before any allocation.
 fn npy_bytes_to_image(bytes: &[u8], path: &Path, what: &str) -> Result<Image<f64>> {
-    check_npy_length(bytes).map_err(|m| CoreError::format(path, format!("{what}{m}")))?;
-    macro_rules! attempt {
-        ($t:ty, $conv:expr) => {
-            match ArrayD::<$t>::read_npy(bytes) {
-                Ok(a) => {
-                    let shape = a.shape().to_vec();
-                    // `iter` walks in logical (row-major) order whatever the memory order.
-                    let data: Vec<f64> = a.iter().map(|&v| $conv(v)).collect();
-                    return shape_to_image(path, what, &shape, data);
-                }
-                Err(ReadNpyError::WrongDescriptor(_)) => {}
-                Err(e) => return Err(CoreError::format(path, npy_error(what, e))),
-            }
-        };
-    }
-    attempt!(f64, |v: f64| v);
-    attempt!(f32, |v: f32| v as f64);
-    attempt!(u8, |v: u8| v as f64);
-    attempt!(u16, |v: u16| v as f64);
-    attempt!(i32, |v: i32| v as f64);
-    attempt!(i64, |v: i64| v as f64);
-    attempt!(u32, |v: u32| v as f64);
-    attempt!(u64, |v: u64| v as f64);
-    attempt!(i16, |v: i16| v as f64);
-    attempt!(i8, |v: i8| v as f64);
-    match ArrayD::<bool>::read_npy(bytes) {
-        Ok(a) => {
-            let shape = a.shape().to_vec();
-            let data = a.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
-            shape_to_image(path, what, &shape, data)
-        }
-        Err(e) => Err(CoreError::format(path, npy_error(what, e))),
-    }
+    let err = |m: String| CoreError::format(path, format!("{what}{m}"));
+    let h = npy_header::parse_header(bytes).map_err(err)?;
+    let data = &bytes[h.data_offset.min(bytes.len())..];
+    let values = npy_header::decode(&h, data).map_err(err)?;
+    shape_to_image(path, what, &h.shape, values)
 }
 
 /// Read a `.npy` array as an `Image<f64>` (see the module doc for the accepted shapes and dtypes).
@@ -166,8 +91,37 @@ pub fn read_npz(path: impl AsRef<Path>, name: Option<&str>) -> Result<Image<f64>
     };
     let mut entry = zip.by_index(index).map_err(|e| CoreError::format(path, format!("cannot open array: {e}")))?;
     let what = format!("array '{}': ", entry.name().strip_suffix(".npy").unwrap_or(entry.name()));
-    let mut bytes = Vec::with_capacity((entry.size() as usize).min(1 << 26));
-    entry.read_to_end(&mut bytes).map_err(|e| CoreError::format(path, format!("{what}cannot decompress: {e}")))?;
+    let decompress = |e: std::io::Error| CoreError::format(path, format!("{what}cannot decompress: {e}"));
+    // Read the header first (bounded), then exactly the announced data: a forged size in the
+    // archive or the header cannot make the reader allocate more than the data can hold.
+    let mut head = Vec::new();
+    (&mut entry).take(12).read_to_end(&mut head).map_err(decompress)?;
+    let hlen = match head.get(6) {
+        Some(1) if head.len() >= 10 => u16::from_le_bytes([head[8], head[9]]) as usize,
+        Some(2 | 3) if head.len() >= 12 => u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as usize,
+        _ => 0,
+    };
+    if hlen > npy_header::MAX_HEADER_BYTES {
+        return Err(CoreError::format(path, format!("{what}.npy header of {hlen} bytes is too large")));
+    }
+    let want_head = if head.get(6) == Some(&1) { 10 + hlen } else { 12 + hlen };
+    (&mut entry).take((want_head.saturating_sub(head.len())) as u64).read_to_end(&mut head).map_err(decompress)?;
+    let h = npy_header::parse_header(&head).map_err(|m| CoreError::format(path, format!("{what}{m}")))?;
+    let need = h.data_bytes().map_err(|m| CoreError::format(path, format!("{what}{m}")))?;
+    // Deflate cannot expand by more than ~1032:1; a stored entry not at all.
+    let max_plain = entry.compressed_size().saturating_mul(1100).saturating_add(4096);
+    if need as u64 > max_plain || need as u64 > entry.size() {
+        return Err(CoreError::format(
+            path,
+            format!(
+                "{what}truncated: the header announces {need} bytes of data, the archive entry holds {}",
+                entry.size().saturating_sub(head.len() as u64).min(max_plain)
+            ),
+        ));
+    }
+    let mut bytes = head;
+    bytes.reserve_exact(need);
+    (&mut entry).take(need as u64 + 1).read_to_end(&mut bytes).map_err(decompress)?;
     npy_bytes_to_image(&bytes, path, &what)
 }
 
@@ -357,5 +311,62 @@ mod tests {
         let b = read_npz(d.join("motorcycle_disp.npz"), Some(&names[0])).unwrap();
         assert_eq!(a.size(), b.size());
         assert!(a.data.iter().zip(&b.data).all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan())));
+    }
+
+    fn raw_npy(header: &str, data: &[u8]) -> Vec<u8> {
+        let mut h = header.to_string();
+        while !(10 + h.len() + 1).is_multiple_of(64) {
+            h.push(' ');
+        }
+        h.push('\n');
+        let mut f = b"\x93NUMPY\x01\x00".to_vec();
+        f.extend_from_slice(&(h.len() as u16).to_le_bytes());
+        f.extend_from_slice(h.as_bytes());
+        f.extend_from_slice(data);
+        f
+    }
+
+    /// Regression (issue 10): a 160-byte file with hexadecimal / underscore / double-quoted
+    /// dimensions aborted with "memory allocation of 80000000000 bytes failed", and ~22 nested
+    /// lists in the header took a minute.
+    #[test]
+    fn hostile_npy_headers_fail_fast_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("evil.npy");
+        for hdr in [
+            "{\"descr\": \"<f8\", \"fortran_order\": False, \"shape\": (100000, 100000), }",
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (0x186a0, 0x186a0), }",
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (100_000, 100_000), }",
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (1, 1), 'x': [[[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]}",
+        ] {
+            let f = raw_npy(hdr, &[0u8; 16]);
+            assert!(f.len() <= 160, "{}", f.len());
+            std::fs::write(&p, &f).unwrap();
+            let e = read_npy(&p).unwrap_err().to_string();
+            assert!(e.contains("evil.npy"), "{hdr}: {e}");
+        }
+    }
+
+    #[test]
+    fn npz_with_forged_shape_is_refused_before_allocating() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("evil.npz");
+        let f = raw_npy("{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }", &[0u8; 16]);
+        let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+        zip.start_file("arr_0.npy", zip::write::SimpleFileOptions::default()).unwrap();
+        std::io::Write::write_all(&mut zip, &f).unwrap();
+        std::fs::write(&p, zip.finish().unwrap().into_inner()).unwrap();
+        let e = read_npz(&p, None).unwrap_err().to_string();
+        assert!(e.contains("evil.npz") && e.contains("truncated"), "{e}");
+    }
+
+    #[test]
+    fn float16_npy_by_hand() {
+        // '<f2' shape (1, 3): 1.0, -2.0, 0.5 (0x3c00, 0xc000, 0x3800)
+        let data = [0x00, 0x3c, 0x00, 0xc0, 0x00, 0x38];
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("h.npy");
+        std::fs::write(&p, raw_npy("{'descr': '<f2', 'fortran_order': False, 'shape': (1, 3), }", &data)).unwrap();
+        assert_eq!(read_npy(&p).unwrap().data, vec![1.0, -2.0, 0.5]);
     }
 }

@@ -11,12 +11,40 @@ fn decode(path: &Path) -> Result<DynamicImage> {
     if bytes.is_empty() {
         return Err(CoreError::format(path, "file is empty"));
     }
+    let complete = match image::guess_format(&bytes) {
+        Ok(image::ImageFormat::Jpeg) => check_jpeg_complete(&bytes),
+        Ok(image::ImageFormat::Png) => check_png_complete(&bytes),
+        _ => Ok(()),
+    };
+    complete.map_err(|m| CoreError::format(path, m))?;
     let reader =
         image::ImageReader::new(Cursor::new(bytes)).with_guessed_format().map_err(|e| CoreError::io(path, e))?;
     if reader.format().is_none() {
         return Err(CoreError::format(path, "not a recognised image format (expected PNG, JPEG or TIFF)"));
     }
     reader.decode().map_err(|e| CoreError::format(path, format!("cannot decode image: {e}")))
+}
+
+/// A JPEG must end its last scan with the EOI marker (FF D9): decoders fill a truncated scan
+/// with grey and report success, which silently corrupts masks and images. Inside the
+/// entropy-coded data every FF is stuffed (FF 00), so an FF D9 after the last SOS (FF DA) is the EOI.
+fn check_jpeg_complete(b: &[u8]) -> std::result::Result<(), String> {
+    let sos = b.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    match sos {
+        None => Err("truncated JPEG: no image scan (SOS marker)".into()),
+        Some(i) if b[i..].windows(2).any(|w| w == [0xFF, 0xD9]) => Ok(()),
+        Some(_) => Err("truncated JPEG: the end-of-image marker (FF D9) is missing".into()),
+    }
+}
+
+/// A PNG must hold its IEND chunk; a file cut inside or after the image data is refused.
+fn check_png_complete(b: &[u8]) -> std::result::Result<(), String> {
+    let idat = b.windows(4).position(|w| w == b"IDAT");
+    match idat {
+        None => Err("truncated PNG: no image data (IDAT chunk)".into()),
+        Some(i) if b[i..].windows(4).any(|w| w == b"IEND") => Ok(()),
+        Some(_) => Err("truncated PNG: the IEND chunk is missing".into()),
+    }
 }
 
 fn wrap<T: Copy>(path: &Path, w: u32, h: u32, c: usize, data: Vec<T>) -> Result<Image<T>> {
@@ -209,5 +237,33 @@ mod tests {
         assert!(e.contains("missing.png"), "{e}");
         let e = write_png(dir.path().join("five.png"), &Image::filled(2, 2, 5, 0u8)).unwrap_err().to_string();
         assert!(e.contains("five.png"), "{e}");
+    }
+
+    /// Regression (issue 10): a truncated JPEG decoded "successfully" (the missing scan filled
+    /// with grey); a PNG cut before IEND likewise. Both must be errors naming the file.
+    #[test]
+    fn truncated_jpeg_and_png_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let data: Vec<u8> = (0..64 * 48 * 3).map(|i| ((i * 7) % 251) as u8).collect();
+        let img = Image::from_vec(64, 48, 3, data).unwrap();
+        let j = dir.path().join("full.jpg");
+        write_jpeg(&j, &img, 90).unwrap();
+        assert!(read_image(&j).is_ok());
+        let bytes = std::fs::read(&j).unwrap();
+        for cut in [bytes.len() - 2, bytes.len() * 2 / 3, bytes.len() / 2] {
+            let t = dir.path().join("cut.jpg");
+            std::fs::write(&t, &bytes[..cut]).unwrap();
+            let e = read_image(&t).unwrap_err().to_string();
+            assert!(e.contains("cut.jpg") && e.contains("truncated"), "cut at {cut}: {e}");
+        }
+        let p = dir.path().join("full.png");
+        write_png(&p, &img).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        for cut in [bytes.len() - 12, bytes.len() - 20, bytes.len() / 2] {
+            let t = dir.path().join("cut.png");
+            std::fs::write(&t, &bytes[..cut]).unwrap();
+            let e = read_image(&t).unwrap_err().to_string();
+            assert!(e.contains("cut.png"), "cut at {cut}: {e}");
+        }
     }
 }

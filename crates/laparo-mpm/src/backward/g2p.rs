@@ -5,9 +5,8 @@
 //! w̄_i = v_i·u_i; f̄x = Σ_i w̄_i ∂w_i/∂fx − 4/Δx C̄'ᵀ v' (using Σ w_i v_i = v'); x̄ = x̄' + f̄x/Δx.
 use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{
-    affine_at, affine_terms, base_of, bspline, for_stencil, node_at, prefetch, weight_grad, SparseGrid, SyncPtr,
-};
+use crate::sparse_grid::{node_at, prefetch, SparseGrid, SyncPtr};
+use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad};
 
 /// Fills `vel_bar` (node-velocity adjoint, zeroed, one per node of `grid`) and `x_bar` (the G2P part
 /// of the position adjoint of the step input). `vel`: the step's node velocities; `v_next`: v'.

@@ -10,9 +10,8 @@ use crate::constitutive::ConstitutiveModel;
 use crate::linalg::{Matrix, Vector};
 use crate::p2g::stress_scale;
 use crate::scene::Scene;
-use crate::sparse_grid::{
-    affine_at, affine_terms, base_of, bspline, for_stencil, node_at, weight_grad, SparseGrid, SyncPtr,
-};
+use crate::sparse_grid::{node_at, SparseGrid, SyncPtr};
+use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad};
 
 /// Adjoint arrays of the particle state, updated in place by [`p2g_adjoint`] from those of the
 /// step output to those of the step input.

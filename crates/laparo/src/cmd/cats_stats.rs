@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 #[derive(Args, Debug, Clone)]
 pub struct StatsArgs {
     /// Stereo calibration files: OpenCV FileStorage YAML (SCARED `M1 D1 M2 D2 R T`, EndoVis
-    /// `cam1 dis1 cam2 dis2 rot trans`, ...) or laparo JSON. OpenCV's two-file `stereo_calib`
+    /// `cam1 dis1 cam2 dis2 rot trans`, ...), laparo JSON, EndoVis 2017 `camera_calibration.txt`,
+    /// Middlebury `calib.txt`, or a ROS camera_info pair `LEFT.yaml,RIGHT.yaml`. OpenCV's two-file `stereo_calib`
     /// layout is given as `INTRINSICS,EXTRINSICS`, or by either file when the other one sits
     /// next to it with "intrinsics" ↔ "extrinsics" swapped in its name.
     #[arg(required = true, value_name = "CALIB")]
@@ -26,7 +27,9 @@ pub struct StatsArgs {
     /// Write a CATS configuration (TOML) fitted to the statistics.
     #[arg(long, value_name = "TOML")]
     pub config_out: Option<PathBuf>,
-    /// Image width (px) for calibrations that do not store their image size (SCARED: 1280).
+    /// Image width (px) for calibrations that do not store their image size (SCARED: 1280); only
+    /// the distortion displacement uses it (optional: without it a nominal size centred on the
+    /// principal point is used and a warning says so).
     #[arg(long, requires = "height")]
     pub width: Option<usize>,
     /// Image height (px) for calibrations that do not store their image size (SCARED: 1024).
@@ -60,8 +63,9 @@ fn resolve(spec: &str) -> (PathBuf, Option<PathBuf>) {
 }
 
 /// Read a calibration given as `FILE` or `INTRINSICS,EXTRINSICS` (see [`StatsArgs::calib`]);
-/// `size` is used only when the file does not state the image size. Returns a display label.
-pub fn read_calibration(spec: &str, size: Option<(usize, usize)>) -> anyhow::Result<(String, StereoCalibration)> {
+/// `size` is used only when the file does not state the image size. Returns a display label,
+/// the calibration and whether its image size was assumed (no size in the file nor given).
+pub fn read_calibration(spec: &str, size: Option<(usize, usize)>) -> anyhow::Result<(String, StereoCalibration, bool)> {
     let (a, b) = resolve(spec);
     let label = match &b {
         Some(b) => format!("{} + {}", a.display(), b.display()),
@@ -72,29 +76,34 @@ pub fn read_calibration(spec: &str, size: Option<(usize, usize)>) -> anyhow::Res
             bail!("{}: calibration file not found", p.display());
         }
     }
-    let first = match &b {
-        Some(b) => StereoCalibration::read_pair(&a, b),
-        None => StereoCalibration::read(&a),
-    };
-    let c = match (first, size) {
-        (Ok(c), _) => c,
-        (Err(e), None) => {
-            return Err(anyhow::Error::new(e)).context(format!(
-                "cannot read stereo calibration {label} (if it has no image size, pass --width and --height)"
-            ))
+    let files: Vec<&Path> = std::iter::once(a.as_path()).chain(b.as_deref()).collect();
+    let c = match laparo_core::io::read_stereo_calibration(&files, size) {
+        Ok(c) => c,
+        // The angles, offsets and baseline need no image size: a file without one (SCARED) is
+        // read with a nominal size centred on the left principal point, used only for the
+        // distortion displacement (flagged by `size_assumed`).
+        Err(e) if size.is_none() && e.to_string().contains("no image size") => {
+            let mut c = laparo_core::io::read_stereo_calibration(&files, Some((1, 1)))
+                .with_context(|| format!("cannot read stereo calibration {label}"))?;
+            let side = |v: f64| (2.0 * v + 1.0).round().clamp(1.0, 65_536.0) as usize;
+            let (w, h) = (side(c.left.cx), side(c.left.cy));
+            laparo_core::io::check_image_size(w as u64, h as u64, &label)?;
+            c.width = w;
+            c.height = h;
+            for k in [&mut c.left, &mut c.right] {
+                k.width = w;
+                k.height = h;
+            }
+            return Ok((label, c, true));
         }
-        (Err(_), Some((w, h))) => match &b {
-            Some(b) => StereoCalibration::read_pair_with_size(&a, b, w, h),
-            None => StereoCalibration::read_with_size(&a, w, h),
-        }
-        .with_context(|| format!("cannot read stereo calibration {label}"))?,
+        Err(e) => return Err(anyhow::Error::new(e)).context(format!("cannot read stereo calibration {label}")),
     };
-    Ok((label, c))
+    Ok((label, c, false))
 }
 
 /// Read every calibration of a `cats stats` command line, merging two-file layouts that were
 /// given as two arguments.
-fn read_all(a: &StatsArgs) -> anyhow::Result<Vec<(String, StereoCalibration)>> {
+fn read_all(a: &StatsArgs) -> anyhow::Result<Vec<(String, StereoCalibration, bool)>> {
     let size = a.width.zip(a.height);
     let mut seen: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
     let mut out = Vec::new();
@@ -125,8 +134,15 @@ pub fn run_stats(a: StatsArgs) -> anyhow::Result<()> {
     }
     let calibs = read_all(&a)?;
     let mut rows: Vec<(String, CalibStats)> = Vec::new();
-    for (label, c) in &calibs {
-        let s = calib_stats(c).with_context(|| format!("{label}: invalid stereo calibration"))?;
+    for (label, c, assumed) in &calibs {
+        let mut s = calib_stats(c).with_context(|| format!("{label}: invalid stereo calibration"))?;
+        if *assumed {
+            s.warnings.push(format!(
+                "no image size in the file nor --width/--height: the distortion displacement is over a nominal \
+                 {}x{} px image centred on the left principal point (angles, offsets and baseline do not depend on it)",
+                c.width, c.height
+            ));
+        }
         rows.push((label.clone(), s));
     }
     let stats: Vec<CalibStats> = rows.iter().map(|(_, s)| s.clone()).collect();

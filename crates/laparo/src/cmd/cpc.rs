@@ -41,10 +41,11 @@ pub struct InputArgs {
     /// Unit of the depth file (m or mm).
     #[arg(long, default_value = "mm")]
     pub depth_unit: DepthUnit,
-    /// Intrinsics JSON: {"fx","fy","cx","cy","width","height"[,"skew"]}.
+    /// Intrinsics (px): JSON {"fx","fy","cx","cy"} or {"K": 3x3}, numbers or numeric strings, optional "width"/"height" and distortion; ROS camera_info / OpenCV YAML; COLMAP cameras.txt. The size defaults to the depth map's; a camera with lens
+    /// distortion is refused (undistort first).
     #[arg(long)]
     pub intrinsics: PathBuf,
-    /// ROI mask image (non-zero = inside); default: every pixel with valid depth.
+    /// ROI mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero); default: every pixel with valid depth.
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Grid step in px.
@@ -158,19 +159,16 @@ pub fn run(c: CpcCmd) -> Result<()> {
     }
 }
 
-fn read_intrinsics(path: &Path) -> Result<Intrinsics> {
-    let s = std::fs::read_to_string(path).with_context(|| format!("reading intrinsics {}", path.display()))?;
-    let k: Intrinsics = serde_json::from_str(&s)
-        .with_context(|| format!("{}: expected {{fx, fy, cx, cy, width, height}}", path.display()))?;
-    k.validate().with_context(|| format!("intrinsics {}", path.display()))?;
-    Ok(k)
+/// The intrinsics of `--intrinsics` for a `w`×`h` depth map, through the shared camera reader
+/// (JSON `fx..cy` or `K`, numbers or numeric strings, ROS / OpenCV YAML, COLMAP, EndoVis). The CPC
+/// warp models a pinhole camera: a file with lens distortion is refused with a clear error.
+fn read_intrinsics(path: &Path, w: usize, h: usize) -> Result<Intrinsics> {
+    let cam = io::read_camera(path).with_context(|| format!("reading intrinsics {}", path.display()))?;
+    Ok(cam.intrinsics_undistorted(Some((w, h)), "cpc warp")?)
 }
 
 fn read_mask(path: &Path) -> Result<Mask> {
-    let m = io::read_image(path).with_context(|| format!("reading mask {}", path.display()))?;
-    let ch = m.channels;
-    let data: Vec<bool> = m.data.chunks_exact(ch).map(|p| p[0] != 0).collect();
-    Ok(Image::from_vec(m.width, m.height, 1, data)?)
+    io::read_mask(path).with_context(|| format!("reading mask {}", path.display()))
 }
 
 struct Inputs {
@@ -189,7 +187,7 @@ fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::
             depth = resize_depth(&depth, w, h, f)?;
         }
     }
-    let k = read_intrinsics(&a.intrinsics)?;
+    let k = read_intrinsics(&a.intrinsics, depth.width, depth.height)?;
     let roi = match &a.mask {
         Some(p) => read_mask(p)?,
         None => depth.valid_mask(),

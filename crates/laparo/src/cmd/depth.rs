@@ -161,7 +161,7 @@ pub struct EvalPairArgs {
     /// Unit of the GT values (mm, the default of every laparo command, or m).
     #[arg(long, default_value = "mm")]
     pub gt_unit: DepthUnit,
-    /// ROI mask (8-bit image, non-zero = evaluated; or a float map, non-zero = evaluated).
+    /// ROI mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero).
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Alignments: none, s, st or all.

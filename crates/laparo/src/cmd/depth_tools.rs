@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use laparo_core::{DepthUnit, Image};
+use laparo_core::DepthUnit;
 use laparo_depth::manifest::{FrameSpec, Manifest};
 use laparo_depth::perturb::{self as pt, Perturbation};
 use laparo_depth::reproject::{self as rp, ClampMode, ReprojectParams, TargetCamera};
@@ -53,7 +53,7 @@ pub struct ReprojectArgs {
     /// Unit of the values in `--depth` (m or mm).
     #[arg(long, default_value = "mm")]
     pub depth_unit: String,
-    /// Depth-sensor intrinsics JSON: {"fx","fy","cx","cy","width","height"} or {"K": 3x3, "width", "height"} (px).
+    /// Depth-sensor intrinsics (px): JSON {"fx","fy","cx","cy"} or {"K": 3x3}, numbers or numeric strings, optional "width"/"height" and distortion; ROS camera_info / OpenCV YAML; COLMAP cameras.txt; the size defaults to --depth's; must be distortion-free.
     #[arg(long)]
     pub sensor_intrinsics: PathBuf,
     /// T_DS→L JSON (P_L = R P_DS + t): {"T": 4x4} or {"R": 3x3, "t": [x,y,z]}, optional "unit": "mm"|"m"
@@ -63,8 +63,9 @@ pub struct ReprojectArgs {
     /// Unit of the translation in `--extrinsics` when the file does not state it.
     #[arg(long, default_value = "mm")]
     pub extrinsics_unit: String,
-    /// Laparoscope intrinsics JSON (same format as --sensor-intrinsics), px; an optional
-    /// "dist": [k1, k2, p1, p2, k3, ...] (OpenCV order) gives depth for the distorted image.
+    /// Laparoscope intrinsics (same formats as --sensor-intrinsics), px; its distortion
+    /// ("dist": [k1, k2, p1, p2, k3, ...] in OpenCV order, or named k1..k3, p1, p2) is applied:
+    /// the output is depth for the distorted image.
     #[arg(long)]
     pub intrinsics: PathBuf,
     /// Output width in px (default: from --intrinsics).
@@ -73,7 +74,7 @@ pub struct ReprojectArgs {
     /// Output height in px (default: from --intrinsics).
     #[arg(long)]
     pub height: Option<usize>,
-    /// Tool mask in the laparoscope view (8-bit PNG, non-zero = tool): removed from the output.
+    /// Tool mask in the laparoscope view (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero): removed from the output.
     #[arg(long)]
     pub tool_mask: Option<PathBuf>,
     /// Lower clamp of the output depth in m (values below become invalid).
@@ -408,27 +409,32 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     let ext_unit: DepthUnit = a.extrinsics_unit.parse().context("--extrinsics-unit")?;
     let out_unit: DepthUnit = a.out_unit.parse().context("--out-unit")?;
     let sp = a.sensor_intrinsics.display().to_string();
-    let sensor = rp::intrinsics_from_json(&read_json(&a.sensor_intrinsics, "--sensor-intrinsics")?, &sp)?;
     let lp = a.intrinsics.display().to_string();
-    let lap_json = read_json(&a.intrinsics, "--intrinsics")?;
-    let mut lap = rp::intrinsics_from_json(&lap_json, &lp)?;
-    // Optional OpenCV-order distortion of the laparoscope image ("dist" or "distortion").
-    let distortion = match lap_json.get("dist").or_else(|| lap_json.get("distortion")) {
-        Some(v) => {
-            let c: Vec<f64> = v
-                .as_array()
-                .and_then(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>())
-                .with_context(|| format!("--intrinsics {lp}: \"dist\" must be a list of numbers"))?;
-            Some(laparo_core::Distortion::from_opencv(&c).with_context(|| format!("--intrinsics {lp}"))?)
-        }
-        None => None,
+    let depth = laparo_core::io::read_depth(&a.depth, depth_unit)?;
+    // One camera reader for every command: JSON (numbers or numeric strings, fx..cy or K, optional
+    // size and distortion), ROS / OpenCV YAML, COLMAP cameras.txt, EndoVis txt.
+    let sensor_cam = laparo_core::io::read_camera(&a.sensor_intrinsics).context("--sensor-intrinsics")?;
+    let sensor = sensor_cam
+        .intrinsics_undistorted(
+            Some((depth.width, depth.height)),
+            "the depth-sensor back-projection of depth reproject",
+        )
+        .with_context(|| format!("--sensor-intrinsics {sp} for --depth {}", a.depth.display()))?;
+    let lap_cam = laparo_core::io::read_camera(&a.intrinsics).context("--intrinsics")?;
+    let size = match (a.width, a.height) {
+        (Some(w), Some(h)) => Some(laparo_core::io::check_image_size(w as u64, h as u64, "--width/--height")?),
+        (None, None) => None,
+        _ => bail!("give both --width and --height, or neither"),
     };
-    lap.width = a.width.unwrap_or(lap.width);
-    lap.height = a.height.unwrap_or(lap.height);
-    lap.validate().context("--width/--height")?;
+    // The laparoscope's distortion is applied: the output is depth for the distorted image.
+    let lap = match (lap_cam.size, size) {
+        (Some(_), Some(s)) => laparo_core::io::CameraFile { size: Some(s), ..lap_cam.clone() }.intrinsics(None),
+        _ => lap_cam.intrinsics(size),
+    }
+    .with_context(|| format!("--intrinsics {lp} (give --width/--height when the file has no size)"))?;
+    let distortion = lap_cam.has_distortion().then_some(lap_cam.distortion);
     let ep = a.extrinsics.display().to_string();
     let t = rp::extrinsics_from_json(&read_json(&a.extrinsics, "--extrinsics")?, ext_unit, &ep)?;
-    let depth = laparo_core::io::read_depth(&a.depth, depth_unit)?;
     let dm = depth.to_unit(DepthUnit::M);
     let check = laparo_depth::eval::GtRangeCheck::new(
         &dm.data,
@@ -440,20 +446,9 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     {
         eprintln!("warning: {w}");
     }
-    if depth.width != sensor.width || depth.height != sensor.height {
-        bail!(
-            "--depth {} is {}x{} but --sensor-intrinsics {} is for {}x{}",
-            a.depth.display(),
-            depth.width,
-            depth.height,
-            sp,
-            sensor.width,
-            sensor.height
-        );
-    }
     let mask = match &a.tool_mask {
         Some(p) => {
-            let m = laparo_core::io::read_image(p)?;
+            let m = laparo_core::io::read_mask(p).context("--tool-mask")?;
             if m.width != lap.width || m.height != lap.height {
                 bail!(
                     "--tool-mask {} is {}x{}, the laparoscope image is {}x{}",
@@ -464,13 +459,7 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
                     lap.height
                 );
             }
-            let ch = m.channels;
-            Some(Image {
-                width: m.width,
-                height: m.height,
-                channels: 1,
-                data: m.data.chunks(ch).map(|p| p.iter().take(ch.min(3)).any(|&v| v != 0)).collect(),
-            })
+            Some(m)
         }
         None => None,
     };
@@ -643,7 +632,7 @@ mod tests {
         let g = laparo_core::io::read_depth(d.join("gt.npy"), DepthUnit::Mm).unwrap();
         assert!(g.data.iter().all(|v| (v - 130.0).abs() < 1e-9), "a closer view of a wall is hole-free");
         // Tool mask of the wrong size names the file; nothing is written.
-        laparo_core::io::write_png(d.join("mask.png"), &Image::filled(10, 10, 1, 255u8)).unwrap();
+        laparo_core::io::write_png(d.join("mask.png"), &laparo_core::Image::filled(10, 10, 1, 255u8)).unwrap();
         let mut a = args("bad.npy");
         a.tool_mask = Some(d.join("mask.png"));
         assert!(format!("{:#}", reproject(a).unwrap_err()).contains("mask.png"));

@@ -64,11 +64,6 @@ pub struct CalibArgs {
 impl CalibArgs {
     fn read(&self) -> anyhow::Result<Option<StereoCalibration>> {
         let Some(spec) = &self.calib else { return Ok(None) };
-        if laparo_core::io::extension(Path::new(spec)) == "txt" {
-            let c = laparo_stereo::middlebury::read_middlebury_calib(spec)
-                .with_context(|| format!("cannot read Middlebury calibration {spec}"))?;
-            return Ok(Some(c));
-        }
         Ok(Some(read_calibration(spec, self.width.zip(self.height))?.1))
     }
 
@@ -112,7 +107,7 @@ pub struct EvalArgs {
     pub gt: PathBuf,
     #[command(flatten)]
     pub calib: CalibArgs,
-    /// Valid-pixel mask (8-bit image; non-zero = evaluate).
+    /// Valid-pixel mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero).
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Output folder (metrics.json, metrics.md, PNG maps).
@@ -381,7 +376,7 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
     let mask = match &a.mask {
         None => None,
         Some(p) => {
-            let m = laparo_core::io::read_image(p)?;
+            let m = laparo_core::io::read_mask(p)?;
             if (m.width, m.height) != (gt.width, gt.height) {
                 bail!(
                     "size mismatch: mask {} is {}x{}, ground truth {} is {}x{}",
@@ -393,13 +388,7 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
                     gt.height
                 );
             }
-            let c = m.channels;
-            Some(Image {
-                width: m.width,
-                height: m.height,
-                channels: 1,
-                data: m.data.chunks_exact(c).map(|px| px[0] != 0).collect(),
-            })
+            Some(m)
         }
     };
     let geometry = match a.calib.read_for_images(pred.width, pred.height)? {

@@ -6,7 +6,6 @@ use super::DemoSection;
 use anyhow::Result;
 use laparo_core::colormap::{with_colorbar, Colormap};
 use laparo_core::io;
-use laparo_mpm::linalg::det;
 use laparo_mpm::render::{plot_loss_curve, render_particles_2d};
 use laparo_mpm::*;
 use serde_json::json;

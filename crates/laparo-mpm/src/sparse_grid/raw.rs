@@ -1,0 +1,45 @@
+//! Unchecked node access, prefetch hints and the shared pointer of the colour-partitioned scatters.
+
+/// `nodes[i]` for a stencil node index `i` from [`BlockNbr::nodes`] of a grid with `nodes.len()` =
+/// [`SparseGrid::n_nodes`] (checked once by the caller): in bounds by construction of the grid, so
+/// the per-node bounds check is spared (still checked in debug builds).
+#[inline(always)]
+pub(crate) fn node_at<T>(nodes: &[T], i: usize) -> &T {
+    debug_assert!(i < nodes.len());
+    // SAFETY: see above; block neighbour slots are active blocks, local offsets < 4^D.
+    unsafe { nodes.get_unchecked(i) }
+}
+
+/// Hint the CPU to load the cache line at `r` (no effect on results; a no-op off x86-64). `r` is only
+/// an address: it is never dereferenced.
+#[inline(always)]
+pub(crate) fn prefetch<T>(r: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch never faults and does not change memory.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch(r as *const i8, std::arch::x86_64::_MM_HINT_T0)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = r;
+}
+
+/// A raw pointer that may cross threads; used for the colour-partitioned scatters whose writes are
+/// disjoint by construction.
+#[derive(Clone, Copy)]
+pub(crate) struct SyncPtr<T>(pub *mut T);
+unsafe impl<T> Send for SyncPtr<T> {}
+unsafe impl<T> Sync for SyncPtr<T> {}
+impl<T> SyncPtr<T> {
+    /// # Safety
+    /// `i` in bounds and no other thread touches element `i` concurrently.
+    #[inline(always)]
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn at(&self, i: usize) -> &mut T {
+        &mut *self.0.add(i)
+    }
+    /// Address of element `i` (for [`prefetch`]; no reference is made).
+    #[inline(always)]
+    pub fn addr(&self, i: usize) -> *const T {
+        self.0.wrapping_add(i)
+    }
+}
