@@ -45,6 +45,123 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// True when `name` is a temporary of [`temp_path`]'s pattern: `.<name>.<pid>.<n>.tmp`.
+pub fn is_temp_name(name: &str) -> bool {
+    let Some(inner) = name.strip_prefix('.').and_then(|n| n.strip_suffix(".tmp")) else { return false };
+    let mut parts = inner.rsplitn(3, '.');
+    let (Some(n), Some(pid), Some(base)) = (parts.next(), parts.next(), parts.next()) else { return false };
+    !base.is_empty()
+        && !n.is_empty()
+        && !pid.is_empty()
+        && n.bytes().all(|b| b.is_ascii_digit())
+        && pid.bytes().all(|b| b.is_ascii_digit())
+}
+
+/// Remove the temporaries left by interrupted writers (names of [`temp_path`]'s pattern) under
+/// `dir`, recursively, skipping those of the current process. Returns how many were removed.
+/// Call it at the start of a resumed run, before any worker starts writing.
+pub fn remove_stale_temps(dir: &Path) -> Result<usize> {
+    let own = format!(".{}.", std::process::id());
+    let mut removed = 0;
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(rd) = std::fs::read_dir(&d) else { continue };
+        for e in rd.flatten() {
+            let Ok(ft) = e.file_type() else { continue };
+            let p = e.path();
+            if ft.is_dir() {
+                stack.push(p);
+            } else if ft.is_file() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if is_temp_name(&name) && !name.contains(&own) {
+                    std::fs::remove_file(&p).map_err(|e| CoreError::io(&p, e))?;
+                    removed += 1;
+                }
+            }
+        }
+    }
+    Ok(removed)
+}
+
+/// Refuse an output that would overwrite (or, for a folder, be or lie inside) an input:
+/// `output` is a file or folder about to be written, `inputs` the files or folders read.
+/// Paths are compared after resolving symbolic links and `..` (of their existing part).
+pub fn refuse_overwrite(output: &Path, inputs: &[&Path], output_is_dir: bool) -> Result<()> {
+    let out = resolve(output);
+    for &i in inputs {
+        let inp = resolve(i);
+        let clash = if output_is_dir {
+            // Writing into a folder that is (or lies inside) an input folder: outputs would
+            // replace inputs of the same relative name, or be read back as inputs.
+            out == inp || (i.is_dir() && out.starts_with(&inp))
+        } else {
+            out == inp
+        };
+        if clash {
+            return Err(CoreError::invalid(
+                "output",
+                format!("{} would overwrite the input {}; choose another output", output.display(), i.display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Absolute, symlink-free form of `p`: the longest existing ancestor is canonicalised and the
+/// rest appended (so that a not-yet-created output compares equal to what it will be).
+pub fn resolve(p: &Path) -> PathBuf {
+    let abs = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        std::env::current_dir().map(|c| c.join(p)).unwrap_or_else(|_| p.to_path_buf())
+    };
+    let mut tail = Vec::new();
+    let mut cur = abs.as_path();
+    loop {
+        if let Ok(c) = std::fs::canonicalize(cur) {
+            let mut out = c;
+            for t in tail.iter().rev() {
+                out.push(t);
+            }
+            return normalize(&out);
+        }
+        match (cur.parent(), cur.file_name()) {
+            (Some(parent), Some(name)) => {
+                tail.push(name.to_os_string());
+                cur = parent;
+            }
+            _ => return normalize(&abs),
+        }
+    }
+}
+
+/// Lexical removal of `.` and `..` components.
+fn normalize(p: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
+}
+
+/// Stable 64-bit FNV-1a hash of `bytes` as 16 hex digits: the parameter hash stored in resume
+/// sidecars (stable across Rust versions and platforms, unlike `DefaultHasher`).
+pub fn fnv1a64_hex(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,5 +179,45 @@ mod tests {
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
         write_atomic(&p, b"ok").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"ok");
+    }
+
+    #[test]
+    fn stale_temporaries_are_recognised_and_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("a/b");
+        std::fs::create_dir_all(&sub).unwrap();
+        let stale = sub.join(".x.png.999999999.3.tmp");
+        std::fs::write(&stale, b"half").unwrap();
+        // Not ours: other hidden files and our own process' live temporaries.
+        let keep = [sub.join(".hidden.tmp"), sub.join("x.png"), dir.path().join(".cfg")];
+        for k in &keep {
+            std::fs::write(k, b"k").unwrap();
+        }
+        let live = temp_path(&sub.join("y.png"));
+        std::fs::write(&live, b"live").unwrap();
+        assert!(is_temp_name(".x.png.999999999.3.tmp"));
+        assert!(!is_temp_name(".hidden.tmp") && !is_temp_name(".a.b.tmp") && !is_temp_name("x.1.2.tmp"));
+        assert_eq!(remove_stale_temps(dir.path()).unwrap(), 1);
+        assert!(!stale.exists() && live.exists());
+        assert!(keep.iter().all(|k| k.exists()));
+    }
+
+    #[test]
+    fn outputs_that_overwrite_inputs_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let inp = d.join("in.toml");
+        std::fs::write(&inp, b"x").unwrap();
+        let err = refuse_overwrite(&d.join("./sub/../in.toml"), &[&inp], false).unwrap_err().to_string();
+        assert!(err.contains("in.toml") && err.contains("overwrite"), "{err}");
+        assert!(refuse_overwrite(&d.join("out.toml"), &[&inp], false).is_ok());
+        // Folders: the same folder or a folder inside the input folder.
+        let data = d.join("data");
+        std::fs::create_dir_all(data.join("left")).unwrap();
+        assert!(refuse_overwrite(&data, &[&data], true).is_err());
+        assert!(refuse_overwrite(&data.join("aug"), &[&data], true).is_err());
+        assert!(refuse_overwrite(&d.join("aug"), &[&data], true).is_ok());
+        assert_eq!(fnv1a64_hex(b""), "cbf29ce484222325");
+        assert_eq!(fnv1a64_hex(b"a"), "af63dc4c8601ec8c");
     }
 }

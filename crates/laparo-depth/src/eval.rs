@@ -1,12 +1,13 @@
 //! Evaluation of files and of whole manifests (thesis §3.2.7): read predictions, ground truth
 //! and masks, align and score every (frame, method) pair in parallel (rayon) with a
 //! deterministic output order (frame order of the manifest, then method order).
-use crate::align::{Alignment, PredKind};
+use crate::align::{Alignment, DepthRange, PredKind};
 use crate::error::{DepthError, Result};
 use crate::manifest::{Manifest, MethodSpec, ResolvedFrame};
 use crate::metrics::{evaluate_valid, select_valid, InvalidPredPolicy, PairMetrics, PairOptions, ValidPixels};
 use crate::robustness::Layout;
 use laparo_core::image::{Image, Mask};
+use laparo_core::stats::median;
 use laparo_core::DepthUnit;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -109,11 +110,172 @@ pub fn evaluate_files(
     mask_path: Option<&Path>,
     opts: &PairOptions,
 ) -> Result<PairMetrics> {
+    Ok(evaluate_files_checked(pred_path, kind, gt_path, gt_unit, mask_path, opts, None)?.0)
+}
+
+/// [`evaluate_files`], optionally resizing the prediction to the GT size first (`resize`), and
+/// returning the range check of the GT ([`GtRangeCheck`]) for the caller to report.
+pub fn evaluate_files_checked(
+    pred_path: &Path,
+    kind: PredKind,
+    gt_path: &Path,
+    gt_unit: DepthUnit,
+    mask_path: Option<&Path>,
+    opts: &PairOptions,
+    resize: Option<ResizeFilter>,
+) -> Result<(PairMetrics, GtRangeCheck)> {
     opts.range.validate()?;
     let gt = load_gt(gt_path, gt_unit, mask_path)?;
-    let pred = read_prediction(pred_path)?;
+    let mut pred = read_prediction(pred_path)?;
+    if let Some(f) = resize {
+        if pred.size() != gt.gt_m.size() {
+            pred = resize_map(&pred, gt.gt_m.width, gt.gt_m.height, f);
+        }
+    }
+    let check = GtRangeCheck::new(&gt.gt_m.data, gt.mask.as_ref().map(|m| m.data.as_slice()), opts.range);
     let v = valid_pixels(&pred, pred_path, kind, &gt, gt_path, mask_path, opts.invalid_pred)?;
-    Ok(evaluate_valid(&v, opts))
+    Ok((evaluate_valid(&v, opts), check))
+}
+
+/// Interpolation used to bring a prediction at network resolution to the GT size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ResizeFilter {
+    /// Bilinear between the four nearest pixel centres (NaN propagates: invalid stays invalid).
+    Bilinear,
+    /// Nearest pixel centre.
+    Nearest,
+}
+
+impl std::str::FromStr for ResizeFilter {
+    type Err = DepthError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "bilinear" | "linear" => Ok(ResizeFilter::Bilinear),
+            "nearest" => Ok(ResizeFilter::Nearest),
+            _ => Err(DepthError::invalid("resize filter", format!("'{s}' (expected bilinear or nearest)"))),
+        }
+    }
+}
+
+/// Resize a single-channel map to `width`×`height` px with pixel centres aligned
+/// (`x_src = (x + 0.5)·w_src/w − 0.5`, OpenCV's `resize` convention), clamped to the source.
+pub fn resize_map(img: &Image<f64>, width: usize, height: usize, filter: ResizeFilter) -> Image<f64> {
+    let sx = img.width as f64 / width as f64;
+    let sy = img.height as f64 / height as f64;
+    let (wmax, hmax) = ((img.width - 1) as f64, (img.height - 1) as f64);
+    let mut data = Vec::with_capacity(width * height);
+    for y in 0..height {
+        let v = ((y as f64 + 0.5) * sy - 0.5).clamp(0.0, hmax);
+        for x in 0..width {
+            let u = ((x as f64 + 0.5) * sx - 0.5).clamp(0.0, wmax);
+            let s = match filter {
+                ResizeFilter::Bilinear => img.sample_bilinear(u, v, 0),
+                ResizeFilter::Nearest => img.sample_nearest(u, v, 0),
+            };
+            data.push(s.unwrap_or(f64::NAN));
+        }
+    }
+    Image { width, height, channels: 1, data }
+}
+
+/// Where the valid GT depth lies with respect to the clamp range of aligned predictions, and
+/// whether its magnitude is plausible for the declared unit (all depths in metres).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct GtRangeCheck {
+    /// Valid GT pixels (finite, > 0, inside the mask).
+    pub n_valid: usize,
+    /// Valid GT pixels nearer than the clamp range.
+    pub n_below: usize,
+    /// Valid GT pixels farther than the clamp range.
+    pub n_above: usize,
+    /// Median valid GT depth (m); NaN without valid pixels.
+    pub median_m: f64,
+    /// The clamp range checked against.
+    pub min_m: f64,
+    /// The clamp range checked against.
+    pub max_m: f64,
+}
+
+/// Fraction of valid GT outside the clamp range above which a warning is due.
+pub const GT_OUTSIDE_WARN_FRACTION: f64 = 0.05;
+/// Median GT depth (m) below which the GT unit is implausible (metres read as millimetres):
+/// nearer than the 1 cm near clamp of the surgical default.
+pub const GT_MEDIAN_MIN_PLAUSIBLE_M: f64 = 0.01;
+/// Median GT depth (m) above which the GT unit is implausible (millimetres read as metres).
+pub const GT_MEDIAN_MAX_PLAUSIBLE_M: f64 = 20.0;
+
+impl GtRangeCheck {
+    /// Count the valid GT values (metres) of `gt_m` (inside `mask` when given) outside `range`.
+    pub fn new(gt_m: &[f64], mask: Option<&[bool]>, range: DepthRange) -> Self {
+        let mut valid: Vec<f64> = match mask {
+            Some(m) => gt_m.iter().zip(m).filter(|(z, &k)| k && z.is_finite() && **z > 0.0).map(|(z, _)| *z).collect(),
+            None => gt_m.iter().copied().filter(|z| z.is_finite() && *z > 0.0).collect(),
+        };
+        let n_below = valid.iter().filter(|&&z| z < range.min_m).count();
+        let n_above = valid.iter().filter(|&&z| z > range.max_m).count();
+        GtRangeCheck {
+            n_valid: valid.len(),
+            n_below,
+            n_above,
+            median_m: median(&mut valid),
+            min_m: range.min_m,
+            max_m: range.max_m,
+        }
+    }
+
+    /// Fraction of the valid GT outside the clamp range (0 without valid pixels).
+    pub fn fraction_outside(&self) -> f64 {
+        if self.n_valid == 0 {
+            0.0
+        } else {
+            (self.n_below + self.n_above) as f64 / self.n_valid as f64
+        }
+    }
+
+    /// Totals over frames; the median is the median of the per-frame medians.
+    pub fn merge_all(checks: &[GtRangeCheck]) -> GtRangeCheck {
+        let mut meds: Vec<f64> = checks.iter().map(|c| c.median_m).filter(|m| m.is_finite()).collect();
+        GtRangeCheck {
+            n_valid: checks.iter().map(|c| c.n_valid).sum(),
+            n_below: checks.iter().map(|c| c.n_below).sum(),
+            n_above: checks.iter().map(|c| c.n_above).sum(),
+            median_m: median(&mut meds),
+            min_m: checks.first().map_or(f64::NAN, |c| c.min_m),
+            max_m: checks.first().map_or(f64::NAN, |c| c.max_m),
+        }
+    }
+
+    /// Human-readable warnings (empty when the GT looks consistent with the range and unit).
+    /// `what` names the GT (a file or "the manifest's GT"); `flags` names the options to change.
+    pub fn warnings(&self, what: &str, range_flags: &str) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.median_m.is_finite() && self.median_m > GT_MEDIAN_MAX_PLAUSIBLE_M {
+            w.push(format!(
+                "{what}: median ground-truth depth is {:.1} m, implausible: millimetres read as metres? (check the GT unit)",
+                self.median_m
+            ));
+        } else if self.median_m.is_finite() && self.median_m < GT_MEDIAN_MIN_PLAUSIBLE_M {
+            w.push(format!(
+                "{what}: median ground-truth depth is {:.3} mm, implausible: metres read as millimetres? (check the GT unit)",
+                self.median_m * 1e3
+            ));
+        }
+        let f = self.fraction_outside();
+        if f > GT_OUTSIDE_WARN_FRACTION {
+            w.push(format!(
+                "{what}: {:.1} % of the valid ground truth lies outside the clamp range [{}, {}] m of aligned predictions \
+                 ({} nearer, {} farther; median {:.3} m); metrics are meaningless unless the range fits the scene: set {range_flags}",
+                100.0 * f,
+                self.min_m,
+                self.max_m,
+                self.n_below,
+                self.n_above,
+                self.median_m
+            ));
+        }
+        w
+    }
 }
 
 /// Settings of a manifest evaluation.
@@ -125,11 +287,18 @@ pub struct EvalConfig {
     pub alignments: Vec<Alignment>,
     /// Handling of invalid predictions on valid GT pixels.
     pub invalid_pred: InvalidPredPolicy,
+    /// Clamp range of aligned depth overriding the manifest's `depth_min_m`/`depth_max_m`.
+    pub range: Option<DepthRange>,
 }
 
 impl Default for EvalConfig {
     fn default() -> Self {
-        EvalConfig { methods: Vec::new(), alignments: Alignment::ALL.to_vec(), invalid_pred: Default::default() }
+        EvalConfig {
+            methods: Vec::new(),
+            alignments: Alignment::ALL.to_vec(),
+            invalid_pred: Default::default(),
+            range: None,
+        }
     }
 }
 
@@ -161,6 +330,8 @@ pub struct EvalOutput {
     pub options: PairOptions,
     /// The manifest that was evaluated.
     pub manifest: PathBuf,
+    /// Range check of each frame's GT, in frame order (see [`GtRangeCheck`]).
+    pub gt_checks: Vec<GtRangeCheck>,
 }
 
 fn evaluate_frame(
@@ -168,8 +339,9 @@ fn evaluate_frame(
     f: &ResolvedFrame,
     methods: &[(usize, &MethodSpec)],
     opts: &PairOptions,
-) -> Result<Vec<ImageResult>> {
+) -> Result<(Vec<ImageResult>, GtRangeCheck)> {
     let gt = load_gt(&f.gt, f.gt_unit, f.mask.as_deref())?;
+    let check = GtRangeCheck::new(&gt.gt_m.data, gt.mask.as_ref().map(|m| m.data.as_slice()), opts.range);
     let spec = &m.frames[f.index];
     let mut out = Vec::with_capacity(methods.len());
     for (k, (_, ms)) in methods.iter().enumerate() {
@@ -178,7 +350,7 @@ fn evaluate_frame(
         let v = valid_pixels(&pred, &pp, ms.kind, &gt, &f.gt, f.mask.as_deref(), opts.invalid_pred)?;
         out.push(ImageResult { frame: f.index, method: k, metrics: evaluate_valid(&v, opts) });
     }
-    Ok(out)
+    Ok((out, check))
 }
 
 /// Evaluate every frame of `manifest` for the chosen methods and alignments. `progress` is
@@ -205,10 +377,13 @@ pub fn evaluate_manifest(
     let resolved = manifest.resolve()?;
     let methods: Vec<(usize, &MethodSpec)> =
         names.iter().map(|n| manifest.methods.iter().enumerate().find(|(_, m)| m.name == *n).unwrap()).collect();
-    let opts =
-        PairOptions { alignments: cfg.alignments.clone(), range: resolved.range, invalid_pred: cfg.invalid_pred };
+    if let Some(r) = cfg.range {
+        r.validate()?;
+    }
+    let range = cfg.range.unwrap_or(resolved.range);
+    let opts = PairOptions { alignments: cfg.alignments.clone(), range, invalid_pred: cfg.invalid_pred };
     let done = AtomicUsize::new(0);
-    let results: Vec<Result<Vec<ImageResult>>> = resolved
+    let results: Vec<Result<(Vec<ImageResult>, GtRangeCheck)>> = resolved
         .frames
         .par_iter()
         .map(|f| {
@@ -219,9 +394,13 @@ pub fn evaluate_manifest(
         .collect();
     let mut images = Vec::with_capacity(results.len() * methods.len());
     let mut errors = Vec::new();
+    let mut gt_checks = Vec::with_capacity(results.len());
     for r in results {
         match r {
-            Ok(v) => images.extend(v),
+            Ok((v, c)) => {
+                images.extend(v);
+                gt_checks.push(c);
+            }
             Err(e) => errors.push(e),
         }
     }
@@ -244,5 +423,6 @@ pub fn evaluate_manifest(
         images,
         options: opts,
         manifest: manifest.source.clone(),
+        gt_checks,
     })
 }

@@ -236,6 +236,8 @@ impl ValidationReport {
 const HEADER: &str = "# RoDEM evaluation manifest (laparo depth). Paths are relative to this file's folder.\n\
 # gt_unit: unit of the GT depth files (m | mm). methods[].kind: disparity | depth.\n\
 # methods[].predictions: path template with {id} {scene} {perturbation} {severity} {name}.\n\
+# depth_min_m / depth_max_m: clamp range (m) of aligned predicted depth; set it to the scene's\n\
+#   depth range (surgical default 0.01-0.5 m; e.g. 1.0-10.0 for Middlebury).\n\
 # frames[].severity: 0 = clean reference; or frames[].sequence + [[sequences]].gesture_start.\n\
 # Check with: laparo depth manifest validate <this file>\n\n";
 
@@ -632,8 +634,9 @@ pub fn scaffold(root: &Path, opts: &ScaffoldOptions) -> Result<Manifest> {
     Ok(Manifest {
         version: 1,
         gt_unit: opts.gt_unit,
-        depth_min_m: None,
-        depth_max_m: None,
+        // Written out so that a user sees (and can edit) the clamp range of aligned depth.
+        depth_min_m: Some(crate::align::DEPTH_MIN_M),
+        depth_max_m: Some(crate::align::DEPTH_MAX_M),
         baseline: methods.first().map(|m| m.name.clone()),
         error_map_frames: Vec::new(),
         methods,

@@ -446,94 +446,177 @@ fn radar_panels(r: &MethodRobustness) -> Vec<RadarPanel> {
         .collect()
 }
 
+/// Ring (or tick) values of a radar/bar scale covering `0..=vmax`: a "nice" step (1, 2, 2.5 or 5
+/// × 10^k, at least 0.25) giving at most [`MAX_RINGS`] rings; returns (rings, outer radius value).
+pub fn radar_rings(vmax: f64) -> (Vec<f64>, f64) {
+    let vmax = if vmax.is_finite() && vmax > 0.0 { vmax } else { 1.0 };
+    let raw = vmax * 1.05 / MAX_RINGS as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 2.5, 5.0, 10.0].iter().map(|m| m * mag).find(|&s| s >= raw).unwrap_or(10.0 * mag).max(0.25);
+    let n = ((vmax * 1.05) / step).ceil().max(1.0) as usize;
+    let rings: Vec<f64> = (1..=n).map(|k| k as f64 * step).collect();
+    let rmax = *rings.last().expect("n >= 1");
+    (rings, rmax)
+}
+
+/// At most this many rings (or ticks) on a radar or bar chart.
+pub const MAX_RINGS: usize = 6;
+
+fn ring_label(v: f64) -> String {
+    if v >= 1000.0 || (v - v.round()).abs() < 1e-9 {
+        format!("{v:.0}")
+    } else if (v * 10.0 - (v * 10.0).round()).abs() < 1e-9 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+fn panel_vmax(p: &RadarPanel) -> f64 {
+    p.ce.iter().chain(&p.rr).flatten().fold(1.2f64, |a, &b| if b.is_finite() { a.max(b) } else { a })
+}
+
+fn axis_label(p: &RadarPanel, k: usize) -> String {
+    format!(
+        "{} ({}/{})",
+        p.axes[k],
+        p.ce[k].map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into()),
+        p.rr[k].map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into())
+    )
+}
+
+fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, ce_col: RGBColor, rr_col: RGBColor) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let (aw, ah) = area.dim_in_pixel();
+    let ly = ah as i32 - 22;
+    area.draw(&Rectangle::new([(10, ly), (24, ly + 10)], ce_col.filled()))?;
+    area.draw(&Text::new("perturbation error CE (eq. 3.3)", (28, ly - 2), ("sans-serif", 12).into_font()))?;
+    area.draw(&Rectangle::new([(aw as i32 / 2 + 10, ly), (aw as i32 / 2 + 24, ly + 10)], rr_col.filled()))?;
+    area.draw(&Text::new(
+        "resilience rate RR (eq. 3.4)",
+        (aw as i32 / 2 + 28, ly - 2),
+        ("sans-serif", 12).into_font(),
+    ))?;
+    Ok(())
+}
+
+/// Grouped bars (CE, RR) per perturbation: the radar's fallback for fewer than three axes,
+/// where a polygon cannot be drawn.
+fn draw_bars<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &RadarPanel) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    let ce_col = RGBColor(214, 39, 40);
+    let rr_col = RGBColor(31, 119, 180);
+    let (aw, ah) = area.dim_in_pixel();
+    let (rings, rmax) = radar_rings(panel_vmax(p));
+    area.draw(&Text::new(p.title.clone(), (10, 4), ("sans-serif", 16).into_font()))?;
+    let (x0, x1, y0, y1) = (60i32, aw as i32 - 20, 40i32, ah as i32 - 70);
+    let ypx = |v: f64| y1 - ((y1 - y0) as f64 * (v / rmax).clamp(0.0, 1.0)).round() as i32;
+    for &t in std::iter::once(&0.0).chain(&rings) {
+        let style =
+            if (t - 1.0).abs() < 1e-9 { BLACK.mix(0.6).stroke_width(1) } else { BLACK.mix(0.15).stroke_width(1) };
+        area.draw(&PathElement::new(vec![(x0, ypx(t)), (x1, ypx(t))], style))?;
+        area.draw(&Text::new(ring_label(t), (8, ypx(t) - 6), ("sans-serif", 11).into_font().color(&BLACK.mix(0.6))))?;
+    }
+    if rings.iter().all(|&t| (t - 1.0).abs() > 1e-9) && 1.0 < rmax {
+        area.draw(&PathElement::new(vec![(x0, ypx(1.0)), (x1, ypx(1.0))], BLACK.mix(0.6).stroke_width(1)))?;
+    }
+    let n = p.axes.len().max(1) as i32;
+    let slot = (x1 - x0) / n;
+    for k in 0..p.axes.len() {
+        let sx = x0 + slot * k as i32;
+        let bw = (slot / 4).max(4);
+        for (j, (v, col)) in [(p.ce[k], ce_col), (p.rr[k], rr_col)].into_iter().enumerate() {
+            if let Some(v) = v.filter(|v| v.is_finite()) {
+                let bx = sx + slot / 2 - bw + j as i32 * bw;
+                area.draw(&Rectangle::new([(bx, ypx(v)), (bx + bw - 2, y1)], col.filled()))?;
+            }
+        }
+        let lab = axis_label(p, k);
+        let tw = (lab.chars().count() as i32 * 6) / 2;
+        area.draw(&Text::new(lab, (sx + slot / 2 - tw, y1 + 8), ("sans-serif", 12).into_font()))?;
+    }
+    draw_legend(area, ce_col, rr_col)
+}
+
 fn draw_radar<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, panels: &[RadarPanel]) -> PlotResult
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let (w, h) = root.dim_in_pixel();
     root.draw(&Text::new(title.to_string(), (12, 8), ("sans-serif", 20).into_font()))?;
     let areas = root.margin(36, 0, 0, 0).split_evenly((1, panels.len().max(1)));
     let ce_col = RGBColor(214, 39, 40);
     let rr_col = RGBColor(31, 119, 180);
     for (area, p) in areas.iter().zip(panels) {
+        if p.axes.len() < 3 {
+            draw_bars(area, p)?;
+            continue;
+        }
         let (aw, ah) = area.dim_in_pixel();
         let (cx, cy) = (aw as f64 / 2.0, ah as f64 / 2.0 + 10.0);
         let radius = (aw.min(ah) as f64 / 2.0 - 70.0).max(20.0);
-        let vmax = p.ce.iter().chain(&p.rr).flatten().fold(1.2f64, |a, &b| if b.is_finite() { a.max(b) } else { a });
-        let rmax = (vmax * 1.1 * 4.0).ceil() / 4.0;
+        // A handful of rings scaled to the data (CE can be in the thousands for a degenerate
+        // method; one ring per 0.25 would fill the disc).
+        let (rings, rmax) = radar_rings(panel_vmax(p));
         area.draw(&Text::new(p.title.clone(), (10, 4), ("sans-serif", 16).into_font()))?;
-        let n = p.axes.len().max(1);
+        let n = p.axes.len();
         let pt = |k: usize, v: f64| -> (i32, i32) {
             let a = -std::f64::consts::FRAC_PI_2 + 2.0 * std::f64::consts::PI * k as f64 / n as f64;
             let r = radius * (v / rmax).clamp(0.0, 1.0);
             ((cx + r * a.cos()).round() as i32, (cy + r * a.sin()).round() as i32)
         };
-        // Rings (with the value 1 highlighted: CE = 1 is the baseline, RR = 1 no degradation).
-        let mut ring = 0.25;
-        while ring <= rmax + 1e-9 {
-            let pts: Vec<(i32, i32)> = (0..=72)
+        let circle = |ring: f64| -> Vec<(i32, i32)> {
+            (0..=72)
                 .map(|i| {
                     let a = 2.0 * std::f64::consts::PI * i as f64 / 72.0;
                     let r = radius * ring / rmax;
                     ((cx + r * a.cos()).round() as i32, (cy + r * a.sin()).round() as i32)
                 })
-                .collect();
+                .collect()
+        };
+        // Rings, labelled, and the value 1 highlighted (CE = 1 is the baseline, RR = 1 no
+        // degradation) whether or not it is one of the rings.
+        for &ring in &rings {
             let style = if (ring - 1.0).abs() < 1e-9 {
                 BLACK.mix(0.6).stroke_width(1)
             } else {
                 BLACK.mix(0.15).stroke_width(1)
             };
-            area.draw(&PathElement::new(pts, style))?;
-            if ((ring * 2.0).round() - ring * 2.0).abs() < 1e-9 {
-                let (x, y) = (cx as i32 + 3, (cy - radius * ring / rmax) as i32 - 12);
-                area.draw(&Text::new(
-                    format!("{ring:.1}"),
-                    (x, y),
-                    ("sans-serif", 11).into_font().color(&BLACK.mix(0.6)),
-                ))?;
-            }
-            ring += 0.25;
+            area.draw(&PathElement::new(circle(ring), style))?;
+            let (x, y) = (cx as i32 + 3, (cy - radius * ring / rmax) as i32 - 12);
+            area.draw(&Text::new(ring_label(ring), (x, y), ("sans-serif", 11).into_font().color(&BLACK.mix(0.6))))?;
         }
-        for (k, name) in p.axes.iter().enumerate() {
+        if rings.iter().all(|&r| (r - 1.0).abs() > 1e-9) && 1.0 < rmax {
+            area.draw(&PathElement::new(circle(1.0), BLACK.mix(0.6).stroke_width(1)))?;
+        }
+        for k in 0..n {
             area.draw(&PathElement::new(vec![pt(k, 0.0), pt(k, rmax)], BLACK.mix(0.3)))?;
             let (x, y) = pt(k, rmax * 1.12);
-            let lab = format!(
-                "{name} ({}/{})",
-                p.ce[k].map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into()),
-                p.rr[k].map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into())
-            );
+            let lab = axis_label(p, k);
             let tw = (lab.chars().count() as i32 * 6) / 2;
             area.draw(&Text::new(lab, (x - tw, y - 6), ("sans-serif", 12).into_font()))?;
         }
         for (vals, col) in [(&p.ce, ce_col), (&p.rr, rr_col)] {
             let mut pts: Vec<(i32, i32)> = vals.iter().enumerate().map(|(k, v)| pt(k, v.unwrap_or(0.0))).collect();
-            if pts.len() > 2 {
-                area.draw(&Polygon::new(pts.clone(), col.mix(0.15)))?;
-            }
+            area.draw(&Polygon::new(pts.clone(), col.mix(0.15)))?;
             pts.push(pts[0]);
             area.draw(&PathElement::new(pts.clone(), col.stroke_width(2)))?;
             for q in &pts {
                 area.draw(&Circle::new(*q, 3, col.filled()))?;
             }
         }
-        let ly = ah as i32 - 22;
-        area.draw(&Rectangle::new([(10, ly), (24, ly + 10)], ce_col.filled()))?;
-        area.draw(&Text::new("perturbation error CE (eq. 3.3)", (28, ly - 2), ("sans-serif", 12).into_font()))?;
-        area.draw(&Rectangle::new([(aw as i32 / 2 + 10, ly), (aw as i32 / 2 + 24, ly + 10)], rr_col.filled()))?;
-        area.draw(&Text::new(
-            "resilience rate RR (eq. 3.4)",
-            (aw as i32 / 2 + 28, ly - 2),
-            ("sans-serif", 12).into_font(),
-        ))?;
+        draw_legend(area, ce_col, rr_col)?;
     }
-    let _ = (w, h);
     Ok(())
 }
 
 /// Radar chart of one method under one alignment as PNG and SVG (thesis Fig. 3.4): per
 /// perturbation (averaged over scenes) CE and RR, for E = Abs Rel and E = 1 − δ0.25. Axis labels
-/// read "name (CE/RR)".
+/// read "name (CE/RR)". With fewer than three perturbations the panels are grouped bars.
 pub fn write_radar(dir: &Path, r: &MethodRobustness, alignment: Alignment) -> Result<Vec<PathBuf>> {
     let panels = radar_panels(r);
     let title = format!("{} — {} (baseline {})", r.method, alignment.title(), r.baseline);

@@ -20,8 +20,11 @@ mod output;
 mod params;
 
 pub use layout::{discover, load_sample, read_disparity, read_middlebury_calib, source_cameras, Layout, SampleFiles};
-pub use output::{augment_sample, is_done, output_paths, write_augmented, OutputPaths, SampleStats, Sidecar};
-pub use params::parse_params;
+pub use output::{
+    augment_sample, is_done, output_paths, resume_state, run_params_hash, write_augmented, OutputPaths, ResumeState,
+    SampleStats, Sidecar,
+};
+pub use params::{check_homographies, parse_params};
 
 /// Errors of dataset conversion.
 #[derive(Debug, thiserror::Error)]

@@ -216,3 +216,155 @@ fn hand_written_params_and_bad_inputs() {
     let (ok, err) = augment(&input, &dir.path().join("o"), 1, 1);
     assert!(!ok && err.contains("cats.toml"), "{err}");
 }
+
+fn augment_args(input: &Path, out: &Path, seed: u64, extra: &[&str]) -> (bool, String) {
+    let mut a: Vec<String> = [
+        "cats",
+        "augment",
+        "--input",
+        input.to_str().unwrap(),
+        "--layout",
+        "generic",
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        input.join("cats.toml").to_str().unwrap(),
+        "--seed",
+        &seed.to_string(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    a.extend(extra.iter().map(|s| s.to_string()));
+    run(&a.iter().map(|s| s.as_str()).collect::<Vec<_>>(), 2)
+}
+
+/// Issue 10: `--layout generic` with `.npy` disparities printed success and wrote none.
+#[test]
+fn generic_layout_reads_npy_disparities() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    make_dataset(&input, 2);
+    for name in ["0000", "0001"] {
+        let pfm = input.join(format!("disp/{name}.pfm"));
+        let d = io::read_pfm(&pfm).unwrap();
+        io::write_npy_f32(input.join(format!("disp/{name}.npy")), &d).unwrap();
+        std::fs::remove_file(&pfm).unwrap();
+    }
+    let out = dir.path().join("o");
+    let (ok, err) = augment_args(&input, &out, 3, &[]);
+    assert!(ok, "{err}");
+    // Same samples from PFM inputs: identical disparity outputs.
+    let (input2, out2) = (dir.path().join("in2"), dir.path().join("o2"));
+    make_dataset(&input2, 2);
+    assert!(augment_args(&input2, &out2, 3, &[]).0);
+    for name in ["0000", "0001"] {
+        let p = out.join(format!("disp/{name}.pfm"));
+        assert!(p.is_file(), "no disparity written for {name}");
+        assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(out2.join(format!("disp/{name}.pfm"))).unwrap());
+    }
+}
+
+/// Issue 10: a re-run with another seed skipped every sample (resume keyed on file names only);
+/// inputs could be overwritten in place; interrupted runs left temporaries forever.
+#[test]
+fn resume_checks_parameters_and_outputs_never_overwrite_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    make_dataset(&input, 2);
+    let out = dir.path().join("o");
+    assert!(augment_args(&input, &out, 7, &[]).0);
+    let sidecar = out.join("left/0001.cats.json");
+    let seed_of = |p: &Path| -> u64 {
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+        v["seed"].as_u64().unwrap()
+    };
+    // Another seed: refused, nothing rewritten.
+    let before = std::fs::read(out.join("left/0001.png")).unwrap();
+    let (ok, err) = augment_args(&input, &out, 8, &[]);
+    assert!(!ok && err.contains("--force") && err.contains("another seed"), "{err}");
+    assert!(!err.contains("panicked"));
+    assert_eq!(seed_of(&sidecar), 7);
+    // The same seed resumes (nothing to do), and removes a stale temporary of ours.
+    let tmp = out.join("left/.0001.png.4294967295.0.tmp");
+    std::fs::write(&tmp, b"half").unwrap();
+    let (ok, err) = augment_args(&input, &out, 7, &[]);
+    assert!(ok && err.contains("0 to do"), "{err}");
+    assert!(!tmp.exists(), "stale temporary left behind");
+    // A changed configuration is a mismatch too.
+    let cfg = std::fs::read_to_string(input.join("cats.toml")).unwrap();
+    std::fs::write(input.join("cats.toml"), cfg.replace("std = 0.5", "std = 0.7")).unwrap();
+    let (ok, err) = augment_args(&input, &out, 7, &[]);
+    assert!(!ok && err.contains("--force"), "{err}");
+    std::fs::write(input.join("cats.toml"), cfg).unwrap();
+    // --force (and the old spelling --overwrite) redoes everything with the new seed.
+    let (ok, err) = augment_args(&input, &out, 8, &["--force"]);
+    assert!(ok, "{err}");
+    assert_eq!(seed_of(&sidecar), 8);
+    assert_ne!(std::fs::read(out.join("left/0001.png")).unwrap(), before);
+    assert!(augment_args(&input, &out, 9, &["--overwrite"]).0);
+    // Output = input, or inside the input: refused before anything is written.
+    let left0 = std::fs::read(input.join("left/0000.png")).unwrap();
+    let (ok, err) = augment_args(&input, &input, 7, &[]);
+    assert!(!ok && err.contains("would overwrite the input"), "{err}");
+    let (ok, err) = augment_args(&input, &input.join("aug"), 7, &[]);
+    assert!(!ok && err.contains("would overwrite the input"), "{err}");
+    assert_eq!(std::fs::read(input.join("left/0000.png")).unwrap(), left0);
+    assert!(!input.join("left/0000.cats.json").exists() && !input.join("aug").exists());
+}
+
+/// Issue 10: a tiny focal length panicked ("validated K is invertible").
+#[test]
+fn apply_rejects_a_singular_camera_without_panicking() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    make_dataset(&input, 1);
+    let params = dir.path().join("tiny.json");
+    std::fs::write(
+        &params,
+        r#"{"k": {"fx": 1e-200, "fy": 1e-200, "cx": 32, "cy": 24}, "left": {"euler_deg": [1, 2, 3]}}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("a");
+    let (ok, err) = run(
+        &[
+            "cats",
+            "apply",
+            "--params",
+            params.to_str().unwrap(),
+            "--left",
+            input.join("left/0000.png").to_str().unwrap(),
+            "--right",
+            input.join("right/0000.png").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        1,
+    );
+    assert!(!ok && !err.contains("panicked"), "{err}");
+    assert!(err.contains("tiny.json") && err.contains("not numerically invertible"), "{err}");
+    assert!(!out.exists());
+    // --out over the inputs' folder would replace left.png: refused.
+    let inp = dir.path().join("pair");
+    std::fs::create_dir_all(&inp).unwrap();
+    std::fs::copy(input.join("left/0000.png"), inp.join("left.png")).unwrap();
+    std::fs::copy(input.join("right/0000.png"), inp.join("r.png")).unwrap();
+    let k = default_camera(64, 48);
+    std::fs::write(&params, format!(r#"{{"k": {{"fx": {f}, "fy": {f}, "cx": 32, "cy": 24}}}}"#, f = k.fx)).unwrap();
+    let (ok, err) = run(
+        &[
+            "cats",
+            "apply",
+            "--params",
+            params.to_str().unwrap(),
+            "--left",
+            inp.join("left.png").to_str().unwrap(),
+            "--right",
+            inp.join("r.png").to_str().unwrap(),
+            "--out",
+            inp.to_str().unwrap(),
+        ],
+        1,
+    );
+    assert!(!ok && err.contains("would overwrite the input"), "{err}");
+}

@@ -171,3 +171,96 @@ fn cpc_scene_warp_lambda_end_to_end() {
     assert!(!ok && err.contains("focal"), "{err}");
     assert!(!tmp.path().join("bad1").join("stats.json").exists());
 }
+
+/// Issue 10: `cpc warp --out <input folder>` overwrote the input mask; a depth prediction at
+/// network resolution was rejected; frames had to be warped one process at a time.
+#[test]
+fn cpc_warp_guards_inputs_resizes_depth_and_takes_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sc = tmp.path().join("scene");
+    let (ok, _, err) = laparo(&[
+        "cpc",
+        "scene",
+        "--surface",
+        "bumpy",
+        "--texture",
+        "procedural",
+        "--width",
+        "120",
+        "--height",
+        "90",
+        "--out",
+        s(&sc),
+    ]);
+    assert!(ok, "scene: {err}");
+    let mask_before = std::fs::read(sc.join("mask.png")).unwrap();
+    let warp = |image: &Path, depth: &Path, out: &Path, extra: &[&str]| {
+        let mut a = vec![
+            "cpc".to_string(),
+            "warp".into(),
+            "--image".into(),
+            s(image).into(),
+            "--depth".into(),
+            s(depth).into(),
+            "--intrinsics".into(),
+            s(&sc.join("intrinsics.json")).into(),
+            "--mask".into(),
+            s(&sc.join("mask.png")).into(),
+            "--lambda".into(),
+            "0.9".into(),
+            "--out".into(),
+            s(out).into(),
+        ];
+        a.extend(extra.iter().map(|x| x.to_string()));
+        laparo(&a.iter().map(|x| x.as_str()).collect::<Vec<_>>())
+    };
+    // Output into the scene folder would replace the input mask.png: refused, mask intact.
+    let (ok, _, err) = warp(&sc.join("image.png"), &sc.join("depth.npy"), &sc, &[]);
+    assert!(!ok && err.contains("mask.png") && err.contains("would overwrite the input"), "{err}");
+    assert_eq!(std::fs::read(sc.join("mask.png")).unwrap(), mask_before);
+
+    // Depth at half resolution (2x2 block means): rejected with a hint, accepted with --resize-depth.
+    let d = laparo_core::io::read_npy(sc.join("depth.npy")).unwrap();
+    let (hw, hh) = (d.width / 2, d.height / 2);
+    let mut half = Vec::with_capacity(hw * hh);
+    for y in 0..hh {
+        for x in 0..hw {
+            let v = [(0, 0), (1, 0), (0, 1), (1, 1)].iter().map(|(i, j)| d.get(2 * x + i, 2 * y + j, 0)).sum::<f64>();
+            half.push(v / 4.0);
+        }
+    }
+    let hp = tmp.path().join("half.npy");
+    laparo_core::io::write_npy_f64(&hp, &laparo_core::Image::from_vec(hw, hh, 1, half).unwrap()).unwrap();
+    let (ok, _, err) = warp(&sc.join("image.png"), &hp, &tmp.path().join("h0"), &[]);
+    assert!(!ok && err.contains("--resize-depth"), "{err}");
+    let (ok, stdout, err) = warp(&sc.join("image.png"), &hp, &tmp.path().join("h1"), &["--resize-depth", "bilinear"]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("λ = 0.9000"), "{stdout}");
+    let (ok, _, err) = warp(&sc.join("image.png"), &hp, &tmp.path().join("h2"), &["--resize-pred", "nearest"]);
+    assert!(ok, "{err}");
+
+    // Batch: folders of frames; each frame's output equals a single-frame run.
+    let (imgs, depths) = (tmp.path().join("frames"), tmp.path().join("depths"));
+    std::fs::create_dir_all(&imgs).unwrap();
+    std::fs::create_dir_all(&depths).unwrap();
+    for n in ["a", "b"] {
+        std::fs::copy(sc.join("image.png"), imgs.join(format!("{n}.png"))).unwrap();
+        std::fs::copy(sc.join("depth.npy"), depths.join(format!("{n}.npy"))).unwrap();
+    }
+    let single = tmp.path().join("single");
+    let (ok, _, err) = warp(&sc.join("image.png"), &sc.join("depth.npy"), &single, &[]);
+    assert!(ok, "{err}");
+    let batch = tmp.path().join("batch");
+    let (ok, stdout, err) = warp(&imgs, &depths, &batch, &[]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("2 of 2 frames"), "{stdout}");
+    for n in ["a", "b"] {
+        assert_eq!(
+            std::fs::read(batch.join(n).join("warped.png")).unwrap(),
+            std::fs::read(single.join("warped.png")).unwrap()
+        );
+    }
+    std::fs::remove_file(depths.join("b.npy")).unwrap();
+    let (ok, _, err) = warp(&imgs, &depths, &tmp.path().join("batch2"), &[]);
+    assert!(!ok && err.contains("'b.*'"), "{err}");
+}

@@ -297,3 +297,127 @@ fn a_bad_prediction_fails_the_run_without_partial_results() {
     let o = laparo(&["depth", "eval", "--manifest", s(&man), "--baseline", "nobody", "--out", s(&out)]);
     assert_clean_failure(&o, &["nobody"]);
 }
+
+/// Issue 10: GT far outside the clamp range (Middlebury, 2–5 m) used to give meaningless
+/// metrics with exit 0 and no word; a mm file read as metres was not noticed either.
+#[test]
+fn eval_pair_warns_about_gt_outside_the_clamp_range_and_implausible_units() {
+    let d = tempfile::tempdir().unwrap();
+    let (p, g) = (d.path().join("pred.npy"), d.path().join("gt.npy"));
+    // GT 2–5 m (a slanted plane), prediction exact up to scale.
+    let gt: Vec<f64> = (0..W * H).map(|i| 2.0 + 3.0 * (i % W) as f64 / (W - 1) as f64).collect();
+    write_npy_f64(&g, &img(gt.clone())).unwrap();
+    write_npy_f64(&p, &img(gt.iter().map(|z| 7.0 / z).collect())).unwrap();
+    let run = |extra: &[&str]| {
+        let mut a = vec!["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--json"];
+        a.extend_from_slice(extra);
+        laparo(&a)
+    };
+    let o = run(&["--gt-unit", "m"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    // All 384 valid pixels lie beyond 0.5 m.
+    assert!(err.contains("100.0 % of the valid ground truth lies outside the clamp range [0.01, 0.5] m"), "{err}");
+    assert!(err.contains("--depth-min-m/--depth-max-m"), "{err}");
+    // With a range that fits: no warning, and s-alignment is exact (scale 1/7).
+    let o = run(&["--gt-unit", "m", "--depth-min-m", "1", "--depth-max-m", "10"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !err.contains("warning"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["scale"]["abs_rel"].as_f64().unwrap() < 1e-12, "{v}");
+    assert!((v["scale"]["scale"].as_f64().unwrap() - 1.0 / 7.0).abs() < 1e-12);
+    // The same values declared as mm (the default unit) are 2–5 mm: implausible.
+    let o = run(&[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("median ground-truth depth is 3.500 mm, implausible"), "{err}");
+    // A mm file (2000–5000) read as metres: a median of 3500 m.
+    write_npy_f64(&g, &img(gt.iter().map(|z| z * 1000.0).collect())).unwrap();
+    let o = run(&["--gt-unit", "m"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("median ground-truth depth is 3500.0 m, implausible: millimetres read as metres"), "{err}");
+    // --json=FILE writes the file and keeps the table on stdout.
+    let jf = d.path().join("r.json");
+    let jarg = format!("--json={}", s(&jf));
+    let o = laparo(&[
+        "depth",
+        "eval-pair",
+        "--pred",
+        s(&p),
+        "--gt",
+        s(&g),
+        "--gt-unit",
+        "mm",
+        "--depth-min-m",
+        "1",
+        "--depth-max-m",
+        "10",
+        &jarg,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("alignment"));
+    assert!(read_json(&jf)["scale"]["abs_rel"].as_f64().unwrap() < 1e-12);
+}
+
+/// Issue 10: a prediction at network resolution was rejected; `--resize-pred` resizes it.
+#[test]
+fn eval_pair_resizes_predictions_at_network_resolution() {
+    let d = tempfile::tempdir().unwrap();
+    let (p, g) = (d.path().join("pred.npy"), d.path().join("gt.npy"));
+    // GT (mm) constant on 2x2 blocks; the prediction is 3x its disparity at half resolution.
+    let (hw, hh) = (W / 2, H / 2);
+    let zb = |bx: usize, by: usize| 60.0 + 4.0 * bx as f64 + 7.0 * by as f64;
+    let gt: Vec<f64> = (0..W * H).map(|i| zb((i % W) / 2, (i / W) / 2)).collect();
+    write_npy_f64(&g, &img(gt)).unwrap();
+    let pred: Vec<f64> = (0..hw * hh).map(|i| 3.0 / zb(i % hw, i / hw)).collect();
+    write_npy_f64(&p, &Image::from_vec(hw, hh, 1, pred).unwrap()).unwrap();
+    let base = ["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "mm", "--json"];
+    let o = laparo(&base);
+    assert_clean_failure(&o, &["pred.npy", "size mismatch"]);
+    let mut a = base.to_vec();
+    a.extend(["--resize-pred", "nearest"]);
+    let o = laparo(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // Nearest with centres aligned maps x to floor(x / 2): exact, s = 1/3000 (disparity in 1/m).
+    assert_eq!(v["n_valid"], W * H);
+    assert!(v["scale"]["abs_rel"].as_f64().unwrap() < 1e-12, "{v}");
+    let mut a = base.to_vec();
+    a.extend(["--resize-pred", "bilinear"]);
+    let o = laparo(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let e = v["scale_shift"]["abs_rel"].as_f64().unwrap();
+    assert!(e > 0.0 && e < 0.05, "bilinear blends neighbouring blocks a little: {e}");
+}
+
+/// Issue 10: `depth eval` had no range flags and the scaffolded manifest hid `depth_min_m`.
+#[test]
+fn eval_range_flags_and_scaffolded_range() {
+    let d = tempfile::tempdir().unwrap();
+    let root = d.path().join("data");
+    dataset(&root);
+    let man = root.join("manifest.toml");
+    let o = laparo(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&man).unwrap();
+    assert!(text.contains("depth_min_m = 0.01") && text.contains("depth_max_m = 0.5"), "{text}");
+    // GT is 5–17 cm: inside the default range, no warning.
+    let out = d.path().join("out");
+    let args = |extra: &[&str]| {
+        let mut a =
+            vec!["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out), "--no-figures"];
+        a.extend_from_slice(extra);
+        laparo(&a)
+    };
+    let o = args(&[]);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("warning"));
+    let csv0 = std::fs::read_to_string(out.join("per_image.csv")).unwrap();
+    // A near clamp of 20 cm puts all GT outside the range: warned, and the metrics change.
+    let o = args(&["--depth-min-m", "0.2", "--depth-max-m", "5"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("100.0 % of the valid ground truth lies outside the clamp range [0.2, 5] m"), "{err}");
+    assert_ne!(csv0, std::fs::read_to_string(out.join("per_image.csv")).unwrap());
+    // An invalid range names the flags.
+    assert_clean_failure(&args(&["--depth-min-m", "0.3", "--depth-max-m", "0.2"]), &["--depth-min-m", "depth range"]);
+}

@@ -365,3 +365,89 @@ fn disp2depth_on_middlebury_motorcycle() {
     assert!(text.contains("element vertex 343274") && text.contains("property uchar red"), "{text}");
     assert_eq!(head.len(), head.windows(11).position(|w| w == b"end_header\n").unwrap() + 11 + 343_274 * 15);
 }
+
+/// Issue 10: a calibration made for another image size (no size in the file, principal point
+/// outside the image) was accepted silently; folders of frames had to be rectified one by one.
+#[test]
+fn stereo_rectify_rejects_a_calibration_of_another_size_and_takes_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let (c, ..) = synthetic(1, 320, 256);
+    let (l, r) = render_pair(&c);
+    let (lp, rp) = (dir.path().join("l.png"), dir.path().join("r.png"));
+    laparo_core::io::write_png(&lp, &l).unwrap();
+    laparo_core::io::write_png(&rp, &r).unwrap();
+    // The same rig calibrated at 1280x1024, written without its image size (SCARED style).
+    let (big, ..) = synthetic(1, 1280, 1024);
+    let yaml = dir.path().join("big.yaml");
+    big.write_opencv_yaml(&yaml).unwrap();
+    let text = std::fs::read_to_string(&yaml).unwrap();
+    let sizeless: String = text.lines().filter(|l| !l.starts_with("image_")).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&yaml, sizeless).unwrap();
+    let out = dir.path().join("out");
+    let (ok, _, err) =
+        laparo(&["stereo", "rectify", "--calib", s(&yaml), "--left", s(&lp), "--right", s(&rp), "--out", s(&out)]);
+    assert!(!ok && !err.contains("panicked"), "{err}");
+    assert!(err.contains("big.yaml") && err.contains("outside the 320x256 image"), "{err}");
+    assert!(!out.exists());
+
+    // Batch: two frames in folders; the maps are built once; each frame equals a single run.
+    let calib = dir.path().join("calib.yaml");
+    c.write_opencv_yaml(&calib).unwrap();
+    let (ld, rd) = (dir.path().join("L"), dir.path().join("R"));
+    for name in ["f0.png", "f1.png"] {
+        laparo_core::io::write_png(ld.join(name), &l).unwrap();
+        laparo_core::io::write_png(rd.join(name), &r).unwrap();
+    }
+    let single = dir.path().join("single");
+    let (ok, _, err) =
+        laparo(&["stereo", "rectify", "--calib", s(&calib), "--left", s(&lp), "--right", s(&rp), "--out", s(&single)]);
+    assert!(ok, "{err}");
+    let (ok, stdout, err) =
+        laparo(&["stereo", "rectify", "--calib", s(&calib), "--left", s(&ld), "--right", s(&rd), "--out", s(&out)]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("rectified 2 pair(s)"), "{stdout}");
+    for name in ["f0.png", "f1.png"] {
+        assert_eq!(
+            std::fs::read(out.join("left").join(name)).unwrap(),
+            std::fs::read(single.join("left_rectified.png")).unwrap()
+        );
+        assert_eq!(
+            std::fs::read(out.join("right").join(name)).unwrap(),
+            std::fs::read(single.join("right_rectified.png")).unwrap()
+        );
+    }
+    assert!(out.join("left_valid.png").is_file() && out.join("calib_rectified.json").is_file());
+    // A right folder without one of the frames names it; output into the input folder is refused.
+    std::fs::remove_file(rd.join("f1.png")).unwrap();
+    let (ok, _, err) =
+        laparo(&["stereo", "rectify", "--calib", s(&calib), "--left", s(&ld), "--right", s(&rd), "--out", s(&out)]);
+    assert!(!ok && err.contains("f1.png"), "{err}");
+    laparo_core::io::write_png(rd.join("f1.png"), &r).unwrap();
+    let (ok, _, err) =
+        laparo(&["stereo", "rectify", "--calib", s(&calib), "--left", s(&ld), "--right", s(&rd), "--out", s(&ld)]);
+    assert!(!ok && err.contains("would overwrite the input"), "{err}");
+}
+
+/// Issue 10: `cats stats --config-out` on one of its own inputs overwrote the calibration.
+#[test]
+fn cats_stats_refuses_to_overwrite_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let (c, ..) = synthetic(0, 1280, 1024);
+    let calib = dir.path().join("calib.yaml");
+    c.write_opencv_yaml(&calib).unwrap();
+    let before = std::fs::read(&calib).unwrap();
+    let (ok, _, err) = laparo(&["cats", "stats", s(&calib), "--config-out", s(&calib)]);
+    assert!(!ok && err.contains("calib.yaml") && err.contains("would overwrite the input"), "{err}");
+    assert_eq!(std::fs::read(&calib).unwrap(), before);
+    // --json=FILE writes the JSON there; a bare --json before a positional takes no value.
+    let j = dir.path().join("stats.json");
+    let (ok, stdout, err) = laparo(&["cats", "stats", &format!("--json={}", s(&j)), s(&calib)]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("Table 3.6"), "{stdout}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
+    assert_eq!(v["files"].as_array().unwrap().len(), 1);
+    let (ok, stdout, err) = laparo(&["cats", "stats", "--json", s(&calib)]);
+    assert!(ok, "{err}");
+    assert!(serde_json::from_str::<serde_json::Value>(&stdout).is_ok());
+    assert_eq!(std::fs::read(&calib).unwrap(), before);
+}

@@ -16,8 +16,8 @@ pub enum Layout {
     /// One folder per scene: `im0.png`, `im1.png`, `disp0.pfm` (or `disp0GT.pfm`), optional
     /// `disp1.pfm`, `calib.txt` (cam0, cam1).
     Middlebury,
-    /// `left/*.png`, `right/*.png` (same names), optional `disp/<stem>.pfm` (or `disp_left/`),
-    /// `disp_right/<stem>.pfm`; the camera comes from the config's `[camera]`.
+    /// `left/*.png`, `right/*.png` (same names), optional `disp/<stem>.{pfm,npy,npz,tif,tiff}`
+    /// (or `disp_left/`), `disp_right/<stem>.*`; the camera comes from the config's `[camera]`.
     Generic,
 }
 
@@ -154,7 +154,12 @@ pub fn discover(root: &Path, layout: Layout) -> Result<Vec<SampleFiles>, Dataset
                 if !right.is_file() {
                     return Err(ferr(p, format!("no right image {}", right.display())));
                 }
-                let pfm = |dir: &str| existing(root.join(dir).join(stem).with_extension("pfm"));
+                // Disparities in any format `read_disparity` reads (outputs are PFM).
+                let pfm = |dir: &str| {
+                    ["pfm", "npy", "npz", "tif", "tiff"]
+                        .iter()
+                        .find_map(|e| existing(root.join(dir).join(stem).with_extension(e)))
+                };
                 out.push(SampleFiles {
                     id: rel_id(root, p),
                     left: p.clone(),

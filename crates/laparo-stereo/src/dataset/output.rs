@@ -40,6 +40,46 @@ pub struct Sidecar {
     pub homography_left: Mat3Rows,
     pub homography_right: Mat3Rows,
     pub stats: SampleStats,
+    /// [`run_params_hash`] of the run that wrote this sample (resume check); empty in sidecars
+    /// of older versions.
+    #[serde(default)]
+    pub params_hash: String,
+}
+
+/// Hash of everything an augmented sample depends on besides its input files: seed, GT rule,
+/// layout and the CATS configuration (its TOML form). Stored in each sidecar.
+pub fn run_params_hash(config: &CatsConfig, seed: u64, rule: GtRule, layout: Layout) -> String {
+    let text = format!("v1;seed={seed};gt_rule={rule:?};layout={layout:?};config={}", config.to_toml_string());
+    laparo_core::atomic::fnv1a64_hex(text.as_bytes())
+}
+
+/// Resume state of one sample of an output folder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResumeState {
+    /// Not (completely) written yet.
+    Todo,
+    /// Complete, written with the same parameters.
+    Done,
+    /// Complete, but written with other parameters (or by a version without a parameter hash).
+    Stale,
+}
+
+/// [`is_done`], distinguishing outputs written with other parameters (`hash` from
+/// [`run_params_hash`]).
+pub fn resume_state(f: &SampleFiles, root: &Path, out: &Path, hash: &str) -> ResumeState {
+    if !is_done(f, root, out) {
+        return ResumeState::Todo;
+    }
+    let o = output_paths(f, root, out);
+    let same = std::fs::read_to_string(&o.sidecar)
+        .ok()
+        .and_then(|t| serde_json::from_str::<Sidecar>(&t).ok())
+        .is_some_and(|sc| sc.params_hash == hash);
+    if same {
+        ResumeState::Done
+    } else {
+        ResumeState::Stale
+    }
 }
 
 fn rows(m: &Matrix3<f64>) -> Mat3Rows {
@@ -152,6 +192,7 @@ pub fn augment_sample(
     let (kl, kr) = source_cameras(f, layout, config, s.left.width, s.left.height)?;
     let mut rng = sample_rng(seed, &f.id);
     let p = config.sample(&mut rng, &kl, &Distortion::default(), &kr, &Distortion::default());
+    super::params::check_homographies(&p).map_err(|e| super::ferr(&f.left, format!("sampled parameters: {e}")))?;
     let a = augment_stereo(&s, &p, rule)?;
     let sidecar = Sidecar {
         laparo_version: env!("CARGO_PKG_VERSION").into(),
@@ -164,6 +205,7 @@ pub fn augment_sample(
         homography_right: rows(&p.right.homography()),
         params: p,
         stats: SampleStats::default(),
+        params_hash: run_params_hash(config, seed, rule, layout),
     };
     write_augmented(f, root, out, &a, sidecar)
 }

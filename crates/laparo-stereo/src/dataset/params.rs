@@ -132,5 +132,29 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
         dx_right_px: dx,
     };
     a.validate().map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
+    check_homographies(&a).map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
     Ok(a)
+}
+
+/// Check that both cameras' K are numerically invertible and that the homographies
+/// H = K_rel K R K⁻¹ (eq. 3.6) and their inverses are finite and non-singular. A tiny or huge
+/// focal length passes [`Intrinsics::validate`] but makes K⁻¹ overflow or K singular in f64.
+pub fn check_homographies(a: &StereoAugmentation) -> Result<(), String> {
+    for (side, c) in [("left", &a.left), ("right", &a.right)] {
+        let k = c.k.matrix();
+        let ki = k.try_inverse().filter(|m| m.iter().all(|v| v.is_finite()));
+        if ki.is_none() || k.determinant().abs() < 1e-12 {
+            return Err(format!(
+                "{side}.k (fx = {}, fy = {}) is not numerically invertible; focal lengths are in px",
+                c.k.fx, c.k.fy
+            ));
+        }
+        let h = c.homography();
+        let hi = c.homography_inverse().map_err(|e| format!("{side}: {e}"))?;
+        let det = h.determinant();
+        if h.iter().chain(hi.iter()).any(|v| !v.is_finite()) || !det.is_finite() || det == 0.0 {
+            return Err(format!("{side}: the homography H = K_rel K R K⁻¹ is not finite and invertible: {h:?}"));
+        }
+    }
+    Ok(())
 }

@@ -55,9 +55,11 @@ pub struct AugmentArgs {
     /// Process at most this many samples (after skipping finished ones).
     #[arg(long)]
     pub limit: Option<usize>,
-    /// Redo samples that already have a sidecar.
-    #[arg(long)]
-    pub overwrite: bool,
+    /// Redo samples that already have a sidecar. Without it an interrupted run resumes (samples
+    /// written with the same seed, GT rule, layout and configuration are kept) and a run whose
+    /// parameters differ from those recorded in the sidecars is refused.
+    #[arg(long, alias = "overwrite")]
+    pub force: bool,
 }
 
 /// Arguments of `laparo cats apply`.
@@ -117,12 +119,39 @@ fn load_config(path: &Option<PathBuf>) -> Result<CatsConfig> {
 }
 
 fn run_augment(a: AugmentArgs) -> Result<()> {
+    laparo_core::atomic::refuse_overwrite(&a.out, &[&a.input], true).context("--out")?;
     let config = load_config(&a.config)?;
     let samples = dataset::discover(&a.input, a.layout)?;
     let total = samples.len();
+    if a.out.is_dir() {
+        let n = laparo_core::atomic::remove_stale_temps(&a.out)?;
+        if n > 0 {
+            eprintln!("removed {n} temporary file(s) left by an interrupted run in {}", a.out.display());
+        }
+    }
+    let hash = dataset::run_params_hash(&config, a.seed, a.gt_rule, a.layout);
+    let states: Vec<dataset::ResumeState> =
+        samples.iter().map(|f| dataset::resume_state(f, &a.input, &a.out, &hash)).collect();
+    let stale: Vec<&str> = samples
+        .iter()
+        .zip(&states)
+        .filter(|(_, s)| **s == dataset::ResumeState::Stale)
+        .map(|(f, _)| f.id.as_str())
+        .collect();
+    if !stale.is_empty() && !a.force {
+        bail!(
+            "{}: {} sample(s) (e.g. {}) were augmented with another seed, GT rule or configuration \
+             (or by an older laparo); re-run with --force to redo them, or choose another --out",
+            a.out.display(),
+            stale.len(),
+            stale[..stale.len().min(3)].join(", ")
+        );
+    }
     let todo: Vec<_> = samples
         .into_iter()
-        .filter(|f| a.overwrite || !dataset::is_done(f, &a.input, &a.out))
+        .zip(&states)
+        .filter(|(_, s)| a.force || **s != dataset::ResumeState::Done)
+        .map(|(f, _)| f)
         .take(a.limit.unwrap_or(usize::MAX))
         .collect();
     eprintln!(
@@ -142,12 +171,16 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
             .progress_chars("=> "),
     );
     let failures = Mutex::new(Vec::new());
+    let empty = Mutex::new(Vec::new());
     let done = AtomicUsize::new(0);
     let t0 = Instant::now();
     todo.par_iter().for_each(|f| {
         match dataset::augment_sample(f, &a.input, &a.out, a.layout, &config, a.seed, a.gt_rule) {
-            Ok(_) => {
+            Ok(sc) => {
                 done.fetch_add(1, Ordering::Relaxed);
+                if sc.stats.valid_fraction_left == 0.0 || sc.stats.valid_fraction_right == 0.0 {
+                    empty.lock().expect("not poisoned").push(f.id.clone());
+                }
             }
             Err(e) => failures.lock().expect("not poisoned").push(format!("{}: {e}", f.id)),
         }
@@ -155,6 +188,15 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
     });
     pb.finish_and_clear();
     let failures = failures.into_inner().expect("not poisoned");
+    let empty = empty.into_inner().expect("not poisoned");
+    if !empty.is_empty() {
+        eprintln!(
+            "warning: {} sample(s) have no valid pixel in one view (e.g. {}): the sampled camera looks away \
+             from the image; check the configuration",
+            empty.len(),
+            empty[..empty.len().min(3)].join(", ")
+        );
+    }
     eprintln!(
         "augmented {} samples in {:.1} s into {}",
         done.load(Ordering::Relaxed),
@@ -195,7 +237,25 @@ fn run_apply(a: ApplyArgs) -> Result<()> {
             );
         }
     }
+    let inputs: Vec<&std::path::Path> =
+        [Some(&a.params), Some(&a.left), Some(&a.right), a.disp.as_ref(), a.disp_right.as_ref()]
+            .into_iter()
+            .flatten()
+            .map(|p| p.as_path())
+            .collect();
+    for name in ["left.png", "right.png", "params.json", "disp_left.pfm", "disp_right.pfm"] {
+        laparo_core::atomic::refuse_overwrite(&a.out.join(name), &inputs, false).context("--out")?;
+    }
     let out = augment_stereo(&s, &p, a.gt_rule)?;
+    for (side, v) in [("left", &out.left.valid), ("right", &out.right.valid)] {
+        if v.count() == 0 {
+            eprintln!(
+                "warning: the augmented {side} view has no valid pixel: its camera looks entirely outside the \
+                 source image (check rotation, K_rel and focal lengths in {})",
+                a.params.display()
+            );
+        }
+    }
     let d = &a.out;
     std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
     io::write_png(d.join("left.png"), &out.left.image)?;

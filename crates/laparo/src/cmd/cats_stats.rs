@@ -20,9 +20,10 @@ pub struct StatsArgs {
     /// next to it with "intrinsics" ↔ "extrinsics" swapped in its name.
     #[arg(required = true, value_name = "CALIB")]
     pub calib: Vec<String>,
-    /// Print one JSON object (per-file results and summary statistics) instead of tables.
-    #[arg(long)]
-    pub json: bool,
+    /// Print one JSON object (per-file results and summary statistics) instead of tables, or
+    /// write it to FILE.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, require_equals = true)]
+    pub json: Option<Option<PathBuf>>,
     /// Write a CATS configuration (TOML) fitted to the statistics.
     #[arg(long, value_name = "TOML")]
     pub config_out: Option<PathBuf>,
@@ -119,6 +120,18 @@ fn read_all(a: &StatsArgs) -> anyhow::Result<Vec<(String, StereoCalibration, boo
 
 /// Run `laparo cats stats`.
 pub fn run_stats(a: StatsArgs) -> anyhow::Result<()> {
+    if let Some(out) = &a.config_out {
+        let files: Vec<PathBuf> = a
+            .calib
+            .iter()
+            .flat_map(|spec| {
+                let (x, y) = resolve(spec);
+                std::iter::once(x).chain(y)
+            })
+            .collect();
+        let refs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+        laparo_core::atomic::refuse_overwrite(out, &refs, false).context("--config-out")?;
+    }
     let calibs = read_all(&a)?;
     let mut rows: Vec<(String, CalibStats)> = Vec::new();
     for (label, c, assumed) in &calibs {
@@ -158,7 +171,7 @@ pub fn run_stats(a: StatsArgs) -> anyhow::Result<()> {
     }
     let warnings: Vec<String> =
         rows.iter().flat_map(|(l, s)| s.warnings.iter().map(move |w| format!("{l}: {w}"))).collect();
-    if a.json {
+    if a.json.is_some() {
         let files: Vec<serde_json::Value> = rows
             .iter()
             .map(|(l, s)| {
@@ -176,20 +189,34 @@ pub fn run_stats(a: StatsArgs) -> anyhow::Result<()> {
             "config_out": a.config_out.as_ref().map(|p| p.display().to_string()),
             "warnings": warnings,
         });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        if !super::depth::emit_json(&a.json, &out)? {
+            print_tables(&rows, &label, &summary, a.config_out.as_deref(), &warnings);
+        }
     } else {
+        print_tables(&rows, &label, &summary, a.config_out.as_deref(), &warnings);
+    }
+    Ok(())
+}
+
+fn print_tables(
+    rows: &[(String, CalibStats)],
+    label: &str,
+    summary: &laparo_stereo::calib_stats::StatsSummary,
+    config_out: Option<&Path>,
+    warnings: &[String],
+) {
+    {
         println!("Per calibration (Euler angles [x, y, z] in degrees, R = Rz(z) Ry(y) Rx(x), rotation from the ideal rectified frame):\n");
-        println!("{}", per_file_markdown(&rows));
+        println!("{}", per_file_markdown(rows));
         println!("Table 3.6 analogue (mean, population σ; degrees):\n");
-        println!("{}", table_3_6_markdown(&[(label.clone(), summary.clone())]));
+        println!("{}", table_3_6_markdown(&[(label.to_string(), summary.clone())]));
         println!("Principal-point offsets, baselines, lens distortion:\n");
-        println!("{}", offsets_markdown(&[(label, summary)]));
-        if let Some(p) = &a.config_out {
+        println!("{}", offsets_markdown(&[(label.to_string(), summary.clone())]));
+        if let Some(p) = config_out {
             println!("wrote CATS config {}", p.display());
         }
-        for w in &warnings {
+        for w in warnings {
             eprintln!("warning: {w}");
         }
     }
-    Ok(())
 }

@@ -6,6 +6,7 @@
 //! * `scene`: render a synthetic scene (plane, cylinder, bumpy bowl) to files usable by `warp`.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::atomic::write_atomic;
 use laparo_core::camera::Intrinsics;
 use laparo_core::depth::{DepthMap, DepthUnit};
@@ -14,7 +15,7 @@ use laparo_core::io;
 use laparo_cpc::lambda::{auto_lambda, default_lambda_grid};
 use laparo_cpc::pipeline::LambdaChoice;
 use laparo_cpc::scene::{self, SceneSpec, Surface, Texture};
-use laparo_cpc::{cpc_warp, ConformalParams, CpcMesh, CpcParams, CpcSystem, MeshParams};
+use laparo_cpc::{ConformalParams, CpcMesh, CpcParams, CpcSolver, CpcSystem, MeshParams};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -60,7 +61,9 @@ pub struct InputArgs {
 
 #[derive(Args)]
 pub struct WarpArgs {
-    /// Input image (PNG/JPEG/TIFF, 8-bit).
+    /// Input image (PNG/JPEG/TIFF, 8-bit), or a folder of frames: then --depth is a folder of
+    /// depth maps with the same stems, outputs go to `OUT/<stem>/`, and the mesh topology
+    /// (ordering, symbolic factorisation) is reused across frames whose mesh has not changed.
     #[arg(long)]
     pub image: PathBuf,
     #[command(flatten)]
@@ -74,6 +77,10 @@ pub struct WarpArgs {
     /// Refine with the equiareal formulation (eq. 4.9) after the convex solve.
     #[arg(long)]
     pub equiareal: bool,
+    /// Resize a depth map whose size differs from the image's (a prediction at network
+    /// resolution): bilinear or nearest, pixel centres aligned. Without it a mismatch is an error.
+    #[arg(long, value_name = "FILTER", alias = "resize-pred")]
+    pub resize_depth: Option<laparo_depth::eval::ResizeFilter>,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -145,9 +152,15 @@ struct Inputs {
     params: CpcParams,
 }
 
-fn load_inputs(a: &InputArgs) -> Result<Inputs> {
-    let depth =
+/// `resize`: bring the depth map to (width, height) px first (a prediction at network resolution).
+fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::ResizeFilter)>) -> Result<Inputs> {
+    let mut depth =
         io::read_depth(&a.depth, a.depth_unit).with_context(|| format!("reading depth {}", a.depth.display()))?;
+    if let Some((w, h, f)) = resize {
+        if (depth.width, depth.height) != (w, h) {
+            depth = resize_depth(&depth, w, h, f)?;
+        }
+    }
     let k = read_intrinsics(&a.intrinsics, depth.width, depth.height)?;
     let roi = match &a.mask {
         Some(p) => read_mask(p)?,
@@ -181,10 +194,155 @@ fn f32_map(m: &Image<f64>) -> Image<f32> {
     m.map(|v| v as f32)
 }
 
+/// Files `cpc warp` writes into its output folder.
+const WARP_OUTPUTS: [&str; 7] = [
+    "warped.png",
+    "mask.png",
+    "map_backward.npy",
+    "map_forward.npy",
+    "lambda_sweep.csv",
+    "lambda_sweep.png",
+    "stats.json",
+];
+
+/// Refuse an output folder where a written file would replace one of the inputs.
+fn refuse_overwriting_inputs(out: &Path, inputs: &[&Path]) -> Result<()> {
+    for name in WARP_OUTPUTS {
+        laparo_core::atomic::refuse_overwrite(&out.join(name), inputs, false).context("--out")?;
+    }
+    Ok(())
+}
+
+/// Resize `depth` to `w`×`h` px with `filter` (invalid depth stays invalid: NaN propagates).
+fn resize_depth(depth: &DepthMap, w: usize, h: usize, filter: laparo_depth::eval::ResizeFilter) -> Result<DepthMap> {
+    let img = depth.to_image().map(|v| if DepthMap::is_valid(v) { v } else { f64::NAN });
+    let r = laparo_depth::eval::resize_map(&img, w, h, filter);
+    Ok(DepthMap::new(w, h, depth.unit, r.data)?)
+}
+
 fn warp(a: WarpArgs) -> Result<()> {
+    if a.image.is_dir() {
+        return warp_batch(a);
+    }
+    let mut inputs: Vec<&Path> = vec![&a.image, &a.input.depth, &a.input.intrinsics];
+    if let Some(m) = &a.input.mask {
+        inputs.push(m);
+    }
+    refuse_overwriting_inputs(&a.out, &inputs)?;
+    let spinner = ProgressBar::new_spinner();
+    spinner.set_style(
+        ProgressStyle::with_template("{spinner} {msg} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    spinner.set_message(format!("CPC warp of {}{}", a.image.display(), if a.auto_lambda { " (λ sweep)" } else { "" }));
+    spinner.enable_steady_tick(std::time::Duration::from_millis(120));
+    let r = warp_one(&mut CpcSolver::new(), &a, &a.image, &a.input, &a.out);
+    spinner.finish_and_clear();
+    let s = r?;
+    println!(
+        "λ = {:.4}: {} vertices, {} triangles, angle error {:.2}° -> {:.2}°, δ_area {:.3}, {} flipped; canvas {}x{}; written to {}",
+        s.lambda, s.n_vertices, s.n_triangles, s.angle_error_deg_before, s.angle_error_deg_after, s.delta_area, s.n_flipped,
+        s.canvas_width, s.canvas_height, a.out.display()
+    );
+    Ok(())
+}
+
+/// `cpc warp --image DIR --depth DIR`: every frame, one solver (topology reused when the mesh
+/// is unchanged), a progress bar, outputs in `OUT/<stem>/`.
+fn warp_batch(a: WarpArgs) -> Result<()> {
+    if !a.input.depth.is_dir() {
+        bail!("--image {} is a folder, so --depth {} must be one too", a.image.display(), a.input.depth.display());
+    }
+    let mut frames: Vec<PathBuf> = std::fs::read_dir(&a.image)
+        .with_context(|| format!("reading folder {}", a.image.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && matches!(io::extension(p).as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff"))
+        .collect();
+    frames.sort();
+    if frames.is_empty() {
+        bail!("--image {}: no PNG/JPEG/TIFF image in this folder", a.image.display());
+    }
+    let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let depths: Vec<PathBuf> = frames
+        .iter()
+        .map(|f| {
+            ["npy", "npz", "pfm", "tif", "tiff", "png", "exr"]
+                .iter()
+                .map(|e| a.input.depth.join(format!("{}.{e}", stem(f))))
+                .find(|p| p.is_file())
+                .with_context(|| {
+                    format!(
+                        "--depth {}: no depth map named '{}.*' for {}",
+                        a.input.depth.display(),
+                        stem(f),
+                        f.display()
+                    )
+                })
+        })
+        .collect::<Result<_>>()?;
+    laparo_core::atomic::refuse_overwrite(&a.out, &[&a.image, &a.input.depth], true).context("--out")?;
+    let pb = ProgressBar::new(frames.len() as u64);
+    pb.set_style(
+        ProgressStyle::with_template("cpc warp [{bar:40}] {pos}/{len} frames ({per_sec}, eta {eta}) {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.enable_steady_tick(std::time::Duration::from_millis(250));
+    let mut solver = CpcSolver::new();
+    let mut failures = Vec::new();
+    for (f, d) in frames.iter().zip(&depths) {
+        let out = a.out.join(stem(f));
+        pb.set_message(stem(f));
+        let input = InputArgs { depth: d.clone(), ..a.input.clone() };
+        match warp_one(&mut solver, &a, f, &input, &out) {
+            Ok(_) => {}
+            Err(e) => failures.push(format!("{}: {e:#}", f.display())),
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    println!("cpc warp: {} of {} frames warped -> {}", frames.len() - failures.len(), frames.len(), a.out.display());
+    if !failures.is_empty() {
+        bail!("{} frame(s) failed:\n  {}", failures.len(), failures.join("\n  "));
+    }
+    Ok(())
+}
+
+/// Warp one frame into `out` (the files of [`WARP_OUTPUTS`]), returning its statistics.
+fn warp_one(
+    solver: &mut CpcSolver,
+    a: &WarpArgs,
+    image_path: &Path,
+    input: &InputArgs,
+    out: &Path,
+) -> Result<laparo_cpc::CpcStats> {
     let t0 = Instant::now();
-    let image = io::read_image(&a.image).with_context(|| format!("reading image {}", a.image.display()))?;
-    let mut inp = load_inputs(&a.input)?;
+    let image = io::read_image(image_path).with_context(|| format!("reading image {}", image_path.display()))?;
+    let mut inp = match load_inputs(input, a.resize_depth.map(|f| (image.width, image.height, f))) {
+        Ok(i) => i,
+        Err(e) => {
+            // A depth map at another resolution (a network's): say how to use it.
+            if let (None, Ok(d)) = (a.resize_depth, io::read_depth(&input.depth, input.depth_unit)) {
+                if (d.width, d.height) != (image.width, image.height) {
+                    return Err(e.context(format!(
+                        "depth {} is {}x{} but image {} is {}x{} (use --resize-depth bilinear|nearest for a prediction at network resolution)",
+                        input.depth.display(), d.width, d.height, image_path.display(), image.width, image.height
+                    )));
+                }
+            }
+            return Err(e);
+        }
+    };
+    if (inp.depth.width, inp.depth.height) != (image.width, image.height) {
+        bail!(
+            "depth {} is {}x{} but image {} is {}x{} (use --resize-depth bilinear|nearest for a prediction at network resolution)",
+            input.depth.display(),
+            inp.depth.width,
+            inp.depth.height,
+            image_path.display(),
+            image.width,
+            image.height
+        );
+    }
     let t_read = t0.elapsed().as_secs_f64() * 1e3;
     inp.params.lambda = if a.auto_lambda {
         CpcParams::auto_lambda()
@@ -194,9 +352,8 @@ fn warp(a: WarpArgs) -> Result<()> {
     if a.equiareal {
         inp.params.equiareal = Some(Default::default());
     }
-    let mut r = cpc_warp(&image, &inp.depth, &inp.k, &inp.roi, &inp.params)?;
+    let mut r = laparo_cpc::cpc_warp_with(solver, &image, &inp.depth, &inp.k, &inp.roi, &inp.params)?;
     let t = Instant::now();
-    let out = &a.out;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     io::write_png(out.join("warped.png"), &r.warped)?;
     io::write_png(out.join("mask.png"), &r.mask.map(|b| if b { 255u8 } else { 0 }))?;
@@ -210,8 +367,8 @@ fn warp(a: WarpArgs) -> Result<()> {
     r.stats.timings_ms.insert("read".into(), t_read);
     r.stats.timings_ms.insert("write".into(), t.elapsed().as_secs_f64() * 1e3);
     let mut stats = serde_json::to_value(&r.stats)?;
-    stats["inputs"] = json!({"image": a.image, "depth": a.input.depth, "depth_unit": a.input.depth_unit.to_string(),
-        "intrinsics": a.input.intrinsics, "mask": a.input.mask});
+    stats["inputs"] = json!({"image": image_path, "depth": input.depth, "depth_unit": input.depth_unit.to_string(),
+        "intrinsics": input.intrinsics, "mask": input.mask, "resize_depth": a.resize_depth});
     stats["maps"] = json!({
         "map_backward.npy": "HxWx2 float32, canvas pixel -> original (x, y) px, NaN where invalid",
         "map_forward.npy": "HxWx2 float32 (original size), original pixel -> canvas (x, y) px, NaN outside the mesh"
@@ -238,16 +395,11 @@ fn warp(a: WarpArgs) -> Result<()> {
     if s.n_flipped > 0 {
         eprintln!("warning: {} flipped triangles (lower λ or --max-view-angle)", s.n_flipped);
     }
-    println!(
-        "λ = {:.4}: {} vertices, {} triangles, angle error {:.2}° -> {:.2}°, δ_area {:.3}, {} flipped; canvas {}x{}; written to {}",
-        s.lambda, s.n_vertices, s.n_triangles, s.angle_error_deg_before, s.angle_error_deg_after, s.delta_area, s.n_flipped,
-        s.canvas_width, s.canvas_height, out.display()
-    );
-    Ok(())
+    Ok(r.stats)
 }
 
 fn lambda(a: LambdaArgs) -> Result<()> {
-    let inp = load_inputs(&a.input)?;
+    let inp = load_inputs(&a.input, None)?;
     let grid = if a.lambdas.is_empty() { default_lambda_grid() } else { a.lambdas.clone() };
     for &l in &grid {
         laparo_cpc::solve::validate_lambda(l)?;

@@ -9,11 +9,39 @@ use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::DepthUnit;
 use laparo_depth::align::{Alignment, DepthRange, PredKind};
-use laparo_depth::eval::{evaluate_files, evaluate_manifest, EvalConfig};
+use laparo_depth::eval::{evaluate_files_checked, evaluate_manifest, EvalConfig, GtRangeCheck, ResizeFilter};
 use laparo_depth::manifest::{scaffold, Manifest, ScaffoldOptions};
 use laparo_depth::metrics::{InvalidPredPolicy, PairOptions, METRIC_NAMES};
 use laparo_depth::report;
 use std::path::PathBuf;
+
+/// `--json[=FILE]` (the convention of every command): absent → `None`; `--json` → print the
+/// JSON on stdout; `--json=FILE` → write it to FILE (atomically) and keep the human output.
+/// The `=` is required so that `--json CALIB` never takes a positional input for the output.
+pub type JsonOut = Option<Option<PathBuf>>;
+
+/// Emit `value` as `--json [FILE]` asks. Returns true when it went to stdout (so the caller
+/// prints nothing else there).
+pub fn emit_json(json: &JsonOut, value: &serde_json::Value) -> Result<bool> {
+    match json {
+        None => Ok(false),
+        Some(None) => {
+            println!("{}", serde_json::to_string_pretty(value)?);
+            Ok(true)
+        }
+        Some(Some(p)) => {
+            laparo_core::atomic::write_atomic(p, (serde_json::to_string_pretty(value)? + "\n").as_bytes())?;
+            Ok(false)
+        }
+    }
+}
+
+/// Print the GT range/unit warnings of a check on stderr.
+fn print_gt_warnings(check: &GtRangeCheck, what: &str, flags: &str) {
+    for w in check.warnings(what, flags) {
+        eprintln!("warning: {w}");
+    }
+}
 
 #[derive(Subcommand)]
 pub enum DepthCmd {
@@ -56,6 +84,12 @@ pub struct ScaffoldArgs {
     /// Output manifest (.toml or .json); default `<root>/manifest.toml`.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Near clamp (m) of aligned predicted depth written to the manifest (default 0.01).
+    #[arg(long)]
+    pub depth_min_m: Option<f64>,
+    /// Far clamp (m) of aligned predicted depth written to the manifest (default 0.5).
+    #[arg(long)]
+    pub depth_max_m: Option<f64>,
     /// Overwrite an existing manifest.
     #[arg(long)]
     pub force: bool,
@@ -68,9 +102,9 @@ pub struct ValidateArgs {
     /// Only check the predictions of these methods.
     #[arg(long, value_delimiter = ',')]
     pub methods: Vec<String>,
-    /// Print the report as JSON.
-    #[arg(long)]
-    pub json: bool,
+    /// Print the report as JSON on stdout, or write it to FILE.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, require_equals = true)]
+    pub json: Option<Option<PathBuf>>,
 }
 
 #[derive(Args)]
@@ -102,6 +136,12 @@ pub struct EvalArgs {
     /// Skip radar charts and error maps.
     #[arg(long)]
     pub no_figures: bool,
+    /// Near clamp (m) of aligned predicted depth (default: the manifest's depth_min_m, else 0.01).
+    #[arg(long)]
+    pub depth_min_m: Option<f64>,
+    /// Far clamp (m) of aligned predicted depth (default: the manifest's depth_max_m, else 0.5).
+    #[arg(long)]
+    pub depth_max_m: Option<f64>,
 }
 
 #[derive(Args)]
@@ -115,8 +155,8 @@ pub struct EvalPairArgs {
     /// What the prediction holds.
     #[arg(long, default_value = "disparity")]
     pub pred_kind: PredKind,
-    /// Unit of the GT values.
-    #[arg(long, default_value = "m")]
+    /// Unit of the GT values (mm, the default of every laparo command, or m).
+    #[arg(long, default_value = "mm")]
     pub gt_unit: DepthUnit,
     /// ROI mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero).
     #[arg(long)]
@@ -125,17 +165,21 @@ pub struct EvalPairArgs {
     #[arg(long, default_value = "all")]
     pub alignment: String,
     /// Near clamp of aligned depth (m).
-    #[arg(long, default_value_t = 0.01)]
-    pub depth_min: f64,
+    #[arg(long, default_value_t = 0.01, alias = "depth-min")]
+    pub depth_min_m: f64,
     /// Far clamp of aligned depth (m).
-    #[arg(long, default_value_t = 0.5)]
-    pub depth_max: f64,
+    #[arg(long, default_value_t = 0.5, alias = "depth-max")]
+    pub depth_max_m: f64,
     /// Invalid predictions on valid GT pixels: far (disparity 0), exclude, or error.
     #[arg(long, default_value = "far")]
     pub invalid_pred: InvalidPredPolicy,
-    /// Print one JSON object (keys of depth_eval_ref.py).
-    #[arg(long)]
-    pub json: bool,
+    /// Resize a prediction whose size differs from the GT's (network resolution): bilinear or
+    /// nearest, pixel centres aligned. Without it a size mismatch is an error.
+    #[arg(long, value_name = "FILTER")]
+    pub resize_pred: Option<ResizeFilter>,
+    /// Print one JSON object (keys of depth_eval_ref.py) on stdout, or write it to FILE.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, require_equals = true)]
+    pub json: Option<Option<PathBuf>>,
 }
 
 pub fn run(c: DepthCmd) -> Result<()> {
@@ -156,6 +200,13 @@ fn run_scaffold(a: ScaffoldArgs) -> Result<()> {
     }
     let opts = ScaffoldOptions { gt_unit: a.gt_unit, depth_methods: a.depth_methods, predictions_dir: a.predictions };
     let mut m = scaffold(&a.root, &opts)?;
+    if let Some(v) = a.depth_min_m {
+        m.depth_min_m = Some(v);
+    }
+    if let Some(v) = a.depth_max_m {
+        m.depth_max_m = Some(v);
+    }
+    m.range().context("--depth-min-m/--depth-max-m")?;
     // Paths in the manifest are relative to the root; keep them valid from the output folder.
     let out_dir = out.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let root_abs = std::fs::canonicalize(&a.root).with_context(|| a.root.display().to_string())?;
@@ -211,9 +262,7 @@ fn print_report(rep: &laparo_depth::manifest::ValidationReport) {
 fn run_validate(a: ValidateArgs) -> Result<()> {
     let m = Manifest::read(&a.manifest)?;
     let rep = m.validate(if a.methods.is_empty() { None } else { Some(&a.methods) });
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&rep)?);
-    } else {
+    if !emit_json(&a.json, &serde_json::to_value(&rep)?)? {
         print_report(&rep);
     }
     if !rep.ok() {
@@ -242,7 +291,15 @@ fn run_eval(a: EvalArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     report::remove_stale_results(&a.out)?;
-    let cfg = EvalConfig { methods, alignments, invalid_pred: a.invalid_pred };
+    laparo_core::atomic::remove_stale_temps(&a.out)?;
+    let range = match (a.depth_min_m, a.depth_max_m) {
+        (None, None) => None,
+        (lo, hi) => {
+            let d = m.range().unwrap_or_default();
+            Some(DepthRange::new(lo.unwrap_or(d.min_m), hi.unwrap_or(d.max_m)).context("--depth-min-m/--depth-max-m")?)
+        }
+    };
+    let cfg = EvalConfig { methods, alignments, invalid_pred: a.invalid_pred, range };
     let pb = ProgressBar::new(m.frames.len() as u64);
     pb.set_style(
         ProgressStyle::with_template("{spinner} evaluating [{bar:40}] {pos}/{len} frames ({per_sec}, eta {eta})")
@@ -253,6 +310,11 @@ fn run_eval(a: EvalArgs) -> Result<()> {
     let out = evaluate_manifest(&m, &cfg, &|n| pb.set_position(n as u64));
     pb.finish_and_clear();
     let out = out?;
+    print_gt_warnings(
+        &GtRangeCheck::merge_all(&out.gt_checks),
+        &format!("{} ({} frames)", a.manifest.display(), out.gt_checks.len()),
+        "depth_min_m/depth_max_m in the manifest or --depth-min-m/--depth-max-m",
+    );
     let summary = report::summarize(&out, &baseline)?;
     let mut written = Vec::new();
     if !a.no_figures {
@@ -274,12 +336,13 @@ fn run_eval(a: EvalArgs) -> Result<()> {
 fn run_eval_pair(a: EvalPairArgs) -> Result<()> {
     let opts = PairOptions {
         alignments: Alignment::parse_list(&a.alignment)?,
-        range: DepthRange::new(a.depth_min, a.depth_max)?,
+        range: DepthRange::new(a.depth_min_m, a.depth_max_m)?,
         invalid_pred: a.invalid_pred,
     };
-    let r = evaluate_files(&a.pred, a.pred_kind, &a.gt, a.gt_unit, a.mask.as_deref(), &opts)?;
-    if a.json {
-        println!("{}", serde_json::to_string(&r)?);
+    let (r, check) =
+        evaluate_files_checked(&a.pred, a.pred_kind, &a.gt, a.gt_unit, a.mask.as_deref(), &opts, a.resize_pred)?;
+    print_gt_warnings(&check, &format!("{} (--gt-unit {})", a.gt.display(), a.gt_unit), "--depth-min-m/--depth-max-m");
+    if emit_json(&a.json, &serde_json::to_value(&r)?)? {
         return Ok(());
     }
     println!("valid pixels: {} (invalid predictions among them: {})", r.n_valid, r.n_invalid_pred);

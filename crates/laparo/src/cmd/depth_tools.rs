@@ -37,9 +37,11 @@ pub struct PerturbArgs {
     /// Scene name used in the manifest (default: the input folder's name).
     #[arg(long)]
     pub scene: Option<String>,
-    /// Recompute outputs that already exist (default: skip them, so an interrupted run resumes).
-    #[arg(long)]
-    pub overwrite: bool,
+    /// Recompute outputs that already exist. Without it an interrupted run resumes (outputs made
+    /// with the same parameters are kept) and a run whose seed or perturbation parameters differ
+    /// from those recorded in `<out>/perturb.resume.json` is refused.
+    #[arg(long, alias = "overwrite")]
+    pub force: bool,
 }
 
 /// Arguments of `laparo depth reproject`.
@@ -76,11 +78,11 @@ pub struct ReprojectArgs {
     #[arg(long)]
     pub tool_mask: Option<PathBuf>,
     /// Lower clamp of the output depth in m (values below become invalid).
-    #[arg(long, default_value_t = 0.01)]
-    pub min_depth_m: f64,
+    #[arg(long, default_value_t = 0.01, alias = "min-depth-m")]
+    pub depth_min_m: f64,
     /// Upper clamp of the output depth in m (values above become invalid).
-    #[arg(long, default_value_t = 0.5)]
-    pub max_depth_m: f64,
+    #[arg(long, default_value_t = 0.5, alias = "max-depth-m")]
+    pub depth_max_m: f64,
     /// Saturate out-of-range depth to the range bounds instead of invalidating it.
     #[arg(long)]
     pub saturate: bool,
@@ -155,6 +157,61 @@ pub fn perturbed_path(out: &Path, kind: Perturbation, severity: u8, stem: &str) 
     out.join(kind.name()).join(format!("s{severity}")).join(format!("{stem}.png"))
 }
 
+/// Resume record of `depth perturb`: one parameter hash per `<kind>/s<severity>` folder.
+pub const PERTURB_RESUME_FILE: &str = "perturb.resume.json";
+
+/// Hash of everything an output of (kind, severity) depends on besides the input image.
+fn perturb_hash(seed: u64, kind: Perturbation, severity: u8) -> String {
+    let v = serde_json::json!({
+        "seed": seed,
+        "seed_rule": "item_seed(seed, stem, kind) v1",
+        "kind": kind.name(),
+        "severity": severity,
+        "parameters": kind.describe(severity),
+    });
+    laparo_core::atomic::fnv1a64_hex(v.to_string().as_bytes())
+}
+
+/// Check the outputs already in `out` against the parameters of this run and record the
+/// parameters of this run. Outputs of a (kind, severity) made with other parameters (or with
+/// no record at all) are refused unless `force`, in which case they are redone.
+fn check_perturb_resume(out: &Path, seed: u64, kinds: &[Perturbation], sevs: &[u8], force: bool) -> Result<()> {
+    let rp = out.join(PERTURB_RESUME_FILE);
+    let mut rec: serde_json::Map<String, serde_json::Value> = match std::fs::read_to_string(&rp) {
+        Ok(t) => serde_json::from_str::<serde_json::Value>(&t)
+            .ok()
+            .and_then(|v| v.get("entries").and_then(|e| e.as_object().cloned()))
+            .with_context(|| format!("{}: unreadable resume record (delete it and use --force)", rp.display()))?,
+        Err(_) => Default::default(),
+    };
+    let mut stale = Vec::new();
+    for &k in kinds {
+        for &s in sevs {
+            let key = format!("{}/s{s}", k.name());
+            let h = perturb_hash(seed, k, s);
+            let dir = out.join(k.name()).join(format!("s{s}"));
+            let has_outputs = std::fs::read_dir(&dir)
+                .is_ok_and(|mut d| d.any(|e| e.is_ok_and(|e| !e.file_name().to_string_lossy().starts_with('.'))));
+            let recorded = rec.get(&key).and_then(|v| v.as_str());
+            if has_outputs && recorded != Some(h.as_str()) {
+                stale.push(key.clone());
+            }
+            rec.insert(key, serde_json::Value::String(h));
+        }
+    }
+    if !stale.is_empty() && !force {
+        bail!(
+            "{}: the outputs of {} were made with another seed or other perturbation parameters (or by an \
+             older laparo without {PERTURB_RESUME_FILE}); re-run with --force to redo them, or choose another --out",
+            out.display(),
+            stale.join(", ")
+        );
+    }
+    let v = serde_json::json!({"version": 1, "seed": seed, "entries": rec});
+    laparo_core::atomic::write_atomic(&rp, serde_json::to_string_pretty(&v)?.as_bytes())?;
+    Ok(())
+}
+
 /// Run `laparo depth perturb`.
 pub fn perturb(a: PerturbArgs) -> Result<()> {
     let inputs = list_inputs(&a.input)?;
@@ -183,6 +240,11 @@ pub fn perturb(a: PerturbArgs) -> Result<()> {
         None => None,
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let n_tmp = laparo_core::atomic::remove_stale_temps(&a.out)?;
+    if n_tmp > 0 {
+        eprintln!("removed {n_tmp} temporary file(s) left by an interrupted run in {}", a.out.display());
+    }
+    check_perturb_resume(&a.out, a.seed, &kinds, &sevs, a.force)?;
 
     let jobs: Vec<(usize, Perturbation)> = (0..inputs.len()).flat_map(|i| kinds.iter().map(move |&k| (i, k))).collect();
     let n_total = jobs.len() * sevs.len();
@@ -200,7 +262,7 @@ pub fn perturb(a: PerturbArgs) -> Result<()> {
             let todo: Vec<u8> = sevs
                 .iter()
                 .copied()
-                .filter(|&s| a.overwrite || !perturbed_path(&a.out, kind, s, &name).is_file())
+                .filter(|&s| a.force || !perturbed_path(&a.out, kind, s, &name).is_file())
                 .collect();
             let skipped = sevs.len() - todo.len();
             pb.inc(skipped as u64);
@@ -373,6 +435,17 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
     let distortion = lap_cam.has_distortion().then_some(lap_cam.distortion);
     let ep = a.extrinsics.display().to_string();
     let t = rp::extrinsics_from_json(&read_json(&a.extrinsics, "--extrinsics")?, ext_unit, &ep)?;
+    let dm = depth.to_unit(DepthUnit::M);
+    let check = laparo_depth::eval::GtRangeCheck::new(
+        &dm.data,
+        None,
+        laparo_depth::align::DepthRange { min_m: a.depth_min_m, max_m: a.depth_max_m },
+    );
+    for w in check
+        .warnings(&format!("--depth {} (--depth-unit {depth_unit})", a.depth.display()), "--depth-min-m/--depth-max-m")
+    {
+        eprintln!("warning: {w}");
+    }
     let mask = match &a.tool_mask {
         Some(p) => {
             let m = laparo_core::io::read_mask(p).context("--tool-mask")?;
@@ -391,8 +464,8 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
         None => None,
     };
     let params = ReprojectParams {
-        min_depth_m: a.min_depth_m,
-        max_depth_m: a.max_depth_m,
+        min_depth_m: a.depth_min_m,
+        max_depth_m: a.depth_max_m,
         max_rel_jump: a.max_rel_jump,
         clamp: if a.saturate { ClampMode::Saturate } else { ClampMode::Invalidate },
     };
@@ -420,8 +493,8 @@ pub fn reproject(a: ReprojectArgs) -> Result<()> {
         st.triangles_dropped_jump,
         st.removed_tool,
         st.out_of_range,
-        a.min_depth_m,
-        a.max_depth_m
+        a.depth_min_m,
+        a.depth_max_m
     );
     Ok(())
 }
@@ -441,7 +514,7 @@ mod tests {
             gt: gt.map(Path::to_path_buf),
             gt_unit: "m".into(),
             scene: Some("organ".into()),
-            overwrite: false,
+            force: false,
         }
     }
 
@@ -467,9 +540,37 @@ mod tests {
         perturb(perturb_args(&inp, &out, Some(&gt))).unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"sentinel");
         let mut a = perturb_args(&inp, &out, Some(&gt));
-        a.overwrite = true;
+        a.force = true;
         perturb(a).unwrap();
         assert_eq!(laparo_core::io::read_image(&p).unwrap(), want);
+        // Another seed: refused (the outputs were made with seed 4), nothing rewritten; with
+        // --force everything is redone with the new seed. A stale temporary is removed.
+        let tmp = out.join("smoke/s1/.a.png.4294967295.0.tmp");
+        std::fs::write(&tmp, b"half").unwrap();
+        let mut a = perturb_args(&inp, &out, Some(&gt));
+        a.seed = 5;
+        let err = format!("{:#}", perturb(a.clone()).unwrap_err());
+        assert!(err.contains("--force") && err.contains("smoke/s1"), "{err}");
+        assert!(!tmp.exists(), "stale temporary removed");
+        assert_eq!(laparo_core::io::read_image(&p).unwrap(), want);
+        a.force = true;
+        perturb(a).unwrap();
+        let want5 = pt::apply(&img, Perturbation::LensDirt, 3, pt::item_seed(5, "b", Perturbation::LensDirt)).unwrap();
+        assert_ne!(want5, want);
+        assert_eq!(laparo_core::io::read_image(&p).unwrap(), want5);
+        // Adding a kind with the same seed resumes: the existing outputs match their record.
+        let mut a = perturb_args(&inp, &out, Some(&gt));
+        a.seed = 5;
+        a.kinds.push("blood".into());
+        perturb(a).unwrap();
+        assert!(perturbed_path(&out, Perturbation::Blood, 1, "a").is_file());
+        assert_eq!(laparo_core::io::read_image(&p).unwrap(), want5);
+        let a = perturb_args(&inp, &out, Some(&gt));
+        perturb(a).unwrap_err();
+        let mut a = perturb_args(&inp, &out, Some(&gt));
+        a.seed = 4;
+        a.force = true;
+        perturb(a).unwrap();
         // The manifest lists 2 clean + 2 x 2 x 2 perturbed frames and validates except for methods.
         let m = Manifest::read(out.join("manifest.toml")).unwrap();
         assert_eq!(m.frames.len(), 2 + 8);
@@ -520,8 +621,8 @@ mod tests {
             width: None,
             height: None,
             tool_mask: None,
-            min_depth_m: 0.01,
-            max_depth_m: 0.5,
+            depth_min_m: 0.01,
+            depth_max_m: 0.5,
             saturate: false,
             max_rel_jump: 0.05,
             out_unit: "mm".into(),

@@ -59,10 +59,11 @@ impl CalibArgs {
 pub struct RectifyArgs {
     #[command(flatten)]
     pub calib: CalibArgs,
-    /// Left image (PNG/JPEG/TIFF, 8-bit).
+    /// Left image (PNG/JPEG/TIFF, 8-bit), or a folder of left frames (batch: the rectification
+    /// maps are built once and reused; outputs `OUT/left/<name>.png`, `OUT/right/<name>.png`).
     #[arg(long)]
     pub left: PathBuf,
-    /// Right image.
+    /// Right image, or a folder of right frames with the same file names as the left ones.
     #[arg(long)]
     pub right: PathBuf,
     /// Output folder.
@@ -92,9 +93,9 @@ pub struct EvalArgs {
     /// Output folder (metrics.json, metrics.md, PNG maps).
     #[arg(long)]
     pub out: PathBuf,
-    /// Print the metrics as one JSON object.
-    #[arg(long)]
-    pub json: bool,
+    /// Print the metrics as one JSON object on stdout, or write it to FILE.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, require_equals = true)]
+    pub json: Option<Option<PathBuf>>,
     /// Divide the predicted values by this (KITTI 16-bit PNG: 256).
     #[arg(long, default_value_t = 1.0)]
     pub pred_scale: f64,
@@ -104,13 +105,19 @@ pub struct EvalArgs {
     /// GT disparity 0 means "no ground truth" (KITTI-style PNGs).
     #[arg(long)]
     pub zero_invalid: bool,
-    /// Clamp predicted depth to at least this (mm); thesis §3.2.7: 10.
-    #[arg(long, default_value_t = 10.0)]
-    pub depth_min_mm: f64,
-    /// Clamp predicted depth to at most this (mm); thesis §3.2.7: 500. `inf` with
-    /// `--depth-min-mm 0` disables the clamp.
-    #[arg(long, default_value_t = 500.0)]
-    pub depth_max_mm: f64,
+    /// Clamp predicted depth to at least this (m); thesis §3.2.7: 0.01.
+    #[arg(long, default_value_t = 0.01)]
+    pub depth_min_m: f64,
+    /// Clamp predicted depth to at most this (m); thesis §3.2.7: 0.5. `inf` with
+    /// `--depth-min-m 0` disables the clamp.
+    #[arg(long, default_value_t = 0.5)]
+    pub depth_max_m: f64,
+    /// Old spelling of --depth-min-m, in mm (hidden; kept for one release).
+    #[arg(long, hide = true, conflicts_with = "depth_min_m")]
+    pub depth_min_mm: Option<f64>,
+    /// Old spelling of --depth-max-m, in mm (hidden; kept for one release).
+    #[arg(long, hide = true, conflicts_with = "depth_max_m")]
+    pub depth_max_mm: Option<f64>,
     /// Row label in the markdown table.
     #[arg(long, default_value = "prediction")]
     pub label: String,
@@ -149,30 +156,136 @@ fn need_calib(c: &CalibArgs, w: usize, h: usize) -> anyhow::Result<StereoCalibra
     c.read_for_images(w, h)?.ok_or_else(|| anyhow::anyhow!("--calib is required"))
 }
 
-fn run_rectify(a: RectifyArgs) -> anyhow::Result<()> {
-    let left = laparo_core::io::read_image(&a.left)?;
-    let right = laparo_core::io::read_image(&a.right)?;
-    let calib = need_calib(&a.calib, left.width, left.height)?;
-    for (p, img) in [(&a.left, &left), (&a.right, &right)] {
-        if (img.width, img.height) != (calib.width, calib.height) {
+/// Reject a calibration that cannot belong to `w`×`h` images: a principal point outside the
+/// image is an error; one farther than a quarter of the size from the image centre is
+/// reported as a warning (returned), the usual sign of a calibration made at another resolution.
+pub fn check_calibration_fits(
+    calib: &StereoCalibration,
+    w: usize,
+    h: usize,
+    label: &str,
+) -> anyhow::Result<Vec<String>> {
+    let mut warnings = Vec::new();
+    for (side, k) in [("left", &calib.left), ("right", &calib.right)] {
+        let (cx, cy) = (k.cx, k.cy);
+        if !(cx >= 0.0 && cx <= w as f64 && cy >= 0.0 && cy <= h as f64) {
             bail!(
-                "{}: image is {}x{} but the calibration is for {}x{}",
-                p.display(),
-                img.width,
-                img.height,
-                calib.width,
-                calib.height
+                "{label}: the {side} principal point ({cx:.1}, {cy:.1}) px lies outside the {w}x{h} image: \
+                 this calibration was made for another image size (or --width/--height are wrong)"
             );
         }
+        let (ox, oy) = ((cx - w as f64 / 2.0).abs() / w as f64, (cy - h as f64 / 2.0).abs() / h as f64);
+        if ox > 0.25 || oy > 0.25 {
+            warnings.push(format!(
+                "{label}: the {side} principal point ({cx:.1}, {cy:.1}) px is far from the centre of the {w}x{h} \
+                 image; was the calibration made for another image size?"
+            ));
+        }
+    }
+    Ok(warnings)
+}
+
+/// Image files of a folder, sorted by name.
+fn list_images(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot read folder {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file() && matches!(laparo_core::io::extension(p).as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff")
+        })
+        .collect();
+    v.sort();
+    Ok(v)
+}
+
+fn run_rectify(a: RectifyArgs) -> anyhow::Result<()> {
+    // Frames: one pair, or every left image of a folder with its same-named right image.
+    let pairs: Vec<(PathBuf, PathBuf)> = if a.left.is_dir() {
+        if !a.right.is_dir() {
+            bail!("--left {} is a folder, so --right {} must be one too", a.left.display(), a.right.display());
+        }
+        let lefts = list_images(&a.left)?;
+        if lefts.is_empty() {
+            bail!("--left {}: no PNG/JPEG/TIFF image in this folder", a.left.display());
+        }
+        lefts
+            .into_iter()
+            .map(|l| {
+                let r = a.right.join(l.file_name().expect("a file has a name"));
+                if !r.is_file() {
+                    bail!("{}: no right frame {} of the same name", l.display(), r.display());
+                }
+                Ok((l, r))
+            })
+            .collect::<anyhow::Result<_>>()?
+    } else {
+        vec![(a.left.clone(), a.right.clone())]
+    };
+    let batch = pairs.len() > 1 || a.left.is_dir();
+    let inputs: Vec<&Path> = [a.left.as_path(), a.right.as_path()].into_iter().collect();
+    laparo_core::atomic::refuse_overwrite(&a.out, &inputs, true).context("--out")?;
+    if batch {
+        for sub in ["left", "right"] {
+            laparo_core::atomic::refuse_overwrite(&a.out.join(sub), &inputs, true).context("--out")?;
+        }
+    }
+    let left = laparo_core::io::read_image(&pairs[0].0)?;
+    let calib = need_calib(&a.calib, left.width, left.height)?;
+    let label = a.calib.calib.clone().unwrap_or_default();
+    for w in check_calibration_fits(&calib, left.width, left.height, &label)? {
+        eprintln!("warning: {w}");
     }
     let opts = RectifyOptions { alpha: a.alpha, align_principal_points: !a.keep_offset };
     let rect = Rectification::new(&calib, opts).context("cannot rectify with this calibration")?;
-    let (l, ml) = rect.rectify_image(Side::Left, &left)?;
-    let (r, mr) = rect.rectify_image(Side::Right, &right)?;
+    // The maps are built once and reused for every frame.
+    let (tl, tr) = (rect.remap_table(Side::Left), rect.remap_table(Side::Right));
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     let mask_png = |m: &Mask| m.map(|v| if v { 255u8 } else { 0 });
-    laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
-    laparo_core::io::write_png(a.out.join("right_rectified.png"), &r)?;
+    let pb = if batch {
+        let pb = indicatif::ProgressBar::new(pairs.len() as u64);
+        pb.set_style(
+            indicatif::ProgressStyle::with_template("rectify [{bar:40}] {pos}/{len} pairs ({per_sec}, eta {eta})")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+                .progress_chars("=> "),
+        );
+        pb
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let (mut ml, mut mr) = (None, None);
+    for (i, (lp, rp)) in pairs.iter().enumerate() {
+        let l_img = if i == 0 { left.clone() } else { laparo_core::io::read_image(lp)? };
+        let r_img = laparo_core::io::read_image(rp)?;
+        for (p, img) in [(lp, &l_img), (rp, &r_img)] {
+            if (img.width, img.height) != (calib.width, calib.height) {
+                bail!(
+                    "{}: image is {}x{} but the calibration is for {}x{}",
+                    p.display(),
+                    img.width,
+                    img.height,
+                    calib.width,
+                    calib.height
+                );
+            }
+        }
+        let (l, mask_l) = laparo_core::remap::remap(&l_img, &tl, laparo_core::remap::Interp::Bilinear, 0)?;
+        let (r, mask_r) = laparo_core::remap::remap(&r_img, &tr, laparo_core::remap::Interp::Bilinear, 0)?;
+        if batch {
+            let name = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            laparo_core::io::write_png(a.out.join("left").join(format!("{}.png", name(lp))), &l)?;
+            laparo_core::io::write_png(a.out.join("right").join(format!("{}.png", name(rp))), &r)?;
+        } else {
+            laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
+            laparo_core::io::write_png(a.out.join("right_rectified.png"), &r)?;
+        }
+        if i == 0 {
+            ml = Some(mask_l);
+            mr = Some(mask_r);
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let (ml, mr) = (ml.expect("at least one pair"), mr.expect("at least one pair"));
     laparo_core::io::write_png(a.out.join("left_valid.png"), &mask_png(&ml))?;
     laparo_core::io::write_png(a.out.join("right_valid.png"), &mask_png(&mr))?;
     rect.rectified_calibration().write_json(a.out.join("calib_rectified.json"))?;
@@ -180,8 +293,9 @@ fn run_rectify(a: RectifyArgs) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(&info)? + "\n";
     laparo_core::atomic::write_atomic(&a.out.join("rectification.json"), text.as_bytes())?;
     println!(
-        "rectified {}x{}: f' = {:.3} px, baseline = {:.4} mm, c' = ({:.2}, {:.2}) / ({:.2}, {:.2}), doffs = {:.3} px; \
+        "rectified {} pair(s) {}x{}: f' = {:.3} px, baseline = {:.4} mm, c' = ({:.2}, {:.2}) / ({:.2}, {:.2}), doffs = {:.3} px; \
          valid pixels {:.1} % (left), {:.1} % (right) -> {}",
+        pairs.len(),
         info.width,
         info.height,
         info.focal_px,
@@ -260,11 +374,8 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
         None => None,
         Some(c) => Some(DisparityGeometry::from_calibration(&c).context("calibration")?),
     };
-    let range = if a.depth_min_mm <= 0.0 && a.depth_max_mm.is_infinite() {
-        None
-    } else {
-        Some((a.depth_min_mm, a.depth_max_mm))
-    };
+    let (lo_mm, hi_mm) = (a.depth_min_mm.unwrap_or(a.depth_min_m * 1e3), a.depth_max_mm.unwrap_or(a.depth_max_m * 1e3));
+    let range = if lo_mm <= 0.0 && hi_mm.is_infinite() { None } else { Some((lo_mm, hi_mm)) };
     let opts = EvalOptions { depth_range_mm: range, zero_is_invalid: a.zero_invalid, ..EvalOptions::default() };
     let (m, maps) = evaluate_maps(&pred, &gt, mask.as_ref(), geometry.as_ref(), &opts)
         .with_context(|| format!("evaluating {} against {}", a.pred.display(), a.gt.display()))?;
@@ -311,9 +422,7 @@ fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
     laparo_core::atomic::write_atomic(&a.out.join("metrics.json"), text.as_bytes())?;
     let md = markdown_report(&a, &m);
     laparo_core::atomic::write_atomic(&a.out.join("metrics.md"), md.as_bytes())?;
-    if a.json {
-        print!("{text}");
-    } else {
+    if !super::depth::emit_json(&a.json, &json)? {
         print!("{md}");
     }
     Ok(())
