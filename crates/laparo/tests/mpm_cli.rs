@@ -105,36 +105,6 @@ fn simulate_3d_mesh_and_bad_inputs() {
     }
 }
 
-#[test]
-fn bench_json_small() {
-    let o = laparo()
-        .args([
-            "mpm",
-            "bench",
-            "--dim",
-            "2",
-            "--particles",
-            "400",
-            "--n-grid",
-            "64",
-            "--steps",
-            "20",
-            "--repeats",
-            "1",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for k in ["dim", "particles", "n_grid", "steps", "forward_s", "forward_backward_s", "peak_rss_mb"] {
-        assert!(v.get(k).is_some(), "missing {k}");
-    }
-    assert_eq!(v["dim"], 2);
-    assert_eq!(v["particles"], 400);
-    assert!(v["forward_backward_s"].as_f64().unwrap() > 0.0);
-}
-
 /// `laparo mpm simulate --scene S --out O` under a 1 GB address-space limit (ulimit -v) and a 20 s
 /// hang guard; returns the output and the wall time in seconds.
 fn simulate_limited(scene: &Path, out: &Path) -> (Output, f64) {
