@@ -1,4 +1,4 @@
-//! `laparo mpm` end to end: simulate writes frames and a log; bad input fails clearly; bench --json.
+//! `laparo mpm` end to end: simulate writes frames and a log; bad input fails clearly (the bench is in laparo-bench).
 use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Instant;
