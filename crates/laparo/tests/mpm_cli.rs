@@ -1,4 +1,4 @@
-//! `laparo mpm` end to end: simulate writes frames and a log; bad input fails clearly; bench --json.
+//! `laparo mpm` end to end: simulate writes frames and a log; bad input fails clearly (the bench is in laparo-bench).
 use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Instant;
@@ -103,36 +103,6 @@ fn simulate_3d_mesh_and_bad_inputs() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains(what), "{what}: {err}");
     }
-}
-
-#[test]
-fn bench_json_small() {
-    let o = laparo()
-        .args([
-            "mpm",
-            "bench",
-            "--dim",
-            "2",
-            "--particles",
-            "400",
-            "--n-grid",
-            "64",
-            "--steps",
-            "20",
-            "--repeats",
-            "1",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for k in ["dim", "particles", "n_grid", "steps", "forward_s", "forward_backward_s", "peak_rss_mb"] {
-        assert!(v.get(k).is_some(), "missing {k}");
-    }
-    assert_eq!(v["dim"], 2);
-    assert_eq!(v["particles"], 400);
-    assert!(v["forward_backward_s"].as_f64().unwrap() > 0.0);
 }
 
 /// `laparo mpm simulate --scene S --out O` under a 1 GB address-space limit (ulimit -v) and a 20 s
