@@ -19,16 +19,7 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Errors of camera augmentation.
-#[derive(Debug, thiserror::Error)]
-pub enum AugmentError {
-    /// A parameter is invalid (the message names it).
-    #[error("invalid {what}: {msg}")]
-    Invalid { what: String, msg: String },
-    /// Inputs of different sizes.
-    #[error("size mismatch: {0}")]
-    SizeMismatch(String),
-}
+pub use crate::error::AugmentError;
 
 fn invalid(what: impl Into<String>, msg: impl Into<String>) -> AugmentError {
     AugmentError::Invalid { what: what.into(), msg: msg.into() }

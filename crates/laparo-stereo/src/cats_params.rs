@@ -33,22 +33,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-/// Errors of the CATS configuration.
-#[derive(Debug, thiserror::Error)]
-pub enum ConfigError {
-    /// A distribution or camera parameter is invalid (the message names it).
-    #[error("invalid CATS config: {0}")]
-    Invalid(String),
-    /// TOML syntax or schema error (quoted in the message, not also reported as `source()`).
-    #[error("CATS config: {0}")]
-    Toml(toml::de::Error),
-}
-
-impl From<toml::de::Error> for ConfigError {
-    fn from(e: toml::de::Error) -> Self {
-        ConfigError::Toml(e)
-    }
-}
+pub use crate::error::ConfigError;
 
 /// A scalar distribution: fixed value, Gaussian N(mean, std²) or uniform U(min, max).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -86,7 +71,7 @@ impl Dist {
         if ok {
             Ok(())
         } else {
-            Err(ConfigError::Invalid(format!("{what}: {self:?} (need finite values, std >= 0, min <= max)")))
+            Err(ConfigError::Config(format!("{what}: {self:?} (need finite values, std >= 0, min <= max)")))
         }
     }
 
@@ -205,9 +190,9 @@ impl SourceCamera {
         let cx = self.cx.unwrap_or((width as f64 - 1.0) / 2.0);
         let cy = self.cy.unwrap_or((height as f64 - 1.0) / 2.0);
         let l = Intrinsics::new(self.fx, self.fy, cx, cy, width, height)
-            .map_err(|e| ConfigError::Invalid(format!("camera: {e}")))?;
+            .map_err(|e| ConfigError::Config(format!("camera: {e}")))?;
         let r = Intrinsics::new(self.fx, self.fy, self.cx_right.unwrap_or(cx), cy, width, height)
-            .map_err(|e| ConfigError::Invalid(format!("camera: {e}")))?;
+            .map_err(|e| ConfigError::Config(format!("camera: {e}")))?;
         Ok((l, r))
     }
 }
@@ -268,7 +253,7 @@ impl CatsConfig {
         let (name, v) = TABLE_3_6
             .iter()
             .find(|(n, _)| n.eq_ignore_ascii_case(row))
-            .ok_or_else(|| ConfigError::Invalid(format!("unknown Table 3.6 row '{row}'")))?;
+            .ok_or_else(|| ConfigError::Config(format!("unknown Table 3.6 row '{row}'")))?;
         let cam = |o: usize| CameraDist {
             euler_deg: EulerDist {
                 x: Dist::normal(v[o].0, v[o].1),
@@ -319,7 +304,7 @@ impl CatsConfig {
                     Dist::Normal { mean, std } => mean - 6.0 * std,
                 };
                 if lo <= 0.0 {
-                    return Err(ConfigError::Invalid(format!("{side}.{n}: focal ratios must stay > 0 ({s:?})")));
+                    return Err(ConfigError::Config(format!("{side}.{n}: focal ratios must stay > 0 ({s:?})")));
                 }
             }
             if let Some(d) = &c.distortion {
@@ -331,7 +316,7 @@ impl CatsConfig {
         self.disparity_offset.dx_right_px.validate("disparity_offset.dx_right_px")?;
         if let Some(c) = &self.camera {
             if !(c.fx.is_finite() && c.fx > 0.0 && c.fy.is_finite() && c.fy > 0.0) {
-                return Err(ConfigError::Invalid(format!(
+                return Err(ConfigError::Config(format!(
                     "camera: fx = {}, fy = {} must be finite and > 0",
                     c.fx, c.fy
                 )));

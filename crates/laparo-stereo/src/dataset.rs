@@ -10,10 +10,7 @@
 //!
 //! Submodules along the three seams: `layout` (discovery and loading), `output` (augmentation,
 //! outputs and sidecar), `params` (hand-written parameters); everything is re-exported here.
-use crate::augment::AugmentError;
-use crate::cats_params::ConfigError;
-use laparo_core::CoreError;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 mod layout;
 mod output;
@@ -26,19 +23,7 @@ pub use output::{
 };
 pub use params::{check_homographies, parse_params};
 
-/// Errors of dataset conversion.
-#[derive(Debug, thiserror::Error)]
-pub enum DatasetError {
-    #[error(transparent)]
-    Core(#[from] CoreError),
-    #[error(transparent)]
-    Augment(#[from] AugmentError),
-    #[error(transparent)]
-    Config(#[from] ConfigError),
-    /// Layout or file problem (the message names the file).
-    #[error("{path}: {msg}")]
-    File { path: PathBuf, msg: String },
-}
+pub use crate::error::DatasetError;
 
 fn ferr(path: &Path, msg: impl Into<String>) -> DatasetError {
     DatasetError::File { path: path.to_path_buf(), msg: msg.into() }

@@ -4,6 +4,7 @@
 // Calibration statistics, rectification, disparity<->depth, evaluation.
 pub mod calib_stats;
 pub mod disparity;
+pub mod error;
 pub mod eval;
 pub mod rectify;
 
@@ -15,3 +16,5 @@ pub mod synthetic;
 
 // Middlebury calib.txt reader (stereo calibration statistics / evaluation).
 pub mod middlebury;
+
+pub use error::StereoError;

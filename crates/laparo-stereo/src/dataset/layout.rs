@@ -275,11 +275,10 @@ pub fn source_cameras(
         (Some(c), _) => c,
         (None, Layout::SceneFlow) => SourceCamera::SCENEFLOW,
         (None, _) => {
-            return Err(ConfigError::Invalid(
+            return Err(ConfigError::Config(
                 "the generic layout needs the source camera: add [camera] fx, fy (and cx, cy) to the config".into(),
-            )
-            .into())
+            ))
         }
     };
-    Ok(cam.intrinsics(width, height)?)
+    cam.intrinsics(width, height)
 }

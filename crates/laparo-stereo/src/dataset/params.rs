@@ -55,7 +55,7 @@ fn k_of(k: &KInput, w: usize, h: usize, what: &str) -> Result<Intrinsics, Config
         KInput::Obj(o) => Matrix3::new(o.fx, o.skew, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0),
         KInput::Rows(r) => Matrix3::from_row_slice(&r.concat()),
     };
-    Intrinsics::from_matrix(&m, w, h).map_err(|e| ConfigError::Invalid(format!("{what}: {e}")))
+    Intrinsics::from_matrix(&m, w, h).map_err(|e| ConfigError::Config(format!("{what}: {e}")))
 }
 
 fn dist_of(d: &Option<DistInput>, what: &str) -> Result<Distortion, ConfigError> {
@@ -63,7 +63,7 @@ fn dist_of(d: &Option<DistInput>, what: &str) -> Result<Distortion, ConfigError>
         None => Ok(Distortion::default()),
         Some(DistInput::Obj(o)) => Ok(*o),
         Some(DistInput::Coeffs(c)) => {
-            Distortion::from_opencv(c).map_err(|e| ConfigError::Invalid(format!("{what}: {e}")))
+            Distortion::from_opencv(c).map_err(|e| ConfigError::Config(format!("{what}: {e}")))
         }
     }
 }
@@ -76,18 +76,16 @@ fn dist_of(d: &Option<DistInput>, what: &str) -> Result<Distortion, ConfigError>
 /// missing Δx_right = t_L − t_R. `width`, `height` are the images'.
 pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAugmentation, ConfigError> {
     let v: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| ConfigError::Invalid(format!("parameters are not valid JSON: {e}")))?;
+        serde_json::from_str(text).map_err(|e| ConfigError::Config(format!("parameters are not valid JSON: {e}")))?;
     let v = v.get("params").cloned().unwrap_or(v);
-    let p: ParamsInput = serde_json::from_value(v).map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
+    let p: ParamsInput = serde_json::from_value(v).map_err(|e| ConfigError::Config(format!("parameters: {e}")))?;
     let left = p.left.unwrap_or_default();
     let right = p.right.unwrap_or_default();
     /// K, input distortion, rotation R, optional K_rel, output distortion of one camera.
     type CameraParams = (Intrinsics, Distortion, Matrix3<f64>, Option<Matrix3<f64>>, Distortion);
     let cam = |c: &CameraInput, side: &str| -> Result<CameraParams, ConfigError> {
         let k = c.k.as_ref().or(p.k.as_ref()).ok_or_else(|| {
-            ConfigError::Invalid(format!(
-                "parameters: no intrinsics for the {side} camera (give \"k\" or \"{side}.k\")"
-            ))
+            ConfigError::Config(format!("parameters: no intrinsics for the {side} camera (give \"k\" or \"{side}.k\")"))
         })?;
         let k = k_of(k, width, height, &format!("{side}.k"))?;
         let r = match (&c.rotation, &c.euler_deg) {
@@ -112,7 +110,7 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
         (Some(m), Some(dx)) => {
             let pure = m[(0, 0)] == 1.0 && krl[(0, 0)] == 1.0;
             if pure && (t_l - m[(0, 2)] - dx).abs() > 1e-6 {
-                return Err(ConfigError::Invalid(format!(
+                return Err(ConfigError::Config(format!(
                     "dx_right_px = {dx} disagrees with K_rel: t_x,left − t_x,right = {} (Δx_right is added to disparities, \
                      so the right principal point moves by −Δx_right)",
                     t_l - m[(0, 2)]
@@ -131,8 +129,8 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
         right: CameraAugmentation::from_rotation(kr_, dr, rr, krr, dor),
         dx_right_px: dx,
     };
-    a.validate().map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
-    check_homographies(&a).map_err(|e| ConfigError::Invalid(format!("parameters: {e}")))?;
+    a.validate().map_err(|e| ConfigError::Config(format!("parameters: {e}")))?;
+    check_homographies(&a).map_err(|e| ConfigError::Config(format!("parameters: {e}")))?;
     Ok(a)
 }
 
