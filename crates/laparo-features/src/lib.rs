@@ -1,0 +1,7 @@
+//! laparo-features — keypoints, descriptors, matching, robust two-view geometry and the
+//! ground-truth matching protocol of thesis §4.5.1.
+#![warn(missing_docs)]
+
+pub mod error;
+
+pub use error::{FeaturesError, Result};
