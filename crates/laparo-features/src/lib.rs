@@ -3,5 +3,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod keypoint;
 
 pub use error::{FeaturesError, Result};
+pub use keypoint::{Descriptors, Features, Keypoint, Match, MatchConfig, RatioTest};
