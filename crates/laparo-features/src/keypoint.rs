@@ -10,7 +10,7 @@ pub struct Keypoint {
     pub y: f64,
     /// Diameter of the meaningful neighbourhood in px (OpenCV `KeyPoint::size`).
     pub size_px: f64,
-    /// Orientation in radians, counter-clockwise in image coordinates as OpenCV (−1 if none).
+    /// Orientation in radians, measured from +x towards +y (image axes, y down), as OpenCV.
     pub angle_rad: f64,
     /// Detector response (larger = stronger).
     pub response: f64,
