@@ -64,5 +64,18 @@ pub fn detect_and_describe(gray: &Image<u8>, p: &OrbParams) -> Result<Features> 
         })
         .collect();
     let data: Vec<u8> = out.descriptors.iter().flat_map(|d| d.iter().copied()).collect();
-    Ok(Features { keypoints, descriptors: Descriptors::Binary { bytes: 32, data } })
+    let f = Features { keypoints, descriptors: Descriptors::Binary { bytes: 32, data } };
+    Ok(cap(f, p.n_features))
+}
+
+/// The ORB-SLAM3 quadtree may return a few more keypoints than its per-level budgets (measured:
+/// 2067 for 2000); keep exactly `n` by uniform decimation over the list, which spreads the
+/// removals over levels and image regions (no response to rank by).
+fn cap(f: Features, n: usize) -> Features {
+    let total = f.len();
+    if total <= n {
+        return f;
+    }
+    let keep: Vec<usize> = (0..total).filter(|&k| (k * n) / total != ((k + 1) * n) / total).collect();
+    Features { keypoints: keep.iter().map(|&i| f.keypoints[i]).collect(), descriptors: f.descriptors.select(&keep) }
 }
