@@ -3,5 +3,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod ransac;
 
 pub use error::{FeaturesError, Result};
+pub use ransac::{find_essential, find_fundamental, find_homography, RansacParams, RobustFit};
