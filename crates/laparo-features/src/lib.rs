@@ -37,6 +37,7 @@ pub mod draw;
 pub mod error;
 pub mod keypoint;
 pub mod matching;
+pub mod ransac;
 pub mod refcheck;
 
 pub use detect::{detect_and_describe, DetectorConfig, OrbParams, SiftParams};
@@ -44,3 +45,4 @@ pub use draw::draw_matches;
 pub use error::{FeaturesError, Result};
 pub use keypoint::{Descriptors, Features, Keypoint, Match, MatchConfig, RatioTest};
 pub use matching::match_features;
+pub use ransac::{find_essential, find_fundamental, find_homography, RansacParams, RobustFit};
