@@ -101,7 +101,7 @@ pub struct ColmapArgs {
     pub opts: MatchOpts,
     /// Pinhole intrinsics fx,fy,cx,cy in px (laparo convention: pixel centres at integers);
     /// default: SIMPLE_RADIAL with f = 1.2·max(w, h) and the image centre, refined by COLMAP.
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    #[arg(long, value_delimiter = ',')]
     pub intrinsics: Option<Vec<f64>>,
     /// Minimum RANSAC inliers (F, 4 px) for a pair to be written to two_view_geometries (COLMAP: 15).
     #[arg(long, default_value_t = 15)]
@@ -314,6 +314,11 @@ fn verify_pair(f1: &Features, f2: &Features, m: &[Match], min: usize, seed: u64)
 fn colmap_cmd(a: &ColmapArgs) -> Result<()> {
     refuse_overwrite(&a.colmap_db, &[&a.images], false).context("--colmap-db")?;
     let (det, mcfg) = match_config(&a.opts)?;
+    if let Some(k) = &a.intrinsics {
+        if k.len() != 4 || k.iter().any(|v| !v.is_finite()) || k[0] <= 0.0 || k[1] <= 0.0 {
+            bail!("--intrinsics: expected fx,fy,cx,cy (4 finite numbers, fx, fy > 0), got {k:?}");
+        }
+    }
     let paths = list_images(&a.images)?;
     let style = ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}").expect("valid template");
     let pb = ProgressBar::new(paths.len() as u64).with_style(style.clone()).with_message("detect");
