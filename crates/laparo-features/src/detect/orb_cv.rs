@@ -66,8 +66,22 @@ fn fast_score(d: &[u8], w: usize, x: usize, y: usize, thr: i32) -> i32 {
         return 0;
     }
     let mut v = [0i32; 16];
+    let (mut bm, mut dm) = (0u32, 0u32);
     for (k, e) in v.iter_mut().enumerate() {
         *e = at(k) - p;
+        bm |= ((*e > thr) as u32) << k;
+        dm |= ((*e < -thr) as u32) << k;
+    }
+    // 9 contiguous set bits on the 16-ring (doubled so arcs may wrap).
+    let has9 = |m: u32| {
+        let mut r = m | (m << 16);
+        for _ in 1..9 {
+            r &= r >> 1;
+        }
+        r & 0xFFFF != 0
+    };
+    if !has9(bm) && !has9(dm) {
+        return 0;
     }
     let (mut best_b, mut best_d) = (i32::MIN, i32::MIN);
     for s in 0..16 {
@@ -210,15 +224,17 @@ fn ic_angle(img: &Image<u8>, x: usize, y: usize, um: &[i32; 16]) -> f64 {
     }
 }
 
-/// 7×7 Gaussian blur, σ = 2, border reflect-101 (OpenCV's pre-BRIEF smoothing).
+/// 7×7 Gaussian blur, σ = 2, border reflect-101 (OpenCV's pre-BRIEF smoothing); separable,
+/// interior rows and columns without border arithmetic so the loops vectorise.
 fn blur7(img: &Image<u8>) -> Image<u8> {
-    let k: Vec<f32> = {
-        let g: Vec<f32> = (-3..=3).map(|i: i32| (-(i * i) as f32 / 8.0).exp()).collect();
+    let k: [f32; 7] = {
+        let g: [f32; 7] = std::array::from_fn(|i| (-((i as f32 - 3.0).powi(2)) / 8.0).exp());
         let s: f32 = g.iter().sum();
-        g.iter().map(|v| v / s).collect()
+        g.map(|v| v / s)
     };
-    let (w, h) = (img.width as i64, img.height as i64);
-    let refl = |i: i64, n: i64| -> usize {
+    let (w, h) = (img.width, img.height);
+    let refl = |i: i64, n: usize| -> usize {
+        let n = n as i64;
         if n == 1 {
             return 0;
         }
@@ -228,17 +244,38 @@ fn blur7(img: &Image<u8>) -> Image<u8> {
         }
         i as usize
     };
-    let mut tmp = vec![0f32; (w * h) as usize];
-    tmp.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+    let mut tmp = vec![0f32; w * h];
+    tmp.par_chunks_mut(w).zip(img.data.par_chunks(w)).for_each(|(row, src)| {
         for x in 0..w {
-            row[x as usize] = (0..7).map(|t| k[t] * img.data[y * w as usize + refl(x + t as i64 - 3, w)] as f32).sum();
+            if x >= 3 && x + 3 < w {
+                let win = &src[x - 3..x + 4];
+                row[x] = k[0] * win[0] as f32
+                    + k[1] * win[1] as f32
+                    + k[2] * win[2] as f32
+                    + k[3] * win[3] as f32
+                    + k[4] * win[4] as f32
+                    + k[5] * win[5] as f32
+                    + k[6] * win[6] as f32;
+            } else {
+                row[x] = (0..7).map(|t| k[t] * src[refl(x as i64 + t as i64 - 3, w)] as f32).sum();
+            }
         }
     });
-    let mut out = Image::filled(w as usize, h as usize, 1, 0u8);
-    out.data.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-        for x in 0..w as usize {
-            let v: f32 = (0..7).map(|t| k[t] * tmp[refl(y as i64 + t as i64 - 3, h) * w as usize + x]).sum();
-            row[x] = v.round().clamp(0.0, 255.0) as u8;
+    let mut out = Image::filled(w, h, 1, 0u8);
+    out.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let rows: [&[f32]; 7] = std::array::from_fn(|t| {
+            let yy = refl(y as i64 + t as i64 - 3, h);
+            &tmp[yy * w..(yy + 1) * w]
+        });
+        for x in 0..w {
+            let v = k[0] * rows[0][x]
+                + k[1] * rows[1][x]
+                + k[2] * rows[2][x]
+                + k[3] * rows[3][x]
+                + k[4] * rows[4][x]
+                + k[5] * rows[5][x]
+                + k[6] * rows[6][x];
+            row[x] = (v + 0.5) as u8;
         }
     });
     out
