@@ -1,5 +1,6 @@
 //! laparo-stereo — CATS camera augmentation for uncalibrated stereo laparoscopes, stereo
 //! calibration statistics, rectification and stereo evaluation (thesis §2.2, §3.3).
+#![warn(missing_docs)]
 
 // Calibration statistics, rectification, disparity<->depth, evaluation.
 pub mod calib_stats;
