@@ -6,7 +6,9 @@ use crate::timing::time_min_median;
 use anyhow::{Context, Result};
 use clap::Args;
 use laparo_features::refcheck::{evaluate_homography, load_gray_crop, similarity_h};
-use laparo_features::{detect_and_describe, match_features, Descriptors, DetectorConfig, Features, Keypoint, MatchConfig};
+use laparo_features::{
+    detect_and_describe, match_features, Descriptors, DetectorConfig, Features, Keypoint, MatchConfig,
+};
 use rand::{Rng, SeedableRng};
 use std::path::PathBuf;
 
@@ -80,7 +82,10 @@ fn random_features(n: usize, binary: bool, seed: u64) -> Features {
 
 pub fn run(a: BenchArgs) -> Result<()> {
     let images = if a.images.is_empty() {
-        ["brick.png", "gravel.png", "retina.jpg", "coffee.png"].iter().map(|n| PathBuf::from("../shared/data/textures").join(n)).collect()
+        ["brick.png", "gravel.png", "retina.jpg", "coffee.png"]
+            .iter()
+            .map(|n| PathBuf::from("../shared/data/textures").join(n))
+            .collect()
     } else {
         a.images.clone()
     };
@@ -107,19 +112,24 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 "{name:12} {:5} kp {:5}  rep {:.3}  prec {:.3}  MS {:.3}  matches {:5}  t {:.1} ms (min) / {:.1} (median)  cpu {:.1} ms (min)",
                 det.to_uppercase(), q.kp1, q.repeatability, q.precision, q.matching_score, q.matches, t.0, t.1, tc
             );
-            results.insert(format!("{name}:{}", det.to_uppercase()), serde_json::json!({
-                "kp1": q.kp1, "repeatability": q.repeatability, "precision": q.precision,
-                "matching_score": q.matching_score, "matches": q.matches,
-                "ms_detect_describe_min": t.0, "ms_detect_describe_median": t.1, "cpu_ms_min": tc,
-            }));
+            results.insert(
+                format!("{name}:{}", det.to_uppercase()),
+                serde_json::json!({
+                    "kp1": q.kp1, "repeatability": q.repeatability, "precision": q.precision,
+                    "matching_score": q.matching_score, "matches": q.matches,
+                    "ms_detect_describe_min": t.0, "ms_detect_describe_median": t.1, "cpu_ms_min": tc,
+                }),
+            );
         }
     }
     let (ha, hb) = (random_features(2000, true, 1), random_features(2000, true, 2));
     let (fa, fb) = (random_features(2000, false, 3), random_features(2000, false, 4));
     let cfg = MatchConfig::default();
-    let tham_cpu = pool.install(|| cpu_min(a.runs.max(5), || {
-        std::hint::black_box(match_features(&ha, &hb, &MatchConfig { mutual: false, ..cfg }).expect("same kind"));
-    }));
+    let tham_cpu = pool.install(|| {
+        cpu_min(a.runs.max(5), || {
+            std::hint::black_box(match_features(&ha, &hb, &MatchConfig { mutual: false, ..cfg }).expect("same kind"));
+        })
+    });
     let (tham, tl2) = pool.install(|| {
         (
             time_min_median(a.runs.max(5), || {
@@ -146,7 +156,15 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let o = std::process::Command::new(py)
             .arg(&a.peer_script)
             .args(&images)
-            .args(["--detectors", "SIFT,ORB", "--threads", &a.threads.to_string(), "--repeats", &a.runs.to_string(), "--json"])
+            .args([
+                "--detectors",
+                "SIFT,ORB",
+                "--threads",
+                &a.threads.to_string(),
+                "--repeats",
+                &a.runs.to_string(),
+                "--json",
+            ])
             .arg(&tmp)
             .output()
             .with_context(|| format!("running {} {}", py.display(), a.peer_script.display()))?;
@@ -156,9 +174,14 @@ pub fn run(a: BenchArgs) -> Result<()> {
         print!("{}", String::from_utf8_lossy(&o.stdout));
         let peer: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&tmp)?)?;
         let _ = std::fs::remove_file(&tmp);
-        println!("ratio laparo / OpenCV {} (detect+describe, min of {} runs, {} thread(s)):", peer["opencv"], a.runs, a.threads);
+        println!(
+            "ratio laparo / OpenCV {} (detect+describe, min of {} runs, {} thread(s)):",
+            peer["opencv"], a.runs, a.threads
+        );
         for (k, v) in &out["results"].as_object().cloned().unwrap_or_default() {
-            if let (Some(l), Some(c)) = (v["ms_detect_describe_min"].as_f64(), peer["results"][k]["ms_detect_describe_min"].as_f64()) {
+            if let (Some(l), Some(c)) =
+                (v["ms_detect_describe_min"].as_f64(), peer["results"][k]["ms_detect_describe_min"].as_f64())
+            {
                 println!("  {k:20} laparo {l:8.1} ms  OpenCV {c:8.1} ms  ratio {:.2}", l / c);
             }
         }

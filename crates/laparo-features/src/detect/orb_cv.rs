@@ -17,8 +17,22 @@ const EDGE: usize = 31;
 const HALF_PATCH: i32 = 15;
 /// The 16-pixel Bresenham circle of radius 3 (dx, dy), contiguous.
 const CIRCLE: [(i32, i32); 16] = [
-    (0, 3), (1, 3), (2, 2), (3, 1), (3, 0), (3, -1), (2, -2), (1, -3),
-    (0, -3), (-1, -3), (-2, -2), (-3, -1), (-3, 0), (-3, 1), (-2, 2), (-1, 3),
+    (0, 3),
+    (1, 3),
+    (2, 2),
+    (3, 1),
+    (3, 0),
+    (3, -1),
+    (2, -2),
+    (1, -3),
+    (0, -3),
+    (-1, -3),
+    (-2, -2),
+    (-3, -1),
+    (-3, 0),
+    (-3, 1),
+    (-2, 2),
+    (-1, 3),
 ];
 
 /// Keypoint budget per level: geometric series with ratio 1/scale (OpenCV).
@@ -46,7 +60,9 @@ fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
             [((x + 0.5) * sx - 0.5).clamp(0.0, mx), ((y + 0.5) * sy - 0.5).clamp(0.0, my)]
         })
         .collect();
-    remap(img, &CoordMap { width: w, height: h, xy }, Interp::Bilinear, 0u8).map(|(o, _)| o).unwrap_or_else(|_| Image::filled(w, h, 1, 0))
+    remap(img, &CoordMap { width: w, height: h, xy }, Interp::Bilinear, 0u8)
+        .map(|(o, _)| o)
+        .unwrap_or_else(|_| Image::filled(w, h, 1, 0))
 }
 
 /// FAST-9 score of pixel (x, y): the largest t for which 9 contiguous circle pixels are all
@@ -164,8 +180,12 @@ fn harris(img: &Image<u8>, x: usize, y: usize) -> f64 {
     let (mut a, mut b, mut c) = (0i64, 0i64, 0i64);
     for yy in y - 3..=y + 3 {
         for xx in x - 3..=x + 3 {
-            let ix = (px(xx + 1, yy) - px(xx - 1, yy)) * 2 + (px(xx + 1, yy - 1) - px(xx - 1, yy - 1)) + (px(xx + 1, yy + 1) - px(xx - 1, yy + 1));
-            let iy = (px(xx, yy + 1) - px(xx, yy - 1)) * 2 + (px(xx - 1, yy + 1) - px(xx - 1, yy - 1)) + (px(xx + 1, yy + 1) - px(xx + 1, yy - 1));
+            let ix = (px(xx + 1, yy) - px(xx - 1, yy)) * 2
+                + (px(xx + 1, yy - 1) - px(xx - 1, yy - 1))
+                + (px(xx + 1, yy + 1) - px(xx - 1, yy + 1));
+            let iy = (px(xx, yy + 1) - px(xx, yy - 1)) * 2
+                + (px(xx - 1, yy + 1) - px(xx - 1, yy - 1))
+                + (px(xx + 1, yy + 1) - px(xx + 1, yy - 1));
             a += (ix * ix) as i64;
             b += (iy * iy) as i64;
             c += (ix * iy) as i64;
@@ -314,16 +334,21 @@ fn level_features(img: &Image<u8>, budget: usize, thr: i32, um: &[i32; 16]) -> V
         return vec![];
     }
     let (w, h) = (img.width, img.height);
-    let corners: Vec<_> = fast9(img, thr).into_iter().filter(|&(x, y, _)| x >= EDGE && x < w - EDGE && y >= EDGE && y < h - EDGE).collect();
+    let corners: Vec<_> = fast9(img, thr)
+        .into_iter()
+        .filter(|&(x, y, _)| x >= EDGE && x < w - EDGE && y >= EDGE && y < h - EDGE)
+        .collect();
     let corners = retain_best(corners, 2 * budget, |&s| s as f64);
     let scored: Vec<(usize, usize, f64)> = corners.iter().map(|&(x, y, _)| (x, y, harris(img, x, y))).collect();
     let mut best = retain_best(scored, budget, |&r| r);
     best.truncate(budget);
     let blurred = blur7(img);
-    best.iter().map(|&(x, y, r)| {
-        let a = ic_angle(img, x, y, um);
-        (x, y, r, a, brief(&blurred, x, y, a))
-    }).collect()
+    best.iter()
+        .map(|&(x, y, r)| {
+            let a = ic_angle(img, x, y, um);
+            (x, y, r, a, brief(&blurred, x, y, a))
+        })
+        .collect()
 }
 
 /// OpenCV-style ORB on a grey u8 image (parameters checked by the caller).
@@ -348,7 +373,14 @@ pub fn detect_and_describe(gray: &Image<u8>, p: &OrbParams) -> Features {
     for (k, feats) in per.into_iter().enumerate() {
         let s = scale.powi(k as i32);
         for (x, y, r, a, d) in feats {
-            keypoints.push(Keypoint { x: x as f64 * s, y: y as f64 * s, size_px: 31.0 * s, angle_rad: a, response: r, octave: k as i32 });
+            keypoints.push(Keypoint {
+                x: x as f64 * s,
+                y: y as f64 * s,
+                size_px: 31.0 * s,
+                angle_rad: a,
+                response: r,
+                octave: k as i32,
+            });
             data.extend_from_slice(&d);
         }
     }

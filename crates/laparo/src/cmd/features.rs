@@ -16,8 +16,8 @@ use laparo_features::colmap::{CameraModel, ColmapCamera, ColmapDatabase, TwoView
 use laparo_features::draw::{GREEN, RED};
 use laparo_features::refcheck::{apply_h, invert_h};
 use laparo_features::{
-    detect_and_describe, draw_matches, find_fundamental, find_homography, match_features, DetectorConfig, Features, Match,
-    MatchConfig, RansacParams, RatioTest,
+    detect_and_describe, draw_matches, find_fundamental, find_homography, match_features, DetectorConfig, Features,
+    Match, MatchConfig, RansacParams, RatioTest,
 };
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -154,7 +154,8 @@ fn read_mask(p: &Option<PathBuf>, img: &Image<u8>, what: &str) -> Result<Option<
 }
 
 fn write_json(p: &Path, v: &serde_json::Value) -> Result<()> {
-    write_atomic(p, (serde_json::to_string_pretty(v)? + "\n").as_bytes()).with_context(|| format!("writing {}", p.display()))
+    write_atomic(p, (serde_json::to_string_pretty(v)? + "\n").as_bytes())
+        .with_context(|| format!("writing {}", p.display()))
 }
 
 fn detect_cmd(a: &DetectArgs) -> Result<()> {
@@ -175,7 +176,8 @@ fn detect_cmd(a: &DetectArgs) -> Result<()> {
 /// Read a 3×3 homography from JSON: `[[…],[…],[…]]`, a flat 9-array, or `{"H": …}`.
 pub fn read_homography(p: &Path) -> Result<[[f64; 3]; 3]> {
     let s = std::fs::read_to_string(p).with_context(|| format!("reading --homography {}", p.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&s).with_context(|| format!("parsing --homography {}", p.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&s).with_context(|| format!("parsing --homography {}", p.display()))?;
     let v = v.get("H").cloned().unwrap_or(v);
     let flat: Vec<f64> = match &v {
         serde_json::Value::Array(rows) => rows
@@ -205,7 +207,8 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
     let h = a.homography.as_deref().map(read_homography).transpose()?;
     let (img1, img2) = (read_gray(&a.image1)?, read_gray(&a.image2)?);
     let (m1, m2) = (read_mask(&a.mask1, &img1, "--mask1")?, read_mask(&a.mask2, &img2, "--mask2")?);
-    let (f1, f2) = rayon::join(|| detect_and_describe(&img1, &det, m1.as_ref()), || detect_and_describe(&img2, &det, m2.as_ref()));
+    let (f1, f2) =
+        rayon::join(|| detect_and_describe(&img1, &det, m1.as_ref()), || detect_and_describe(&img2, &det, m2.as_ref()));
     let (f1, f2) = (f1?, f2?);
     let matches = match_features(&f1, &f2, &mcfg)?;
     // Two-way averaged transfer error (thesis §4.5.1) under the homography, if given.
@@ -233,7 +236,8 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
         .enumerate()
         .map(|(k, m)| {
             let (p, q) = (f1.keypoints[m.i1 as usize], f2.keypoints[m.i2 as usize]);
-            let mut r = json!({"i1": m.i1, "i2": m.i2, "x1": p.x, "y1": p.y, "x2": q.x, "y2": q.y, "distance": m.distance});
+            let mut r =
+                json!({"i1": m.i1, "i2": m.i2, "x1": p.x, "y1": p.y, "x2": q.x, "y2": q.y, "distance": m.distance});
             if let Some(e) = &errors {
                 r["transfer_error_px"] = json!(e[k]);
                 r["correct"] = json!(e[k] < a.eps_px);
@@ -250,7 +254,12 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
     });
     write_json(&a.out.join("matches.json"), &summary)?;
     match n_correct {
-        Some(c) => println!("{} matches, {c} correct (two-way transfer error < {} px) -> {}", matches.len(), a.eps_px, a.out.display()),
+        Some(c) => println!(
+            "{} matches, {c} correct (two-way transfer error < {} px) -> {}",
+            matches.len(),
+            a.eps_px,
+            a.out.display()
+        ),
         None => println!("{} matches ({} / {} keypoints) -> {}", matches.len(), f1.len(), f2.len(), a.out.display()),
     }
     Ok(())
@@ -337,10 +346,22 @@ fn colmap_cmd(a: &ColmapArgs) -> Result<()> {
         bail!("{}: all images must have the size of the first ({w}x{h})", paths[i].display());
     }
     let cam = match &a.intrinsics {
-        Some(k) => ColmapCamera { model: CameraModel::Pinhole, width: w as u32, height: h as u32, params: vec![k[0], k[1], k[2] + 0.5, k[3] + 0.5], prior_focal_length: true },
+        Some(k) => ColmapCamera {
+            model: CameraModel::Pinhole,
+            width: w as u32,
+            height: h as u32,
+            params: vec![k[0], k[1], k[2] + 0.5, k[3] + 0.5],
+            prior_focal_length: true,
+        },
         None => {
             let f = 1.2 * w.max(h) as f64;
-            ColmapCamera { model: CameraModel::SimpleRadial, width: w as u32, height: h as u32, params: vec![f, w as f64 / 2.0, h as f64 / 2.0, 0.0], prior_focal_length: false }
+            ColmapCamera {
+                model: CameraModel::SimpleRadial,
+                width: w as u32,
+                height: h as u32,
+                params: vec![f, w as f64 / 2.0, h as f64 / 2.0, 0.0],
+                prior_focal_length: false,
+            }
         }
     };
     let pairs: Vec<(usize, usize)> = (0..paths.len()).flat_map(|i| (i + 1..paths.len()).map(move |j| (i, j))).collect();
