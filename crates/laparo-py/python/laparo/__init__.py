@@ -1,0 +1,1 @@
+from ._laparo import __version__
