@@ -241,3 +241,52 @@ pub fn py_to_json(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<serde_json::Val
     let s: String = json.call_method1("dumps", (obj,)).map_err(|e| bad(arg, e))?.extract()?;
     serde_json::from_str(&s).map_err(|e| bad(arg, e))
 }
+
+/// The rayon pool of this process: created on first use and re-created in a forked child
+/// (a DataLoader worker), whose copy of the parent's pool has no threads and would hang.
+static POOL: std::sync::Mutex<Option<(u32, usize, std::sync::Arc<rayon::ThreadPool>)>> = std::sync::Mutex::new(None);
+/// Requested thread count (0 = rayon's default: `RAYON_NUM_THREADS`, else one per core).
+static THREADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+fn pool() -> std::sync::Arc<rayon::ThreadPool> {
+    let pid = std::process::id();
+    let want = THREADS.load(std::sync::atomic::Ordering::Relaxed);
+    let mut g = POOL.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((p, n, pool)) = g.as_ref() {
+        if *p == pid && *n == want {
+            return pool.clone();
+        }
+    }
+    if let Some((p, _, old)) = g.take() {
+        if p != pid {
+            // Inherited through fork(): its worker threads do not exist here; never touch it.
+            std::mem::forget(old);
+        }
+    }
+    let pool = std::sync::Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(want)
+            .thread_name(|i| format!("laparo-{i}"))
+            .build()
+            .expect("a rayon pool can be built"),
+    );
+    *g = Some((pid, want, pool.clone()));
+    pool
+}
+
+/// Run `f` with the GIL released on this process's laparo pool.
+pub fn par<R: Send, F: FnOnce() -> R + Send + pyo3::marker::Ungil>(py: Python<'_>, f: F) -> R {
+    py.detach(|| pool().install(f))
+}
+
+/// Number of threads laparo uses (0 = rayon's default: `RAYON_NUM_THREADS`, else one per core).
+#[pyfunction]
+pub fn set_num_threads(n: usize) {
+    THREADS.store(n, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Number of threads of the current laparo pool.
+#[pyfunction]
+pub fn get_num_threads() -> usize {
+    pool().current_num_threads()
+}

@@ -33,7 +33,7 @@ impl PyCpcWarp {
     ) -> PyResult<Bound<'py, PyAny>> {
         guard(|| {
             let (d, shape) = points(pts, "points")?;
-            let out: Vec<f64> = py.detach(|| {
+            let out: Vec<f64> = par(py, || {
                 d.chunks(2)
                     .flat_map(|p| {
                         if p[0].is_finite() && p[1].is_finite() {
@@ -62,7 +62,7 @@ impl PyCpcWarp {
     /// Dense maps: (backward (Hc, Wc, 2): canvas → original, forward (H, W, 2): original → canvas).
     fn maps<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         guard(|| {
-            let m = py.detach(|| self.warp.maps());
+            let m = par(py, || self.warp.maps());
             Ok((image_to_numpy(py, m.backward)?, image_to_numpy(py, m.forward)?))
         })
     }
@@ -162,7 +162,7 @@ pub fn cpc_warp_frame<'py>(
             lambda,
             equiareal: if equiareal { Some(Default::default()) } else { None },
         };
-        let r = py.detach(|| cpc_warp(&img, &depth, &k, &roi, &params)).map_err(lib_err)?;
+        let r = par(py, || cpc_warp(&img, &depth, &k, &roi, &params)).map_err(lib_err)?;
         let out = PyDict::new(py);
         out.set_item("stats", to_py(py, &r.stats)?)?;
         if let Some(s) = &r.sweep {

@@ -2,7 +2,7 @@
 use crate::arrays::*;
 use laparo_core::{DepthMap, DepthUnit, Image};
 use laparo_depth::align::{Alignment, DepthRange, PredKind};
-use laparo_depth::metrics::{evaluate_pair, InvalidPredPolicy, PairOptions};
+use laparo_depth::metrics::{evaluate_pair, PairOptions};
 use laparo_depth::perturb::{self, Perturbation};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -78,7 +78,7 @@ pub fn depth_evaluate_pair<'py>(
                     }
                 }
                 let md = mask.as_ref().map(|m| m.data.as_slice());
-                py.detach(|| evaluate_pair(pd, kind, &gt_m, md, &opts)).map_err(lib_err)
+                par(py, || evaluate_pair(pd, kind, &gt_m, md, &opts)).map_err(lib_err)
             })
         })?;
         to_py(py, &r)
@@ -131,7 +131,7 @@ pub fn depth_evaluate_batch<'py>(
             };
             items.push((p.data, gm, m));
         }
-        let results: Vec<_> = py.detach(|| {
+        let results: Vec<_> = par(py, || {
             items.par_iter().map(|(p, g, m)| evaluate_pair(p, kind, g, m.as_deref(), &opts)).collect()
         });
         let out = PyList::empty(py);
@@ -172,7 +172,7 @@ pub fn depth_perturb<'py>(
             return Err(bad("image", format!("{c} channels (expected 1, 3 or 4)")));
         }
         let img = Image::from_vec(w, h, c, a.data).map_err(|e| bad("image", e))?;
-        let out = py.detach(|| perturb::apply(&img, k, severity as u8, seed)).map_err(|e| bad("image", e))?;
+        let out = par(py, || perturb::apply(&img, k, severity as u8, seed)).map_err(|e| bad("image", e))?;
         image_to_numpy(py, out)
     })
 }

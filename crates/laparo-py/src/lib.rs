@@ -23,6 +23,8 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(arrays::set_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(arrays::get_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_evaluate_pair, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_evaluate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_perturb, m)?)?;
@@ -34,6 +36,7 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stereo::cats_discover, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::cats_augment_folder_sample, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::cats_sample_seed, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_augment_dataset, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_read_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_rectify, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_disparity_to_depth, m)?)?;

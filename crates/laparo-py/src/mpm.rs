@@ -35,7 +35,7 @@ fn flat_m<const D: usize>(v: &[Matrix<D>]) -> Vec<f64> {
     v.iter().flat_map(|m| (0..D).flat_map(move |i| (0..D).map(move |j| m[(i, j)]))).collect()
 }
 
-fn model(s: &str) -> PyResult<Model> {
+fn parse_model(s: &str) -> PyResult<Model> {
     match s {
         "neo_hookean" | "neohookean" => Ok(Model::NeoHookean),
         "fixed_corotated" => Ok(Model::FixedCorotated),
@@ -43,7 +43,7 @@ fn model(s: &str) -> PyResult<Model> {
     }
 }
 
-fn walls(s: &str) -> PyResult<WallKind> {
+fn parse_walls(s: &str) -> PyResult<WallKind> {
     match s {
         "sticky" => Ok(WallKind::Sticky),
         "slip" => Ok(WallKind::Slip),
@@ -82,10 +82,12 @@ macro_rules! with_scene {
     ($s:expr, $sc:ident, $d:ident, $body:block) => {
         match $s {
             AnyScene::D2($sc) => {
+                #[allow(dead_code)]
                 const $d: usize = 2;
                 $body
             }
             AnyScene::D3($sc) => {
+                #[allow(dead_code)]
                 const $d: usize = 3;
                 $body
             }
@@ -166,13 +168,13 @@ impl PyMpmScene {
                 Some(dx) => GridSpec { n_grid, dx },
                 None => GridSpec::unit(n_grid),
             };
-            let material = Material { model: model(model)?, youngs_modulus, poisson_ratio, density };
+            let material = Material { model: parse_model(model)?, youngs_modulus, poisson_ratio, density };
             material.validate().map_err(|e| bad("material", e))?;
             let g = gravity.unwrap_or_else(|| vec![0.0; dim]);
             if g.len() != dim || g.iter().any(|v| !v.is_finite()) {
                 return Err(bad("gravity", format!("expected {dim} finite values, got {g:?}")));
             }
-            let boundary = Boundary { walls: walls(walls)?, thickness: wall_thickness };
+            let boundary = Boundary { walls: parse_walls(walls)?, thickness: wall_thickness };
             let scene = if dim == 2 {
                 let mut s = build::<2>(&pa, va.as_ref(), material, grid, dt, steps, particle_volume);
                 s.gravity = Vector::<2>::from_column_slice(&g);
@@ -274,7 +276,7 @@ impl PyMpmScene {
     fn simulate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         guard(|| {
             with_scene!(&self.scene, s, D, {
-                let sim = py.detach(|| simulate(s)).map_err(lib_err)?;
+                let sim = par(py, || simulate(s)).map_err(lib_err)?;
                 let d = state_dict(py, sim.final_state)?;
                 d.set_item("warnings", warnings_list(&sim.warnings))?;
                 Ok(d)
@@ -311,7 +313,7 @@ impl PyMpmScene {
                             return Err(bad("indices", "empty"));
                         }
                         let loss = LandmarkLoss::<D> { indices: ii, targets: vectors::<D>(&ta) };
-                        py.detach(|| simulate_with_gradient(s, &loss)).map_err(lib_err)?
+                        par(py, || simulate_with_gradient(s, &loss)).map_err(lib_err)?
                     }
                     (None, None, Some(w)) => {
                         let wa = vectors::<D>(&particle_array(w, "weights", Some(n), D)?);
@@ -323,7 +325,7 @@ impl PyMpmScene {
                             }
                             l
                         });
-                        py.detach(|| simulate_with_gradient(s, &loss)).map_err(lib_err)?
+                        par(py, || simulate_with_gradient(s, &loss)).map_err(lib_err)?
                     }
                     _ => return Err(bad("indices/targets/weights", "give indices and targets, or weights")),
                 };

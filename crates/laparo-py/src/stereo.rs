@@ -176,7 +176,7 @@ fn augment_to_dict<'py>(
     rule: GtRule,
     seeds: Option<(u64, u64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let a = py.detach(|| augment_stereo(&s, p, rule)).map_err(lib_err)?;
+    let a = par(py, || augment_stereo(&s, p, rule)).map_err(lib_err)?;
     let mut d = PyDict::new(py);
     d.set_item("left", image_to_numpy(py, a.left.image)?)?;
     d.set_item("right", image_to_numpy(py, a.right.image)?)?;
@@ -423,13 +423,13 @@ pub fn stereo_rectify<'py>(
             let (img, valid) = if let Ok(a) = u8_array(obj, name) {
                 let (h, w, ch) = a.hwc(name)?;
                 let im = Image::from_vec(w, h, ch, a.data).map_err(|e| bad(name, e))?;
-                let (o, v) = py.detach(|| rect.rectify_image(side, &im)).map_err(|e| bad(name, e))?;
+                let (o, v) = par(py, || rect.rectify_image(side, &im)).map_err(|e| bad(name, e))?;
                 (image_to_numpy(py, o)?, v)
             } else {
                 let a = f64_array(obj, name)?;
                 let (h, w, ch) = a.hwc(name)?;
                 let im = Image::from_vec(w, h, ch, a.data).map_err(|e| bad(name, e))?;
-                let (o, v) = py.detach(|| rect.rectify_image(side, &im)).map_err(|e| bad(name, e))?;
+                let (o, v) = par(py, || rect.rectify_image(side, &im)).map_err(|e| bad(name, e))?;
                 (image_to_numpy(py, o)?, v)
             };
             d.set_item(name, img)?;
@@ -526,7 +526,52 @@ pub fn stereo_evaluate<'py>(
         let opts = EvalOptions { bad_thresholds_px, depth_range_mm, zero_is_invalid };
         let pi = Image::from_vec(w, h, 1, p.data).map_err(|e| bad("pred", e))?;
         let gi = Image::from_vec(w, h, 1, g.data).map_err(|e| bad("gt", e))?;
-        let r = py.detach(|| evaluate(&pi, &gi, m.as_ref(), geo.as_ref(), &opts)).map_err(lib_err)?;
+        let r = par(py, || evaluate(&pi, &gi, m.as_ref(), geo.as_ref(), &opts)).map_err(lib_err)?;
         to_py(py, &r)
+    })
+}
+
+/// Augment the samples of shard (index, count) of a dataset folder into `out`, writing exactly
+/// the files of `laparo cats augment` (images, disparities, sidecars). Returns
+/// (number augmented, list of "id: error" failures).
+#[pyfunction]
+#[pyo3(signature = (input, layout, out, config = None, seed = 0, gt_rule = "exact", shard_index = 0, shard_count = 1))]
+#[allow(clippy::too_many_arguments)]
+pub fn cats_augment_dataset(
+    py: Python<'_>,
+    input: PathBuf,
+    layout: &str,
+    out: PathBuf,
+    config: Option<&PyCatsConfig>,
+    seed: u64,
+    gt_rule: &str,
+    shard_index: usize,
+    shard_count: usize,
+) -> PyResult<(usize, Vec<String>)> {
+    use rayon::prelude::*;
+    guard(|| {
+        let lay = parse_layout(layout)?;
+        let rule = parse_rule(gt_rule)?;
+        let shard = laparo_core::shard::Shard::new(shard_index, shard_count).map_err(|e| bad("shard", e))?;
+        let cfg = match config {
+            Some(c) => c.inner.clone(),
+            None => CatsConfig::thesis("SCARED+StMIS").map_err(lib_err)?,
+        };
+        laparo_core::atomic::refuse_overwrite(&out, &[&input], true).map_err(|e| bad("out", e))?;
+        let files = shard.select(dataset::discover(&input, lay).map_err(lib_err)?);
+        std::fs::create_dir_all(&out)
+            .map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", out.display())))?;
+        let results: Vec<Result<(), String>> = par(py, || {
+            files
+                .par_iter()
+                .map(|f| {
+                    dataset::augment_sample(f, &input, &out, lay, &cfg, seed, rule)
+                        .map(|_| ())
+                        .map_err(|e| format!("{}: {e}", f.id))
+                })
+                .collect()
+        });
+        let failures: Vec<String> = results.iter().filter_map(|r| r.clone().err()).collect();
+        Ok((results.len() - failures.len(), failures))
     })
 }
