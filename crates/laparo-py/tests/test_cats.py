@@ -175,6 +175,7 @@ def _stream(ds, workers, epochs):
 
 
 @needs_torch
+@pytest.mark.filterwarnings("ignore:This DataLoader will create")
 def test_dataloader_workers_equal_serial(dataset):
     cfg = laparo.cats.CatsConfig.from_file(dataset / "cats.toml")
     ds = laparo.cats.CatsDataset(root=dataset, layout="generic", config=cfg, seed=9)
