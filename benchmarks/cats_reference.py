@@ -41,6 +41,25 @@ def sample_homographies(rng: np.random.Generator, k: np.ndarray):
     return hl, hr, dx
 
 
+def augment_thesis(left, right, disp, hl, hr, dx):
+    """The thesis rule (§3.3.5): the left disparity warped by H_L (nearest), plus Δx_right."""
+    h, w = left.shape[:2]
+    flags_l = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    hl_inv, hr_inv = np.linalg.inv(hl), np.linalg.inv(hr)
+    out_l = cv2.warpPerspective(left, hl_inv, (w, h), flags=flags_l, borderMode=cv2.BORDER_CONSTANT)
+    out_r = cv2.warpPerspective(right, hr_inv, (w, h), flags=flags_l, borderMode=cv2.BORDER_CONSTANT)
+    d = cv2.warpPerspective(disp, hl_inv, (w, h), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=np.inf)
+    ok = np.isfinite(d)
+    d[ok] += dx
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    q = np.stack([xs, ys, np.ones_like(xs)], axis=-1) @ hr_inv.T
+    rx, ry = q[..., 0] / q[..., 2], q[..., 1] / q[..., 2]
+    valid_r = (rx >= -0.5) & (ry >= -0.5) & (rx < w - 0.5) & (ry < h - 0.5) & (q[..., 2] > 0)
+    return {"left": out_l, "right": out_r, "valid_left": ok, "valid_right": valid_r, "disp_left": d,
+            "disp_left_valid": ok}
+
+
 def augment(left, right, disp, hl, hr):
     """Augment (left, right, left disparity) with homographies hl, hr (exact disparity rule)."""
     h, w = left.shape[:2]

@@ -35,6 +35,7 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stereo::cats_augment, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::cats_discover, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::cats_augment_folder_sample, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_augment_sample_files, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::cats_sample_seed, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::cats_augment_dataset, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_read_calibration, m)?)?;

@@ -276,6 +276,30 @@ pub fn cats_discover<'py>(py: Python<'py>, root: PathBuf, layout: &str) -> PyRes
     })
 }
 
+fn augment_files<'py>(
+    py: Python<'py>,
+    f: &dataset::SampleFiles,
+    lay: Layout,
+    config: Option<&PyCatsConfig>,
+    seed: u64,
+    epoch: u64,
+    gt_rule: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let rule = parse_rule(gt_rule)?;
+    let cfg = match config {
+        Some(c) => c.inner.clone(),
+        None => CatsConfig::thesis("SCARED+StMIS").map_err(lib_err)?,
+    };
+    let s = dataset::load_sample(f).map_err(lib_err)?;
+    let (kl, kr) = dataset::source_cameras(f, lay, &cfg, s.left.width, s.left.height).map_err(lib_err)?;
+    let id = epoch_id(&f.id, epoch);
+    let p = sample_params(&cfg, seed, &id, &kl, &kr);
+    dataset::check_homographies(&p).map_err(|e| bad("params", e))?;
+    let d = augment_to_dict(py, s, &p, rule, Some((seed, sample_seed(seed, &id))))?;
+    d.set_item("id", &f.id)?;
+    Ok(d)
+}
+
 /// Load and augment sample `index` of a dataset folder exactly as `laparo cats augment` does
 /// (epoch 0), or with the generator of (seed, id, epoch).
 #[pyfunction]
@@ -292,23 +316,48 @@ pub fn cats_augment_folder_sample<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     guard(|| {
         let lay = parse_layout(layout)?;
-        let rule = parse_rule(gt_rule)?;
-        let cfg = match config {
-            Some(c) => c.inner.clone(),
-            None => CatsConfig::thesis("SCARED+StMIS").map_err(lib_err)?,
-        };
         let files = dataset::discover(&root, lay).map_err(lib_err)?;
         let f = files
             .get(index)
             .ok_or_else(|| bad("index", format!("{index} out of range ({} samples)", files.len())))?;
-        let s = dataset::load_sample(f).map_err(lib_err)?;
-        let (kl, kr) = dataset::source_cameras(f, lay, &cfg, s.left.width, s.left.height).map_err(lib_err)?;
-        let id = epoch_id(&f.id, epoch);
-        let p = sample_params(&cfg, seed, &id, &kl, &kr);
-        dataset::check_homographies(&p).map_err(|e| bad("params", e))?;
-        let d = augment_to_dict(py, s, &p, rule, Some((seed, sample_seed(seed, &id))))?;
-        d.set_item("id", &f.id)?;
-        Ok(d)
+        augment_files(py, f, lay, config, seed, epoch, gt_rule)
+    })
+}
+
+/// Augment one sample given as a dict of `cats_discover` (no folder walk: for DataLoaders).
+#[pyfunction]
+#[pyo3(signature = (sample, layout, config = None, seed = 0, epoch = 0, gt_rule = "exact"))]
+pub fn cats_augment_sample_files<'py>(
+    py: Python<'py>,
+    sample: &Bound<'py, PyDict>,
+    layout: &str,
+    config: Option<&PyCatsConfig>,
+    seed: u64,
+    epoch: u64,
+    gt_rule: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    guard(|| {
+        let lay = parse_layout(layout)?;
+        let get = |k: &str| -> PyResult<Option<PathBuf>> {
+            match sample.get_item(k)? {
+                Some(v) if !v.is_none() => Ok(Some(v.extract().map_err(|_| bad(&format!("sample['{k}']"), "not a path"))?)),
+                _ => Ok(None),
+            }
+        };
+        let id: String = sample
+            .get_item("id")?
+            .ok_or_else(|| bad("sample", "missing key 'id'"))?
+            .extract()
+            .map_err(|_| bad("sample['id']", "not a string"))?;
+        let f = dataset::SampleFiles {
+            id,
+            left: get("left")?.ok_or_else(|| bad("sample", "missing key 'left'"))?,
+            right: get("right")?.ok_or_else(|| bad("sample", "missing key 'right'"))?,
+            disp_left: get("disp_left")?,
+            disp_right: get("disp_right")?,
+            calib: get("calib")?,
+        };
+        augment_files(py, &f, lay, config, seed, epoch, gt_rule)
     })
 }
 

@@ -47,6 +47,10 @@ def cats_augment_folder_sample(
     root: _Path, layout: str, index: int, config: Optional[CatsConfig] = None, seed: int = 0, epoch: int = 0,
     gt_rule: str = "exact",
 ) -> Dict[str, Any]: ...
+def cats_augment_sample_files(
+    sample: Dict[str, Any], layout: str, config: Optional[CatsConfig] = None, seed: int = 0, epoch: int = 0,
+    gt_rule: str = "exact",
+) -> Dict[str, Any]: ...
 def cats_sample_seed(seed: int, sample_id: str) -> int: ...
 def cats_augment_dataset(
     input: _Path, layout: str, out: _Path, config: Optional[CatsConfig] = None, seed: int = 0,

@@ -183,7 +183,8 @@ class CatsDataset(_TorchDataset):  # type: ignore[misc]
         self.k_left, self.k_right = k_left, k_right
         self.transform = transform
         self.epoch = 0
-        n_all = len(discover(self.root, layout)) if self.root is not None else len(samples)  # type: ignore[arg-type]
+        self._files = discover(self.root, layout) if self.root is not None else None
+        n_all = len(self._files) if self._files is not None else len(samples)  # type: ignore[arg-type]
         if ids is not None and len(ids) != n_all:
             raise ValueError(f"ids: {len(ids)} ids for {n_all} samples")
         self.ids = list(ids) if ids is not None else None
@@ -202,7 +203,7 @@ class CatsDataset(_TorchDataset):  # type: ignore[misc]
             index, epoch = index.index, index.epoch
         k = self._items[int(index)]
         if self.root is not None:
-            out = augment_folder_sample(self.root, self.layout, k, self.config, self.seed, epoch, self.gt_rule)
+            out = _laparo.cats_augment_sample_files(self._files[k], self.layout, self.config, self.seed, epoch, self.gt_rule)
         else:
             s = self.samples[k]  # type: ignore[index]
             if isinstance(s, dict):
