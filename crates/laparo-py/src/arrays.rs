@@ -72,7 +72,11 @@ fn check_contig(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<()> {
 
 /// Run `f` on the data of a float64 array without copying it (or on a widened copy of a
 /// float32 array). TypeError for other dtypes; ValueError when not C-contiguous.
-pub fn with_f64<'py, R>(obj: &Bound<'py, PyAny>, arg: &str, f: impl FnOnce(&[usize], &[f64]) -> PyResult<R>) -> PyResult<R> {
+pub fn with_f64<'py, R>(
+    obj: &Bound<'py, PyAny>,
+    arg: &str,
+    f: impl FnOnce(&[usize], &[f64]) -> PyResult<R>,
+) -> PyResult<R> {
     check_array(obj, arg)?;
     check_contig(obj, arg)?;
     if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {

@@ -143,7 +143,9 @@ pub fn cpc_warp_frame<'py>(
                 }
             }
         };
-        for (n, v) in [("max_view_angle_deg", max_view_angle_deg), ("max_depth_jump", max_depth_jump), ("theta_deg", theta_deg)] {
+        for (n, v) in
+            [("max_view_angle_deg", max_view_angle_deg), ("max_depth_jump", max_depth_jump), ("theta_deg", theta_deg)]
+        {
             if !v.is_finite() {
                 return Err(bad(n, format!("{v} is not finite")));
             }

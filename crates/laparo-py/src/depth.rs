@@ -131,9 +131,8 @@ pub fn depth_evaluate_batch<'py>(
             };
             items.push((p.data, gm, m));
         }
-        let results: Vec<_> = par(py, || {
-            items.par_iter().map(|(p, g, m)| evaluate_pair(p, kind, g, m.as_deref(), &opts)).collect()
-        });
+        let results: Vec<_> =
+            par(py, || items.par_iter().map(|(p, g, m)| evaluate_pair(p, kind, g, m.as_deref(), &opts)).collect());
         let out = PyList::empty(py);
         for (i, r) in results.into_iter().enumerate() {
             let r = r.map_err(|e| bad(&format!("item {i}"), e))?;

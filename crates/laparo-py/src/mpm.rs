@@ -371,10 +371,18 @@ pub fn mpm_box_lattice<'py>(py: Python<'py>, lo: Vec<f64>, hi: Vec<f64>, spacing
             return Err(bad("spacing", "lo, hi and spacing must be finite, spacing > 0"));
         }
         if lo.len() == 2 {
-            let p = laparo_mpm::box_lattice(Vector::<2>::from_column_slice(&lo), Vector::<2>::from_column_slice(&hi), spacing);
+            let p = laparo_mpm::box_lattice(
+                Vector::<2>::from_column_slice(&lo),
+                Vector::<2>::from_column_slice(&hi),
+                spacing,
+            );
             to_numpy(py, flat(&p), &[p.len(), 2])
         } else {
-            let p = laparo_mpm::box_lattice(Vector::<3>::from_column_slice(&lo), Vector::<3>::from_column_slice(&hi), spacing);
+            let p = laparo_mpm::box_lattice(
+                Vector::<3>::from_column_slice(&lo),
+                Vector::<3>::from_column_slice(&hi),
+                spacing,
+            );
             to_numpy(py, flat(&p), &[p.len(), 3])
         }
     })

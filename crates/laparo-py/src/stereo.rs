@@ -37,9 +37,7 @@ impl PyCatsConfig {
     fn from_file(path: PathBuf) -> PyResult<Self> {
         let text = std::fs::read_to_string(&path)
             .map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display())))?;
-        Ok(PyCatsConfig {
-            inner: CatsConfig::from_toml_str(&text).map_err(|e| bad(&path.display().to_string(), e))?,
-        })
+        Ok(PyCatsConfig { inner: CatsConfig::from_toml_str(&text).map_err(|e| bad(&path.display().to_string(), e))? })
     }
     /// The configuration as TOML text.
     fn to_toml(&self) -> String {
@@ -158,7 +156,12 @@ fn disparity_f32(obj: &Bound<'_, PyAny>, arg: &str, w: usize, h: usize) -> PyRes
     Image::from_vec(w, h, 1, a.data).map_err(|e| bad(arg, e))
 }
 
-fn disp_out<'py>(py: Python<'py>, d: &mut Bound<'py, PyDict>, name: &str, a: Option<AugmentedDisparity>) -> PyResult<()> {
+fn disp_out<'py>(
+    py: Python<'py>,
+    d: &mut Bound<'py, PyDict>,
+    name: &str,
+    a: Option<AugmentedDisparity>,
+) -> PyResult<()> {
     if let Some(a) = a {
         d.set_item(format!("disp_{name}"), image_to_numpy(py, a.disparity)?)?;
         d.set_item(format!("disp_{name}_valid"), image_to_numpy(py, a.valid)?)?;
@@ -217,10 +220,7 @@ pub fn cats_augment<'py>(
         let l = image_u8(left, "left")?;
         let r = image_u8(right, "right")?;
         if (l.width, l.height, l.channels) != (r.width, r.height, r.channels) {
-            return Err(bad(
-                "right",
-                format!("shape ({}, {}, {}) differs from left's", r.height, r.width, r.channels),
-            ));
+            return Err(bad("right", format!("shape ({}, {}, {}) differs from left's", r.height, r.width, r.channels)));
         }
         let (w, h) = (l.width, l.height);
         let dl = disp_left.map(|d| disparity_f32(d, "disp_left", w, h)).transpose()?;
@@ -304,6 +304,7 @@ fn augment_files<'py>(
 /// (epoch 0), or with the generator of (seed, id, epoch).
 #[pyfunction]
 #[pyo3(signature = (root, layout, index, config = None, seed = 0, epoch = 0, gt_rule = "exact"))]
+#[allow(clippy::too_many_arguments)]
 pub fn cats_augment_folder_sample<'py>(
     py: Python<'py>,
     root: PathBuf,
@@ -317,9 +318,8 @@ pub fn cats_augment_folder_sample<'py>(
     guard(|| {
         let lay = parse_layout(layout)?;
         let files = dataset::discover(&root, lay).map_err(lib_err)?;
-        let f = files
-            .get(index)
-            .ok_or_else(|| bad("index", format!("{index} out of range ({} samples)", files.len())))?;
+        let f =
+            files.get(index).ok_or_else(|| bad("index", format!("{index} out of range ({} samples)", files.len())))?;
         augment_files(py, f, lay, config, seed, epoch, gt_rule)
     })
 }
@@ -340,7 +340,9 @@ pub fn cats_augment_sample_files<'py>(
         let lay = parse_layout(layout)?;
         let get = |k: &str| -> PyResult<Option<PathBuf>> {
             match sample.get_item(k)? {
-                Some(v) if !v.is_none() => Ok(Some(v.extract().map_err(|_| bad(&format!("sample['{k}']"), "not a path"))?)),
+                Some(v) if !v.is_none() => {
+                    Ok(Some(v.extract().map_err(|_| bad(&format!("sample['{k}']"), "not a path"))?))
+                }
                 _ => Ok(None),
             }
         };
@@ -495,7 +497,7 @@ fn geometry(f_px: f64, baseline_mm: f64, cx_left: f64, cx_right: f64) -> PyResul
             return Err(bad(n, format!("{v} is not finite")));
         }
     }
-    if !(f_px > 0.0) || !(baseline_mm > 0.0) {
+    if f_px <= 0.0 || baseline_mm <= 0.0 {
         return Err(bad("f_px/baseline_mm", "must be > 0"));
     }
     Ok(DisparityGeometry { f_px, fy_px: f_px, baseline_mm, cx_left, cx_right, cy: 0.0 })

@@ -138,8 +138,11 @@ fn depth_dataset(root: &Path) {
                 for f in 0..2 {
                     let name = format!("{f:04}");
                     write_png(base.join("rgb").join(format!("{name}.png")), &rgb).unwrap();
-                    write_npy_f64(base.join("depth").join(format!("{name}.npy")), &Image::from_vec(W, H, 1, gt.clone()).unwrap())
-                        .unwrap();
+                    write_npy_f64(
+                        base.join("depth").join(format!("{name}.npy")),
+                        &Image::from_vec(W, H, 1, gt.clone()).unwrap(),
+                    )
+                    .unwrap();
                     for (m, k) in [("good", 0.02), ("base", 0.07)] {
                         let noise = k * (1.0 + lv as f64) + 0.01 * f as f64;
                         let p: Vec<f64> = gt

@@ -253,10 +253,8 @@ pub fn perturb(a: PerturbArgs) -> Result<()> {
     }
     check_perturb_resume(&a.out, a.seed, &kinds, &sevs, a.force)?;
 
-    let jobs: Vec<(usize, Perturbation)> = (0..inputs.len())
-        .filter(|&i| shard.contains(i))
-        .flat_map(|i| kinds.iter().map(move |&k| (i, k)))
-        .collect();
+    let jobs: Vec<(usize, Perturbation)> =
+        (0..inputs.len()).filter(|&i| shard.contains(i)).flat_map(|i| kinds.iter().map(move |&k| (i, k))).collect();
     let n_total = jobs.len() * sevs.len();
     let pb = ProgressBar::new(n_total as u64);
     pb.set_style(
@@ -525,6 +523,7 @@ mod tests {
             gt_unit: "m".into(),
             scene: Some("organ".into()),
             force: false,
+            shard: None,
         }
     }
 
