@@ -133,14 +133,11 @@ def sample_seed(seed: int, sample_id: str) -> int:
     return _laparo.cats_sample_seed(int(seed), sample_id)
 
 
-try:  # PyTorch is optional.
-    from torch.utils.data import Dataset as _TorchDataset  # type: ignore
-except Exception:  # pragma: no cover - exercised when torch is absent
-    _TorchDataset = object  # type: ignore
-
-
-class CatsDataset(_TorchDataset):  # type: ignore[misc]
-    """A ``torch.utils.data.Dataset`` applying CATS on the fly (in DataLoader workers).
+class CatsDataset:
+    """A map-style PyTorch dataset (``__len__`` + ``__getitem__``, what
+    ``torch.utils.data.DataLoader`` takes) applying CATS on the fly in DataLoader workers.
+    It does not import torch (``import laparo`` stays fast); wrap it in anything that takes a
+    map-style dataset.
 
     Sample ``index`` of epoch ``e`` is augmented with the generator of (seed, sample id, e), so
     the stream is identical whatever the number of workers, their scheduling or the machine.

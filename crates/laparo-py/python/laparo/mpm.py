@@ -75,21 +75,25 @@ def landmark_loss_numpy(x: np.ndarray, indices: Sequence[int], targets: np.ndarr
     return float(np.mean(np.sqrt((d * d).sum(axis=1) + 1e-12)))
 
 
-try:  # PyTorch is optional.
-    import torch as _torch
-except Exception:  # pragma: no cover - exercised when torch is absent
-    _torch = None  # type: ignore
+_MPM_FUNCTION = None
 
 
-def _require_torch() -> Any:
-    if _torch is None:
-        raise ImportError("laparo.mpm: PyTorch is required for simulate_torch / MpmFunction (pip install torch)")
-    return _torch
+def _torch() -> Any:
+    try:
+        import torch
+    except Exception as e:  # pragma: no cover - exercised when torch is absent
+        raise ImportError("laparo.mpm: PyTorch is required for simulate_torch / MpmFunction (pip install torch)") from e
+    return torch
 
 
-if _torch is not None:
+def _mpm_function() -> Any:
+    """The ``torch.autograd.Function`` (built on first use so that ``import laparo`` does not import torch)."""
+    global _MPM_FUNCTION
+    if _MPM_FUNCTION is not None:
+        return _MPM_FUNCTION
+    torch = _torch()
 
-    class MpmFunction(_torch.autograd.Function):  # type: ignore[misc,name-defined]
+    class MpmFunction(torch.autograd.Function):  # type: ignore[misc,name-defined]
         """x_T = MPM(v₀, E, ν) as a ``torch.autograd.Function``.
 
         ``MpmFunction.apply(velocities (N, D), youngs_modulus (), poisson_ratio (), scene)``.
@@ -99,49 +103,49 @@ if _torch is not None:
 
         @staticmethod
         def forward(ctx: Any, velocities: Any, youngs_modulus: Any, poisson_ratio: Any, scene: Any) -> Any:  # type: ignore[override]
-            v = velocities.detach().to("cpu", _torch.float64).contiguous().numpy()
-            s = scene.with_state(
-                velocities=v, youngs_modulus=float(youngs_modulus), poisson_ratio=float(poisson_ratio)
-            )
+            v = velocities.detach().to("cpu", torch.float64).contiguous().numpy()
+            s = scene.with_state(velocities=v, youngs_modulus=float(youngs_modulus), poisson_ratio=float(poisson_ratio))
             ctx.scene = s
             ctx.meta = (velocities.dtype, velocities.device, youngs_modulus, poisson_ratio)
             x = s.simulate()["x"]
-            return _torch.from_numpy(x).to(device=velocities.device, dtype=velocities.dtype)
+            return torch.from_numpy(x).to(device=velocities.device, dtype=velocities.dtype)
 
         @staticmethod
         def backward(ctx: Any, grad_x: Any) -> Any:  # type: ignore[override]
             dtype, device, e, nu = ctx.meta
-            g = grad_x.detach().to("cpu", _torch.float64).contiguous().numpy()
+            g = grad_x.detach().to("cpu", torch.float64).contiguous().numpy()
             r = ctx.scene.simulate_with_gradient(weights=g)
-            dv = _torch.from_numpy(r["d_velocities"]).to(device=device, dtype=dtype)
-            de = _torch.tensor(r["d_youngs_modulus"], dtype=e.dtype, device=e.device).reshape(e.shape)
-            dnu = _torch.tensor(r["d_poisson_ratio"], dtype=nu.dtype, device=nu.device).reshape(nu.shape)
+            dv = torch.from_numpy(r["d_velocities"]).to(device=device, dtype=dtype)
+            de = torch.tensor(r["d_youngs_modulus"], dtype=e.dtype, device=e.device).reshape(e.shape)
+            dnu = torch.tensor(r["d_poisson_ratio"], dtype=nu.dtype, device=nu.device).reshape(nu.shape)
             return dv, de, dnu, None
 
-    def simulate_torch(scene: "Scene", velocities: Any, youngs_modulus: Any = None, poisson_ratio: Any = None) -> Any:
-        """Final positions x_T (N, D) as a differentiable function of the tensors ``velocities``
-        (N, D), ``youngs_modulus`` and ``poisson_ratio`` (0-dim; default: the scene's, constant)."""
-        t = _require_torch()
-        e = youngs_modulus if youngs_modulus is not None else t.tensor(scene.youngs_modulus, dtype=t.float64)
-        nu = poisson_ratio if poisson_ratio is not None else t.tensor(scene.poisson_ratio, dtype=t.float64)
-        if not isinstance(e, t.Tensor):
-            e = t.tensor(float(e), dtype=t.float64)
-        if not isinstance(nu, t.Tensor):
-            nu = t.tensor(float(nu), dtype=t.float64)
-        return MpmFunction.apply(velocities, e, nu, scene)
+    _MPM_FUNCTION = MpmFunction
+    return MpmFunction
 
-    def landmark_loss_torch(x: Any, indices: Sequence[int], targets: Any) -> Any:
-        """The landmark loss of :func:`simulate_with_gradient` in torch."""
-        t = _require_torch()
-        d = x[t.as_tensor(list(indices), dtype=t.long)] - targets
-        return t.sqrt((d * d).sum(dim=1) + 1e-12).mean()
 
-else:
+def __getattr__(name: str) -> Any:
+    if name == "MpmFunction":
+        return _mpm_function()
+    raise AttributeError(f"module 'laparo.mpm' has no attribute {name!r}")
 
-    def simulate_torch(scene: "Scene", velocities: Any, youngs_modulus: Any = None, poisson_ratio: Any = None) -> Any:  # type: ignore[misc]
-        """Requires PyTorch."""
-        _require_torch()
 
-    def landmark_loss_torch(x: Any, indices: Sequence[int], targets: Any) -> Any:  # type: ignore[misc]
-        """Requires PyTorch."""
-        _require_torch()
+def simulate_torch(scene: "Scene", velocities: Any, youngs_modulus: Any = None, poisson_ratio: Any = None) -> Any:
+    """Final positions x_T (N, D) as a differentiable function of the tensors ``velocities``
+    (N, D), ``youngs_modulus`` and ``poisson_ratio`` (0-dim; default: the scene's, constant)
+    through :class:`MpmFunction` (``laparo.mpm.MpmFunction``). Requires PyTorch."""
+    t = _torch()
+    e = youngs_modulus if youngs_modulus is not None else t.tensor(scene.youngs_modulus, dtype=t.float64)
+    nu = poisson_ratio if poisson_ratio is not None else t.tensor(scene.poisson_ratio, dtype=t.float64)
+    if not isinstance(e, t.Tensor):
+        e = t.tensor(float(e), dtype=t.float64)
+    if not isinstance(nu, t.Tensor):
+        nu = t.tensor(float(nu), dtype=t.float64)
+    return _mpm_function().apply(velocities, e, nu, scene)
+
+
+def landmark_loss_torch(x: Any, indices: Sequence[int], targets: Any) -> Any:
+    """The landmark loss of :func:`simulate_with_gradient` in torch. Requires PyTorch."""
+    t = _torch()
+    d = x[t.as_tensor(list(indices), dtype=t.long)] - targets
+    return t.sqrt((d * d).sum(dim=1) + 1e-12).mean()
