@@ -21,6 +21,7 @@ pub mod par;
 pub mod plot;
 pub mod remap;
 pub mod se3;
+pub mod shard;
 pub mod stats;
 pub mod table;
 

@@ -7,6 +7,7 @@ use crate::manifest::{Manifest, MethodSpec, ResolvedFrame};
 use crate::metrics::{evaluate_valid, select_valid, InvalidPredPolicy, PairMetrics, PairOptions, ValidPixels};
 use crate::robustness::Layout;
 use laparo_core::image::{Image, Mask};
+pub use laparo_core::shard::Shard;
 use laparo_core::stats::median;
 use laparo_core::DepthUnit;
 use rayon::prelude::*;
@@ -362,6 +363,149 @@ pub fn evaluate_manifest(
     cfg: &EvalConfig,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<EvalOutput> {
+    let shard = evaluate_manifest_shard(manifest, cfg, Shard::ALL, progress)?;
+    merge_eval_shards(manifest, cfg, &[shard])
+}
+
+/// File name of a manifest-evaluation shard: `eval-shard-I-of-N.json`.
+pub fn shard_file_name(shard: Shard) -> String {
+    format!("eval-shard-{}-of-{}.json", shard.index, shard.count)
+}
+
+/// The per-frame results of one shard of a manifest evaluation ([`evaluate_manifest_shard`]);
+/// [`merge_eval_shards`] turns all shards into the [`EvalOutput`] of one unsharded run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EvalShard {
+    /// Which shard.
+    pub shard: Shard,
+    /// Number of frames of the manifest.
+    pub n_frames: usize,
+    /// Evaluated method names, in order.
+    pub methods: Vec<String>,
+    /// Frame indices of this shard, ascending.
+    pub frames: Vec<usize>,
+    /// Results of these frames, sorted by (frame, method).
+    pub images: Vec<ImageResult>,
+    /// GT range check of each frame of `frames`.
+    pub gt_checks: Vec<GtRangeCheck>,
+}
+
+fn bits(v: f64) -> String {
+    format!("{:016x}", v.to_bits())
+}
+
+fn unbits(v: &serde_json::Value) -> Option<f64> {
+    u64::from_str_radix(v.as_str()?, 16).ok().map(f64::from_bits)
+}
+
+fn metrics_from_values(v: &[f64; 12]) -> crate::metrics::Metrics {
+    crate::metrics::Metrics {
+        abs_rel: v[0],
+        sq_rel: v[1],
+        rmse: v[2],
+        rmse_log: v[3],
+        silog: v[4],
+        delta_0_25: v[5],
+        delta_0_5: v[6],
+        delta_1: v[7],
+        delta_2: v[8],
+        delta_3: v[9],
+        scale: v[10],
+        shift: v[11],
+    }
+}
+
+impl EvalShard {
+    /// JSON text; every float is stored as its IEEE-754 bit pattern (hex) so that merging
+    /// shards reproduces an unsharded run bit for bit (NaN included).
+    pub fn to_json_string(&self) -> String {
+        let m = |m: &Option<crate::metrics::Metrics>| match m {
+            Some(m) => serde_json::Value::Array(m.values().iter().map(|&v| bits(v).into()).collect()),
+            None => serde_json::Value::Null,
+        };
+        let v = serde_json::json!({
+            "format": "laparo depth eval shard v1",
+            "shard": self.shard,
+            "n_frames": self.n_frames,
+            "methods": self.methods,
+            "frames": self.frames,
+            "images": self.images.iter().map(|r| serde_json::json!({
+                "frame": r.frame, "method": r.method, "n_valid": r.metrics.n_valid,
+                "n_invalid_pred": r.metrics.n_invalid_pred, "none": m(&r.metrics.none),
+                "scale": m(&r.metrics.scale), "scale_shift": m(&r.metrics.scale_shift),
+            })).collect::<Vec<_>>(),
+            "gt_checks": self.gt_checks.iter().map(|c| serde_json::json!({
+                "n_valid": c.n_valid, "n_below": c.n_below, "n_above": c.n_above,
+                "median_m": bits(c.median_m), "min_m": bits(c.min_m), "max_m": bits(c.max_m),
+            })).collect::<Vec<_>>(),
+        });
+        serde_json::to_string_pretty(&v).expect("JSON values serialise") + "\n"
+    }
+
+    /// Parse [`EvalShard::to_json_string`] output; `what` names the source in errors.
+    pub fn from_json_str(text: &str, what: &str) -> Result<EvalShard> {
+        let err = |m: &str| DepthError::invalid(what, format!("not a depth eval shard file ({m})"));
+        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| err(&e.to_string()))?;
+        if v["format"] != "laparo depth eval shard v1" {
+            return Err(err("format"));
+        }
+        let shard: Shard = serde_json::from_value(v["shard"].clone()).map_err(|e| err(&e.to_string()))?;
+        let us = |x: &serde_json::Value, k: &str| x[k].as_u64().map(|u| u as usize).ok_or_else(|| err(k));
+        let metrics = |x: &serde_json::Value| -> Result<Option<crate::metrics::Metrics>> {
+            if x.is_null() {
+                return Ok(None);
+            }
+            let a = x.as_array().filter(|a| a.len() == 12).ok_or_else(|| err("metrics"))?;
+            let mut out = [0.0; 12];
+            for (o, y) in out.iter_mut().zip(a) {
+                *o = unbits(y).ok_or_else(|| err("metric value"))?;
+            }
+            Ok(Some(metrics_from_values(&out)))
+        };
+        let mut images = Vec::new();
+        for r in v["images"].as_array().ok_or_else(|| err("images"))? {
+            images.push(ImageResult {
+                frame: us(r, "frame")?,
+                method: us(r, "method")?,
+                metrics: PairMetrics {
+                    n_valid: us(r, "n_valid")?,
+                    n_invalid_pred: us(r, "n_invalid_pred")?,
+                    none: metrics(&r["none"])?,
+                    scale: metrics(&r["scale"])?,
+                    scale_shift: metrics(&r["scale_shift"])?,
+                },
+            });
+        }
+        let mut gt_checks = Vec::new();
+        for c in v["gt_checks"].as_array().ok_or_else(|| err("gt_checks"))? {
+            let f = |k: &str| unbits(&c[k]).ok_or_else(|| err(k));
+            gt_checks.push(GtRangeCheck {
+                n_valid: us(c, "n_valid")?,
+                n_below: us(c, "n_below")?,
+                n_above: us(c, "n_above")?,
+                median_m: f("median_m")?,
+                min_m: f("min_m")?,
+                max_m: f("max_m")?,
+            });
+        }
+        let frames: Vec<usize> = serde_json::from_value(v["frames"].clone()).map_err(|e| err(&e.to_string()))?;
+        let methods: Vec<String> = serde_json::from_value(v["methods"].clone()).map_err(|e| err(&e.to_string()))?;
+        if frames.len() != gt_checks.len() {
+            return Err(err("frames vs gt_checks"));
+        }
+        Ok(EvalShard { shard, n_frames: us(&v, "n_frames")?, methods, frames, images, gt_checks })
+    }
+}
+
+/// Settings shared by a shard evaluation and the merge.
+struct Prepared<'a> {
+    names: Vec<String>,
+    methods: Vec<(usize, &'a MethodSpec)>,
+    opts: PairOptions,
+    resolved: crate::manifest::Resolved,
+}
+
+fn prepare<'a>(manifest: &'a Manifest, cfg: &EvalConfig) -> Result<Prepared<'a>> {
     let names: Vec<String> = if cfg.methods.is_empty() {
         manifest.methods.iter().map(|m| m.name.clone()).collect()
     } else {
@@ -382,17 +526,30 @@ pub fn evaluate_manifest(
     }
     let range = cfg.range.unwrap_or(resolved.range);
     let opts = PairOptions { alignments: cfg.alignments.clone(), range, invalid_pred: cfg.invalid_pred };
+    Ok(Prepared { names, methods, opts, resolved })
+}
+
+/// Evaluate the frames of one [`Shard`] of `manifest` (frame `i` belongs to shard `i % N`).
+/// Errors as [`evaluate_manifest`].
+pub fn evaluate_manifest_shard(
+    manifest: &Manifest,
+    cfg: &EvalConfig,
+    shard: Shard,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<EvalShard> {
+    let shard = Shard::new(shard.index, shard.count).map_err(|e| DepthError::invalid("shard", e.to_string()))?;
+    let p = prepare(manifest, cfg)?;
     let done = AtomicUsize::new(0);
-    let results: Vec<Result<(Vec<ImageResult>, GtRangeCheck)>> = resolved
-        .frames
+    let mine: Vec<&ResolvedFrame> = p.resolved.frames.iter().filter(|f| shard.contains(f.index)).collect();
+    let results: Vec<Result<(Vec<ImageResult>, GtRangeCheck)>> = mine
         .par_iter()
         .map(|f| {
-            let r = evaluate_frame(manifest, f, &methods, &opts);
+            let r = evaluate_frame(manifest, f, &p.methods, &p.opts);
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
             r
         })
         .collect();
-    let mut images = Vec::with_capacity(results.len() * methods.len());
+    let mut images = Vec::with_capacity(results.len() * p.methods.len());
     let mut errors = Vec::new();
     let mut gt_checks = Vec::with_capacity(results.len());
     for r in results {
@@ -415,13 +572,69 @@ pub fn evaluate_manifest(
         }
         return Err(DepthError::invalid("evaluation", format!("{n} frames failed:\n  {}", msg.join("\n  "))));
     }
-    Ok(EvalOutput {
-        methods: methods.iter().map(|(_, m)| (*m).clone()).collect(),
-        alignments: cfg.alignments.clone(),
-        layout: resolved.layout,
-        frames: resolved.frames,
+    Ok(EvalShard {
+        shard,
+        n_frames: p.resolved.frames.len(),
+        methods: p.names,
+        frames: mine.iter().map(|f| f.index).collect(),
         images,
-        options: opts,
+        gt_checks,
+    })
+}
+
+/// Merge the shards 0..N of one evaluation (any order) into the [`EvalOutput`] of an unsharded
+/// run with the same manifest and configuration. Fails when a shard is missing, duplicated,
+/// or was made with other methods or another manifest size.
+pub fn merge_eval_shards(manifest: &Manifest, cfg: &EvalConfig, shards: &[EvalShard]) -> Result<EvalOutput> {
+    let p = prepare(manifest, cfg)?;
+    let n = p.resolved.frames.len();
+    let count = shards.first().map(|s| s.shard.count).ok_or_else(|| DepthError::invalid("shards", "none given"))?;
+    let mut seen = vec![false; count];
+    let mut per_frame: Vec<Option<(Vec<ImageResult>, GtRangeCheck)>> = vec![None; n];
+    for s in shards {
+        if s.shard.count != count || s.shard.index >= count {
+            return Err(DepthError::invalid("shards", format!("shard {} mixed with shards of {count}", s.shard)));
+        }
+        if std::mem::replace(&mut seen[s.shard.index], true) {
+            return Err(DepthError::invalid("shards", format!("shard {} given twice", s.shard)));
+        }
+        if s.n_frames != n || s.methods != p.names {
+            return Err(DepthError::invalid(
+                "shards",
+                format!(
+                    "shard {} was made with {} frames and methods [{}], this run has {n} frames and methods [{}]",
+                    s.shard,
+                    s.n_frames,
+                    s.methods.join(", "),
+                    p.names.join(", ")
+                ),
+            ));
+        }
+        for (k, &f) in s.frames.iter().enumerate() {
+            if f >= n || !s.shard.contains(f) {
+                return Err(DepthError::invalid("shards", format!("shard {} lists frame {f}", s.shard)));
+            }
+            let imgs: Vec<ImageResult> = s.images.iter().filter(|r| r.frame == f).cloned().collect();
+            per_frame[f] = Some((imgs, s.gt_checks[k]));
+        }
+    }
+    if let Some(i) = seen.iter().position(|x| !x) {
+        return Err(DepthError::invalid("shards", format!("shard {i}/{count} is missing")));
+    }
+    let mut images = Vec::with_capacity(n * p.methods.len());
+    let mut gt_checks = Vec::with_capacity(n);
+    for (f, r) in per_frame.into_iter().enumerate() {
+        let (v, c) = r.ok_or_else(|| DepthError::invalid("shards", format!("frame {f} is in no shard")))?;
+        images.extend(v);
+        gt_checks.push(c);
+    }
+    Ok(EvalOutput {
+        methods: p.methods.iter().map(|(_, m)| (*m).clone()).collect(),
+        alignments: cfg.alignments.clone(),
+        layout: p.resolved.layout,
+        frames: p.resolved.frames,
+        images,
+        options: p.opts,
         manifest: manifest.source.clone(),
         gt_checks,
     })

@@ -60,6 +60,11 @@ pub struct AugmentArgs {
     /// parameters differ from those recorded in the sidecars is refused.
     #[arg(long, alias = "overwrite")]
     pub force: bool,
+    /// Process only shard I of N (samples whose position in the sorted sample list is I mod N):
+    /// N processes with 0/N .. N-1/N (same --out, or merged with `rsync -a`) write exactly the
+    /// files of one unsharded run.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<laparo_core::shard::Shard>,
 }
 
 /// Arguments of `laparo cats apply`.
@@ -122,8 +127,11 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
     laparo_core::atomic::refuse_overwrite(&a.out, &[&a.input], true).context("--out")?;
     let config = load_config(&a.config)?;
     let samples = dataset::discover(&a.input, a.layout)?;
+    let shard = a.shard.unwrap_or(laparo_core::shard::Shard::ALL);
+    let samples = shard.select(samples);
     let total = samples.len();
-    if a.out.is_dir() {
+    // Concurrent shards may share --out: only an unsharded run removes other processes' temporaries.
+    if a.out.is_dir() && shard.count == 1 {
         let n = laparo_core::atomic::remove_stale_temps(&a.out)?;
         if n > 0 {
             eprintln!("removed {n} temporary file(s) left by an interrupted run in {}", a.out.display());
@@ -155,7 +163,8 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
         .take(a.limit.unwrap_or(usize::MAX))
         .collect();
     eprintln!(
-        "{total} samples in {}, {} to do ({} already finished); seed {}, GT rule {:?}, {} threads",
+        "{total} samples{} in {}, {} to do ({} already finished); seed {}, GT rule {:?}, {} threads",
+        if shard.count > 1 { format!(" of shard {shard}") } else { String::new() },
         a.input.display(),
         todo.len(),
         total - todo.len().min(total),

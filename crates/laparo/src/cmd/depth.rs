@@ -9,7 +9,10 @@ use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::DepthUnit;
 use laparo_depth::align::{Alignment, DepthRange, PredKind};
-use laparo_depth::eval::{evaluate_files_checked, evaluate_manifest, EvalConfig, GtRangeCheck, ResizeFilter};
+use laparo_depth::eval::{
+    evaluate_files_checked, evaluate_manifest, evaluate_manifest_shard, merge_eval_shards, shard_file_name, EvalConfig,
+    EvalShard, GtRangeCheck, ResizeFilter,
+};
 use laparo_depth::manifest::{scaffold, Manifest, ScaffoldOptions};
 use laparo_depth::metrics::{InvalidPredPolicy, PairOptions, METRIC_NAMES};
 use laparo_depth::report;
@@ -142,6 +145,14 @@ pub struct EvalArgs {
     /// Far clamp (m) of aligned predicted depth (default: the manifest's depth_max_m, else 0.5).
     #[arg(long)]
     pub depth_max_m: Option<f64>,
+    /// Evaluate only shard I of N (frames whose manifest position is I mod N) and write
+    /// `<out>/eval-shard-I-of-N.json` (no report). Merge the N shards with `--merge-shards N`.
+    #[arg(long, value_name = "I/N", conflicts_with = "merge_shards")]
+    pub shard: Option<laparo_core::shard::Shard>,
+    /// Merge `<out>/eval-shard-{0..N-1}-of-N.json` (made with the same options) into the report
+    /// of one unsharded run (byte-identical files), then delete the shard files.
+    #[arg(long, value_name = "N")]
+    pub merge_shards: Option<usize>,
 }
 
 #[derive(Args)]
@@ -290,8 +301,10 @@ fn run_eval(a: EvalArgs) -> Result<()> {
         bail!("--error-maps: '{bad}' is not a frame id of {}", a.manifest.display());
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    report::remove_stale_results(&a.out)?;
-    laparo_core::atomic::remove_stale_temps(&a.out)?;
+    if a.shard.is_none() {
+        report::remove_stale_results(&a.out)?;
+        laparo_core::atomic::remove_stale_temps(&a.out)?;
+    }
     let range = match (a.depth_min_m, a.depth_max_m) {
         (None, None) => None,
         (lo, hi) => {
@@ -307,9 +320,47 @@ fn run_eval(a: EvalArgs) -> Result<()> {
             .progress_chars("=> "),
     );
     let t0 = std::time::Instant::now();
-    let out = evaluate_manifest(&m, &cfg, &|n| pb.set_position(n as u64));
-    pb.finish_and_clear();
-    let out = out?;
+    if let Some(shard) = a.shard {
+        pb.set_length(m.frames.iter().enumerate().filter(|(i, _)| shard.contains(*i)).count() as u64);
+        let r = evaluate_manifest_shard(&m, &cfg, shard, &|n| pb.set_position(n as u64));
+        pb.finish_and_clear();
+        let r = r?;
+        let p = a.out.join(shard_file_name(shard));
+        laparo_core::atomic::write_atomic(&p, r.to_json_string().as_bytes())?;
+        eprintln!(
+            "shard {shard}: {} of {} frames x {} methods in {:.1} s -> {} (merge: laparo depth eval <same options> --merge-shards {})",
+            r.frames.len(),
+            r.n_frames,
+            r.methods.len(),
+            t0.elapsed().as_secs_f64(),
+            p.display(),
+            shard.count
+        );
+        return Ok(());
+    }
+    let (out, shard_files) = match a.merge_shards {
+        Some(n) => {
+            pb.finish_and_clear();
+            if n == 0 {
+                bail!("--merge-shards: N must be >= 1");
+            }
+            let mut shards = Vec::with_capacity(n);
+            let mut files = Vec::with_capacity(n);
+            for i in 0..n {
+                let p = a.out.join(shard_file_name(laparo_core::shard::Shard { index: i, count: n }));
+                let text = std::fs::read_to_string(&p)
+                    .with_context(|| format!("reading shard {i}/{n}: {} (run --shard {i}/{n} first)", p.display()))?;
+                shards.push(EvalShard::from_json_str(&text, &p.display().to_string())?);
+                files.push(p);
+            }
+            (merge_eval_shards(&m, &cfg, &shards)?, files)
+        }
+        None => {
+            let out = evaluate_manifest(&m, &cfg, &|n| pb.set_position(n as u64));
+            pb.finish_and_clear();
+            (out?, Vec::new())
+        }
+    };
     print_gt_warnings(
         &GtRangeCheck::merge_all(&out.gt_checks),
         &format!("{} ({} frames)", a.manifest.display(), out.gt_checks.len()),
@@ -321,6 +372,9 @@ fn run_eval(a: EvalArgs) -> Result<()> {
         written.extend(report::write_figures(&a.out, &m, &out, &summary, &error_maps, a.error_map_alignment)?);
     }
     written.extend(report::write_reports(&a.out, &out, &summary)?);
+    for f in &shard_files {
+        std::fs::remove_file(f).with_context(|| format!("removing merged shard {}", f.display()))?;
+    }
     print!("{}", report::terminal_summary(&summary));
     eprintln!(
         "{} frames x {} methods in {:.1} s; wrote {} files under {}",

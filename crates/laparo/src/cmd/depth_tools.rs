@@ -42,6 +42,11 @@ pub struct PerturbArgs {
     /// from those recorded in `<out>/perturb.resume.json` is refused.
     #[arg(long, alias = "overwrite")]
     pub force: bool,
+    /// Process only shard I of N (input images whose position in the sorted input list is
+    /// I mod N): N processes with 0/N .. N-1/N (same --out, or merged with `rsync -a`) write
+    /// exactly the files of one unsharded run.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<laparo_core::shard::Shard>,
 }
 
 /// Arguments of `laparo depth reproject`.
@@ -240,13 +245,16 @@ pub fn perturb(a: PerturbArgs) -> Result<()> {
         None => None,
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let n_tmp = laparo_core::atomic::remove_stale_temps(&a.out)?;
+    let shard = a.shard.unwrap_or(laparo_core::shard::Shard::ALL);
+    // Concurrent shards may share --out: only an unsharded run removes other processes' temporaries.
+    let n_tmp = if shard.count == 1 { laparo_core::atomic::remove_stale_temps(&a.out)? } else { 0 };
     if n_tmp > 0 {
         eprintln!("removed {n_tmp} temporary file(s) left by an interrupted run in {}", a.out.display());
     }
     check_perturb_resume(&a.out, a.seed, &kinds, &sevs, a.force)?;
 
-    let jobs: Vec<(usize, Perturbation)> = (0..inputs.len()).flat_map(|i| kinds.iter().map(move |&k| (i, k))).collect();
+    let jobs: Vec<(usize, Perturbation)> =
+        (0..inputs.len()).filter(|&i| shard.contains(i)).flat_map(|i| kinds.iter().map(move |&k| (i, k))).collect();
     let n_total = jobs.len() * sevs.len();
     let pb = ProgressBar::new(n_total as u64);
     pb.set_style(
@@ -515,6 +523,7 @@ mod tests {
             gt_unit: "m".into(),
             scene: Some("organ".into()),
             force: false,
+            shard: None,
         }
     }
 

@@ -1,0 +1,52 @@
+//! laparo-py — the Python package `laparo` (PyO3 + maturin, one abi3 wheel): RoDEM depth
+//! evaluation (thesis §3.2), CATS augmentation and stereo geometry (§3.3), Conformal
+//! Perspective Correction (Ch. 4) and differentiable MPM (§5.2) on NumPy arrays.
+//!
+//! This crate is the compiled extension `laparo._laparo`; the Python modules in
+//! `python/laparo/` wrap it with keyword arguments, docstrings and `.pyi` stubs. Every entry
+//! point validates its arguments (dtype, shape, contiguity, NaN) and raises `TypeError` /
+//! `ValueError` naming the argument; a Rust panic becomes a `RuntimeError`, never an abort.
+//! Heavy work runs with the GIL released.
+//!
+//! Build: `maturin develop --release -m crates/laparo-py/Cargo.toml` (see README.md).
+#![warn(missing_docs)]
+
+mod arrays;
+mod cpc;
+mod depth;
+mod mpm;
+mod stereo;
+
+use pyo3::prelude::*;
+
+/// The compiled module; see the Python package `laparo` for the documented API.
+#[pymodule]
+fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(arrays::set_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(arrays::get_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(depth::depth_evaluate_pair, m)?)?;
+    m.add_function(wrap_pyfunction!(depth::depth_evaluate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(depth::depth_perturb, m)?)?;
+    m.add_function(wrap_pyfunction!(depth::depth_item_seed, m)?)?;
+    m.add_function(wrap_pyfunction!(depth::depth_perturbation_kinds, m)?)?;
+    m.add_class::<stereo::PyCatsConfig>()?;
+    m.add_function(wrap_pyfunction!(stereo::cats_sample_params, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_augment, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_discover, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_augment_folder_sample, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_augment_sample_files, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_sample_seed, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::cats_augment_dataset, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::stereo_read_calibration, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::stereo_rectify, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::stereo_disparity_to_depth, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::stereo_depth_to_disparity, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo::stereo_evaluate, m)?)?;
+    m.add_class::<cpc::PyCpcWarp>()?;
+    m.add_function(wrap_pyfunction!(cpc::cpc_warp_frame, m)?)?;
+    m.add_class::<mpm::PyMpmScene>()?;
+    m.add_function(wrap_pyfunction!(mpm::mpm_box_lattice, m)?)?;
+    m.add_function(wrap_pyfunction!(mpm::mpm_cfl_dt, m)?)?;
+    Ok(())
+}
