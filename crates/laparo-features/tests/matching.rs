@@ -156,7 +156,7 @@ fn empty_and_bad_inputs() {
     let one = random_binary(1, &mut rng);
     assert!(match_features(&a, &one, &MatchConfig { ratio: RatioTest::Lowe(0.8), mutual: false }).unwrap().is_empty());
     assert_eq!(match_features(&a, &one, &MatchConfig { ratio: RatioTest::None, mutual: false }).unwrap().len(), 5);
-    let f = float_feats(&[vec![0.0; 32]; 5]);
+    let f = float_feats(&vec![vec![0.0; 32]; 5]);
     let e = match_features(&a, &f, &MatchConfig::default()).unwrap_err().to_string();
     assert!(e.contains("descriptors"), "{e}");
     let e = match_features(&a, &a, &MatchConfig { ratio: RatioTest::Lowe(1.5), mutual: false }).unwrap_err().to_string();

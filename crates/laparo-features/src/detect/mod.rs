@@ -7,9 +7,11 @@ use crate::error::{FeaturesError, Result};
 use crate::keypoint::Features;
 
 pub mod orb;
+mod orb_cv;
+mod orb_pattern;
 pub mod sift;
 
-pub use orb::OrbParams;
+pub use orb::{OrbBackend, OrbParams};
 pub use sift::SiftParams;
 
 /// Which detector + descriptor to run (`Default` impls are OpenCV's defaults).
