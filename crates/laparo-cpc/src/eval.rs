@@ -46,6 +46,13 @@ pub struct View<'a> {
     pub cam_from_world: Se3,
 }
 
+impl<'a> View<'a> {
+    /// A rendered scene as a view (world = the surface patch frame).
+    pub fn of_scene(s: &'a crate::scene::Scene) -> View<'a> {
+        View { image: &s.image, depth: &s.depth, intrinsics: &s.intrinsics, roi: &s.roi, cam_from_world: s.pose }
+    }
+}
+
 /// A detector + matcher combination (one row pair of Table 4.1).
 #[derive(Clone, Debug, Serialize)]
 pub struct Method {

@@ -101,8 +101,7 @@ fn matching_subsection(dir: &Path) -> Result<(String, serde_json::Value)> {
         let name = if kind == PairKind::Easy { "easy" } else { "hard" };
         let tex = crate::cmd::cpc_eval::texture("retina.jpg");
         let p = scene::render_pair(&scene::pair_spec(kind, tex))?;
-        let view = |s: &scene::Scene| View { image: &s.image, depth: &s.depth, intrinsics: &s.intrinsics, roi: &s.roi, cam_from_world: s.pose };
-        let (v1, v2) = (view(&p.view1), view(&p.view2));
+        let (v1, v2) = (View::of_scene(&p.view1), View::of_scene(&p.view2));
         let e = eval::evaluate_pair(&v1, &v2, &settings)?;
         for run in &e.runs {
             let f = format!("match_{name}_{}{}.png", if run.row.cpc { "cpc_" } else { "" }, run.row.method.to_ascii_lowercase().replace('+', "_"));
