@@ -263,7 +263,7 @@ mod tests {
                 for yy in 0..h {
                     for xx in 0..w {
                         if !m.get(xx, yy, 0) {
-                            best = best.min(((x as f64 - xx as f64).powi(2) + (y as f64 - yy as f64).powi(2)) as f64);
+                            best = best.min((x as f64 - xx as f64).powi(2) + (y as f64 - yy as f64).powi(2));
                         }
                     }
                 }

@@ -532,7 +532,7 @@ impl Warp {
         }
         let med = laparo_core::stats::median(&mut finite);
         let cut = limit * med;
-        let drop: Vec<bool> = mag.iter().map(|&m| !(m <= cut)).collect();
+        let drop: Vec<bool> = mag.iter().map(|&m| m.is_nan() || m > cut).collect();
         let n = drop.iter().filter(|&&d| d).count();
         if n > 0 {
             self.face_id.par_iter_mut().for_each(|t| {
