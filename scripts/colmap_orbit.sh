@@ -10,7 +10,7 @@ TEX=${TEX:-gravel.png}
 command -v colmap >/dev/null || { echo "colmap not found (apt-get install colmap)"; exit 2; }
 rm -rf "$OUT"; mkdir -p "$OUT/images" "$OUT/render" "$OUT/sparse"
 for yaw in -24 -18 -12 -6 0 6 12 18 24; do
-  "$LAPARO" cpc scene --surface bumpy --tilt 20 --yaw "$yaw" --texture "$TEX" --out "$OUT/render/$yaw" >/dev/null
+  "$LAPARO" cpc scene --surface bumpy --tilt 20 --yaw="$yaw" --texture "$TEX" --out "$OUT/render/$yaw" >/dev/null
   cp "$OUT/render/$yaw/image.png" "$OUT/images/$(printf 'yaw_%+03d.png' "$yaw")"
 done
 # The renderer's pinhole intrinsics (same for every view).

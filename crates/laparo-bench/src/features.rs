@@ -6,7 +6,9 @@ use crate::timing::time_min_median;
 use anyhow::{Context, Result};
 use clap::Args;
 use laparo_features::refcheck::{evaluate_homography, load_gray_crop, similarity_h};
-use laparo_features::{detect_and_describe, match_features, Descriptors, DetectorConfig, Features, Keypoint, MatchConfig};
+use laparo_features::{
+    detect_and_describe, match_features, Descriptors, DetectorConfig, Features, Keypoint, MatchConfig,
+};
 use rand::{Rng, SeedableRng};
 use std::path::PathBuf;
 
@@ -30,6 +32,43 @@ pub struct BenchArgs {
     pub peer_script: PathBuf,
 }
 
+/// CPU time of this process, ms (CLOCK_PROCESS_CPUTIME_ID): on a shared, loaded machine the
+/// wall time of a long single-threaded job is inflated by the other jobs' share of the cores,
+/// its CPU time is not.
+fn cpu_ms() -> f64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes into the timespec we own.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 * 1e3 + ts.tv_nsec as f64 * 1e-6
+}
+
+/// One untimed warm-up, then the minimum CPU time (ms) of `runs` calls.
+fn cpu_min(runs: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    (0..runs.max(1))
+        .map(|_| {
+            let t = cpu_ms();
+            f();
+            cpu_ms() - t
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// OpenCV detect+describe CPU time on the peer's own images (its `load_gray`), one thread.
+const PEER_CPU: &str = r#"
+import sys, json, time, importlib.util, cv2
+spec = importlib.util.spec_from_file_location("fr", sys.argv[1]); fr = importlib.util.module_from_spec(spec); spec.loader.exec_module(fr)
+cv2.setNumThreads(1); runs = int(sys.argv[2]); out = {}
+for p in sys.argv[3:]:
+    img = fr.load_gray(p, 640, 480)
+    for name, det in (("SIFT", cv2.SIFT_create()), ("ORB", cv2.ORB_create(nfeatures=2000))):
+        det.detectAndCompute(img, None); ts = []
+        for _ in range(runs):
+            t = time.process_time(); det.detectAndCompute(img, None); ts.append(time.process_time() - t)
+        out[p.split("/")[-1] + ":" + name] = 1000 * min(ts)
+print(json.dumps(out))
+"#;
+
 fn random_features(n: usize, binary: bool, seed: u64) -> Features {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let keypoints = vec![Keypoint { x: 0.0, y: 0.0, size_px: 1.0, angle_rad: 0.0, response: 0.0, octave: 0 }; n];
@@ -43,7 +82,10 @@ fn random_features(n: usize, binary: bool, seed: u64) -> Features {
 
 pub fn run(a: BenchArgs) -> Result<()> {
     let images = if a.images.is_empty() {
-        ["brick.png", "gravel.png", "retina.jpg", "coffee.png"].iter().map(|n| PathBuf::from("../shared/data/textures").join(n)).collect()
+        ["brick.png", "gravel.png", "retina.jpg", "coffee.png"]
+            .iter()
+            .map(|n| PathBuf::from("../shared/data/textures").join(n))
+            .collect()
     } else {
         a.images.clone()
     };
@@ -61,20 +103,33 @@ pub fn run(a: BenchArgs) -> Result<()> {
                     std::hint::black_box(detect_and_describe(&img, &cfg, None).expect("valid image"));
                 })
             });
+            let tc = pool.install(|| {
+                cpu_min(a.runs, || {
+                    std::hint::black_box(detect_and_describe(&img, &cfg, None).expect("valid image"));
+                })
+            });
             println!(
-                "{name:12} {:5} kp {:5}  rep {:.3}  prec {:.3}  MS {:.3}  matches {:5}  t {:.1} ms (min) / {:.1} (median)",
-                det.to_uppercase(), q.kp1, q.repeatability, q.precision, q.matching_score, q.matches, t.0, t.1
+                "{name:12} {:5} kp {:5}  rep {:.3}  prec {:.3}  MS {:.3}  matches {:5}  t {:.1} ms (min) / {:.1} (median)  cpu {:.1} ms (min)",
+                det.to_uppercase(), q.kp1, q.repeatability, q.precision, q.matching_score, q.matches, t.0, t.1, tc
             );
-            results.insert(format!("{name}:{}", det.to_uppercase()), serde_json::json!({
-                "kp1": q.kp1, "repeatability": q.repeatability, "precision": q.precision,
-                "matching_score": q.matching_score, "matches": q.matches,
-                "ms_detect_describe_min": t.0, "ms_detect_describe_median": t.1,
-            }));
+            results.insert(
+                format!("{name}:{}", det.to_uppercase()),
+                serde_json::json!({
+                    "kp1": q.kp1, "repeatability": q.repeatability, "precision": q.precision,
+                    "matching_score": q.matching_score, "matches": q.matches,
+                    "ms_detect_describe_min": t.0, "ms_detect_describe_median": t.1, "cpu_ms_min": tc,
+                }),
+            );
         }
     }
     let (ha, hb) = (random_features(2000, true, 1), random_features(2000, true, 2));
     let (fa, fb) = (random_features(2000, false, 3), random_features(2000, false, 4));
     let cfg = MatchConfig::default();
+    let tham_cpu = pool.install(|| {
+        cpu_min(a.runs.max(5), || {
+            std::hint::black_box(match_features(&ha, &hb, &MatchConfig { mutual: false, ..cfg }).expect("same kind"));
+        })
+    });
     let (tham, tl2) = pool.install(|| {
         (
             time_min_median(a.runs.max(5), || {
@@ -92,8 +147,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
             std::hint::black_box(match_features(&ha, &hb, &one_way).expect("same kind"));
         })
     });
-    println!("matching 2000x2000 Hamming (32 B): one-way {:.2} ms, mutual {:.2} ms (min); SIFT L2 (128-D) mutual {:.1} ms (min); {} thread(s)", tham1.0, tham.0, tl2.0, a.threads);
-    results.insert("match_hamming_2000x2000".into(), serde_json::json!({"one_way_min_ms": tham1.0, "mutual_min_ms": tham.0, "mutual_median_ms": tham.1}));
+    println!("matching 2000x2000 Hamming (32 B): one-way {:.2} ms (cpu {:.2}), mutual {:.2} ms (min); SIFT L2 (128-D) mutual {:.1} ms (min); {} thread(s)", tham1.0, tham_cpu, tham.0, tl2.0, a.threads);
+    results.insert("match_hamming_2000x2000".into(), serde_json::json!({"one_way_min_ms": tham1.0, "one_way_cpu_min_ms": tham_cpu, "mutual_min_ms": tham.0, "mutual_median_ms": tham.1}));
     results.insert("match_l2_2000x2000".into(), serde_json::json!({"mutual_min_ms": tl2.0, "mutual_median_ms": tl2.1}));
     let mut out = serde_json::json!({"laparo": env!("CARGO_PKG_VERSION"), "threads": a.threads, "results": results});
     if let Some(py) = &a.peer_python {
@@ -101,7 +156,15 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let o = std::process::Command::new(py)
             .arg(&a.peer_script)
             .args(&images)
-            .args(["--detectors", "SIFT,ORB", "--threads", &a.threads.to_string(), "--repeats", &a.runs.to_string(), "--json"])
+            .args([
+                "--detectors",
+                "SIFT,ORB",
+                "--threads",
+                &a.threads.to_string(),
+                "--repeats",
+                &a.runs.to_string(),
+                "--json",
+            ])
             .arg(&tmp)
             .output()
             .with_context(|| format!("running {} {}", py.display(), a.peer_script.display()))?;
@@ -111,13 +174,38 @@ pub fn run(a: BenchArgs) -> Result<()> {
         print!("{}", String::from_utf8_lossy(&o.stdout));
         let peer: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&tmp)?)?;
         let _ = std::fs::remove_file(&tmp);
-        println!("ratio laparo / OpenCV {} (detect+describe, min of {} runs, {} thread(s)):", peer["opencv"], a.runs, a.threads);
+        println!(
+            "ratio laparo / OpenCV {} (detect+describe, min of {} runs, {} thread(s)):",
+            peer["opencv"], a.runs, a.threads
+        );
         for (k, v) in &out["results"].as_object().cloned().unwrap_or_default() {
-            if let (Some(l), Some(c)) = (v["ms_detect_describe_min"].as_f64(), peer["results"][k]["ms_detect_describe_min"].as_f64()) {
+            if let (Some(l), Some(c)) =
+                (v["ms_detect_describe_min"].as_f64(), peer["results"][k]["ms_detect_describe_min"].as_f64())
+            {
                 println!("  {k:20} laparo {l:8.1} ms  OpenCV {c:8.1} ms  ratio {:.2}", l / c);
             }
         }
         out["peer"] = peer;
+        if a.threads == 1 {
+            let o = std::process::Command::new(py)
+                .args(["-c", PEER_CPU])
+                .arg(&a.peer_script)
+                .arg(a.runs.to_string())
+                .args(&images)
+                .output()
+                .context("running the OpenCV CPU-time peer")?;
+            if !o.status.success() {
+                anyhow::bail!("CPU-time peer failed: {}", String::from_utf8_lossy(&o.stderr));
+            }
+            let cpu: serde_json::Value = serde_json::from_slice(&o.stdout)?;
+            println!("ratio laparo / OpenCV, process CPU time (min of {} runs, 1 thread):", a.runs);
+            for (k, v) in &out["results"].as_object().cloned().unwrap_or_default() {
+                if let (Some(l), Some(c)) = (v["cpu_ms_min"].as_f64(), cpu[k].as_f64()) {
+                    println!("  {k:20} laparo {l:8.1} ms  OpenCV {c:8.1} ms  ratio {:.2}", l / c);
+                }
+            }
+            out["peer_cpu_ms_min"] = cpu;
+        }
     }
     println!("{}", serde_json::to_string(&out)?);
     Ok(())

@@ -35,7 +35,13 @@ pub struct OrbParams {
 
 impl Default for OrbParams {
     fn default() -> Self {
-        OrbParams { backend: OrbBackend::OpenCv, n_features: 2000, scale_factor: 1.2, n_levels: 8, fast_threshold: 20.0 }
+        OrbParams {
+            backend: OrbBackend::OpenCv,
+            n_features: 2000,
+            scale_factor: 1.2,
+            n_levels: 8,
+            fast_threshold: 20.0,
+        }
     }
 }
 

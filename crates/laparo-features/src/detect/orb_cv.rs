@@ -17,8 +17,22 @@ const EDGE: usize = 31;
 const HALF_PATCH: i32 = 15;
 /// The 16-pixel Bresenham circle of radius 3 (dx, dy), contiguous.
 const CIRCLE: [(i32, i32); 16] = [
-    (0, 3), (1, 3), (2, 2), (3, 1), (3, 0), (3, -1), (2, -2), (1, -3),
-    (0, -3), (-1, -3), (-2, -2), (-3, -1), (-3, 0), (-3, 1), (-2, 2), (-1, 3),
+    (0, 3),
+    (1, 3),
+    (2, 2),
+    (3, 1),
+    (3, 0),
+    (3, -1),
+    (2, -2),
+    (1, -3),
+    (0, -3),
+    (-1, -3),
+    (-2, -2),
+    (-3, -1),
+    (-3, 0),
+    (-3, 1),
+    (-2, 2),
+    (-1, 3),
 ];
 
 /// Keypoint budget per level: geometric series with ratio 1/scale (OpenCV).
@@ -46,7 +60,9 @@ fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
             [((x + 0.5) * sx - 0.5).clamp(0.0, mx), ((y + 0.5) * sy - 0.5).clamp(0.0, my)]
         })
         .collect();
-    remap(img, &CoordMap { width: w, height: h, xy }, Interp::Bilinear, 0u8).map(|(o, _)| o).unwrap_or_else(|_| Image::filled(w, h, 1, 0))
+    remap(img, &CoordMap { width: w, height: h, xy }, Interp::Bilinear, 0u8)
+        .map(|(o, _)| o)
+        .unwrap_or_else(|_| Image::filled(w, h, 1, 0))
 }
 
 /// FAST-9 score of pixel (x, y): the largest t for which 9 contiguous circle pixels are all
@@ -66,8 +82,22 @@ fn fast_score(d: &[u8], w: usize, x: usize, y: usize, thr: i32) -> i32 {
         return 0;
     }
     let mut v = [0i32; 16];
+    let (mut bm, mut dm) = (0u32, 0u32);
     for (k, e) in v.iter_mut().enumerate() {
         *e = at(k) - p;
+        bm |= ((*e > thr) as u32) << k;
+        dm |= ((*e < -thr) as u32) << k;
+    }
+    // 9 contiguous set bits on the 16-ring (doubled so arcs may wrap).
+    let has9 = |m: u32| {
+        let mut r = m | (m << 16);
+        for _ in 1..9 {
+            r &= r >> 1;
+        }
+        r & 0xFFFF != 0
+    };
+    if !has9(bm) && !has9(dm) {
+        return 0;
     }
     let (mut best_b, mut best_d) = (i32::MIN, i32::MIN);
     for s in 0..16 {
@@ -150,8 +180,12 @@ fn harris(img: &Image<u8>, x: usize, y: usize) -> f64 {
     let (mut a, mut b, mut c) = (0i64, 0i64, 0i64);
     for yy in y - 3..=y + 3 {
         for xx in x - 3..=x + 3 {
-            let ix = (px(xx + 1, yy) - px(xx - 1, yy)) * 2 + (px(xx + 1, yy - 1) - px(xx - 1, yy - 1)) + (px(xx + 1, yy + 1) - px(xx - 1, yy + 1));
-            let iy = (px(xx, yy + 1) - px(xx, yy - 1)) * 2 + (px(xx - 1, yy + 1) - px(xx - 1, yy - 1)) + (px(xx + 1, yy + 1) - px(xx + 1, yy - 1));
+            let ix = (px(xx + 1, yy) - px(xx - 1, yy)) * 2
+                + (px(xx + 1, yy - 1) - px(xx - 1, yy - 1))
+                + (px(xx + 1, yy + 1) - px(xx - 1, yy + 1));
+            let iy = (px(xx, yy + 1) - px(xx, yy - 1)) * 2
+                + (px(xx - 1, yy + 1) - px(xx - 1, yy - 1))
+                + (px(xx + 1, yy + 1) - px(xx + 1, yy - 1));
             a += (ix * ix) as i64;
             b += (iy * iy) as i64;
             c += (ix * iy) as i64;
@@ -210,15 +244,17 @@ fn ic_angle(img: &Image<u8>, x: usize, y: usize, um: &[i32; 16]) -> f64 {
     }
 }
 
-/// 7×7 Gaussian blur, σ = 2, border reflect-101 (OpenCV's pre-BRIEF smoothing).
+/// 7×7 Gaussian blur, σ = 2, border reflect-101 (OpenCV's pre-BRIEF smoothing); separable,
+/// interior rows and columns without border arithmetic so the loops vectorise.
 fn blur7(img: &Image<u8>) -> Image<u8> {
-    let k: Vec<f32> = {
-        let g: Vec<f32> = (-3..=3).map(|i: i32| (-(i * i) as f32 / 8.0).exp()).collect();
+    let k: [f32; 7] = {
+        let g: [f32; 7] = std::array::from_fn(|i| (-((i as f32 - 3.0).powi(2)) / 8.0).exp());
         let s: f32 = g.iter().sum();
-        g.iter().map(|v| v / s).collect()
+        g.map(|v| v / s)
     };
-    let (w, h) = (img.width as i64, img.height as i64);
-    let refl = |i: i64, n: i64| -> usize {
+    let (w, h) = (img.width, img.height);
+    let refl = |i: i64, n: usize| -> usize {
+        let n = n as i64;
         if n == 1 {
             return 0;
         }
@@ -228,17 +264,38 @@ fn blur7(img: &Image<u8>) -> Image<u8> {
         }
         i as usize
     };
-    let mut tmp = vec![0f32; (w * h) as usize];
-    tmp.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+    let mut tmp = vec![0f32; w * h];
+    tmp.par_chunks_mut(w).zip(img.data.par_chunks(w)).for_each(|(row, src)| {
         for x in 0..w {
-            row[x as usize] = (0..7).map(|t| k[t] * img.data[y * w as usize + refl(x + t as i64 - 3, w)] as f32).sum();
+            if x >= 3 && x + 3 < w {
+                let win = &src[x - 3..x + 4];
+                row[x] = k[0] * win[0] as f32
+                    + k[1] * win[1] as f32
+                    + k[2] * win[2] as f32
+                    + k[3] * win[3] as f32
+                    + k[4] * win[4] as f32
+                    + k[5] * win[5] as f32
+                    + k[6] * win[6] as f32;
+            } else {
+                row[x] = (0..7).map(|t| k[t] * src[refl(x as i64 + t as i64 - 3, w)] as f32).sum();
+            }
         }
     });
-    let mut out = Image::filled(w as usize, h as usize, 1, 0u8);
-    out.data.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-        for x in 0..w as usize {
-            let v: f32 = (0..7).map(|t| k[t] * tmp[refl(y as i64 + t as i64 - 3, h) * w as usize + x]).sum();
-            row[x] = v.round().clamp(0.0, 255.0) as u8;
+    let mut out = Image::filled(w, h, 1, 0u8);
+    out.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let rows: [&[f32]; 7] = std::array::from_fn(|t| {
+            let yy = refl(y as i64 + t as i64 - 3, h);
+            &tmp[yy * w..(yy + 1) * w]
+        });
+        for x in 0..w {
+            let v = k[0] * rows[0][x]
+                + k[1] * rows[1][x]
+                + k[2] * rows[2][x]
+                + k[3] * rows[3][x]
+                + k[4] * rows[4][x]
+                + k[5] * rows[5][x]
+                + k[6] * rows[6][x];
+            row[x] = (v + 0.5) as u8;
         }
     });
     out
@@ -249,10 +306,14 @@ fn brief(img: &Image<u8>, x: usize, y: usize, angle: f64) -> [u8; 32] {
     let (a, b) = ((angle as f32).cos(), (angle as f32).sin());
     let (w, d) = (img.width as i64, &img.data);
     let c = y as i64 * w + x as i64;
+    // cvRound (half to even) by the 1.5·2²³ trick: exact for |v| < 2²², no libm call (SSE2
+    // has no round instruction; `round_ties_even` became a call to rintf, 11 % of ORB's time).
+    const MAGIC: f32 = 12_582_912.0;
+    let rnd = |v: f32| ((v + MAGIC) - MAGIC) as i64;
     let val = |px: i8, py: i8| {
         let (px, py) = (px as f32, py as f32);
-        let yy = (px * b + py * a).round_ties_even() as i64;
-        let xx = (px * a - py * b).round_ties_even() as i64;
+        let yy = rnd(px * b + py * a);
+        let xx = rnd(px * a - py * b);
         d[(c + yy * w + xx) as usize]
     };
     let mut out = [0u8; 32];
@@ -273,16 +334,21 @@ fn level_features(img: &Image<u8>, budget: usize, thr: i32, um: &[i32; 16]) -> V
         return vec![];
     }
     let (w, h) = (img.width, img.height);
-    let corners: Vec<_> = fast9(img, thr).into_iter().filter(|&(x, y, _)| x >= EDGE && x < w - EDGE && y >= EDGE && y < h - EDGE).collect();
+    let corners: Vec<_> = fast9(img, thr)
+        .into_iter()
+        .filter(|&(x, y, _)| x >= EDGE && x < w - EDGE && y >= EDGE && y < h - EDGE)
+        .collect();
     let corners = retain_best(corners, 2 * budget, |&s| s as f64);
     let scored: Vec<(usize, usize, f64)> = corners.iter().map(|&(x, y, _)| (x, y, harris(img, x, y))).collect();
     let mut best = retain_best(scored, budget, |&r| r);
     best.truncate(budget);
     let blurred = blur7(img);
-    best.iter().map(|&(x, y, r)| {
-        let a = ic_angle(img, x, y, um);
-        (x, y, r, a, brief(&blurred, x, y, a))
-    }).collect()
+    best.iter()
+        .map(|&(x, y, r)| {
+            let a = ic_angle(img, x, y, um);
+            (x, y, r, a, brief(&blurred, x, y, a))
+        })
+        .collect()
 }
 
 /// OpenCV-style ORB on a grey u8 image (parameters checked by the caller).
@@ -307,7 +373,14 @@ pub fn detect_and_describe(gray: &Image<u8>, p: &OrbParams) -> Features {
     for (k, feats) in per.into_iter().enumerate() {
         let s = scale.powi(k as i32);
         for (x, y, r, a, d) in feats {
-            keypoints.push(Keypoint { x: x as f64 * s, y: y as f64 * s, size_px: 31.0 * s, angle_rad: a, response: r, octave: k as i32 });
+            keypoints.push(Keypoint {
+                x: x as f64 * s,
+                y: y as f64 * s,
+                size_px: 31.0 * s,
+                angle_rad: a,
+                response: r,
+                octave: k as i32,
+            });
             data.extend_from_slice(&d);
         }
     }

@@ -4,7 +4,8 @@
 //! * `match`: detect in two images, match (ratio test, mutual check) → matches.json and a match
 //!   picture; with `--homography`, matches are scored (two-way transfer error < ε: green correct,
 //!   red wrong) as in thesis §4.5.1;
-//! * `colmap`: detect in every image of a folder, match all pairs, write a COLMAP database.db.
+//! * `colmap`: detect in every image of a folder, match all pairs, verify them (RANSAC F / H),
+//!   write a COLMAP database.db that `colmap mapper` reads.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -14,7 +15,11 @@ use laparo_core::io;
 use laparo_features::colmap::{CameraModel, ColmapCamera, ColmapDatabase, TwoViewConfig, TwoViewGeometry};
 use laparo_features::draw::{GREEN, RED};
 use laparo_features::refcheck::{apply_h, invert_h};
-use laparo_features::{detect_and_describe, draw_matches, match_features, DetectorConfig, Features, Match, MatchConfig, RatioTest};
+use laparo_features::{
+    detect_and_describe, draw_matches, find_fundamental, find_homography, match_features, DetectorConfig, Features,
+    Match, MatchConfig, RansacParams, RatioTest,
+};
+use nalgebra::Matrix3;
 use rayon::prelude::*;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -96,9 +101,9 @@ pub struct ColmapArgs {
     pub opts: MatchOpts,
     /// Pinhole intrinsics fx,fy,cx,cy in px (laparo convention: pixel centres at integers);
     /// default: SIMPLE_RADIAL with f = 1.2·max(w, h) and the image centre, refined by COLMAP.
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    #[arg(long, value_delimiter = ',')]
     pub intrinsics: Option<Vec<f64>>,
-    /// Minimum matches for a pair to be written to two_view_geometries (COLMAP: 15).
+    /// Minimum RANSAC inliers (F, 4 px) for a pair to be written to two_view_geometries (COLMAP: 15).
     #[arg(long, default_value_t = 15)]
     pub min_matches: usize,
     /// Output database (replaced if it exists).
@@ -149,7 +154,8 @@ fn read_mask(p: &Option<PathBuf>, img: &Image<u8>, what: &str) -> Result<Option<
 }
 
 fn write_json(p: &Path, v: &serde_json::Value) -> Result<()> {
-    write_atomic(p, (serde_json::to_string_pretty(v)? + "\n").as_bytes()).with_context(|| format!("writing {}", p.display()))
+    write_atomic(p, (serde_json::to_string_pretty(v)? + "\n").as_bytes())
+        .with_context(|| format!("writing {}", p.display()))
 }
 
 fn detect_cmd(a: &DetectArgs) -> Result<()> {
@@ -170,7 +176,8 @@ fn detect_cmd(a: &DetectArgs) -> Result<()> {
 /// Read a 3×3 homography from JSON: `[[…],[…],[…]]`, a flat 9-array, or `{"H": …}`.
 pub fn read_homography(p: &Path) -> Result<[[f64; 3]; 3]> {
     let s = std::fs::read_to_string(p).with_context(|| format!("reading --homography {}", p.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&s).with_context(|| format!("parsing --homography {}", p.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&s).with_context(|| format!("parsing --homography {}", p.display()))?;
     let v = v.get("H").cloned().unwrap_or(v);
     let flat: Vec<f64> = match &v {
         serde_json::Value::Array(rows) => rows
@@ -200,7 +207,8 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
     let h = a.homography.as_deref().map(read_homography).transpose()?;
     let (img1, img2) = (read_gray(&a.image1)?, read_gray(&a.image2)?);
     let (m1, m2) = (read_mask(&a.mask1, &img1, "--mask1")?, read_mask(&a.mask2, &img2, "--mask2")?);
-    let (f1, f2) = rayon::join(|| detect_and_describe(&img1, &det, m1.as_ref()), || detect_and_describe(&img2, &det, m2.as_ref()));
+    let (f1, f2) =
+        rayon::join(|| detect_and_describe(&img1, &det, m1.as_ref()), || detect_and_describe(&img2, &det, m2.as_ref()));
     let (f1, f2) = (f1?, f2?);
     let matches = match_features(&f1, &f2, &mcfg)?;
     // Two-way averaged transfer error (thesis §4.5.1) under the homography, if given.
@@ -228,7 +236,8 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
         .enumerate()
         .map(|(k, m)| {
             let (p, q) = (f1.keypoints[m.i1 as usize], f2.keypoints[m.i2 as usize]);
-            let mut r = json!({"i1": m.i1, "i2": m.i2, "x1": p.x, "y1": p.y, "x2": q.x, "y2": q.y, "distance": m.distance});
+            let mut r =
+                json!({"i1": m.i1, "i2": m.i2, "x1": p.x, "y1": p.y, "x2": q.x, "y2": q.y, "distance": m.distance});
             if let Some(e) = &errors {
                 r["transfer_error_px"] = json!(e[k]);
                 r["correct"] = json!(e[k] < a.eps_px);
@@ -245,7 +254,12 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
     });
     write_json(&a.out.join("matches.json"), &summary)?;
     match n_correct {
-        Some(c) => println!("{} matches, {c} correct (two-way transfer error < {} px) -> {}", matches.len(), a.eps_px, a.out.display()),
+        Some(c) => println!(
+            "{} matches, {c} correct (two-way transfer error < {} px) -> {}",
+            matches.len(),
+            a.eps_px,
+            a.out.display()
+        ),
         None => println!("{} matches ({} / {} keypoints) -> {}", matches.len(), f1.len(), f2.len(), a.out.display()),
     }
     Ok(())
@@ -267,9 +281,53 @@ fn list_images(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
+/// laparo px (pixel centres at integers) → COLMAP px (+0.5): x' = T x, T = [1 0 .5; 0 1 .5; 0 0 1].
+fn to_colmap_px(m: &Matrix3<f64>, is_h: bool) -> [f64; 9] {
+    let t = Matrix3::new(1.0, 0.0, 0.5, 0.0, 1.0, 0.5, 0.0, 0.0, 1.0);
+    let ti = Matrix3::new(1.0, 0.0, -0.5, 0.0, 1.0, -0.5, 0.0, 0.0, 1.0);
+    // H' = T H T⁻¹; F' = T⁻ᵀ F T⁻¹.
+    let r = if is_h { t * m * ti } else { ti.transpose() * m * ti };
+    std::array::from_fn(|k| r[(k / 3, k % 3)])
+}
+
+/// RANSAC verification of one pair (None: fewer than `min` inliers or no model).
+fn verify_pair(f1: &Features, f2: &Features, m: &[Match], min: usize, seed: u64) -> Option<TwoViewGeometry> {
+    if m.len() < min.max(8) {
+        return None;
+    }
+    let p1: Vec<[f64; 2]> = m.iter().map(|m| [f1.keypoints[m.i1 as usize].x, f1.keypoints[m.i1 as usize].y]).collect();
+    let p2: Vec<[f64; 2]> = m.iter().map(|m| [f2.keypoints[m.i2 as usize].x, f2.keypoints[m.i2 as usize].y]).collect();
+    let prm = RansacParams { threshold_px: 4.0, confidence: 0.999, max_iters: 10_000, seed };
+    let ff = find_fundamental(&p1, &p2, &prm).ok()?;
+    if ff.n_inliers < min {
+        return None;
+    }
+    let hf = find_homography(&p1, &p2, &prm).ok();
+    let planar = hf.as_ref().is_some_and(|h| h.n_inliers as f64 > 0.8 * ff.n_inliers as f64);
+    let (config, flags) = if planar {
+        (TwoViewConfig::PlanarOrPanoramic, &hf.as_ref().expect("planar implies H").inliers)
+    } else {
+        (TwoViewConfig::Uncalibrated, &ff.inliers)
+    };
+    Some(TwoViewGeometry {
+        config,
+        inliers: m.iter().zip(flags).filter(|(_, &ok)| ok).map(|(m, _)| *m).collect(),
+        f: to_colmap_px(&ff.model, false),
+        e: [0.0; 9],
+        h: hf.map(|h| to_colmap_px(&h.model, true)).unwrap_or([0.0; 9]),
+        qvec: [1.0, 0.0, 0.0, 0.0],
+        tvec: [0.0; 3],
+    })
+}
+
 fn colmap_cmd(a: &ColmapArgs) -> Result<()> {
     refuse_overwrite(&a.colmap_db, &[&a.images], false).context("--colmap-db")?;
     let (det, mcfg) = match_config(&a.opts)?;
+    if let Some(k) = &a.intrinsics {
+        if k.len() != 4 || k.iter().any(|v| !v.is_finite()) || k[0] <= 0.0 || k[1] <= 0.0 {
+            bail!("--intrinsics: expected fx,fy,cx,cy (4 finite numbers, fx, fy > 0), got {k:?}");
+        }
+    }
     let paths = list_images(&a.images)?;
     let style = ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}").expect("valid template");
     let pb = ProgressBar::new(paths.len() as u64).with_style(style.clone()).with_message("detect");
@@ -288,10 +346,22 @@ fn colmap_cmd(a: &ColmapArgs) -> Result<()> {
         bail!("{}: all images must have the size of the first ({w}x{h})", paths[i].display());
     }
     let cam = match &a.intrinsics {
-        Some(k) => ColmapCamera { model: CameraModel::Pinhole, width: w as u32, height: h as u32, params: vec![k[0], k[1], k[2] + 0.5, k[3] + 0.5], prior_focal_length: true },
+        Some(k) => ColmapCamera {
+            model: CameraModel::Pinhole,
+            width: w as u32,
+            height: h as u32,
+            params: vec![k[0], k[1], k[2] + 0.5, k[3] + 0.5],
+            prior_focal_length: true,
+        },
         None => {
             let f = 1.2 * w.max(h) as f64;
-            ColmapCamera { model: CameraModel::SimpleRadial, width: w as u32, height: h as u32, params: vec![f, w as f64 / 2.0, h as f64 / 2.0, 0.0], prior_focal_length: false }
+            ColmapCamera {
+                model: CameraModel::SimpleRadial,
+                width: w as u32,
+                height: h as u32,
+                params: vec![f, w as f64 / 2.0, h as f64 / 2.0, 0.0],
+                prior_focal_length: false,
+            }
         }
     };
     let pairs: Vec<(usize, usize)> = (0..paths.len()).flat_map(|i| (i + 1..paths.len()).map(move |j| (i, j))).collect();
@@ -315,20 +385,25 @@ fn colmap_cmd(a: &ColmapArgs) -> Result<()> {
         db.add_descriptors(id, &f.descriptors)?;
         ids.push(id);
     }
+    // Geometric verification as COLMAP's defaults: F and H by RANSAC (4 px), ≥ min_matches
+    // inliers; H explaining > 80 % of F's inliers → PLANAR_OR_PANORAMIC, else UNCALIBRATED.
+    let geoms: Vec<Option<TwoViewGeometry>> = pairs
+        .par_iter()
+        .zip(&matched)
+        .enumerate()
+        .map(|(k, (&(i, j), m))| verify_pair(&feats[i].1, &feats[j].1, m, a.min_matches, k as u64))
+        .collect();
     let mut n_verified = 0;
-    for (&(i, j), m) in pairs.iter().zip(&matched) {
+    for ((&(i, j), m), g) in pairs.iter().zip(&matched).zip(&geoms) {
         db.add_matches(ids[i], ids[j], m)?;
-        if m.len() >= a.min_matches {
-            // Not geometrically verified (robust F/H estimation arrives with the `ransac`
-            // module): the pair's matches are written as UNCALIBRATED inliers without F.
-            let g = TwoViewGeometry { config: TwoViewConfig::Uncalibrated, inliers: m.clone(), f: [0.0; 9], e: [0.0; 9], h: [0.0; 9], qvec: [1.0, 0.0, 0.0, 0.0], tvec: [0.0; 3] };
-            db.add_two_view_geometry(ids[i], ids[j], &g)?;
+        if let Some(g) = g {
+            db.add_two_view_geometry(ids[i], ids[j], g)?;
             n_verified += 1;
         }
     }
     db.finish()?;
     println!(
-        "{} images, {} pairs ({n_verified} with ≥ {} matches in two_view_geometries), {} keypoints -> {}",
+        "{} images, {} pairs ({n_verified} verified with ≥ {} inliers in two_view_geometries), {} keypoints -> {}",
         paths.len(),
         pairs.len(),
         a.min_matches,
