@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 mod cats;
 mod cpc;
 mod depth;
+mod geo;
 mod mpm;
 mod stereo;
 mod timing;
@@ -36,6 +37,8 @@ enum Command {
     Cpc(cpc::BenchArgs),
     /// MPM forward and forward+backward wall time per iteration on the DiffTaichi RODS box problem.
     Mpm(mpm::BenchArgs),
+    /// RANSAC H/F and self-rectification timings (optionally against OpenCV stereoRectifyUncalibrated).
+    Geo(geo::BenchArgs),
 }
 
 fn main() {
@@ -46,6 +49,7 @@ fn main() {
         Command::Stereo(a) => stereo::run(a),
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
+        Command::Geo(a) => geo::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the
     // libraries' parallel regions start and end on a pool thread; timings are then those a

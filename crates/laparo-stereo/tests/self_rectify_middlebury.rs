@@ -128,3 +128,49 @@ fn hartley_is_computed_and_compared() {
     assert!(sh.median_abs < 0.5, "Hartley median |dy| {}", sh.median_abs);
     assert!(q.max_corner_shift_px < h.max_corner_shift_px);
 }
+
+/// End to end with real keypoints: SIFT (laparo-features) on the perturbed images, Lowe 0.8 +
+/// mutual matching, self-rectification; then |dy| of the exact correspondences.
+#[test]
+fn sift_matches_on_cats_perturbed_middlebury() {
+    use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
+    let Some(d) = data_dir() else { return };
+    let s = StereoSample {
+        left: io::read_image(d.join("motorcycle_left.png")).unwrap(),
+        right: io::read_image(d.join("motorcycle_right.png")).unwrap(),
+        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm")).unwrap()),
+        disp_right: None,
+        occ_left: None,
+        occ_right: None,
+    };
+    let (kl, kr) = cameras();
+    let p = perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]);
+    let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
+    let sift = DetectorConfig::by_name("sift").unwrap();
+    let fl = detect_and_describe(&aug.left.image, &sift, Some(&aug.left.valid)).unwrap();
+    let fr = detect_and_describe(&aug.right.image, &sift, Some(&aug.right.valid)).unwrap();
+    let m = match_features(&fl, &fr, &MatchConfig::default()).unwrap();
+    let (a, b): (Vec<[f64; 2]>, Vec<[f64; 2]>) = m
+        .iter()
+        .map(|m| {
+            let (x, y) = (fl.keypoints[m.i1 as usize], fr.keypoints[m.i2 as usize]);
+            ([x.x, x.y], [y.x, y.y])
+        })
+        .unzip();
+    let rect = self_rectify(&a, &b, (741, 500), &SelfRectifyOptions::default()).unwrap();
+    let (pl, pr) = exact_correspondences(aug.disp_left.as_ref().unwrap(), 3).unwrap();
+    let dy: Vec<f64> = pl
+        .iter()
+        .zip(&pr)
+        .map(|(a, b)| rect.rectify_right(b[0], b[1]).unwrap()[1] - rect.rectify_left(a[0], a[1]).unwrap()[1])
+        .collect();
+    let st = DyStats::of(&dy);
+    eprintln!(
+        "SIFT: {} + {} keypoints, {} matches, {} inliers; fitted |dy| median {:.3}; exact correspondences |dy| median {:.4} p95 {:.4} max {:.4}",
+        fl.keypoints.len(), fr.keypoints.len(), m.len(), rect.n_inliers, rect.dy_rectified.median_abs,
+        st.median_abs, st.p95_abs, st.max_abs
+    );
+    assert!(rect.n_inliers >= 100, "{} inliers", rect.n_inliers);
+    assert!(st.median_abs <= 0.15, "median |dy| {}", st.median_abs);
+    assert!(st.p95_abs <= 0.5, "p95 |dy| {}", st.p95_abs);
+}
