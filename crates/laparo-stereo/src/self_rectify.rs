@@ -382,23 +382,41 @@ pub fn self_rectify(
     let (hl, hr, extra, kept) = match opts.method {
         RectifyMethod::QuasiEuclidean => {
             let c = [(w - 1.0) / 2.0, (h - 1.0) / 2.0];
-            let mut best: Option<(Model, f64)> = None;
             for &fov in &opts.fov_grid_deg {
                 if !(fov > 1.0 && fov < 179.0) {
                     return Err(invalid("fov_grid_deg", format!("{fov} (need 1 < fov < 179)")));
                 }
-                let f0 = 0.5 * w / (0.5 * fov.to_radians()).tan();
-                let m0 = Model { p: [0.0; 7], f0, c };
-                let (m1, c1) = lm(m0, pl, pr, &idx, &[0, 1, 2, 3, 4, 5]);
-                let (m2, c2) = lm(m1, pl, pr, &idx, &[0, 1, 2, 3, 4, 5, 6]);
-                // f is weakly observable for near-rectified pairs: keep the joint refinement
-                // only within the plausible focal range (field of view 10°..140°)
-                let (f_lo, f_hi) = (0.5 * w / 70f64.to_radians().tan(), 0.5 * w / 5f64.to_radians().tan());
-                let (m, cost) = if (f_lo..=f_hi).contains(&m2.f()) && c2 < c1 { (m2, c2) } else { (m1, c1) };
-                if best.as_ref().map_or(true, |b| cost < b.1) {
-                    best = Some((m, cost));
+            }
+            // focal search on a subsample (≤ 400 inliers, evenly spaced), in parallel; the best
+            // start by (cost, grid index) is then refined on all inliers (thread-count independent)
+            let sub: Vec<usize> = idx.iter().copied().step_by(idx.len().div_ceil(400).max(1)).collect();
+            let (f_lo, f_hi) = (0.5 * w / 70f64.to_radians().tan(), 0.5 * w / 5f64.to_radians().tan());
+            let cands: Vec<(Model, f64, bool)> = opts
+                .fov_grid_deg
+                .par_iter()
+                .map(|&fov| {
+                    let f0 = 0.5 * w / (0.5 * fov.to_radians()).tan();
+                    let m0 = Model { p: [0.0; 7], f0, c };
+                    let (m1, c1) = lm(m0, pl, pr, &sub, &[0, 1, 2, 3, 4, 5]);
+                    let (m2, c2) = lm(m1, pl, pr, &sub, &[0, 1, 2, 3, 4, 5, 6]);
+                    // f is weakly observable for near-rectified pairs: keep the joint refinement
+                    // only within the plausible focal range (field of view 10°..140°)
+                    if (f_lo..=f_hi).contains(&m2.f()) && c2 < c1 {
+                        (m2, c2, true)
+                    } else {
+                        (m1, c1, false)
+                    }
+                })
+                .collect();
+            let mut best: Option<(Model, f64, bool)> = None;
+            for cnd in cands {
+                if best.as_ref().map_or(true, |b| cnd.1 < b.1) {
+                    best = Some(cnd);
                 }
             }
+            let Some((m, _, free_f)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
+            let all: &[usize] = if free_f { &[0, 1, 2, 3, 4, 5, 6] } else { &[0, 1, 2, 3, 4, 5] };
+            let best = Some(lm(m, pl, pr, &idx, all));
             let Some((mut m, _)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
             // drop F-inliers the rectification does not explain (> 3 × threshold) and refit once
             let mut r = vec![0.0; idx.len()];
@@ -412,7 +430,7 @@ pub fn self_rectify(
                 ));
             }
             if kept.len() < idx.len() {
-                m = lm(m, pl, pr, &kept, &[0, 1, 2, 3, 4, 5]).0;
+                m = lm(m, pl, pr, &kept, all).0;
             }
             let deg = |v: f64| v.to_degrees();
             let big = m.p[..5].iter().map(|v| deg(v.abs())).fold(0.0, f64::max);
