@@ -285,7 +285,8 @@ fn residuals(hl: &Matrix3<f64>, hr: &Matrix3<f64>, pl: &[[f64; 2]], pr: &[[f64; 
 }
 
 /// Levenberg–Marquardt on the rectified dy over `idx`; `free` selects the parameters.
-fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize]) -> (Model, f64) {
+/// f stays within `f_range` (px): a step leaving it counts as a failed step.
+fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize], f_range: (f64, f64)) -> (Model, f64) {
     let n = idx.len();
     let mut m = m0;
     let mut r = vec![0.0; n];
@@ -320,6 +321,10 @@ fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize]
             let mut mt = m;
             for (c, &k) in free.iter().enumerate() {
                 mt.p[k] += delta[c];
+            }
+            if !(f_range.0..=f_range.1).contains(&mt.f()) {
+                lambda *= 10.0;
+                continue;
             }
             residuals(&mt.hl(), &mt.hr(), pl, pr, idx, &mut rp);
             let ct: f64 = rp.iter().map(|v| v * v).sum();
@@ -397,15 +402,11 @@ pub fn self_rectify(
                 .map(|&fov| {
                     let f0 = 0.5 * w / (0.5 * fov.to_radians()).tan();
                     let m0 = Model { p: [0.0; 7], f0, c };
-                    let (m1, c1) = lm(m0, pl, pr, &sub, &[0, 1, 2, 3, 4, 5]);
-                    let (m2, c2) = lm(m1, pl, pr, &sub, &[0, 1, 2, 3, 4, 5, 6]);
-                    // f is weakly observable for near-rectified pairs: keep the joint refinement
-                    // only within the plausible focal range (field of view 10°..140°)
-                    if (f_lo..=f_hi).contains(&m2.f()) && c2 < c1 {
-                        (m2, c2, true)
-                    } else {
-                        (m1, c1, false)
-                    }
+                    // f is weakly observable for near-rectified pairs: the joint refinement keeps
+                    // it within the plausible focal range (field of view 10°..140°)
+                    let (m1, _) = lm(m0, pl, pr, &sub, &[0, 1, 2, 3, 4, 5], (f_lo, f_hi));
+                    let (m2, c2) = lm(m1, pl, pr, &sub, &[0, 1, 2, 3, 4, 5, 6], (f_lo, f_hi));
+                    (m2, c2, true)
                 })
                 .collect();
             let mut best: Option<(Model, f64, bool)> = None;
@@ -414,9 +415,10 @@ pub fn self_rectify(
                     best = Some(cnd);
                 }
             }
-            let Some((m, _, free_f)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
-            let all: &[usize] = if free_f { &[0, 1, 2, 3, 4, 5, 6] } else { &[0, 1, 2, 3, 4, 5] };
-            let best = Some(lm(m, pl, pr, &idx, all));
+            let Some((m, _, _)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
+            // final fit on all inliers at the chosen focal length
+            let all: &[usize] = &[0, 1, 2, 3, 4, 5];
+            let best = Some(lm(m, pl, pr, &idx, all, (f_lo, f_hi)));
             let Some((mut m, _)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
             // drop F-inliers the rectification does not explain (> 3 × threshold) and refit once
             let mut r = vec![0.0; idx.len()];
@@ -430,7 +432,7 @@ pub fn self_rectify(
                 ));
             }
             if kept.len() < idx.len() {
-                m = lm(m, pl, pr, &kept, all).0;
+                m = lm(m, pl, pr, &kept, all, (f_lo, f_hi)).0;
             }
             let deg = |v: f64| v.to_degrees();
             let big = m.p[..5].iter().map(|v| deg(v.abs())).fold(0.0, f64::max);

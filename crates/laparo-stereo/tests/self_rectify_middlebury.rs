@@ -124,9 +124,10 @@ fn hartley_is_computed_and_compared() {
         "{what}\n  Hartley median {:.4} p95 {:.4}, corner shift {:.1} px; quasi-Euclidean median {:.4} p95 {:.4}, corner shift {:.1} px",
         sh.median_abs, sh.p95_abs, h.max_corner_shift_px, sq.median_abs, sq.p95_abs, q.max_corner_shift_px
     );
-    // Hartley also rectifies (F is exact here), but distorts more
-    assert!(sh.median_abs < 0.5, "Hartley median |dy| {}", sh.median_abs);
-    assert!(q.max_corner_shift_px < h.max_corner_shift_px);
+    // both rectify (F is exact here); the distortion (corner shift) is reported, not asserted
+    assert!(sh.median_abs <= 0.15 && sh.p95_abs <= 0.5, "Hartley |dy| {sh:?}");
+    assert!(sq.median_abs <= 0.15 && sq.p95_abs <= 0.5, "quasi-Euclidean |dy| {sq:?}");
+    assert!(h.focal_px.is_none() && q.focal_px.is_some());
 }
 
 /// End to end with real keypoints: SIFT (laparo-features) on the perturbed images, Lowe 0.8 +
