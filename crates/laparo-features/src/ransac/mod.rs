@@ -135,8 +135,9 @@ fn sample(seed: u64, k: usize, n: usize, s: usize, out: &mut Vec<usize>) {
     }
 }
 
-/// MSAC score (lower is better): Σ min(r², t²).
-fn msac<E: Estimator>(est: &E, m: &E::Model, t2: f64) -> (f64, usize) {
+/// MSAC score (lower is better): Σ min(r², t²); None as soon as the partial sum exceeds
+/// `bound` (the hypothesis cannot win).
+fn msac<E: Estimator>(est: &E, m: &E::Model, t2: f64, bound: f64) -> Option<(f64, usize)> {
     let mut s = 0.0;
     let mut n = 0;
     for i in 0..est.len() {
@@ -147,8 +148,11 @@ fn msac<E: Estimator>(est: &E, m: &E::Model, t2: f64) -> (f64, usize) {
         } else {
             s += t2;
         }
+        if s > bound {
+            return None;
+        }
     }
-    (s, n)
+    Some((s, n))
 }
 
 /// Hypotheses needed for `confidence` at inlier ratio `w` and sample size `s`.
@@ -173,13 +177,15 @@ pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit
     let mut needed = prm.max_iters as f64;
     while (drawn as f64) < needed.min(prm.max_iters as f64) {
         let b = BATCH.min(prm.max_iters - drawn);
+        // early exit bound from the previous batches only (thread-count independent)
+        let bound = best.as_ref().map_or(f64::INFINITY, |b| b.0);
         let batch: Vec<Option<(f64, usize, E::Model, usize)>> = (drawn..drawn + b)
             .into_par_iter()
             .map_init(Vec::new, |idx, k| {
                 sample(prm.seed, k, n, E::SAMPLE, idx);
                 let mut bk: Option<(f64, usize, E::Model, usize)> = None;
                 for m in est.minimal(idx) {
-                    let (s, ni) = msac(est, &m, t2);
+                    let Some((s, ni)) = msac(est, &m, t2, bound) else { continue };
                     if bk.as_ref().map_or(true, |b| s < b.0) {
                         bk = Some((s, k, m, ni));
                     }
@@ -211,7 +217,7 @@ pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit
             break;
         }
         let Some(m2) = est.refit(&idx) else { break };
-        let (s2, _) = msac(est, &m2, t2);
+        let Some((s2, _)) = msac(est, &m2, t2, f64::INFINITY) else { break };
         if s2 < score * (1.0 - 1e-12) {
             score = s2;
             model = m2;
