@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 mod cats;
 mod cpc;
 mod depth;
+mod features;
 mod geo;
 mod mpm;
 mod stereo;
@@ -37,6 +38,8 @@ enum Command {
     Cpc(cpc::BenchArgs),
     /// MPM forward and forward+backward wall time per iteration on the DiffTaichi RODS box problem.
     Mpm(mpm::BenchArgs),
+    /// SIFT/ORB detect+describe and matching vs OpenCV (../shared/bench/features_ref.py).
+    Features(features::BenchArgs),
     /// RANSAC H/F and self-rectification timings (optionally against OpenCV stereoRectifyUncalibrated).
     Geo(geo::BenchArgs),
 }
@@ -49,6 +52,7 @@ fn main() {
         Command::Stereo(a) => stereo::run(a),
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
+        Command::Features(a) => features::run(a),
         Command::Geo(a) => geo::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the

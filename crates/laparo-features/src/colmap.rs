@@ -210,9 +210,10 @@ impl ColmapDatabase {
     /// Keypoints as float32 rows (x + 0.5, y + 0.5, scale = size/2, orientation rad): laparo's
     /// pixel centres are integers, COLMAP's top-left pixel centre is (0.5, 0.5).
     pub fn add_keypoints(&mut self, image_id: u32, kps: &[Keypoint]) -> Result<()> {
-        let blob = f32_blob(kps.iter().flat_map(|k| {
-            [(k.x + 0.5) as f32, (k.y + 0.5) as f32, (0.5 * k.size_px) as f32, k.angle_rad as f32]
-        }));
+        let blob = f32_blob(
+            kps.iter()
+                .flat_map(|k| [(k.x + 0.5) as f32, (k.y + 0.5) as f32, (0.5 * k.size_px) as f32, k.angle_rad as f32]),
+        );
         self.c()
             .execute(
                 "INSERT INTO keypoints (image_id, rows, cols, data) VALUES (?1, ?2, 4, ?3)",
@@ -226,7 +227,9 @@ impl ColmapDatabase {
     /// (which COLMAP cannot match) are stored as their raw bytes with `cols` = bytes.
     pub fn add_descriptors(&mut self, image_id: u32, d: &Descriptors) -> Result<()> {
         let (rows, cols, blob) = match d {
-            Descriptors::Float { dim, data } => (d.len(), *dim, data.chunks_exact(*dim).flat_map(sift_to_colmap_u8).collect::<Vec<u8>>()),
+            Descriptors::Float { dim, data } => {
+                (d.len(), *dim, data.chunks_exact(*dim).flat_map(sift_to_colmap_u8).collect::<Vec<u8>>())
+            }
             Descriptors::Binary { bytes, data } => (d.len(), *bytes, data.clone()),
         };
         self.c()

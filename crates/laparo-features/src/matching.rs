@@ -129,13 +129,19 @@ pub fn knn2(a: &Descriptors, b: &Descriptors) -> Result<Vec<Knn2>> {
     match (a, b) {
         (Descriptors::Float { dim: da, data: xa }, Descriptors::Float { dim: db, data: xb }) => {
             if da != db || *da == 0 {
-                return Err(FeaturesError::invalid("descriptors", format!("float dimensions differ or are 0 ({da} vs {db})")));
+                return Err(FeaturesError::invalid(
+                    "descriptors",
+                    format!("float dimensions differ or are 0 ({da} vs {db})"),
+                ));
             }
             Ok(xa.par_chunks_exact(*da).with_min_len(16).map(|q| knn2_l2_row(q, xb, *da)).collect())
         }
         (Descriptors::Binary { bytes: ba, data: xa }, Descriptors::Binary { bytes: bb, data: xb }) => {
             if ba != bb || *ba == 0 {
-                return Err(FeaturesError::invalid("descriptors", format!("binary lengths differ or are 0 ({ba} vs {bb} bytes)")));
+                return Err(FeaturesError::invalid(
+                    "descriptors",
+                    format!("binary lengths differ or are 0 ({ba} vs {bb} bytes)"),
+                ));
             }
             let (w, pa) = pack_u64(*ba, xa);
             let (_, pb) = pack_u64(*bb, xb);

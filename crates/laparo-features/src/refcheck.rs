@@ -75,7 +75,11 @@ fn erode(mask: &Mask, r: usize) -> Mask {
 
 fn inside(mask: &Mask, p: [f64; 2]) -> bool {
     let (x, y) = (p[0].round(), p[1].round());
-    x >= 0.0 && y >= 0.0 && (x as usize) < mask.width && (y as usize) < mask.height && mask.data[y as usize * mask.width + x as usize]
+    x >= 0.0
+        && y >= 0.0
+        && (x as usize) < mask.width
+        && (y as usize) < mask.height
+        && mask.data[y as usize * mask.width + x as usize]
 }
 
 /// The figures `features_ref.py` prints for one image and detector.
@@ -144,7 +148,8 @@ pub fn score_homography(
         0.0
     } else {
         let near = |a: &[[f64; 2]], b: &[[f64; 2]]| {
-            a.iter().filter(|p| b.iter().any(|q| (p[0] - q[0]).hypot(p[1] - q[1]) < eps_px)).count() as f64 / a.len() as f64
+            a.iter().filter(|p| b.iter().any(|q| (p[0] - q[0]).hypot(p[1] - q[1]) < eps_px)).count() as f64
+                / a.len() as f64
         };
         0.5 * (near(&c1, &c2) + near(&c2, &c1))
     };

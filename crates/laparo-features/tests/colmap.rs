@@ -9,7 +9,13 @@ fn kp(x: f64, y: f64) -> Keypoint {
 
 fn write_db(path: &std::path::Path) {
     let mut db = ColmapDatabase::create(path).unwrap();
-    let cam = ColmapCamera { model: CameraModel::Pinhole, width: 640, height: 480, params: vec![500.0, 501.0, 320.0, 240.0], prior_focal_length: true };
+    let cam = ColmapCamera {
+        model: CameraModel::Pinhole,
+        width: 640,
+        height: 480,
+        params: vec![500.0, 501.0, 320.0, 240.0],
+        prior_focal_length: true,
+    };
     let c = db.add_camera(&cam).unwrap();
     let ids: Vec<u32> = (0..3).map(|i| db.add_image(&format!("im{i}.png"), c).unwrap()).collect();
     assert_eq!(ids, vec![1, 2, 3]);
@@ -67,7 +73,10 @@ fn schema_columns_and_blobs() {
     let path = dir.path().join("sub/database.db");
     write_db(&path);
     // No temporary left behind.
-    let names: Vec<String> = std::fs::read_dir(path.parent().unwrap()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let names: Vec<String> = std::fs::read_dir(path.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     assert_eq!(names, vec!["database.db".to_string()]);
     let c = Connection::open(&path).unwrap();
     let cols = |t: &str| -> Vec<String> {
@@ -75,31 +84,66 @@ fn schema_columns_and_blobs() {
         st.query_map([], |r| r.get::<_, String>(1)).unwrap().map(|r| r.unwrap()).collect()
     };
     assert_eq!(cols("cameras"), ["camera_id", "model", "width", "height", "params", "prior_focal_length"]);
-    assert_eq!(cols("images"), ["image_id", "name", "camera_id", "prior_qw", "prior_qx", "prior_qy", "prior_qz", "prior_tx", "prior_ty", "prior_tz"]);
+    assert_eq!(
+        cols("images"),
+        [
+            "image_id",
+            "name",
+            "camera_id",
+            "prior_qw",
+            "prior_qx",
+            "prior_qy",
+            "prior_qz",
+            "prior_tx",
+            "prior_ty",
+            "prior_tz"
+        ]
+    );
     assert_eq!(cols("keypoints"), ["image_id", "rows", "cols", "data"]);
     assert_eq!(cols("descriptors"), ["image_id", "rows", "cols", "data"]);
     assert_eq!(cols("matches"), ["pair_id", "rows", "cols", "data"]);
-    assert_eq!(cols("two_view_geometries"), ["pair_id", "rows", "cols", "data", "config", "F", "E", "H", "qvec", "tvec"]);
-    let (model, params): (i64, Vec<u8>) = c.query_row("SELECT model, params FROM cameras", [], |r| Ok((r.get(0)?, r.get(1)?))).unwrap();
+    assert_eq!(
+        cols("two_view_geometries"),
+        ["pair_id", "rows", "cols", "data", "config", "F", "E", "H", "qvec", "tvec"]
+    );
+    let (model, params): (i64, Vec<u8>) =
+        c.query_row("SELECT model, params FROM cameras", [], |r| Ok((r.get(0)?, r.get(1)?))).unwrap();
     assert_eq!(model, 1);
     assert_eq!(params.len(), 32);
     assert_eq!(f64::from_le_bytes(params[8..16].try_into().unwrap()), 501.0);
-    let kp: (i64, i64, Vec<u8>) = c.query_row("SELECT rows, cols, data FROM keypoints WHERE image_id = 1", [], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?))).unwrap();
+    let kp: (i64, i64, Vec<u8>) = c
+        .query_row("SELECT rows, cols, data FROM keypoints WHERE image_id = 1", [], |r| {
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+        })
+        .unwrap();
     assert_eq!((kp.0, kp.1, kp.2.len()), (3, 4, 3 * 4 * 4));
     let f = |i: usize| f32::from_le_bytes(kp.2[4 * i..4 * i + 4].try_into().unwrap());
     assert_eq!([f(0), f(1), f(2), f(3)], [0.5, 0.5, 2.0, 0.25]); // +0.5 shift, scale = size/2
     assert_eq!([f(8), f(9)], [4.0, 7.75]);
-    let d: (i64, i64, Vec<u8>) = c.query_row("SELECT rows, cols, data FROM descriptors WHERE image_id = 1", [], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?))).unwrap();
+    let d: (i64, i64, Vec<u8>) = c
+        .query_row("SELECT rows, cols, data FROM descriptors WHERE image_id = 1", [], |r| {
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+        })
+        .unwrap();
     assert_eq!((d.0, d.1, d.2.len()), (2, 128, 256));
     assert_eq!(&d.2[..3], &[255, 255, 0]);
-    let m: (i64, i64, i64, Vec<u8>) = c.query_row("SELECT pair_id, rows, cols, data FROM matches WHERE pair_id = 2147483649", [], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))).unwrap();
+    let m: (i64, i64, i64, Vec<u8>) = c
+        .query_row("SELECT pair_id, rows, cols, data FROM matches WHERE pair_id = 2147483649", [], |r| {
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))
+        })
+        .unwrap();
     assert_eq!((m.1, m.2, m.3.len()), (2, 2, 2 * 8));
     let u = |b: &[u8], i: usize| u32::from_le_bytes(b[4 * i..4 * i + 4].try_into().unwrap());
     assert_eq!((u(&m.3, 0), u(&m.3, 1), u(&m.3, 2), u(&m.3, 3)), (0, 1, 2, 0));
-    let swapped: Vec<u8> = c.query_row("SELECT data FROM matches WHERE pair_id = ?1", [pair_id(1, 3) as i64], |r| r.get(0)).unwrap();
+    let swapped: Vec<u8> =
+        c.query_row("SELECT data FROM matches WHERE pair_id = ?1", [pair_id(1, 3) as i64], |r| r.get(0)).unwrap();
     assert_eq!((u(&swapped, 0), u(&swapped, 1)), (4, 9));
     let g: (i64, i64, Vec<u8>, Vec<u8>, Vec<u8>) = c
-        .query_row("SELECT rows, config, F, H, qvec FROM two_view_geometries WHERE pair_id = ?1", [pair_id(1, 3) as i64], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)))
+        .query_row(
+            "SELECT rows, config, F, H, qvec FROM two_view_geometries WHERE pair_id = ?1",
+            [pair_id(1, 3) as i64],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)),
+        )
         .unwrap();
     assert_eq!((g.0, g.1, g.2.len(), g.3.len(), g.4.len()), (2, 3, 72, 72, 32));
     let d64 = |b: &[u8], i: usize| f64::from_le_bytes(b[8 * i..8 * i + 8].try_into().unwrap());
@@ -116,7 +160,13 @@ fn bad_camera_and_duplicate_image_are_errors_and_leave_nothing() {
     let path = dir.path().join("db.db");
     {
         let mut db = ColmapDatabase::create(&path).unwrap();
-        let cam = ColmapCamera { model: CameraModel::Opencv, width: 1, height: 1, params: vec![1.0; 4], prior_focal_length: false };
+        let cam = ColmapCamera {
+            model: CameraModel::Opencv,
+            width: 1,
+            height: 1,
+            params: vec![1.0; 4],
+            prior_focal_length: false,
+        };
         assert!(db.add_camera(&cam).unwrap_err().to_string().contains("camera params"));
         let cam = ColmapCamera { params: vec![1.0; 8], ..cam };
         let c = db.add_camera(&cam).unwrap();
@@ -130,7 +180,11 @@ fn bad_camera_and_duplicate_image_are_errors_and_leave_nothing() {
 
 #[test]
 fn python_sqlite3_numpy_round_trip() {
-    let ok = std::process::Command::new("python3").args(["-c", "import numpy, sqlite3"]).status().map(|s| s.success()).unwrap_or(false);
+    let ok = std::process::Command::new("python3")
+        .args(["-c", "import numpy, sqlite3"])
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false);
     if !ok {
         eprintln!("SKIP python_sqlite3_numpy_round_trip: python3 with numpy not available");
         return;

@@ -29,10 +29,9 @@ fn naive_matches(a: &Features, b: &Features, ratio: RatioTest, mutual: bool) -> 
             (Descriptors::Binary { bytes, data: x }, Descriptors::Binary { data: y, .. }) => {
                 naive_hamming(&x[i * bytes..(i + 1) * bytes], &y[j * bytes..(j + 1) * bytes]) as f64
             }
-            (Descriptors::Float { dim, data: x }, Descriptors::Float { data: y, .. }) => (0..*dim)
-                .map(|k| (x[i * dim + k] as f64 - y[j * dim + k] as f64).powi(2))
-                .sum::<f64>()
-                .sqrt(),
+            (Descriptors::Float { dim, data: x }, Descriptors::Float { data: y, .. }) => {
+                (0..*dim).map(|k| (x[i * dim + k] as f64 - y[j * dim + k] as f64).powi(2)).sum::<f64>().sqrt()
+            }
             _ => unreachable!(),
         }
     };
@@ -93,7 +92,9 @@ fn binary_matches_equal_naive_for_all_ratio_modes() {
     let a = random_binary(300, &mut rng);
     // b = a's first 200 rows with a few flipped bits, plus 100 random rows, shuffled order kept simple.
     let mut b = random_binary(100, &mut rng);
-    if let (Descriptors::Binary { data: da, .. }, Descriptors::Binary { data: db, .. }) = (&a.descriptors, &mut b.descriptors) {
+    if let (Descriptors::Binary { data: da, .. }, Descriptors::Binary { data: db, .. }) =
+        (&a.descriptors, &mut b.descriptors)
+    {
         let mut rows = da[..200 * 32].to_vec();
         for _ in 0..2000 {
             let k = rng.gen_range(0..rows.len());
@@ -115,9 +116,12 @@ fn binary_matches_equal_naive_for_all_ratio_modes() {
 #[test]
 fn float_matches_equal_naive_and_ubc_equals_lowe() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let rows = |n: usize, rng: &mut ChaCha8Rng| -> Vec<Vec<f32>> { (0..n).map(|_| (0..128).map(|_| rng.gen::<f32>()).collect()).collect() };
+    let rows = |n: usize, rng: &mut ChaCha8Rng| -> Vec<Vec<f32>> {
+        (0..n).map(|_| (0..128).map(|_| rng.gen::<f32>()).collect()).collect()
+    };
     let ra = rows(150, &mut rng);
-    let mut rb: Vec<Vec<f32>> = ra[..100].iter().map(|r| r.iter().map(|v| v + 0.05 * rng.gen::<f32>()).collect()).collect();
+    let mut rb: Vec<Vec<f32>> =
+        ra[..100].iter().map(|r| r.iter().map(|v| v + 0.05 * rng.gen::<f32>()).collect()).collect();
     rb.extend(rows(80, &mut rng));
     let (a, b) = (float_feats(&ra), float_feats(&rb));
     for ratio in [RatioTest::None, RatioTest::Lowe(0.8), RatioTest::Ubc(2.8)] {
@@ -128,7 +132,8 @@ fn float_matches_equal_naive_and_ubc_equals_lowe() {
     }
     // ubcmatch 2.8 on squared distances ≡ Lowe 1/sqrt(2.8) = 0.5976 on distances.
     let u = match_features(&a, &b, &MatchConfig { ratio: RatioTest::Ubc(2.8), mutual: false }).unwrap();
-    let l = match_features(&a, &b, &MatchConfig { ratio: RatioTest::Lowe(1.0 / 2.8f32.sqrt()), mutual: false }).unwrap();
+    let l =
+        match_features(&a, &b, &MatchConfig { ratio: RatioTest::Lowe(1.0 / 2.8f32.sqrt()), mutual: false }).unwrap();
     assert_eq!(pairs(&u), pairs(&l));
     assert!(!u.is_empty());
 }
@@ -140,7 +145,12 @@ fn identical_for_one_and_two_threads() {
     let b = random_binary(2000, &mut rng);
     let run = |t: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
-        pool.install(|| (knn2(&a.descriptors, &b.descriptors).unwrap(), match_features(&a, &b, &MatchConfig { ratio: RatioTest::Lowe(0.95), mutual: true }).unwrap()))
+        pool.install(|| {
+            (
+                knn2(&a.descriptors, &b.descriptors).unwrap(),
+                match_features(&a, &b, &MatchConfig { ratio: RatioTest::Lowe(0.95), mutual: true }).unwrap(),
+            )
+        })
     };
     assert_eq!(run(1), run(2));
 }
@@ -156,9 +166,10 @@ fn empty_and_bad_inputs() {
     let one = random_binary(1, &mut rng);
     assert!(match_features(&a, &one, &MatchConfig { ratio: RatioTest::Lowe(0.8), mutual: false }).unwrap().is_empty());
     assert_eq!(match_features(&a, &one, &MatchConfig { ratio: RatioTest::None, mutual: false }).unwrap().len(), 5);
-    let f = float_feats(&[vec![0.0; 32]; 5]);
+    let f = float_feats(&vec![vec![0.0; 32]; 5]);
     let e = match_features(&a, &f, &MatchConfig::default()).unwrap_err().to_string();
     assert!(e.contains("descriptors"), "{e}");
-    let e = match_features(&a, &a, &MatchConfig { ratio: RatioTest::Lowe(1.5), mutual: false }).unwrap_err().to_string();
+    let e =
+        match_features(&a, &a, &MatchConfig { ratio: RatioTest::Lowe(1.5), mutual: false }).unwrap_err().to_string();
     assert!(e.contains("ratio"), "{e}");
 }

@@ -7,9 +7,11 @@ use crate::error::{FeaturesError, Result};
 use crate::keypoint::Features;
 
 pub mod orb;
+mod orb_cv;
+mod orb_pattern;
 pub mod sift;
 
-pub use orb::OrbParams;
+pub use orb::{OrbBackend, OrbParams};
 pub use sift::SiftParams;
 
 /// Which detector + descriptor to run (`Default` impls are OpenCV's defaults).
@@ -46,7 +48,12 @@ pub fn to_gray_u8(img: &Image<u8>) -> Image<u8> {
         return img.clone();
     }
     let g = img.to_gray_f32();
-    Image { width: g.width, height: g.height, channels: 1, data: g.data.iter().map(|&v| v.round().clamp(0.0, 255.0) as u8).collect() }
+    Image {
+        width: g.width,
+        height: g.height,
+        channels: 1,
+        data: g.data.iter().map(|&v| v.round().clamp(0.0, 255.0) as u8).collect(),
+    }
 }
 
 /// Detect keypoints and compute descriptors on a grey 8-bit image (colour input is converted);
@@ -82,7 +89,11 @@ pub fn apply_mask(f: Features, mask: &Mask) -> Features {
         .enumerate()
         .filter(|(_, k)| {
             let (x, y) = (k.x.round(), k.y.round());
-            x >= 0.0 && y >= 0.0 && (x as usize) < mask.width && (y as usize) < mask.height && mask.get(x as usize, y as usize, 0)
+            x >= 0.0
+                && y >= 0.0
+                && (x as usize) < mask.width
+                && (y as usize) < mask.height
+                && mask.get(x as usize, y as usize, 0)
         })
         .map(|(i, _)| i)
         .collect();

@@ -8,22 +8,40 @@ use serde::{Deserialize, Serialize};
 use crate::error::{FeaturesError, Result};
 use crate::keypoint::{Descriptors, Features, Keypoint};
 
-/// ORB parameters; `Default` = OpenCV's pyramid (8 levels × 1.2) with `nfeatures = 2000`.
+/// Which ORB implementation runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OrbBackend {
+    /// laparo's port of OpenCV's `cv::ORB` (FAST-9 + NMS, Harris ranking per level, intensity
+    /// centroid, `bit_pattern_31`): the default.
+    OpenCv,
+    /// kornia-imgproc's ORB-SLAM3 extractor (quadtree distribution; no Harris response out).
+    KorniaOrbSlam3,
+}
+
+/// ORB parameters; `Default` = OpenCV's `ORB_create(nfeatures = 2000)` (8 levels × 1.2, FAST 20).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OrbParams {
+    /// Implementation.
+    pub backend: OrbBackend,
     /// Keypoints to retain over all levels (2000).
     pub n_features: usize,
     /// Pyramid scale factor between levels (1.2).
     pub scale_factor: f32,
     /// Pyramid levels (8).
     pub n_levels: usize,
-    /// FAST threshold, grey levels of 255 (20); the fallback when a level has too few corners is 7.
+    /// FAST threshold, grey levels (20). (Kornia backend: fallback 7 when a level has too few corners.)
     pub fast_threshold: f32,
 }
 
 impl Default for OrbParams {
     fn default() -> Self {
-        OrbParams { n_features: 2000, scale_factor: 1.2, n_levels: 8, fast_threshold: 20.0 }
+        OrbParams {
+            backend: OrbBackend::OpenCv,
+            n_features: 2000,
+            scale_factor: 1.2,
+            n_levels: 8,
+            fast_threshold: 20.0,
+        }
     }
 }
 
@@ -32,12 +50,20 @@ const PATCH_PX: f64 = 31.0;
 
 /// ORB on a grey u8 image: keypoints at full resolution and 32-byte descriptors.
 pub fn detect_and_describe(gray: &Image<u8>, p: &OrbParams) -> Result<Features> {
-    if !(p.scale_factor > 1.0) || p.n_levels == 0 || p.n_features == 0 {
+    if !(p.scale_factor > 1.0) || p.n_levels == 0 || p.n_features == 0 || !(p.fast_threshold >= 0.0) {
         return Err(FeaturesError::invalid(
             "orb parameters",
-            format!("need scale_factor > 1, n_levels ≥ 1, n_features ≥ 1 (got {p:?})"),
+            format!("need scale_factor > 1, n_levels ≥ 1, n_features ≥ 1, fast_threshold ≥ 0 (got {p:?})"),
         ));
     }
+    match p.backend {
+        OrbBackend::OpenCv => Ok(super::orb_cv::detect_and_describe(gray, p)),
+        OrbBackend::KorniaOrbSlam3 => kornia_orb(gray, p),
+    }
+}
+
+/// kornia-imgproc's ORB-SLAM3 extractor.
+fn kornia_orb(gray: &Image<u8>, p: &OrbParams) -> Result<Features> {
     let det = OrbDetector {
         n_keypoints: p.n_features,
         downscale: p.scale_factor,
@@ -64,5 +90,18 @@ pub fn detect_and_describe(gray: &Image<u8>, p: &OrbParams) -> Result<Features> 
         })
         .collect();
     let data: Vec<u8> = out.descriptors.iter().flat_map(|d| d.iter().copied()).collect();
-    Ok(Features { keypoints, descriptors: Descriptors::Binary { bytes: 32, data } })
+    let f = Features { keypoints, descriptors: Descriptors::Binary { bytes: 32, data } };
+    Ok(cap(f, p.n_features))
+}
+
+/// The ORB-SLAM3 quadtree may return a few more keypoints than its per-level budgets (measured:
+/// 2067 for 2000); keep exactly `n` by uniform decimation over the list, which spreads the
+/// removals over levels and image regions (no response to rank by).
+fn cap(f: Features, n: usize) -> Features {
+    let total = f.len();
+    if total <= n {
+        return f;
+    }
+    let keep: Vec<usize> = (0..total).filter(|&k| (k * n) / total != ((k + 1) * n) / total).collect();
+    Features { keypoints: keep.iter().map(|&i| f.keypoints[i]).collect(), descriptors: f.descriptors.select(&keep) }
 }

@@ -25,7 +25,14 @@ pub struct SiftParams {
 
 impl Default for SiftParams {
     fn default() -> Self {
-        SiftParams { n_features: 0, n_octave_layers: 3, contrast_threshold: 0.04, edge_threshold: 10.0, sigma: 1.6, upsample: true }
+        SiftParams {
+            n_features: 0,
+            n_octave_layers: 3,
+            contrast_threshold: 0.04,
+            edge_threshold: 10.0,
+            sigma: 1.6,
+            upsample: true,
+        }
     }
 }
 
