@@ -76,7 +76,11 @@ fn synthetic_f() -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
         let x = Vector3::new(rng.gen_range(-0.6..0.6) * z, rng.gen_range(-0.45..0.45) * z, z);
         let (u, v) = (k * x, k * (r * x + t));
         let p = [u[0] / u[2], u[1] / u[2]];
-        let q = if a.len() % 2 == 0 { [v[0] / v[2], v[1] / v[2]] } else { [rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0)] };
+        let q = if a.len() % 2 == 0 {
+            [v[0] / v[2], v[1] / v[2]]
+        } else {
+            [rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0)]
+        };
         if !(0.0..640.0).contains(&q[0]) || !(0.0..480.0).contains(&q[1]) {
             continue;
         }
@@ -164,7 +168,11 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
         let r = self_rectify(&ml, &mr, size, &opts).expect("fits");
         r.rectify_images(&img, &img).expect("same size");
     });
-    let hopts = SelfRectifyOptions { method: laparo_stereo::self_rectify::RectifyMethod::Hartley, max_median_dy_px: 5.0, ..opts.clone() };
+    let hopts = SelfRectifyOptions {
+        method: laparo_stereo::self_rectify::RectifyMethod::Hartley,
+        max_median_dy_px: 5.0,
+        ..opts.clone()
+    };
     let hart = self_rectify(&ml, &mr, size, &hopts)?;
     let (hqmin, _) = time_min_median(a.runs, || {
         self_rectify(&ml, &mr, size, &hopts).expect("fits");

@@ -373,7 +373,8 @@ pub fn self_rectify(
             format!("too few matches: {} (need at least {})", pl.len(), opts.min_inliers.max(8)),
         ));
     }
-    let fit = find_fundamental(pl, pr, &opts.ransac).map_err(|e| invalid("self-rectification matches", e.to_string()))?;
+    let fit =
+        find_fundamental(pl, pr, &opts.ransac).map_err(|e| invalid("self-rectification matches", e.to_string()))?;
     if fit.n_inliers < opts.min_inliers {
         return Err(invalid(
             "self-rectification matches",
@@ -439,7 +440,10 @@ pub fn self_rectify(
             if big > opts.max_angle_deg {
                 return Err(invalid(
                     "self-rectification",
-                    format!("needs a rotation of {big:.2}° (> max_angle_deg {}): not a near-rectified pair", opts.max_angle_deg),
+                    format!(
+                        "needs a rotation of {big:.2}° (> max_angle_deg {}): not a near-rectified pair",
+                        opts.max_angle_deg
+                    ),
                 ));
             }
             let extra = (
@@ -600,8 +604,20 @@ pub fn perturbation(
     use laparo_core::Distortion;
     let kr_of = |s: [f64; 2]| Matrix3::new(1.0, 0.0, s[0], 0.0, 1.0, s[1], 0.0, 0.0, 1.0);
     crate::augment::StereoAugmentation {
-        left: CameraAugmentation::from_euler_deg(kl, Distortion::default(), euler_left_deg, kr_of(shift_left_px), Distortion::default()),
-        right: CameraAugmentation::from_euler_deg(kr, Distortion::default(), euler_right_deg, kr_of(shift_right_px), Distortion::default()),
+        left: CameraAugmentation::from_euler_deg(
+            kl,
+            Distortion::default(),
+            euler_left_deg,
+            kr_of(shift_left_px),
+            Distortion::default(),
+        ),
+        right: CameraAugmentation::from_euler_deg(
+            kr,
+            Distortion::default(),
+            euler_right_deg,
+            kr_of(shift_right_px),
+            Distortion::default(),
+        ),
         dx_right_px: shift_left_px[0] - shift_right_px[0],
     }
 }

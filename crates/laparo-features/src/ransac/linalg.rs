@@ -192,7 +192,8 @@ mod tests {
         }
         let (a, b) = null_space_7x9(&rows).unwrap();
         for r in &rows {
-            let (da, db): (f64, f64) = (r.iter().zip(&a).map(|(x, y)| x * y).sum(), r.iter().zip(&b).map(|(x, y)| x * y).sum());
+            let (da, db): (f64, f64) =
+                (r.iter().zip(&a).map(|(x, y)| x * y).sum(), r.iter().zip(&b).map(|(x, y)| x * y).sum());
             assert!(da.abs() < 1e-12 && db.abs() < 1e-12, "{da} {db}");
         }
         // independent: not parallel
