@@ -96,7 +96,7 @@ impl<'a> DepthView<'a> {
 
     fn valid_px(&self, x: usize, y: usize) -> Option<f64> {
         let z = self.depth_mm.data[y * self.depth_mm.width + x];
-        let in_roi = self.roi.map_or(true, |r| r.data[y * r.width + x]);
+        let in_roi = self.roi.is_none_or(|r| r.data[y * r.width + x]);
         (in_roi && z > 0.0 && z.is_finite()).then_some(z)
     }
 
@@ -302,7 +302,7 @@ fn nearest(p: [f64; 2], set: &[(usize, [f64; 2])]) -> Option<(usize, f64)> {
     let mut best: Option<(usize, f64)> = None;
     for &(i, q) in set {
         let d = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-        if best.map_or(true, |b| d < b.1) {
+        if best.is_none_or(|b| d < b.1) {
             best = Some((i, d));
         }
     }

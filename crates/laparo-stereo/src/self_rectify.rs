@@ -31,6 +31,11 @@ fn invalid(what: impl Into<String>, msg: impl Into<String>) -> StereoError {
     StereoError::Invalid { what: what.into(), msg: msg.into() }
 }
 
+/// A rectified image and its validity mask.
+pub type Rectified<T> = (Image<T>, Mask);
+/// Left and right points `[x, y]`, px.
+pub type PointPairs = (Vec<[f64; 2]>, Vec<[f64; 2]>);
+
 /// Which rectification to compute from F.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -227,7 +232,7 @@ impl SelfRectification {
         &self,
         left: &Image<T>,
         right: &Image<T>,
-    ) -> Result<((Image<T>, Mask), (Image<T>, Mask)), StereoError> {
+    ) -> Result<(Rectified<T>, Rectified<T>), StereoError> {
         let (w, h) = self.size;
         for (name, img) in [("left image", left), ("right image", right)] {
             if (img.width, img.height) != (w, h) {
@@ -412,7 +417,7 @@ pub fn self_rectify(
                 .collect();
             let mut best: Option<(Model, f64, bool)> = None;
             for cnd in cands {
-                if best.as_ref().map_or(true, |b| cnd.1 < b.1) {
+                if best.as_ref().is_none_or(|b| cnd.1 < b.1) {
                     best = Some(cnd);
                 }
             }
@@ -463,7 +468,7 @@ pub fn self_rectify(
     residuals(&hl, &hr, pl, pr, &kept, &mut dy);
     dy.iter_mut().for_each(|v| *v = -*v); // y_R − y_L
     let dy_rectified = DyStats::of(&dy);
-    if !(dy_rectified.median_abs <= opts.max_median_dy_px) {
+    if dy_rectified.median_abs.is_nan() || dy_rectified.median_abs > opts.max_median_dy_px {
         return Err(invalid(
             "self-rectification",
             format!(
@@ -567,7 +572,7 @@ fn hartley(
 pub fn exact_correspondences(
     disp: &crate::augment::AugmentedDisparity,
     step: usize,
-) -> Result<(Vec<[f64; 2]>, Vec<[f64; 2]>), StereoError> {
+) -> Result<PointPairs, StereoError> {
     let res = disp
         .vertical_residual
         .as_ref()

@@ -77,12 +77,13 @@ pub(crate) fn null_space_7x9(rows: &[[f64; 9]; 7]) -> Option<([f64; 9], [f64; 9]
         for v in a[r].iter_mut() {
             *v *= inv;
         }
-        for i in 0..7 {
+        let pivot_row = a[r];
+        for (i, row) in a.iter_mut().enumerate() {
             if i != r {
-                let f = a[i][r];
+                let f = row[r];
                 if f != 0.0 {
-                    for j in r..9 {
-                        a[i][j] -= f * a[r][j];
+                    for (v, p) in row.iter_mut().zip(&pivot_row).skip(r) {
+                        *v -= f * p;
                     }
                 }
             }

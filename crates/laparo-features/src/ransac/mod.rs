@@ -167,26 +167,29 @@ fn needed_iterations(confidence: f64, w: f64, s: usize) -> f64 {
     (1.0 - confidence).ln() / (1.0 - p).ln()
 }
 
+/// A scored hypothesis: (MSAC score, hypothesis index k, model, inlier count).
+type Candidate<M> = (f64, usize, M, usize);
+
 /// The generic loop: sampling, MSAC scoring, adaptive stop, local optimisation.
 pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit<E::Model>> {
     check_params(prm)?;
     let n = est.len();
     let t2 = prm.threshold_px * prm.threshold_px;
-    let mut best: Option<(f64, usize, E::Model, usize)> = None; // score, k, model, inliers
+    let mut best: Option<Candidate<E::Model>> = None;
     let mut drawn = 0usize;
     let mut needed = prm.max_iters as f64;
     while (drawn as f64) < needed.min(prm.max_iters as f64) {
         let b = BATCH.min(prm.max_iters - drawn);
         // early exit bound from the previous batches only (thread-count independent)
         let bound = best.as_ref().map_or(f64::INFINITY, |b| b.0);
-        let batch: Vec<Option<(f64, usize, E::Model, usize)>> = (drawn..drawn + b)
+        let batch: Vec<Option<Candidate<E::Model>>> = (drawn..drawn + b)
             .into_par_iter()
             .map_init(Vec::new, |idx, k| {
                 sample(prm.seed, k, n, E::SAMPLE, idx);
-                let mut bk: Option<(f64, usize, E::Model, usize)> = None;
+                let mut bk: Option<Candidate<E::Model>> = None;
                 for m in est.minimal(idx) {
                     let Some((s, ni)) = msac(est, &m, t2, bound) else { continue };
-                    if bk.as_ref().map_or(true, |b| s < b.0) {
+                    if bk.as_ref().is_none_or(|b| s < b.0) {
                         bk = Some((s, k, m, ni));
                     }
                 }
@@ -195,7 +198,7 @@ pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit
             .collect();
         drawn += b;
         for c in batch.into_iter().flatten() {
-            if best.as_ref().map_or(true, |b| c.0 < b.0 || (c.0 == b.0 && c.1 < b.1)) {
+            if best.as_ref().is_none_or(|b| c.0 < b.0 || (c.0 == b.0 && c.1 < b.1)) {
                 best = Some(c);
             }
         }
