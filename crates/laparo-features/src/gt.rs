@@ -88,11 +88,7 @@ impl<'a> DepthView<'a> {
         if let Some(i) = d.data.iter().position(|v| v.is_nan()) {
             return Err(FeaturesError::invalid(
                 format!("{name} depth"),
-                format!(
-                    "NaN at pixel (x {}, y {}); mark missing depth with 0 or +inf",
-                    i % d.width,
-                    i / d.width
-                ),
+                format!("NaN at pixel (x {}, y {}); mark missing depth with 0 or +inf", i % d.width, i / d.width),
             ));
         }
         Ok(())
@@ -100,7 +96,7 @@ impl<'a> DepthView<'a> {
 
     fn valid_px(&self, x: usize, y: usize) -> Option<f64> {
         let z = self.depth_mm.data[y * self.depth_mm.width + x];
-        let in_roi = self.roi.map_or(true, |r| r.data[y * r.width + x]);
+        let in_roi = self.roi.is_none_or(|r| r.data[y * r.width + x]);
         (in_roi && z > 0.0 && z.is_finite()).then_some(z)
     }
 
@@ -116,7 +112,12 @@ impl<'a> DepthView<'a> {
         if x0 + 1 >= w || y0 + 1 >= h {
             return Some(nearest);
         }
-        let q = [self.valid_px(x0, y0), self.valid_px(x0 + 1, y0), self.valid_px(x0, y0 + 1), self.valid_px(x0 + 1, y0 + 1)];
+        let q = [
+            self.valid_px(x0, y0),
+            self.valid_px(x0 + 1, y0),
+            self.valid_px(x0, y0 + 1),
+            self.valid_px(x0 + 1, y0 + 1),
+        ];
         if let [Some(a), Some(b), Some(c), Some(d)] = q {
             let lo = a.min(b).min(c).min(d);
             let hi = a.max(b).max(c).max(d);
@@ -189,7 +190,10 @@ impl GroundTruth<'_> {
         match self {
             GroundTruth::Homography(h) | GroundTruth::HomographyBounded { h, .. } => {
                 if h.iter().any(|v| !v.is_finite()) || h.try_inverse().is_none() {
-                    return Err(FeaturesError::invalid("ground-truth homography", format!("not finite or singular: {h}")));
+                    return Err(FeaturesError::invalid(
+                        "ground-truth homography",
+                        format!("not finite or singular: {h}"),
+                    ));
                 }
                 Ok(())
             }
@@ -298,7 +302,7 @@ fn nearest(p: [f64; 2], set: &[(usize, [f64; 2])]) -> Option<(usize, f64)> {
     let mut best: Option<(usize, f64)> = None;
     for &(i, q) in set {
         let d = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-        if best.map_or(true, |b| d < b.1) {
+        if best.is_none_or(|b| d < b.1) {
             best = Some((i, d));
         }
     }
@@ -390,7 +394,8 @@ pub fn evaluate_points(
     // GT-matchable pairs: mutual nearest under transfer, two-way error < ε
     let nn12: Vec<Option<usize>> = c1.par_iter().map(|&(_, q)| nearest(q, &c2).map(|(j, _)| j)).collect();
     let mut nn21 = vec![usize::MAX; p2.len()];
-    let nn21v: Vec<(usize, Option<usize>)> = c2_in1.par_iter().map(|&(j, q)| (j, nearest(q, &c1_in1).map(|(i, _)| i))).collect();
+    let nn21v: Vec<(usize, Option<usize>)> =
+        c2_in1.par_iter().map(|&(j, q)| (j, nearest(q, &c1_in1).map(|(i, _)| i))).collect();
     for (j, i) in nn21v {
         if let Some(i) = i {
             nn21[j] = i;

@@ -24,8 +24,8 @@ fn hand_computed_two_way_average() {
     let h = Matrix3::new(2.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 1.0);
     let kp1 = [kp(1.0, 1.0), kp(10.0, 10.0)];
     let kp2 = [kp(3.0, 2.0), kp(24.0, 20.0)];
-    let r = evaluate_matches(&kp1, &kp2, &[m(0, 0), m(1, 1)], &GroundTruth::Homography(h), &EvalConfig::default())
-        .unwrap();
+    let r =
+        evaluate_matches(&kp1, &kp2, &[m(0, 0), m(1, 1)], &GroundTruth::Homography(h), &EvalConfig::default()).unwrap();
     assert_eq!(r.transfer_error_px, vec![0.75, 3.0]);
     // ε = 3 is strict: 3.0 is wrong
     assert_eq!(r.labels, vec![MatchLabel::Correct, MatchLabel::Wrong]);
@@ -214,13 +214,25 @@ fn bad_input_names_the_input() {
     // a struct built by hand is validated by evaluate_matches too
     let v1 = DepthView { depth_mm: &dn, intrinsics: &k, cam_from_world: pose1, roi: None };
     let v2 = DepthView { depth_mm: &depth, intrinsics: &k, cam_from_world: pose1, roi: None };
-    let e = evaluate_points(&[[1.0, 1.0]], &[[1.0, 1.0]], &[(0, 0)], &GroundTruth::DepthPose(v1, v2), &EvalConfig::default())
-        .unwrap_err()
-        .to_string();
+    let e = evaluate_points(
+        &[[1.0, 1.0]],
+        &[[1.0, 1.0]],
+        &[(0, 0)],
+        &GroundTruth::DepthPose(v1, v2),
+        &EvalConfig::default(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("view 1 depth") && e.contains("NaN"), "{e}");
-    let e = evaluate_points(&[[1.0, 1.0]], &[[1.0, 1.0]], &[(0, 3)], &GroundTruth::Homography(Matrix3::identity()), &EvalConfig::default())
-        .unwrap_err()
-        .to_string();
+    let e = evaluate_points(
+        &[[1.0, 1.0]],
+        &[[1.0, 1.0]],
+        &[(0, 3)],
+        &GroundTruth::Homography(Matrix3::identity()),
+        &EvalConfig::default(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("match 0") && e.contains("out of range"), "{e}");
     let small = Image::filled(10, 10, 1, 1.0);
     let e = DepthView::new("view 1", &small, &k, Some(pose1), None).unwrap_err().to_string();
