@@ -161,7 +161,8 @@ impl Mask {
     /// Huttenlocher 2012). Pixels outside the image are not `false`.
     pub fn sq_distance_to_false(&self) -> Image<f64> {
         let (w, h) = (self.width, self.height);
-        let mut d: Vec<f64> = (0..w * h).map(|i| if self.data[i * self.channels] { f64::INFINITY } else { 0.0 }).collect();
+        let mut d: Vec<f64> =
+            (0..w * h).map(|i| if self.data[i * self.channels] { f64::INFINITY } else { 0.0 }).collect();
         let mut f = vec![0.0; w.max(h)];
         let mut out = vec![0.0; w.max(h)];
         for x in 0..w {

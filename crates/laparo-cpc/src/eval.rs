@@ -248,11 +248,19 @@ impl Row {
     }
 }
 
-fn run_method(d1: &Domain, d2: &Domain, gt: &GroundTruth, method: &Method, cfg: &EvalConfig, cpc: bool) -> Result<MethodRun> {
+fn run_method(
+    d1: &Domain,
+    d2: &Domain,
+    gt: &GroundTruth,
+    method: &Method,
+    cfg: &EvalConfig,
+    cpc: bool,
+) -> Result<MethodRun> {
     let f1 = detect(d1, &method.detector)?;
     let f2 = detect(d2, &method.detector)?;
     let matches = match_features(&f1, &f2, &method.matching).map_err(|e| feat_err("matcher", e))?;
-    let e = evaluate_matches(&f1.keypoints, &f2.keypoints, &matches, gt, cfg).map_err(|e| feat_err("ground truth", e))?;
+    let e =
+        evaluate_matches(&f1.keypoints, &f2.keypoints, &matches, gt, cfg).map_err(|e| feat_err("ground truth", e))?;
     Ok(MethodRun {
         row: row(method, cpc, &f1, &f2, &matches, &e),
         labels: e.labels.clone(),
@@ -272,7 +280,8 @@ pub fn validate_view(v: &View, name: &str) -> Result<()> {
         )));
     }
     let d = v.depth.to_image();
-    let bad = (0..w * h).filter(|&i| v.roi.data[i * v.roi.channels] && !(d.data[i].is_finite() && d.data[i] > 0.0)).count();
+    let bad =
+        (0..w * h).filter(|&i| v.roi.data[i * v.roi.channels] && !(d.data[i].is_finite() && d.data[i] > 0.0)).count();
     if bad > 0 {
         return Err(CpcError::invalid(
             format!("{name} depth"),
@@ -343,7 +352,8 @@ impl PairEval {
     /// Relative change of #correct with CPC for `method` ((with − without) / without; +inf when
     /// without is 0 and with is not).
     pub fn gain(&self, method: &str) -> Option<f64> {
-        let get = |cpc: bool| self.runs.iter().find(|r| r.row.method == method && r.row.cpc == cpc).map(|r| r.row.n_correct);
+        let get =
+            |cpc: bool| self.runs.iter().find(|r| r.row.method == method && r.row.cpc == cpc).map(|r| r.row.n_correct);
         let (a, b) = (get(false)? as f64, get(true)? as f64);
         Some(if a == 0.0 {
             if b == 0.0 {
@@ -535,7 +545,8 @@ impl LambdaMatchSweep {
     pub fn plot_png(&self, path: &std::path::Path) -> Result<()> {
         use plotters::prelude::*;
         let nmax = self.points.iter().flat_map(|p| p.n_correct.iter().copied()).max().unwrap_or(1).max(1) as f64 * 1.1;
-        let dmax = self.points.iter().flat_map(|p| p.delta_area).filter(|v| v.is_finite()).fold(0.1_f64, f64::max) * 1.1;
+        let dmax =
+            self.points.iter().flat_map(|p| p.delta_area).filter(|v| v.is_finite()).fold(0.1_f64, f64::max) * 1.1;
         let me = self.clone();
         laparo_core::plot::draw_png(path, 820, 500, move |root| {
             let mut chart = ChartBuilder::on(&root)
@@ -552,10 +563,15 @@ impl LambdaMatchSweep {
             for (i, name) in me.methods.iter().enumerate() {
                 let c = colours[i % colours.len()];
                 chart
-                    .draw_series(LineSeries::new(me.points.iter().map(|p| (p.lambda, p.n_correct[i] as f64)), c.stroke_width(2)))?
+                    .draw_series(LineSeries::new(
+                        me.points.iter().map(|p| (p.lambda, p.n_correct[i] as f64)),
+                        c.stroke_width(2),
+                    ))?
                     .label(format!("CPC+{name}"))
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
-                chart.draw_series(me.points.iter().map(|p| Circle::new((p.lambda, p.n_correct[i] as f64), 3, c.filled())))?;
+                chart.draw_series(
+                    me.points.iter().map(|p| Circle::new((p.lambda, p.n_correct[i] as f64), 3, c.filled())),
+                )?;
                 let y0 = me.n_correct_plain[i] as f64;
                 chart
                     .draw_series(LineSeries::new(vec![(0.0, y0), (1.0, y0)], c.mix(0.4).stroke_width(1)))?

@@ -335,16 +335,15 @@ impl LambdaSweep {
     /// PNG; without a fit, the measured curve and the fallback λ.
     pub fn plot_png(&self, path: &std::path::Path) -> Result<()> {
         use plotters::prelude::*;
-        let ymax = self
+        let ymax =
+            self.points.iter().map(|p| p.delta_area_norm).filter(|v| v.is_finite()).fold(1.0_f64, f64::max) * 1.08;
+        let fit = self.fit.clone();
+        let pts: Vec<(f64, f64)> = self
             .points
             .iter()
-            .map(|p| p.delta_area_norm)
-            .filter(|v| v.is_finite())
-            .fold(1.0_f64, f64::max)
-            * 1.08;
-        let fit = self.fit.clone();
-        let pts: Vec<(f64, f64)> =
-            self.points.iter().filter(|p| p.delta_area_norm.is_finite()).map(|p| (p.lambda, p.delta_area_norm)).collect();
+            .filter(|p| p.delta_area_norm.is_finite())
+            .map(|p| (p.lambda, p.delta_area_norm))
+            .collect();
         let ell = self.ell;
         let caption = if fit.is_some() {
             format!("automatic λ: δ_area(λ)/{:.3}, fit (eq. 4.14), ℓ = {ell:.3}", self.normaliser)

@@ -245,7 +245,13 @@ fn lambda_sweep_normalises_delta_area_and_falls_back_with_a_warning() {
     let curve = |l: f64| 0.4 * (-5.0 * (-10.0 * l).exp()).exp() + 0.6 * (30.0 * (l - 1.0)).exp();
     let pts = |scale: f64, f: &dyn Fn(f64) -> f64| -> Vec<SweepPoint> {
         grid.iter()
-            .map(|&l| SweepPoint { lambda: l, delta_area: scale * f(l), delta_area_norm: f64::NAN, angle_error_deg: 0.0, n_flipped: 0 })
+            .map(|&l| SweepPoint {
+                lambda: l,
+                delta_area: scale * f(l),
+                delta_area_norm: f64::NAN,
+                angle_error_deg: 0.0,
+                n_flipped: 0,
+            })
             .collect()
     };
     let raw: Vec<f64> = grid.iter().map(|&l| 3.0 * curve(l)).collect();

@@ -182,12 +182,7 @@ pub fn pair(a: PairArgs) -> Result<()> {
         "view2": {"cam_from_world": pose_json(&p.view2.pose), "tilt_deg": t2, "yaw_deg": y2},
     });
     write_atomic(&a.out.join("poses.json"), serde_json::to_string_pretty(&poses)?.as_bytes())?;
-    println!(
-        "{} pair (viewpoint change {:.1}°) written to {}",
-        a.kind,
-        p.viewpoint_change_deg,
-        a.out.display()
-    );
+    println!("{} pair (viewpoint change {:.1}°) written to {}", a.kind, p.viewpoint_change_deg, a.out.display());
     Ok(())
 }
 
@@ -248,7 +243,9 @@ fn load_view(image: &Path, depth: &Path, mask: &Path, unit: DepthUnit, k: &Path,
             roi.height
         );
     }
-    let nan = (0..roi.n_pixels()).filter(|&i| roi.data[i * roi.channels] && !(d.data[i].is_finite() && d.data[i] > 0.0)).count();
+    let nan = (0..roi.n_pixels())
+        .filter(|&i| roi.data[i * roi.channels] && !(d.data[i].is_finite() && d.data[i] > 0.0))
+        .count();
     if nan > 0 {
         bail!(
             "depth {}: {nan} pixels inside mask {} are NaN, infinite or <= 0 (fix the depth or the mask)",
@@ -266,7 +263,14 @@ fn method_slug(name: &str) -> String {
 }
 
 /// Write table.{md,csv,json} and the match pictures of one evaluated pair.
-fn write_pair_outputs(out: &Path, v1: &View, v2: &View, e: &eval::PairEval, settings: &EvalSettings, extra: Value) -> Result<()> {
+fn write_pair_outputs(
+    out: &Path,
+    v1: &View,
+    v2: &View,
+    e: &eval::PairEval,
+    settings: &EvalSettings,
+    extra: Value,
+) -> Result<()> {
     let rows = e.rows();
     let table = eval::pair_table(&rows);
     write_atomic(&out.join("table.md"), table.to_markdown().as_bytes())?;
@@ -277,8 +281,12 @@ fn write_pair_outputs(out: &Path, v1: &View, v2: &View, e: &eval::PairEval, sett
     }
     io::write_png(out.join("warped1.png"), &e.cpc[0].warped)?;
     io::write_png(out.join("warped2.png"), &e.cpc[1].warped)?;
-    let gains: Value =
-        settings.methods.iter().map(|m| (m.name.clone(), json!(e.gain(&m.name)))).collect::<serde_json::Map<_, _>>().into();
+    let gains: Value = settings
+        .methods
+        .iter()
+        .map(|m| (m.name.clone(), json!(e.gain(&m.name))))
+        .collect::<serde_json::Map<_, _>>()
+        .into();
     let j = json!({
         "rows": rows, "gain_correct": gains, "cpc": e.cpc_stats,
         "settings": {"methods": settings.methods, "roi_erosion_px": settings.roi_erosion_px,
@@ -320,7 +328,8 @@ pub fn eval_cmd(a: EvalArgs) -> Result<()> {
         let pb = indicatif::ProgressBar::new_spinner();
         pb.set_message("λ sweep (Fig. 4.12)");
         pb.enable_steady_tick(std::time::Duration::from_millis(200));
-        let grid: Vec<f64> = default_lambda_grid().into_iter().filter(|&l| (l * 20.0).fract() == 0.0 || l >= 0.96).collect();
+        let grid: Vec<f64> =
+            default_lambda_grid().into_iter().filter(|&l| (l * 20.0).fract() == 0.0 || l >= 0.96).collect();
         let s = eval::lambda_match_sweep(&v1, &v2, &settings, &grid)?;
         pb.finish_and_clear();
         write_atomic(&a.out.join("lambda_matching.csv"), s.to_csv().as_bytes())?;
@@ -364,7 +373,13 @@ pub fn sequence_cmd(a: SequenceArgs) -> Result<()> {
     pb.finish_and_clear();
     let views: Vec<View> = scenes
         .iter()
-        .map(|s| View { image: &s.image, depth: &s.depth, intrinsics: &s.intrinsics, roi: &s.roi, cam_from_world: s.pose })
+        .map(|s| View {
+            image: &s.image,
+            depth: &s.depth,
+            intrinsics: &s.intrinsics,
+            roi: &s.roi,
+            cam_from_world: s.pose,
+        })
         .collect();
     let rows = eval::evaluate_sequence(&views, 0, &settings)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -375,7 +390,13 @@ pub fn sequence_cmd(a: SequenceArgs) -> Result<()> {
     }
     let mut t = laparo_core::table::Table::new(["frame", "method", "#correct", "#correct CPC", "ratio"]);
     for r in &rows {
-        t.push_row([r.frame.to_string(), r.method.clone(), r.n_correct.to_string(), r.n_correct_cpc.to_string(), format!("{:.2}", r.ratio)]);
+        t.push_row([
+            r.frame.to_string(),
+            r.method.clone(),
+            r.n_correct.to_string(),
+            r.n_correct_cpc.to_string(),
+            format!("{:.2}", r.ratio),
+        ]);
     }
     println!("{}", t.to_markdown());
     println!("written to {}", a.out.display());

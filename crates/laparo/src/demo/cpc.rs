@@ -104,7 +104,11 @@ fn matching_subsection(dir: &Path) -> Result<(String, serde_json::Value)> {
         let (v1, v2) = (View::of_scene(&p.view1), View::of_scene(&p.view2));
         let e = eval::evaluate_pair(&v1, &v2, &settings)?;
         for run in &e.runs {
-            let f = format!("match_{name}_{}{}.png", if run.row.cpc { "cpc_" } else { "" }, run.row.method.to_ascii_lowercase().replace('+', "_"));
+            let f = format!(
+                "match_{name}_{}{}.png",
+                if run.row.cpc { "cpc_" } else { "" },
+                run.row.method.to_ascii_lowercase().replace('+', "_")
+            );
             io::write_png(dir.join(&f), &eval::match_picture(v1.image, v2.image, run))?;
             if run.row.method.starts_with("SIFT") && kind == PairKind::Hard {
                 write!(figs, "<figure><img src=\"cpc/{f}\" width=\"600\"><figcaption>{name} pair, {}: {} correct of {}</figcaption></figure>", run.row.label(), run.row.n_correct, run.row.n_matches)?;
