@@ -155,6 +155,85 @@ impl Mask {
     pub fn count(&self) -> usize {
         self.data.iter().filter(|&&b| b).count()
     }
+
+    /// Squared Euclidean distance (px²) from every pixel to the nearest `false` pixel of channel 0
+    /// (0 on `false` pixels, `f64::INFINITY` if there is none); exact, separable (Felzenszwalb &
+    /// Huttenlocher 2012). Pixels outside the image are not `false`.
+    pub fn sq_distance_to_false(&self) -> Image<f64> {
+        let (w, h) = (self.width, self.height);
+        let mut d: Vec<f64> =
+            (0..w * h).map(|i| if self.data[i * self.channels] { f64::INFINITY } else { 0.0 }).collect();
+        let mut f = vec![0.0; w.max(h)];
+        let mut out = vec![0.0; w.max(h)];
+        for x in 0..w {
+            for y in 0..h {
+                f[y] = d[y * w + x];
+            }
+            sq_dt_1d(&f[..h], &mut out[..h]);
+            for y in 0..h {
+                d[y * w + x] = out[y];
+            }
+        }
+        for row in d.chunks_exact_mut(w.max(1)) {
+            f[..w].copy_from_slice(row);
+            sq_dt_1d(&f[..w], &mut out[..w]);
+            row.copy_from_slice(&out[..w]);
+        }
+        Image { width: w, height: h, channels: 1, data: d }
+    }
+
+    /// Erosion by a disk of radius `radius_px`: a pixel stays `true` iff every pixel within
+    /// Euclidean distance `radius_px` is `true` (channel 0; outside the image counts as `true`).
+    /// The thesis keeps keypoints in the ROI eroded by a 25 px disk (§4.5.1).
+    pub fn erode_disk(&self, radius_px: f64) -> Mask {
+        let r2 = radius_px * radius_px;
+        let d = self.sq_distance_to_false();
+        Image { width: self.width, height: self.height, channels: 1, data: d.data.iter().map(|&v| v > r2).collect() }
+    }
+}
+
+/// 1D squared distance transform of the sampled function `f` (lower envelope of parabolas).
+fn sq_dt_1d(f: &[f64], out: &mut [f64]) {
+    let n = f.len();
+    let sites: Vec<usize> = (0..n).filter(|&q| f[q].is_finite()).collect();
+    if sites.is_empty() {
+        out.fill(f64::INFINITY);
+        return;
+    }
+    let mut v: Vec<usize> = Vec::with_capacity(sites.len());
+    let mut z: Vec<f64> = Vec::with_capacity(sites.len() + 1);
+    for &q in &sites {
+        let qf = q as f64;
+        loop {
+            match v.last() {
+                None => {
+                    v.push(q);
+                    z.push(f64::NEG_INFINITY);
+                    break;
+                }
+                Some(&p) => {
+                    let pf = p as f64;
+                    let s = ((f[q] + qf * qf) - (f[p] + pf * pf)) / (2.0 * (qf - pf));
+                    if s <= *z.last().unwrap() {
+                        v.pop();
+                        z.pop();
+                    } else {
+                        v.push(q);
+                        z.push(s);
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    let mut k = 0;
+    for (q, o) in out.iter_mut().enumerate() {
+        while k + 1 < v.len() && z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let d = q as f64 - v[k] as f64;
+        *o = d * d + f[v[k]];
+    }
 }
 
 #[cfg(test)]
@@ -170,5 +249,43 @@ mod tests {
         assert_eq!(img.sample_bilinear(0.25, 0.0, 0), Some(2.5));
         assert_eq!(img.sample_bilinear(1.01, 0.0, 0), None);
         assert!(Image::from_vec(2, 2, 1, vec![0u8; 3]).is_err());
+    }
+
+    /// Distance transform and disk erosion against brute force on a random-ish mask.
+    #[test]
+    fn erode_disk_matches_brute_force() {
+        let (w, h) = (37, 23);
+        let mut m = Mask::filled(w, h, 1, true);
+        let mut s = 12345u64;
+        for _ in 0..9 {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            m.set((s >> 33) as usize % w, (s >> 45) as usize % h, 0, false);
+        }
+        let d = m.sq_distance_to_false();
+        for y in 0..h {
+            for x in 0..w {
+                let mut best = f64::INFINITY;
+                for yy in 0..h {
+                    for xx in 0..w {
+                        if !m.get(xx, yy, 0) {
+                            best = best.min((x as f64 - xx as f64).powi(2) + (y as f64 - yy as f64).powi(2));
+                        }
+                    }
+                }
+                assert_eq!(d.get(x, y, 0), best, "({x}, {y})");
+            }
+        }
+        let e = m.erode_disk(3.0);
+        for y in 0..h {
+            for x in 0..w {
+                assert_eq!(e.get(x, y, 0), d.get(x, y, 0) > 9.0);
+            }
+        }
+        // A single false pixel at (10, 10): (13, 10) is at distance 3 (eroded), (13, 12) is not.
+        let mut one = Mask::filled(20, 20, 1, true);
+        one.set(10, 10, 0, false);
+        let e = one.erode_disk(3.0);
+        assert!(!e.get(13, 10, 0) && e.get(13, 12, 0) && e.get(0, 0, 0));
+        assert!(Mask::filled(4, 4, 1, true).sq_distance_to_false().data.iter().all(|v| v.is_infinite()));
     }
 }

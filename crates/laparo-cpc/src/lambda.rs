@@ -9,6 +9,14 @@
 //! The free parameters are thus (b1, c1, ℓ), fitted by least squares with Nelder–Mead from several
 //! starts (hand-written: 3 unknowns, a few hundred evaluations; no optimisation crate needed).
 //! The reported (a2, c2) use the convention c2 = 0 (a2 = K).
+//!
+//! Normalisation. Eq. 4.16 fixes f(1) = 1, but δ_area (eq. 4.13) is not bounded by 1: on a bumpy
+//! surface seen beyond about 60° the near-conformal solutions enlarge some triangles more than
+//! twofold and δ_area passes 1 well before λ = 1. The fit is therefore made on
+//! δ̂(λ) = δ_area(λ) / δ_area(λ_max), λ_max the largest λ of the grid (our reading of eq. 4.16:
+//! the curve is scaled so that its value as λ → 1 is 1). When the fit is still not possible
+//! (a non-monotone curve whose median is ≥ 1, too few points, no feasible model) the sweep is kept,
+//! λ falls back to [`FALLBACK_LAMBDA`] and [`LambdaSweep::warning`] says why.
 use crate::error::{CpcError, Result};
 use crate::mesh::CpcMesh;
 use crate::metrics;
@@ -21,6 +29,19 @@ pub fn default_lambda_grid() -> Vec<f64> {
     g.extend([0.96, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999]);
     g
 }
+
+/// λ used when the Gompertz/exponential fit fails (documented fallback; the thesis calls
+/// λ = 0.95 a good trade-off, Fig. 4.11).
+pub const FALLBACK_LAMBDA: f64 = 0.95;
+
+/// Lower bound of the transition point ℓ in the fit. On fine grids δ_area(λ) often rises
+/// almost linearly from λ = 0; unconstrained, the fit then degenerates to a pure exponential with
+/// ℓ ≈ 0 (no correction at all). The thesis' ℓ sits at the knee before the final rise (Fig. 4.12c).
+pub const MIN_ELL: f64 = 0.5;
+
+/// Largest RMS residual (of the normalised curve) for which a fit is accepted; above it the
+/// model of eq. 4.14 does not describe the sweep and λ falls back to [`FALLBACK_LAMBDA`].
+pub const MAX_FIT_RMSE: f64 = 0.15;
 
 /// The fitted model of eq. 4.14.
 #[derive(Clone, Debug, Serialize)]
@@ -63,6 +84,8 @@ pub struct SweepPoint {
     pub lambda: f64,
     /// δ_area (eq. 4.13) of the flattened mesh.
     pub delta_area: f64,
+    /// δ_area / δ_area(λ_max): the normalised curve the model is fitted to (f(1) = 1, eq. 4.16).
+    pub delta_area_norm: f64,
     /// Mean |2D − 3D| corner angle (deg) of the flattened mesh.
     pub angle_error_deg: f64,
     /// Number of flipped triangles.
@@ -74,25 +97,42 @@ pub struct SweepPoint {
 pub struct LambdaSweep {
     /// One row per λ of the grid.
     pub points: Vec<SweepPoint>,
-    /// The model of eq. 4.14 fitted to the sweep.
-    pub fit: GompertzExpFit,
-    /// The selected λ = ℓ.
+    /// δ_area at the largest λ of the grid: the curve is divided by it before the fit.
+    pub normaliser: f64,
+    /// The model of eq. 4.14 fitted to the normalised sweep (`None` when the fit failed).
+    pub fit: Option<GompertzExpFit>,
+    /// The selected λ: ℓ of the fit, or [`FALLBACK_LAMBDA`] when the fit failed.
     pub ell: f64,
+    /// Why the fit failed and λ fell back to [`FALLBACK_LAMBDA`] (`None` when ℓ was fitted).
+    pub warning: Option<String>,
 }
 
 /// Solve for every λ of `grid` and record δ_area (eq. 4.13), the angle error and the flips.
 pub fn sweep(system: &CpcSystem, mesh: &CpcMesh, grid: &[f64]) -> Result<Vec<SweepPoint>> {
-    grid.iter()
+    let mut pts = grid
+        .iter()
         .map(|&lambda| {
             let p = system.solve(lambda)?;
             Ok(SweepPoint {
                 lambda,
                 delta_area: metrics::delta_area(&p, &mesh.p_init, &mesh.faces),
+                delta_area_norm: f64::NAN,
                 angle_error_deg: metrics::angle_error_deg(&p, &mesh.x3d, &mesh.faces),
                 n_flipped: metrics::n_flipped(&p, &mesh.faces),
             })
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()?;
+    normalise(&mut pts);
+    Ok(pts)
+}
+
+/// Fill [`SweepPoint::delta_area_norm`] = δ_area / δ_area(λ_max); returns the normaliser.
+fn normalise(pts: &mut [SweepPoint]) -> f64 {
+    let last = pts.iter().max_by(|a, b| a.lambda.total_cmp(&b.lambda)).map(|p| p.delta_area).unwrap_or(f64::NAN);
+    for p in pts.iter_mut() {
+        p.delta_area_norm = p.delta_area / last;
+    }
+    last
 }
 
 /// Build the constrained model from the free parameters (b1, c1, ℓ); `None` if infeasible.
@@ -197,16 +237,20 @@ pub fn fit_gompertz_exp(lambdas: &[f64], delta: &[f64]) -> Result<GompertzExpFit
     if !(a1 > 0.0 && a1 < 1.0) {
         return Err(CpcError::invalid("lambda sweep", format!("median delta_area {a1} is not in (0, 1)")));
     }
+    let to_ell = |x: f64| MIN_ELL + (1.0 - MIN_ELL) / (1.0 + (-x).exp());
     let cost = |x: &[f64; 3]| -> f64 {
-        let ell = 1.0 / (1.0 + (-x[2]).exp());
+        let ell = to_ell(x[2]);
         match model(a1, x[0].exp(), x[1].exp(), ell) {
             Some(m) => lambdas.iter().zip(delta).map(|(&l, &d)| (m.eval(l) - d).powi(2)).sum(),
             None => f64::INFINITY,
         }
     };
-    let logit = |l: f64| (l / (1.0 - l)).ln();
+    let logit = |l: f64| {
+        let u = (l - MIN_ELL) / (1.0 - MIN_ELL);
+        (u / (1.0 - u)).ln()
+    };
     let mut best: Option<([f64; 3], f64)> = None;
-    for &ell0 in &[0.5, 0.8, 0.9, 0.95, 0.98] {
+    for &ell0 in &[0.6, 0.8, 0.9, 0.95, 0.98] {
         for &c0 in &[3.0_f64, 10.0, 30.0] {
             for &b0 in &[1.0_f64, 5.0, 30.0] {
                 let x0 = [b0.ln(), c0.ln(), logit(ell0)];
@@ -221,32 +265,63 @@ pub fn fit_gompertz_exp(lambdas: &[f64], delta: &[f64]) -> Result<GompertzExpFit
         }
     }
     let (x, c) = best.ok_or_else(|| CpcError::invalid("lambda sweep", "no feasible Gompertz/exponential fit"))?;
-    let ell = 1.0 / (1.0 + (-x[2]).exp());
+    let ell = to_ell(x[2]);
     let mut m = model(a1, x[0].exp(), x[1].exp(), ell)
         .ok_or_else(|| CpcError::invalid("lambda sweep", "no feasible Gompertz/exponential fit"))?;
     m.rmse = (c / lambdas.len() as f64).sqrt();
+    if m.rmse > MAX_FIT_RMSE {
+        return Err(CpcError::invalid(
+            "lambda sweep",
+            format!("the Gompertz/exponential model does not describe the curve (RMSE {:.3} > {MAX_FIT_RMSE})", m.rmse),
+        ));
+    }
     Ok(m)
 }
 
-/// Sweep λ over `grid`, fit the model and return ℓ (§4.5.4).
+/// Sweep λ over `grid`, fit the model to the normalised δ_area and return ℓ (§4.5.4). A failed
+/// fit is not an error: the result then carries [`FALLBACK_LAMBDA`] and a warning. Errors only
+/// come from the solves themselves.
 pub fn auto_lambda(system: &CpcSystem, mesh: &CpcMesh, grid: &[f64]) -> Result<LambdaSweep> {
-    let points = sweep(system, mesh, grid)?;
-    let l: Vec<f64> = points.iter().map(|p| p.lambda).collect();
-    let d: Vec<f64> = points.iter().map(|p| p.delta_area).collect();
-    let fit = fit_gompertz_exp(&l, &d)?;
-    Ok(LambdaSweep { ell: fit.ell, points, fit })
+    Ok(LambdaSweep::from_points(sweep(system, mesh, grid)?))
 }
 
 impl LambdaSweep {
-    /// CSV: `lambda,delta_area,fit,angle_error_deg,n_flipped`.
+    /// Fit eq. 4.14 to measured sweep points (normalising δ_area, see the module docs); on
+    /// failure select [`FALLBACK_LAMBDA`] with a warning.
+    pub fn from_points(mut points: Vec<SweepPoint>) -> LambdaSweep {
+        let normaliser = normalise(&mut points);
+        let l: Vec<f64> = points.iter().map(|p| p.lambda).collect();
+        let d: Vec<f64> = points.iter().map(|p| p.delta_area_norm).collect();
+        let fit = if normaliser.is_finite() && normaliser > 0.0 {
+            fit_gompertz_exp(&l, &d)
+        } else {
+            Err(CpcError::invalid("lambda sweep", format!("delta_area at the largest lambda is {normaliser}")))
+        };
+        match fit {
+            Ok(f) => LambdaSweep { ell: f.ell, points, normaliser, fit: Some(f), warning: None },
+            Err(e) => LambdaSweep {
+                ell: FALLBACK_LAMBDA,
+                points,
+                normaliser,
+                fit: None,
+                warning: Some(format!("automatic lambda failed ({e}); using the fallback lambda {FALLBACK_LAMBDA}")),
+            },
+        }
+    }
+}
+
+impl LambdaSweep {
+    /// CSV: `lambda,delta_area,delta_area_norm,fit,angle_error_deg,n_flipped` (fit: f(λ) of the
+    /// normalised curve, NaN when the fit failed).
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("lambda,delta_area,fit,angle_error_deg,n_flipped\n");
+        let mut s = String::from("lambda,delta_area,delta_area_norm,fit,angle_error_deg,n_flipped\n");
         for p in &self.points {
             s.push_str(&format!(
-                "{},{},{},{},{}\n",
+                "{},{},{},{},{},{}\n",
                 p.lambda,
                 p.delta_area,
-                self.fit.eval(p.lambda),
+                p.delta_area_norm,
+                self.fit.as_ref().map_or(f64::NAN, |f| f.eval(p.lambda)),
                 p.angle_error_deg,
                 p.n_flipped
             ));
@@ -256,35 +331,49 @@ impl LambdaSweep {
 }
 
 impl LambdaSweep {
-    /// Plot δ_area(λ), the fitted model f(λ) and ℓ (like thesis Fig. 4.12c) as PNG.
+    /// Plot the normalised δ_area(λ), the fitted model f(λ) and ℓ (like thesis Fig. 4.12c) as
+    /// PNG; without a fit, the measured curve and the fallback λ.
     pub fn plot_png(&self, path: &std::path::Path) -> Result<()> {
         use plotters::prelude::*;
-        let ymax = self.points.iter().map(|p| p.delta_area).fold(1.0_f64, f64::max) * 1.08;
+        let ymax =
+            self.points.iter().map(|p| p.delta_area_norm).filter(|v| v.is_finite()).fold(1.0_f64, f64::max) * 1.08;
         let fit = self.fit.clone();
-        let pts: Vec<(f64, f64)> = self.points.iter().map(|p| (p.lambda, p.delta_area)).collect();
+        let pts: Vec<(f64, f64)> = self
+            .points
+            .iter()
+            .filter(|p| p.delta_area_norm.is_finite())
+            .map(|p| (p.lambda, p.delta_area_norm))
+            .collect();
         let ell = self.ell;
+        let caption = if fit.is_some() {
+            format!("automatic λ: δ_area(λ)/{:.3}, fit (eq. 4.14), ℓ = {ell:.3}", self.normaliser)
+        } else {
+            format!("automatic λ: fit FAILED, fallback λ = {ell:.3}")
+        };
         laparo_core::plot::draw_png(path, 720, 460, move |root| {
             let mut chart = ChartBuilder::on(&root)
-                .caption(format!("automatic λ: δ_area(λ), fit (eq. 4.14), ℓ = {ell:.3}"), ("sans-serif", 20))
+                .caption(caption, ("sans-serif", 20))
                 .margin(12)
                 .x_label_area_size(40)
                 .y_label_area_size(55)
                 .build_cartesian_2d(0f64..1f64, 0f64..ymax)?;
-            chart.configure_mesh().x_desc("λ").y_desc("δ_area (eq. 4.13)").draw()?;
-            chart
-                .draw_series(LineSeries::new(
-                    (0..=1000).map(|i| i as f64 / 1000.0).map(|l| (l, fit.eval(l).clamp(0.0, ymax))),
-                    BLUE.stroke_width(2),
-                ))?
-                .label("fit f(λ)")
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+            chart.configure_mesh().x_desc("λ").y_desc("δ_area / δ_area(λ_max) (eq. 4.13)").draw()?;
+            if let Some(fit) = &fit {
+                chart
+                    .draw_series(LineSeries::new(
+                        (0..=1000).map(|i| i as f64 / 1000.0).map(|l| (l, fit.eval(l).clamp(0.0, ymax))),
+                        BLUE.stroke_width(2),
+                    ))?
+                    .label("fit f(λ)")
+                    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+            }
             chart
                 .draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 4, BLACK.filled())))?
                 .label("measured δ_area")
                 .legend(|(x, y)| Circle::new((x + 10, y), 4, BLACK.filled()));
             chart
                 .draw_series(LineSeries::new(vec![(ell, 0.0), (ell, ymax)], RED.stroke_width(2)))?
-                .label("ℓ")
+                .label(if fit.is_some() { "ℓ" } else { "fallback λ" })
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
             chart.configure_series_labels().position(SeriesLabelPosition::UpperLeft).border_style(BLACK).draw()?;
             Ok(())

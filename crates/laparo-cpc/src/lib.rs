@@ -27,6 +27,7 @@ pub mod conformal;
 mod dd;
 pub mod equiareal;
 pub mod error;
+pub mod eval;
 mod factor_buffers;
 pub mod lambda;
 pub mod mesh;

@@ -38,7 +38,16 @@ pub struct CpcParams {
     pub lambda: LambdaChoice,
     /// Equiareal refinement (eq. 4.9); `None` (default) keeps the convex solution.
     pub equiareal: Option<EquiarealParams>,
+    /// Near-grazing guard: output pixels of triangles whose local magnification (largest singular
+    /// value of the original → warped affine map) exceeds this multiple of the median over the
+    /// mesh are masked out of the warped image and its validity mask (no rim spikes); `None`
+    /// keeps every triangle. Default [`DEFAULT_MAX_REL_MAGNIFICATION`].
+    pub max_rel_magnification: Option<f64>,
 }
+
+/// Default limit of [`CpcParams::max_rel_magnification`]: a triangle stretched 4× more than the
+/// median triangle of the warp is treated as a smeared rim triangle.
+pub const DEFAULT_MAX_REL_MAGNIFICATION: f64 = 4.0;
 
 impl Default for CpcParams {
     fn default() -> Self {
@@ -47,6 +56,7 @@ impl Default for CpcParams {
             conformal: ConformalParams::default(),
             lambda: LambdaChoice::Fixed(DEFAULT_LAMBDA),
             equiareal: None,
+            max_rel_magnification: Some(DEFAULT_MAX_REL_MAGNIFICATION),
         }
     }
 }
@@ -89,6 +99,10 @@ pub struct CpcStats {
     pub canvas_origin: [f64; 2],
     /// Iterations of the equiareal refinement (0 without it).
     pub equiareal_iterations: usize,
+    /// Triangles masked out by the magnification limit ([`CpcParams::max_rel_magnification`]).
+    pub n_magnified_masked: usize,
+    /// Warnings (e.g. the automatic λ fell back to a fixed value); the CLI prints them.
+    pub warnings: Vec<String>,
     /// What happened while building the mesh.
     pub mesh: MeshReport,
     /// Wall time of each stage (ms), by stage name.
@@ -164,6 +178,7 @@ fn frame(
     let system = solver.assemble(&mesh, &params.conformal)?;
     timings.insert("assemble".to_string(), ms(t));
     let mut sweep = None;
+    let mut warnings = Vec::new();
     let lambda = match &params.lambda {
         LambdaChoice::Fixed(l) => *l,
         LambdaChoice::Auto(grid) => {
@@ -171,6 +186,7 @@ fn frame(
             let s = auto_lambda(&system, &mesh, grid)?;
             timings.insert("lambda_sweep".to_string(), ms(t));
             let l = s.ell;
+            warnings.extend(s.warning.clone());
             sweep = Some(s);
             l
         }
@@ -187,7 +203,11 @@ fn frame(
         timings.insert("equiareal".to_string(), ms(t));
     }
     let t = Instant::now();
-    let warp = Warp::new(&mesh, p, image.width, image.height)?;
+    let mut warp = Warp::new(&mesh, p, image.width, image.height)?;
+    let n_magnified_masked = match params.max_rel_magnification {
+        Some(limit) => warp.mask_magnified(limit)?,
+        None => 0,
+    };
     let (warped, mask) = warp.warp_image(image)?;
     timings.insert("warp".to_string(), ms(t));
     let p = &warp.p_flat;
@@ -207,6 +227,8 @@ fn frame(
         canvas_height: warp.height,
         canvas_origin: warp.origin,
         equiareal_iterations: eq_iters,
+        n_magnified_masked,
+        warnings,
         mesh: mesh.report.clone(),
         timings_ms: timings,
     };

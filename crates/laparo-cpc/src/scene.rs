@@ -410,3 +410,61 @@ impl Scene {
             .collect()
     }
 }
+
+/// The two viewpoints of a rendered two-view pair (see [`pair_spec`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum PairKind {
+    /// Small viewpoint change: view 1 at 20° tilt, view 2 at 26° tilt and 4° yaw (≈ 7°).
+    Easy,
+    /// Strong, oblique viewpoint change: view 1 at 10° tilt, view 2 at 62° tilt and 15° yaw
+    /// (≈ 55°): view 2 sees the bumpy surface obliquely.
+    Hard,
+}
+
+impl std::str::FromStr for PairKind {
+    type Err = CpcError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "easy" => Ok(PairKind::Easy),
+            "hard" => Ok(PairKind::Hard),
+            o => Err(CpcError::invalid("pair", format!("'{o}' is not easy or hard"))),
+        }
+    }
+}
+
+impl PairKind {
+    /// (tilt, yaw) in degrees of view 1 and view 2 ([`tilted_pose_xy`], 100 mm).
+    pub fn tilts_yaws_deg(self) -> [(f64, f64); 2] {
+        match self {
+            PairKind::Easy => [(20.0, 0.0), (26.0, 4.0)],
+            PairKind::Hard => [(10.0, 0.0), (62.0, 15.0)],
+        }
+    }
+}
+
+/// Two rendered views of one surface with exact ground truth (poses, depth, surface coordinates).
+#[derive(Clone, Debug)]
+pub struct ScenePair {
+    /// View 1.
+    pub view1: Scene,
+    /// View 2.
+    pub view2: Scene,
+    /// Angle (deg) of the relative rotation between the two cameras.
+    pub viewpoint_change_deg: f64,
+}
+
+/// The specs of the two views of `kind`: the bumpy bowl of [`bumpy_bowl_spec`] with `texture`,
+/// seen from the poses of [`PairKind::tilts_yaws_deg`] at 100 mm.
+pub fn pair_spec(kind: PairKind, texture: Texture) -> [SceneSpec; 2] {
+    let mut base = bumpy_bowl_spec();
+    base.texture = texture;
+    kind.tilts_yaws_deg().map(|(t, y)| SceneSpec { pose: tilted_pose_xy(t, y, 100.0), ..base.clone() })
+}
+
+/// Render both views of `specs` (same surface and texture, two poses).
+pub fn render_pair(specs: &[SceneSpec; 2]) -> Result<ScenePair> {
+    let view1 = specs[0].render()?;
+    let view2 = specs[1].render()?;
+    let rel = view2.pose.rotation * view1.pose.rotation.inverse();
+    Ok(ScenePair { viewpoint_change_deg: rel.angle().to_degrees(), view1, view2 })
+}

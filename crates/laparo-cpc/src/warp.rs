@@ -118,6 +118,13 @@ pub struct WarpMaps {
     pub forward: Image<f64>,
 }
 
+/// Largest singular value of the 2×2 matrix [[l0, l1], [l2, l3]].
+fn largest_singular_value(l: [f64; 4]) -> f64 {
+    let ss = l.iter().map(|v| v * v).sum::<f64>();
+    let det = l[0] * l[3] - l[1] * l[2];
+    (0.5 * (ss + (ss * ss - 4.0 * det * det).max(0.0).sqrt())).sqrt()
+}
+
 /// `[[e0x, e1x], [e0y, e1y]] · adj([[f0x, f1x], [f0y, f1y]]) / det(F)`: the linear part of the
 /// affine map sending edges f to edges e. Multiplying before dividing keeps the identity exact.
 fn edge_map(e0: [f64; 2], e1: [f64; 2], f0: [f64; 2], f1: [f64; 2]) -> Option<[f64; 4]> {
@@ -493,6 +500,55 @@ impl Warp {
         [a[0] + (l[0] * d[0] + l[1] * d[1]), a[1] + (l[2] * d[0] + l[3] * d[1])]
     }
 
+    /// Local magnification of every face: the largest singular value of its original → canvas
+    /// affine map (px of output per px of input along the most stretched direction); NaN for
+    /// degenerate faces.
+    pub fn face_magnification(&self) -> Vec<f64> {
+        self.mesh
+            .faces
+            .par_iter()
+            .map(|f| {
+                let (a, b, c) = (self.canvas_vertex(f[0]), self.canvas_vertex(f[1]), self.canvas_vertex(f[2]));
+                let (pa, pb, pc) = (self.mesh.p_init[f[0]], self.mesh.p_init[f[1]], self.mesh.p_init[f[2]]);
+                match edge_map(sub(b, a), sub(c, a), sub(pb, pa), sub(pc, pa)) {
+                    Some(l) => largest_singular_value(l),
+                    None => f64::NAN,
+                }
+            })
+            .collect()
+    }
+
+    /// Near-grazing guard: remove from the raster (so from the warped image, its validity mask and
+    /// the backward map) every face whose [`Warp::face_magnification`] exceeds `limit` times the
+    /// median over the faces. Returns the number of faces removed.
+    pub fn mask_magnified(&mut self, limit: f64) -> Result<usize> {
+        if !(limit.is_finite() && limit >= 1.0) {
+            return Err(CpcError::invalid("max_rel_magnification", format!("{limit} must be a finite number >= 1")));
+        }
+        let mag = self.face_magnification();
+        let mut finite: Vec<f64> = mag.iter().copied().filter(|m| m.is_finite() && *m > 0.0).collect();
+        if finite.is_empty() {
+            return Ok(0);
+        }
+        let med = laparo_core::stats::median(&mut finite);
+        let cut = limit * med;
+        let drop: Vec<bool> = mag.iter().map(|&m| m.is_nan() || m > cut).collect();
+        let n = drop.iter().filter(|&&d| d).count();
+        if n > 0 {
+            self.face_id.par_iter_mut().for_each(|t| {
+                if *t != NONE && drop[*t as usize] {
+                    *t = NONE;
+                }
+            });
+        }
+        Ok(n)
+    }
+
+    /// Whether canvas pixel (x, y) is covered by a (kept) face of the warp.
+    pub fn covers_pixel(&self, x: usize, y: usize) -> bool {
+        x < self.width && y < self.height && self.face_id[y * self.width + x] != NONE
+    }
+
     /// Original image coordinates of canvas pixel (x, y), if it is covered by the mesh.
     pub fn backward_pixel(&self, x: usize, y: usize) -> Option<[f64; 2]> {
         let t = *self.face_id.get(y * self.width + x)?;
@@ -685,7 +741,9 @@ mod tests {
     #[test]
     fn simd_paths_match_the_scalar_code() {
         let sc = bumpy_bowl_spec().render().unwrap();
-        let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &CpcParams::default()).unwrap();
+        // Without the magnification guard, which removes faces from the raster afterwards.
+        let p = CpcParams { max_rel_magnification: None, ..CpcParams::default() };
+        let r = cpc_warp(&sc.image, &sc.depth, &sc.intrinsics, &sc.roi, &p).unwrap();
         let w = &r.warp;
         let canvas: Vec<[f64; 2]> = w.p_flat.iter().map(|p| sub(*p, w.origin)).collect();
         let boxes: Vec<Option<PixelBox>> = w

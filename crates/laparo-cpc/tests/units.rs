@@ -232,3 +232,49 @@ fn solve_is_exact_on_a_fronto_parallel_plane() {
         assert!(max < 1e-8, "λ = {l}: displacement {mean} / {max}");
     }
 }
+
+/// δ_area is not bounded by 1 (eq. 4.13) while eq. 4.16 fixes f(1) = 1: the sweep is normalised
+/// by its value at the largest λ, so a curve scaled by 3 (median > 1, which the raw fit refuses)
+/// gives the same ℓ as the unscaled curve; a curve that still cannot be fitted falls back to
+/// FALLBACK_LAMBDA with a warning, and its CSV and PNG are still written.
+#[test]
+fn lambda_sweep_normalises_delta_area_and_falls_back_with_a_warning() {
+    use laparo_cpc::lambda::{LambdaSweep, SweepPoint, FALLBACK_LAMBDA};
+    let grid: Vec<f64> = (0..40).map(|i| i as f64 / 40.0).chain([0.98, 0.99, 0.995]).collect();
+    // Gompertz plateau then a steep rise to 1 at λ = 1.
+    let curve = |l: f64| 0.4 * (-5.0 * (-10.0 * l).exp()).exp() + 0.6 * (30.0 * (l - 1.0)).exp();
+    let pts = |scale: f64, f: &dyn Fn(f64) -> f64| -> Vec<SweepPoint> {
+        grid.iter()
+            .map(|&l| SweepPoint {
+                lambda: l,
+                delta_area: scale * f(l),
+                delta_area_norm: f64::NAN,
+                angle_error_deg: 0.0,
+                n_flipped: 0,
+            })
+            .collect()
+    };
+    let raw: Vec<f64> = grid.iter().map(|&l| 3.0 * curve(l)).collect();
+    assert!(fit_gompertz_exp(&grid, &raw).is_err(), "the raw scaled curve has a median above 1");
+    let a = LambdaSweep::from_points(pts(1.0, &curve));
+    let b = LambdaSweep::from_points(pts(3.0, &curve));
+    assert!(a.warning.is_none() && b.warning.is_none(), "{:?} {:?}", a.warning, b.warning);
+    assert!((a.normaliser - curve(0.995)).abs() < 1e-12 && (b.normaliser - 3.0 * curve(0.995)).abs() < 1e-12);
+    assert!((a.ell - b.ell).abs() < 1e-9, "{} vs {}", a.ell, b.ell);
+    assert!(a.ell > 0.5 && a.ell < 0.99, "{}", a.ell);
+    for p in &b.points {
+        assert!((p.delta_area_norm - curve(p.lambda) / curve(0.995)).abs() < 1e-12);
+    }
+    // A hump above the end value: median of the normalised curve ≥ 1 → fallback.
+    let hump = |l: f64| 0.1 + 2.0 * (-(l - 0.5).powi(2) / 0.05).exp();
+    let c = LambdaSweep::from_points(pts(1.0, &hump));
+    assert!(c.fit.is_none());
+    assert_eq!(c.ell, FALLBACK_LAMBDA);
+    assert!(c.warning.as_deref().unwrap().contains("fallback"), "{:?}", c.warning);
+    let dir = tempfile::tempdir().unwrap();
+    c.plot_png(&dir.path().join("s.png")).unwrap();
+    assert!(std::fs::metadata(dir.path().join("s.png")).unwrap().len() > 1000);
+    let csv = c.to_csv();
+    assert_eq!(csv.lines().count(), grid.len() + 1);
+    assert!(csv.lines().nth(1).unwrap().contains("NaN"));
+}

@@ -35,6 +35,7 @@ pub mod colmap;
 pub mod detect;
 pub mod draw;
 pub mod error;
+pub mod gt;
 pub mod keypoint;
 pub mod matching;
 pub mod ransac;

@@ -104,7 +104,7 @@ fn two_view(seed: u64) -> Scene {
         let z = rng.gen_range(3.0..8.0);
         let x = Vector3::new(rng.gen_range(-0.6..0.6) * z, rng.gen_range(-0.45..0.45) * z, z);
         let a = proj(x);
-        let b = if i % 2 == 0 { proj(r * x + t) } else { [rng.gen_range(0.0..W), rng.gen_range(0.0..H)] };
+        let b = if i.is_multiple_of(2) { proj(r * x + t) } else { [rng.gen_range(0.0..W), rng.gen_range(0.0..H)] };
         if !(0.0..W).contains(&b[0]) || !(0.0..H).contains(&b[1]) {
             continue;
         }
@@ -112,7 +112,7 @@ fn two_view(seed: u64) -> Scene {
         s.clean2.push(b);
         s.p1.push([a[0] + n.sample(&mut rng), a[1] + n.sample(&mut rng)]);
         s.p2.push([b[0] + n.sample(&mut rng), b[1] + n.sample(&mut rng)]);
-        s.ok.push(i % 2 == 0);
+        s.ok.push(i.is_multiple_of(2));
     }
     s
 }

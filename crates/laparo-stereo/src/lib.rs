@@ -25,6 +25,8 @@ pub mod disparity;
 pub mod error;
 pub mod eval;
 pub mod rectify;
+// Self-rectification without a calibration (issue 14 item 3).
+pub mod self_rectify;
 
 // CATS camera augmentation (eqs. 3.5-3.9), its configuration and dataset layouts.
 pub mod augment;

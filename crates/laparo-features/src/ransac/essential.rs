@@ -55,7 +55,10 @@ pub fn find_essential(p1n: &[[f64; 2]], p2n: &[[f64; 2]], prm: &RansacParams) ->
     check_points(p1n, p2n, 8, "essential matrix")?;
     let fit = run(&EEst { p1: p1n, p2: p2n }, prm)?;
     if fit.n_inliers < 8 {
-        return Err(FeaturesError::Estimation(format!("essential matrix: only {} inliers (need at least 8)", fit.n_inliers)));
+        return Err(FeaturesError::Estimation(format!(
+            "essential matrix: only {} inliers (need at least 8)",
+            fit.n_inliers
+        )));
     }
     Ok(fit)
 }

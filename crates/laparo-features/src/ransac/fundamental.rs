@@ -65,7 +65,7 @@ pub(crate) fn eight_point(p1: &[[f64; 2]], p2: &[[f64; 2]], idx: &[usize], w: Op
     }
     symmetrise(&mut ata);
     let (f, _, l1) = null_vector9(ata);
-    if !(l1 > 1e-14 * ata.trace()) {
+    if l1.is_nan() || l1 <= 1e-14 * ata.trace() {
         return None; // two-dimensional null space: degenerate configuration
     }
     let fnorm = rank2(&mat3(&f))?;

@@ -36,7 +36,7 @@ pub(crate) fn dlt(p1: &[[f64; 2]], p2: &[[f64; 2]], idx: &[usize]) -> Option<Mat
     }
     symmetrise(&mut ata);
     let (h, l0, l1) = null_vector9(ata);
-    if idx.len() > 4 && !(l1 > 1e-14 * ata.trace()) {
+    if idx.len() > 4 && (l1.is_nan() || l1 <= 1e-14 * ata.trace()) {
         return None; // rank-deficient (all points collinear)
     }
     let _ = l0;

@@ -1,5 +1,5 @@
 //! Small dense helpers shared by the solvers (Hartley normalisation, null vectors).
-use nalgebra::{DMatrix, Matrix3, SMatrix, SymmetricEigen};
+use nalgebra::{Matrix3, SMatrix, SymmetricEigen};
 
 /// Hartley's isotropic normalisation T: centroid to the origin, mean distance √2.
 /// Returns None when all points coincide.
@@ -44,30 +44,63 @@ pub(crate) fn null_vector9(ata: SMatrix<f64, 9, 9>) -> ([f64; 9], f64, f64) {
     (out, eig.eigenvalues[order[0]].max(0.0), eig.eigenvalues[order[1]].max(0.0))
 }
 
-/// The two right null vectors of a 7×9 matrix (rows given), via a full SVD of the zero-padded 9×9.
+/// The two right null vectors of a 7×9 matrix (rows given), by Gauss–Jordan elimination with
+/// full pivoting (rank 7 expected; None when the rank is lower, i.e. a degenerate sample).
 pub(crate) fn null_space_7x9(rows: &[[f64; 9]; 7]) -> Option<([f64; 9], [f64; 9])> {
-    let mut a = DMatrix::<f64>::zeros(9, 9);
-    for (r, row) in rows.iter().enumerate() {
-        for c in 0..9 {
-            a[(r, c)] = row[c];
-        }
-    }
-    let svd = a.svd(false, true);
-    let vt = svd.v_t?;
-    let mut order: Vec<usize> = (0..9).collect();
-    order.sort_by(|&x, &y| svd.singular_values[y].total_cmp(&svd.singular_values[x]));
-    // rank 7 expected: the 7th largest singular value must be clearly non-zero
-    if svd.singular_values[order[6]] < 1e-10 * svd.singular_values[order[0]] {
+    let mut a = *rows;
+    let mut col = [0usize, 1, 2, 3, 4, 5, 6, 7, 8]; // column permutation
+    let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(scale > 0.0 && scale.is_finite()) {
         return None;
     }
-    let f = |k: usize| {
-        let mut o = [0.0; 9];
-        for c in 0..9 {
-            o[c] = vt[(order[k], c)];
+    for r in 0..7 {
+        // full pivot in the remaining block
+        let (mut pr, mut pc, mut pv) = (r, r, 0.0);
+        for (i, row) in a.iter().enumerate().skip(r) {
+            for (j, v) in row.iter().enumerate().skip(r) {
+                if v.abs() > pv {
+                    (pr, pc, pv) = (i, j, v.abs());
+                }
+            }
         }
+        if pv < 1e-10 * scale {
+            return None;
+        }
+        a.swap(r, pr);
+        if pc != r {
+            for row in a.iter_mut() {
+                row.swap(r, pc);
+            }
+            col.swap(r, pc);
+        }
+        let inv = 1.0 / a[r][r];
+        for v in a[r].iter_mut() {
+            *v *= inv;
+        }
+        let pivot_row = a[r];
+        for (i, row) in a.iter_mut().enumerate() {
+            if i != r {
+                let f = row[r];
+                if f != 0.0 {
+                    for (v, p) in row.iter_mut().zip(&pivot_row).skip(r) {
+                        *v -= f * p;
+                    }
+                }
+            }
+        }
+    }
+    // x_free = e_k, x_pivot = −A[:, free]
+    let vec_for = |k: usize| {
+        let mut o = [0.0; 9];
+        o[col[k]] = 1.0;
+        for r in 0..7 {
+            o[col[r]] = -a[r][k];
+        }
+        let n = o.iter().map(|v| v * v).sum::<f64>().sqrt();
+        o.iter_mut().for_each(|v| *v /= n);
         o
     };
-    Some((f(7), f(8)))
+    Some((vec_for(7), vec_for(8)))
 }
 
 /// Row-major 9-vector to a 3×3 matrix.
@@ -150,6 +183,27 @@ pub(crate) fn cubic_roots(a: f64, b: f64, c: f64, d: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[test]
+    fn null_space_is_orthogonal_to_the_rows() {
+        let mut rows = [[0.0; 9]; 7];
+        for (i, r) in rows.iter_mut().enumerate() {
+            for (j, v) in r.iter_mut().enumerate() {
+                *v = ((i * 9 + j) as f64 * 0.7).sin() + if i == j { 2.0 } else { 0.0 };
+            }
+        }
+        let (a, b) = null_space_7x9(&rows).unwrap();
+        for r in &rows {
+            let (da, db): (f64, f64) =
+                (r.iter().zip(&a).map(|(x, y)| x * y).sum(), r.iter().zip(&b).map(|(x, y)| x * y).sum());
+            assert!(da.abs() < 1e-12 && db.abs() < 1e-12, "{da} {db}");
+        }
+        // independent: not parallel
+        let dot: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+        assert!(dot.abs() < 0.99);
+        // rank-deficient input: a repeated row
+        rows[6] = rows[5];
+        assert!(null_space_7x9(&rows).is_none());
+    }
     #[test]
     fn cubic_roots_match_known_factors() {
         // (x-1)(x+2)(x-3) = x³ -2x² -5x +6

@@ -135,8 +135,9 @@ fn sample(seed: u64, k: usize, n: usize, s: usize, out: &mut Vec<usize>) {
     }
 }
 
-/// MSAC score (lower is better): Σ min(r², t²).
-fn msac<E: Estimator>(est: &E, m: &E::Model, t2: f64) -> (f64, usize) {
+/// MSAC score (lower is better): Σ min(r², t²); None as soon as the partial sum exceeds
+/// `bound` (the hypothesis cannot win).
+fn msac<E: Estimator>(est: &E, m: &E::Model, t2: f64, bound: f64) -> Option<(f64, usize)> {
     let mut s = 0.0;
     let mut n = 0;
     for i in 0..est.len() {
@@ -147,8 +148,11 @@ fn msac<E: Estimator>(est: &E, m: &E::Model, t2: f64) -> (f64, usize) {
         } else {
             s += t2;
         }
+        if s > bound {
+            return None;
+        }
     }
-    (s, n)
+    Some((s, n))
 }
 
 /// Hypotheses needed for `confidence` at inlier ratio `w` and sample size `s`.
@@ -163,24 +167,29 @@ fn needed_iterations(confidence: f64, w: f64, s: usize) -> f64 {
     (1.0 - confidence).ln() / (1.0 - p).ln()
 }
 
+/// A scored hypothesis: (MSAC score, hypothesis index k, model, inlier count).
+type Candidate<M> = (f64, usize, M, usize);
+
 /// The generic loop: sampling, MSAC scoring, adaptive stop, local optimisation.
 pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit<E::Model>> {
     check_params(prm)?;
     let n = est.len();
     let t2 = prm.threshold_px * prm.threshold_px;
-    let mut best: Option<(f64, usize, E::Model, usize)> = None; // score, k, model, inliers
+    let mut best: Option<Candidate<E::Model>> = None;
     let mut drawn = 0usize;
     let mut needed = prm.max_iters as f64;
     while (drawn as f64) < needed.min(prm.max_iters as f64) {
         let b = BATCH.min(prm.max_iters - drawn);
-        let batch: Vec<Option<(f64, usize, E::Model, usize)>> = (drawn..drawn + b)
+        // early exit bound from the previous batches only (thread-count independent)
+        let bound = best.as_ref().map_or(f64::INFINITY, |b| b.0);
+        let batch: Vec<Option<Candidate<E::Model>>> = (drawn..drawn + b)
             .into_par_iter()
             .map_init(Vec::new, |idx, k| {
                 sample(prm.seed, k, n, E::SAMPLE, idx);
-                let mut bk: Option<(f64, usize, E::Model, usize)> = None;
+                let mut bk: Option<Candidate<E::Model>> = None;
                 for m in est.minimal(idx) {
-                    let (s, ni) = msac(est, &m, t2);
-                    if bk.as_ref().map_or(true, |b| s < b.0) {
+                    let Some((s, ni)) = msac(est, &m, t2, bound) else { continue };
+                    if bk.as_ref().is_none_or(|b| s < b.0) {
                         bk = Some((s, k, m, ni));
                     }
                 }
@@ -189,7 +198,7 @@ pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit
             .collect();
         drawn += b;
         for c in batch.into_iter().flatten() {
-            if best.as_ref().map_or(true, |b| c.0 < b.0 || (c.0 == b.0 && c.1 < b.1)) {
+            if best.as_ref().is_none_or(|b| c.0 < b.0 || (c.0 == b.0 && c.1 < b.1)) {
                 best = Some(c);
             }
         }
@@ -211,7 +220,7 @@ pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit
             break;
         }
         let Some(m2) = est.refit(&idx) else { break };
-        let (s2, _) = msac(est, &m2, t2);
+        let Some((s2, _)) = msac(est, &m2, t2, f64::INFINITY) else { break };
         if s2 < score * (1.0 - 1e-12) {
             score = s2;
             model = m2;

@@ -29,6 +29,12 @@ pub enum CpcCmd {
     Lambda(LambdaArgs),
     /// Render a synthetic textured surface (image.png, depth.npy in mm, mask.png, intrinsics.json, pose.json).
     Scene(SceneArgs),
+    /// Render a two-view pair with exact ground truth (easy or hard viewpoint change).
+    Pair(super::cpc_eval::PairArgs),
+    /// SIFT/ORB matching without and with CPC against ground truth (Table 4.1, Fig. 4.8; λ sweep, Fig. 4.12).
+    Eval(super::cpc_eval::EvalArgs),
+    /// Every frame of a rendered orbit against the keyframe, without and with CPC (Fig. 4.9).
+    Sequence(super::cpc_eval::SequenceArgs),
 }
 
 #[derive(Args, Clone)]
@@ -58,6 +64,10 @@ pub struct InputArgs {
     /// Angle θ (deg) of the conformal basis (generalised eq. 4.2).
     #[arg(long, default_value_t = 90.0)]
     pub theta_deg: f64,
+    /// Mask out warped pixels of triangles magnified more than this multiple of the median
+    /// triangle (near-grazing rim spikes); 0 disables.
+    #[arg(long, default_value_t = laparo_cpc::pipeline::DEFAULT_MAX_REL_MAGNIFICATION)]
+    pub max_magnification: f64,
 }
 
 #[derive(Args)]
@@ -131,6 +141,9 @@ pub fn run(c: CpcCmd) -> Result<()> {
         CpcCmd::Warp(a) => warp(a),
         CpcCmd::Lambda(a) => lambda(a),
         CpcCmd::Scene(a) => render_scene(a),
+        CpcCmd::Pair(a) => super::cpc_eval::pair(a),
+        CpcCmd::Eval(a) => super::cpc_eval::eval_cmd(a),
+        CpcCmd::Sequence(a) => super::cpc_eval::sequence_cmd(a),
     }
 }
 
@@ -190,6 +203,7 @@ fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::
             ..MeshParams::default()
         },
         conformal: ConformalParams { theta_rad: a.theta_deg.to_radians(), ..ConformalParams::default() },
+        max_rel_magnification: (a.max_magnification > 0.0).then_some(a.max_magnification),
         ..CpcParams::default()
     };
     // Lens distortion is applied, never ignored: depth (bilinear; NaN where any neighbour is
@@ -428,6 +442,9 @@ fn warp_one(
     if s.n_flipped > 0 {
         eprintln!("warning: {} flipped triangles (lower λ or --max-view-angle)", s.n_flipped);
     }
+    for w in &s.warnings {
+        eprintln!("warning: {w} (sweep written to {})", out.join("lambda_sweep.csv").display());
+    }
     Ok(r.stats)
 }
 
@@ -444,7 +461,13 @@ fn lambda(a: LambdaArgs) -> Result<()> {
     write_atomic(&a.out.join("lambda_sweep.csv"), s.to_csv().as_bytes())?;
     s.plot_png(&a.out.join("lambda_sweep.png"))?;
     write_atomic(&a.out.join("lambda.json"), serde_json::to_string_pretty(&s)?.as_bytes())?;
-    println!("ℓ = {:.4} (fit RMSE {:.4}); written to {}", s.ell, s.fit.rmse, a.out.display());
+    match (&s.fit, &s.warning) {
+        (Some(f), _) => println!("ℓ = {:.4} (fit RMSE {:.4}); written to {}", s.ell, f.rmse, a.out.display()),
+        (None, w) => {
+            eprintln!("warning: {}", w.as_deref().unwrap_or("fit failed"));
+            println!("λ = {:.4} (fallback); sweep written to {}", s.ell, a.out.display());
+        }
+    }
     Ok(())
 }
 

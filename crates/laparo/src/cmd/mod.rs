@@ -2,6 +2,7 @@
 pub mod cats;
 pub mod cats_stats;
 pub mod cpc;
+pub mod cpc_eval;
 pub mod depth;
 pub mod depth_tools;
 pub mod features;
