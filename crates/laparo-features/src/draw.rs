@@ -89,3 +89,27 @@ pub fn draw_matches(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn side_by_side_with_coloured_lines() {
+        let a = Image::filled(10, 6, 1, 50u8);
+        let b = Image::filled(8, 9, 3, 100u8);
+        let kp = |x: f64, y: f64| Keypoint { x, y, size_px: 1.0, angle_rad: 0.0, response: 0.0, octave: 0 };
+        let m = [Match { i1: 0, i2: 0, distance: 0.0 }, Match { i1: 1, i2: 1, distance: 0.0 }];
+        let out = draw_matches(&a, &b, &[kp(0.0, 0.0), kp(9.0, 5.0)], &[kp(0.0, 0.0), kp(7.0, 8.0)], &m, &[RED, GREEN]);
+        assert_eq!((out.width, out.height, out.channels), (18, 9, 3));
+        // Image 1 grey replicated, image 2 copied at x + 10, padding black.
+        assert_eq!(out.pixel(5, 3), &[50, 50, 50]);
+        assert_eq!(out.pixel(15, 4), &[100, 100, 100]);
+        assert_eq!(out.pixel(5, 8), &[0, 0, 0]);
+        // Match 0: horizontal line y = 0 from x = 0 to x = 10, red.
+        assert!((0..=10).all(|x| out.pixel(x, 0) == RED));
+        // Match 1 ends at (17, 8), green; a point on its Bresenham line (13, 7) too.
+        assert_eq!(out.pixel(17, 8), &GREEN);
+        assert_eq!(out.pixel(13, 7), &GREEN);
+    }
+}

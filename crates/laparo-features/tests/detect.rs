@@ -135,7 +135,7 @@ fn mask_keeps_only_keypoints_inside() {
         let left = detect_and_describe(&img, &cfg, Some(&mask)).unwrap();
         let expect = all.keypoints.iter().filter(|k| k.x.round() < 160.0).count();
         assert_eq!(left.len(), expect, "{}", cfg.name());
-        assert!(left.len() > 0 && left.len() < all.len());
+        assert!(!left.is_empty() && left.len() < all.len());
         assert_eq!(left.descriptors.len(), left.len());
         let bad = Mask::filled(10, 10, 1, true);
         assert!(detect_and_describe(&img, &cfg, Some(&bad)).unwrap_err().to_string().contains("mask"));

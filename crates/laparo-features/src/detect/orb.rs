@@ -49,6 +49,7 @@ impl Default for OrbParams {
 const PATCH_PX: f64 = 31.0;
 
 /// ORB on a grey u8 image: keypoints at full resolution and 32-byte descriptors.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(a > b)` also rejects NaN parameters
 pub fn detect_and_describe(gray: &Image<u8>, p: &OrbParams) -> Result<Features> {
     if !(p.scale_factor > 1.0) || p.n_levels == 0 || p.n_features == 0 || !(p.fast_threshold >= 0.0) {
         return Err(FeaturesError::invalid(

@@ -127,8 +127,8 @@ fn fast9(img: &Image<u8>, thr: i32) -> Vec<(usize, usize, i32)> {
     let d = &img.data;
     let mut score = vec![0i32; w * h];
     score.par_chunks_mut(w).enumerate().skip(3).take(h - 6).for_each(|(y, row)| {
-        for x in 3..w - 3 {
-            row[x] = fast_score(d, w, x, y, thr);
+        for (x, r) in row.iter_mut().enumerate().take(w - 3).skip(3) {
+            *r = fast_score(d, w, x, y, thr);
         }
     });
     let mut out = vec![];
