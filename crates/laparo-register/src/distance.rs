@@ -35,6 +35,11 @@ pub fn closest_on_segment<const D: usize>(x: &Vector<D>, a: &Vector<D>, b: &Vect
 
 /// Closest point to `p` on the triangle (a, b, c) (Ericson, Real-Time Collision Detection §5.1.5).
 pub fn closest_on_triangle(p: &Vector<3>, a: &Vector<3>, b: &Vector<3>, c: &Vector<3>) -> Vector<3> {
+    if (b - a).cross(&(c - a)).norm_squared() == 0.0 {
+        // degenerate (zero-area) triangle: the closest point of its edges
+        let cands = [closest_on_segment(p, a, b), closest_on_segment(p, b, c), closest_on_segment(p, c, a)];
+        return cands.into_iter().min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared())).unwrap_or(*a);
+    }
     let ab = b - a;
     let ac = c - a;
     let ap = p - a;
