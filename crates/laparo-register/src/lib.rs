@@ -36,6 +36,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod distance;
+pub mod fig55;
 mod error;
 pub mod loss;
 pub mod optimize;
