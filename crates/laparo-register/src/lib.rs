@@ -40,6 +40,7 @@ pub mod fig55;
 mod error;
 pub mod loss;
 pub mod optimize;
+pub mod rigid;
 pub mod smoothing;
 
 pub use error::{RegisterError, Result};
