@@ -40,8 +40,11 @@ pub mod fig55;
 mod error;
 pub mod loss;
 pub mod optimize;
+pub mod organ;
 pub mod rigid;
 pub mod smoothing;
+pub mod surface;
+pub mod transfer;
 
 pub use error::{RegisterError, Result};
 
