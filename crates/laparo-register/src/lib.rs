@@ -37,16 +37,22 @@
 
 pub mod distance;
 pub mod fig55;
+pub mod io;
 mod error;
 pub mod loss;
 pub mod optimize;
 pub mod organ;
+pub mod overlay;
 pub mod rigid;
 pub mod smoothing;
 pub mod surface;
 pub mod transfer;
 
 pub use error::{RegisterError, Result};
+
+fn io_ext(path: &std::path::Path) -> String {
+    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
 
 /// Nearest particle to each annotated source point (deterministic: ties to the smallest index).
 pub fn nearest_particles<const D: usize>(

@@ -176,7 +176,7 @@ fn tet(
         let key = (na.min(nb), na.max(nb));
         *edge_vert.entry(key).or_insert_with(|| {
             let (sa, sb) = (s[a], s[b]);
-            let w = sa / (sa - sb);
+            let w = (sa / (sa - sb)).clamp(1e-6, 1.0 - 1e-6);
             verts.push(pos(na) + (pos(nb) - pos(na)) * w);
             verts.len() - 1
         })
