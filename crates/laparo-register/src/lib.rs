@@ -43,6 +43,7 @@ pub mod loss;
 pub mod optimize;
 pub mod organ;
 pub mod overlay;
+pub mod pipeline;
 pub mod rigid;
 pub mod smoothing;
 pub mod surface;
