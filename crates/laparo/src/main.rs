@@ -36,6 +36,8 @@ enum Command {
     /// Differentiable Material Point Method simulation (thesis §5.2.3–5.2.4).
     #[command(subcommand)]
     Mpm(cmd::mpm::MpmCmd),
+    /// RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
+    Register(cmd::register::RegisterArgs),
     /// Run every module on built-in data and write an HTML report.
     Demo(demo::DemoArgs),
     /// Benchmarks moved to the separate `laparo-bench` binary (this only says how to run it).
@@ -54,6 +56,7 @@ fn main() {
         Command::Stereo(c) => cmd::stereo::run(c),
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
+        Command::Register(a) => cmd::register::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(
             "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \

@@ -5,4 +5,5 @@ pub mod cpc;
 pub mod depth;
 pub mod depth_tools;
 pub mod mpm;
+pub mod register;
 pub mod stereo;
