@@ -14,6 +14,7 @@ mod cats;
 mod cpc;
 mod depth;
 mod mpm;
+mod register;
 mod stereo;
 mod timing;
 
@@ -36,6 +37,8 @@ enum Command {
     Cpc(cpc::BenchArgs),
     /// MPM forward and forward+backward wall time per iteration on the DiffTaichi RODS box problem.
     Mpm(mpm::BenchArgs),
+    /// RODS-MPM registration on the thesis 3D configuration (optionally vs DiffTaichi, same session).
+    Register(register::BenchArgs),
 }
 
 fn main() {
@@ -46,6 +49,7 @@ fn main() {
         Command::Stereo(a) => stereo::run(a),
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
+        Command::Register(a) => register::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the
     // libraries' parallel regions start and end on a pool thread; timings are then those a

@@ -2,7 +2,7 @@
 //! thesis gives no shapes or targets): a unit square domain, n_grid 120, an 80 × 80 particle square
 //! (6,400 particles at Δx/2, centred), E 4.1, ν 0.49, ρ 1, Δt 2e-4, T 200, sticky walls of 3 cells
 //! (the units of the DiffTaichi script `mpm2d_rods.py`: length 144 mm, stress kPa).
-use crate::distance::Polyline;
+use crate::distance::{ClosestPoint, Polyline};
 use crate::loss::{GroupTarget, LandmarkGroup, RegistrationLoss};
 use laparo_mpm::{box_lattice, GridSpec, Material, Model, Scene, Vector};
 use std::sync::Arc;
@@ -157,4 +157,120 @@ pub fn components<const D: usize>(x: &[Vector<D>], link: f64) -> (Vec<usize>, Ve
         sizes.push(size);
     }
     (label, sizes)
+}
+
+/// Figures of one Fig. 5.5 case after registration.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CaseMetrics {
+    /// Case label.
+    pub case: String,
+    /// Mean landmark distance before / after (Δx).
+    pub residual_dx: [f64; 2],
+    /// Distance between the two side landmarks / between their targets (cases a, d).
+    pub width_ratio: Option<f64>,
+    /// Height at mid-width after / before.
+    pub mid_height_ratio: f64,
+    /// min det F.
+    pub min_j: f64,
+    /// Connected bodies (particles closer than Δx linked), largest first: particle fractions.
+    pub bodies: Vec<f64>,
+    /// Smallest distance between the two largest bodies (Δx), if there are two.
+    pub gap_dx: Option<f64>,
+    /// Iterations, simulations, wall time (s).
+    pub iterations: usize,
+    /// Simulations.
+    pub simulations: usize,
+    /// Wall time (s).
+    pub seconds: f64,
+    /// Loss (mean landmark distance, Δx) per iteration.
+    pub curve_dx: Vec<f64>,
+}
+
+/// Register one case and measure it. Returns the metrics and the final positions and J.
+pub fn run_case(case: Case, cfg: &crate::optimize::OptimizerConfig) -> crate::Result<(CaseMetrics, Vec<Vector<2>>, Vec<f64>)> {
+    let scene = square_scene();
+    let loss = case_loss(&scene, case);
+    let r = crate::optimize::register(&scene, &loss, cfg, None, &mut |_, _| true)?;
+    let dx = scene.grid.dx;
+    let x = r.final_state.x.clone();
+    let j: Vec<f64> = r.final_state.f.iter().map(laparo_mpm::det).collect();
+    let min_j = j.iter().cloned().fold(f64::INFINITY, f64::min);
+    let width_ratio = match case {
+        Case::Stretch | Case::RuptureStretch => {
+            let (l, rr) = (idx(0, SIDE / 2), idx(SIDE - 1, SIDE / 2));
+            let target = (scene.positions[rr][0] + 0.08) - (scene.positions[l][0] - 0.08);
+            Some((x[rr][0] - x[l][0]) / target)
+        }
+        _ => None,
+    };
+    let height = |pts: &[Vector<2>]| {
+        let cx = pts.iter().map(|p| p[0]).sum::<f64>() / pts.len() as f64;
+        let col: Vec<f64> = pts.iter().filter(|p| (p[0] - cx).abs() < dx).map(|p| p[1]).collect();
+        if col.is_empty() {
+            return 0.0;
+        }
+        col.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - col.iter().cloned().fold(f64::INFINITY, f64::min)
+    };
+    let (label, mut sizes) = components(&x, dx);
+    let n = x.len() as f64;
+    let mut order: Vec<usize> = (0..sizes.len()).collect();
+    order.sort_by(|&a, &b| sizes[b].cmp(&sizes[a]));
+    let gap_dx = if order.len() >= 2 {
+        let (a, b) = (order[0], order[1]);
+        let pb: Vec<Vector<2>> = x.iter().zip(&label).filter(|(_, &l)| l == b).map(|(p, _)| *p).collect();
+        let tree = crate::distance::build_tree(&pb);
+        let g = x
+            .iter()
+            .zip(&label)
+            .filter(|(_, &l)| l == a)
+            .map(|(p, _)| tree.nearest_one::<kiddo::SquaredEuclidean>(&[p[0], p[1]]).distance.sqrt())
+            .fold(f64::INFINITY, f64::min);
+        Some(g / dx)
+    } else {
+        None
+    };
+    sizes.sort_by(|a, b| b.cmp(a));
+    let last = r.history.last().cloned().unwrap_or_else(|| r.history[0].clone());
+    let m = CaseMetrics {
+        case: case.label().into(),
+        residual_dx: [r.history[0].mean_distance / dx, last.mean_distance / dx],
+        width_ratio,
+        mid_height_ratio: height(&x) / height(&scene.positions),
+        min_j,
+        bodies: sizes.iter().map(|&s| s as f64 / n).collect(),
+        gap_dx,
+        iterations: last.iteration,
+        simulations: last.evaluations,
+        seconds: last.seconds,
+        curve_dx: r.history.iter().map(|h| h.mean_distance / dx).collect(),
+    };
+    Ok((m, x, j))
+}
+
+/// Target marks of a case (for drawing): paired points and polyline vertices.
+pub fn case_marks(scene: &Scene<2>, case: Case) -> Vec<Vector<2>> {
+    let loss = case_loss(scene, case);
+    let mut out = Vec::new();
+    for g in &loss.groups {
+        match &g.target {
+            GroupTarget::Paired(t) => out.extend(t.iter().copied()),
+            GroupTarget::Shared(s) => {
+                // sample the target near each landmark (closest points at rest)
+                for &p in &g.particles {
+                    out.push(s.closest(&scene.positions[p]).0);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Picture of a case: particles coloured by J (Turbo, [0.5, 1.5]) in the view [0.2, 0.8]², target marks
+/// as crosses, with a colour bar.
+pub fn render_case(x: &[Vector<2>], j: &[f64], marks: &[Vector<2>], size: usize) -> laparo_core::image::Image<u8> {
+    let shift = |p: &Vector<2>| p - Vector::<2>::new(0.2, 0.2);
+    let xs: Vec<Vector<2>> = x.iter().map(shift).collect();
+    let ms: Vec<Vector<2>> = marks.iter().map(shift).collect();
+    let img = laparo_mpm::render::render_particles_2d(&xs, j, 0.5, 1.5, 0.6, size, 2, &ms);
+    laparo_core::plot::with_colorbar(&img, 0.5, 1.5, laparo_core::colormap::Colormap::Turbo, "J = det F")
 }

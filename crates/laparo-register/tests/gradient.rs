@@ -116,3 +116,22 @@ fn registration_loss_gradient_2d() {
 fn registration_loss_gradient_3d() {
     check(stretch_scene::<3>(24, [5.0, 4.0, 4.0], 50, 2), 12);
 }
+
+#[test]
+fn registration_bit_identical_for_1_and_2_threads() {
+    let scene = stretch_scene::<2>(32, [8.0, 6.0], 40, 3);
+    let loss = build_loss(&scene, 21);
+    let cfg = OptimizerConfig { iterations: 4, ..Default::default() };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| register(&scene, &loss, &cfg, None, &mut |_, _| true).unwrap())
+    };
+    let (a, b) = (run(1), run(2));
+    assert!(a.history.len() > 1);
+    for (x, y) in a.velocities.iter().zip(&b.velocities) {
+        for d in 0..2 {
+            assert_eq!(x[d].to_bits(), y[d].to_bits());
+        }
+    }
+    assert_eq!(a.history.last().unwrap().loss.to_bits(), b.history.last().unwrap().loss.to_bits());
+}

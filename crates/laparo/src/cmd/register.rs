@@ -27,6 +27,52 @@ pub enum RegisterSub {
     Rigid(RigidArgs),
     /// Write landmarks + targets from P2ILF 3D contours displaced by a smooth field (benchmarks).
     SynthTargets(SynthArgs),
+    /// Fig. 5.5 in 2D: the four cases (stretch, curve, rupture, rupture + stretch) as PNGs + metrics.
+    Fig55 {
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Iterations per case.
+        #[arg(long, default_value_t = 50)]
+        iterations: usize,
+        /// Optimiser: lbfgs, adam, thesis-gd.
+        #[arg(long, default_value = "lbfgs")]
+        optimizer: String,
+    },
+}
+
+fn optimizer_kind(s: &str) -> Result<OptimizerKind> {
+    Ok(match s {
+        "lbfgs" => OptimizerKind::Lbfgs,
+        "adam" => OptimizerKind::Adam,
+        "thesis-gd" => OptimizerKind::ThesisGd,
+        o => bail!("--optimizer {o}: expected lbfgs, adam or thesis-gd"),
+    })
+}
+
+/// Run the four Fig. 5.5 cases, writing `<case>_before.png`, `<case>_after.png`, `<case>_loss.png` and
+/// `fig55.json` into `out`; returns the metrics.
+pub fn fig55_figures(out: &std::path::Path, cfg: &OptimizerConfig) -> Result<Vec<laparo_register::fig55::CaseMetrics>> {
+    use laparo_register::fig55::*;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let scene = square_scene();
+    let mut all = Vec::new();
+    for case in Case::ALL {
+        let marks = case_marks(&scene, case);
+        let ones = vec![1.0; scene.n_particles()];
+        laparo_core::io::write_png(out.join(format!("{}_before.png", case.label())), &render_case(&scene.positions, &ones, &marks, 420))?;
+        let (m, x, j) = run_case(case, cfg)?;
+        laparo_core::io::write_png(out.join(format!("{}_after.png", case.label())), &render_case(&x, &j, &marks, 420))?;
+        let lp = out.join(format!("{}_loss.png", case.label()));
+        laparo_core::atomic::write_atomic_with(&lp, |tmp| {
+            let t = tmp.with_extension("png");
+            laparo_mpm::render::plot_loss_curve(&t, &m.curve_dx, &format!("{}: mean landmark distance (Δx)", case.label()))?;
+            std::fs::rename(&t, tmp).map_err(|e| laparo_core::CoreError::io(tmp, e))
+        })?;
+        all.push(m);
+    }
+    laparo_core::atomic::write_atomic(&out.join("fig55.json"), serde_json::to_string_pretty(&all)?.as_bytes())?;
+    Ok(all)
 }
 
 /// Deformable registration arguments.
@@ -175,6 +221,27 @@ pub fn run(a: RegisterArgs) -> Result<()> {
     match a.sub {
         Some(RegisterSub::Rigid(r)) => rigid(r),
         Some(RegisterSub::SynthTargets(s)) => synth(s),
+        Some(RegisterSub::Fig55 { out, iterations, optimizer }) => {
+            let kind = optimizer_kind(&optimizer)?;
+            let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
+            let cfg = OptimizerConfig { kind, iterations, ..base };
+            for m in fig55_figures(&out, &cfg)? {
+                println!(
+                    "{}: residual {:.3} -> {:.3} dx, width/target {}, mid-height ratio {:.3}, min J {:.3}, bodies {:?}, gap {} dx, {} it, {:.1} s",
+                    m.case,
+                    m.residual_dx[0],
+                    m.residual_dx[1],
+                    m.width_ratio.map_or("-".into(), |w| format!("{w:.4}")),
+                    m.mid_height_ratio,
+                    m.min_j,
+                    m.bodies.iter().take(3).map(|b| format!("{b:.3}")).collect::<Vec<_>>(),
+                    m.gap_dx.map_or("-".into(), |g| format!("{g:.2}")),
+                    m.iterations,
+                    m.seconds
+                );
+            }
+            Ok(())
+        }
         None => deformable(a.run),
     }
 }
@@ -185,12 +252,7 @@ fn deformable(a: RunArgs) -> Result<()> {
     let lm_path = need(&a.landmarks, "landmarks")?;
     let tg_path = need(&a.target, "target")?;
     let out = need(&a.out, "out")?;
-    let kind = match a.optimizer.as_str() {
-        "lbfgs" => OptimizerKind::Lbfgs,
-        "adam" => OptimizerKind::Adam,
-        "thesis-gd" => OptimizerKind::ThesisGd,
-        o => bail!("--optimizer {o}: expected lbfgs, adam or thesis-gd"),
-    };
+    let kind = optimizer_kind(&a.optimizer)?;
     let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
     let optimizer = OptimizerConfig {
         kind,
