@@ -2,7 +2,7 @@
 //! thesis gives no shapes or targets): a unit square domain, n_grid 120, an 80 × 80 particle square
 //! (6,400 particles at Δx/2, centred), E 4.1, ν 0.49, ρ 1, Δt 2e-4, T 200, sticky walls of 3 cells
 //! (the units of the DiffTaichi script `mpm2d_rods.py`: length 144 mm, stress kPa).
-use crate::distance::{ClosestPoint, Polyline};
+use crate::distance::Polyline;
 use crate::loss::{GroupTarget, LandmarkGroup, RegistrationLoss};
 use laparo_mpm::{box_lattice, GridSpec, Material, Model, Scene, Vector};
 use std::sync::Arc;
