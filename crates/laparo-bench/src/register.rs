@@ -35,7 +35,10 @@ pub struct BenchArgs {
     pub check_threads: bool,
 }
 
-fn run_once<const D: usize>(counts: [usize; D], cfg: &OptimizerConfig) -> Result<(Vec<f64>, f64, usize, Vec<Vector<D>>)> {
+fn run_once<const D: usize>(
+    counts: [usize; D],
+    cfg: &OptimizerConfig,
+) -> Result<(Vec<f64>, f64, usize, Vec<Vector<D>>)> {
     let (scene, lm) = rods_scene::<D>(counts, 120, 200, 2e-4);
     let loss = RegistrationLoss::new(vec![LandmarkGroup {
         name: "lips".into(),

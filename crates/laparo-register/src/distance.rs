@@ -38,7 +38,10 @@ pub fn closest_on_triangle(p: &Vector<3>, a: &Vector<3>, b: &Vector<3>, c: &Vect
     if (b - a).cross(&(c - a)).norm_squared() == 0.0 {
         // degenerate (zero-area) triangle: the closest point of its edges
         let cands = [closest_on_segment(p, a, b), closest_on_segment(p, b, c), closest_on_segment(p, c, a)];
-        return cands.into_iter().min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared())).unwrap_or(*a);
+        return cands
+            .into_iter()
+            .min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared()))
+            .unwrap_or(*a);
     }
     let ab = b - a;
     let ac = c - a;
@@ -164,7 +167,8 @@ pub struct Polyline<const D: usize> {
 impl<const D: usize> Polyline<D> {
     /// An open polyline through `vertices` in order (one vertex = a point target).
     pub fn open(vertices: Vec<Vector<D>>) -> Self {
-        let segments = if vertices.len() == 1 { vec![[0, 0]] } else { (1..vertices.len()).map(|i| [i - 1, i]).collect() };
+        let segments =
+            if vertices.len() == 1 { vec![[0, 0]] } else { (1..vertices.len()).map(|i| [i - 1, i]).collect() };
         Self::from_segments(vertices, segments)
     }
     /// Any set of segments.
@@ -237,7 +241,11 @@ impl ClosestPoint<3> for TriangleSurface {
 
 /// Brute-force closest point over `n` primitives (`closest(i)`), ties to the smallest index; the
 /// reference of the tests.
-pub fn brute_force<const D: usize>(x: &Vector<D>, n: usize, closest: impl Fn(usize) -> Vector<D>) -> (Vector<D>, usize) {
+pub fn brute_force<const D: usize>(
+    x: &Vector<D>,
+    n: usize,
+    closest: impl Fn(usize) -> Vector<D>,
+) -> (Vector<D>, usize) {
     let mut best = (closest(0), 0);
     let mut bd = (x - best.0).norm_squared();
     for i in 1..n {

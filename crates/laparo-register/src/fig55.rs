@@ -187,7 +187,10 @@ pub struct CaseMetrics {
 }
 
 /// Register one case and measure it. Returns the metrics and the final positions and J.
-pub fn run_case(case: Case, cfg: &crate::optimize::OptimizerConfig) -> crate::Result<(CaseMetrics, Vec<Vector<2>>, Vec<f64>)> {
+pub fn run_case(
+    case: Case,
+    cfg: &crate::optimize::OptimizerConfig,
+) -> crate::Result<(CaseMetrics, Vec<Vector<2>>, Vec<f64>)> {
     let scene = square_scene();
     let loss = case_loss(&scene, case);
     let r = crate::optimize::register(&scene, &loss, cfg, None, &mut |_, _| true)?;

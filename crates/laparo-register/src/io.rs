@@ -44,7 +44,10 @@ fn points_of(v: &Value, path: &Path, what: &str) -> Result<Vec<Vector<3>>> {
     arr.iter()
         .enumerate()
         .map(|(i, p)| {
-            let c = p.as_array().filter(|c| c.len() == 3).ok_or_else(|| bad(path, format!("{what}[{i}]: expected [x, y, z]")))?;
+            let c = p
+                .as_array()
+                .filter(|c| c.len() == 3)
+                .ok_or_else(|| bad(path, format!("{what}[{i}]: expected [x, y, z]")))?;
             let f: Vec<f64> = c.iter().filter_map(|x| x.as_f64()).filter(|x| x.is_finite()).collect();
             if f.len() != 3 {
                 return Err(bad(path, format!("{what}[{i}]: non-numeric or non-finite coordinate")));
@@ -94,7 +97,8 @@ pub fn read_landmarks(path: &Path) -> Result<Vec<SourceGroup>> {
         gs.iter()
             .enumerate()
             .map(|(i, g)| {
-                let name = g.get("name").and_then(|n| n.as_str()).map(String::from).unwrap_or_else(|| format!("group{i}"));
+                let name =
+                    g.get("name").and_then(|n| n.as_str()).map(String::from).unwrap_or_else(|| format!("group{i}"));
                 let points = points_of(g.get("points").unwrap_or(&Value::Null), path, &format!("groups[{i}].points"))?;
                 let weight = g.get("weight").and_then(|w| w.as_f64()).unwrap_or(1.0);
                 if !(weight > 0.0 && weight.is_finite()) {
@@ -133,14 +137,22 @@ pub fn read_targets(path: &Path, groups: &[SourceGroup]) -> Result<Vec<TargetSpe
                         if pts.len() != src.points.len() {
                             return Err(bad(
                                 path,
-                                format!("group `{}`: {} target points for {} landmarks", src.name, pts.len(), src.points.len()),
+                                format!(
+                                    "group `{}`: {} target points for {} landmarks",
+                                    src.name,
+                                    pts.len(),
+                                    src.points.len()
+                                ),
                             ));
                         }
                         Ok(TargetSpec::Points(pts))
                     }
                     "polyline" => Ok(TargetSpec::Polyline(pts)),
                     "cloud" => Ok(TargetSpec::Cloud(pts)),
-                    t => Err(bad(path, format!("group `{}`: unknown target type `{t}` (points, polyline, cloud)", src.name))),
+                    t => Err(bad(
+                        path,
+                        format!("group `{}`: unknown target type `{t}` (points, polyline, cloud)", src.name),
+                    )),
                 }
             })
             .collect();
@@ -172,8 +184,12 @@ pub fn read_p2ilf_contours(path: &Path, vertices: &[Vector<3>]) -> Result<Vec<So
             let points = ids
                 .iter()
                 .map(|id| {
-                    let k = id.as_u64().ok_or_else(|| bad(path, format!("contour {i}: non-integer vertex id")))? as usize;
-                    vertices.get(k).copied().ok_or_else(|| bad(path, format!("contour {i}: vertex {k} >= {}", vertices.len())))
+                    let k =
+                        id.as_u64().ok_or_else(|| bad(path, format!("contour {i}: non-integer vertex id")))? as usize;
+                    vertices
+                        .get(k)
+                        .copied()
+                        .ok_or_else(|| bad(path, format!("contour {i}: vertex {k} >= {}", vertices.len())))
                 })
                 .collect::<Result<Vec<_>>>()?;
             Ok(SourceGroup { name: format!("{kind} {i}"), points, weight: 1.0 })

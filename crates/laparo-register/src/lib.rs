@@ -34,11 +34,13 @@
 //! ```
 #![warn(missing_docs)]
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Index loops over several parallel arrays read better than zipped iterators here.
+#![allow(clippy::needless_range_loop)]
 
 pub mod distance;
+mod error;
 pub mod fig55;
 pub mod io;
-mod error;
 pub mod loss;
 pub mod optimize;
 pub mod organ;

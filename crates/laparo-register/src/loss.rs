@@ -105,7 +105,8 @@ impl<const D: usize> RegistrationLoss<D> {
         self.groups
             .iter()
             .map(|g| {
-                let d: Vec<f64> = g.particles.iter().enumerate().map(|(k, &p)| (x[p] - g.closest(k, &x[p])).norm()).collect();
+                let d: Vec<f64> =
+                    g.particles.iter().enumerate().map(|(k, &p)| (x[p] - g.closest(k, &x[p])).norm()).collect();
                 GroupResidual {
                     name: g.name.clone(),
                     count: d.len(),

@@ -207,10 +207,14 @@ pub fn register<const D: usize>(
     }
     for g in &loss.groups {
         if let Some(&p) = g.particles.iter().find(|&&p| p >= n) {
-            return Err(RegisterError::bad(format!("landmark group `{}`", g.name), format!("particle index {p} >= {n}")));
+            return Err(RegisterError::bad(
+                format!("landmark group `{}`", g.name),
+                format!("particle index {p} >= {n}"),
+            ));
         }
     }
-    let check = |name: &str, v: f64, ok: bool| if ok { Ok(()) } else { Err(RegisterError::param(name, v, "out of range")) };
+    let check =
+        |name: &str, v: f64, ok: bool| if ok { Ok(()) } else { Err(RegisterError::param(name, v, "out of range")) };
     check("max_step_dx", cfg.max_step_dx, cfg.max_step_dx > 0.0)?;
     check("smoothing_dx", cfg.smoothing_dx, cfg.smoothing_dx >= 0.0)?;
     check("thesis_decay", cfg.thesis_decay, cfg.thesis_decay > 0.0 && cfg.thesis_decay < 1.0)?;
@@ -224,8 +228,7 @@ pub fn register<const D: usize>(
         None => scene.velocities.clone(),
     };
     let dxl = scene.grid.dx;
-    let smoother =
-        if thesis { None } else { Smoother::new(&scene.positions, cfg.smoothing_dx * dxl, dxl) };
+    let smoother = if thesis { None } else { Smoother::new(&scene.positions, cfg.smoothing_dx * dxl, dxl) };
     let joint = cfg.joint_youngs_modulus;
     let mut pb = Problem {
         scene: scene.clone(),

@@ -269,7 +269,10 @@ pub fn organ_from_mesh(path: &Path, cfg: &OrganConfig) -> Result<Organ> {
         voxelize(&mesh, cfg.spacing_mm)
     };
     if points.is_empty() {
-        return Err(RegisterError::bad(path.display().to_string(), format!("no particle at spacing {} mm", cfg.spacing_mm)));
+        return Err(RegisterError::bad(
+            path.display().to_string(),
+            format!("no particle at spacing {} mm", cfg.spacing_mm),
+        ));
     }
     let _ = dx;
     organ_from_points(points, cfg, &path.display().to_string())
@@ -291,7 +294,13 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
         return Err(RegisterError::param(
             "spacing_mm",
             cfg.spacing_mm,
-            format!("{}: {} particles need ≈{:.1} GB of checkpoints (available {:.1} GB)", input, points.len(), bytes / 1e9, limit / 1e9),
+            format!(
+                "{}: {} particles need ≈{:.1} GB of checkpoints (available {:.1} GB)",
+                input,
+                points.len(),
+                bytes / 1e9,
+                limit / 1e9
+            ),
         ));
     }
     let mut lo = points[0];
@@ -321,7 +330,11 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
                 return Err(RegisterError::param(
                     "dt_s",
                     dt,
-                    format!("CFL violated: c Δt / Δx = {c:.3} > {} (c = {:.0} mm/s, Δx = {dx} mm)", cfg.cfl_limit, material.p_wave_speed()),
+                    format!(
+                        "CFL violated: c Δt / Δx = {c:.3} > {} (c = {:.0} mm/s, Δx = {dx} mm)",
+                        cfg.cfl_limit,
+                        material.p_wave_speed()
+                    ),
                 ));
             }
             dt
@@ -336,7 +349,10 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
         scene.fixed = points.iter().map(|p| roi.depth(p) < dx).collect();
         fixed_count = scene.fixed.iter().filter(|&&f| f).count();
         if fixed_count == points.len() {
-            return Err(RegisterError::bad(input, "every particle of the region of interest is on its boundary (ROI too small)"));
+            return Err(RegisterError::bad(
+                input,
+                "every particle of the region of interest is on its boundary (ROI too small)",
+            ));
         }
     }
     if (dx / cfg.spacing_mm).powi(3) < 2.0 {

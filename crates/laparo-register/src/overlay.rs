@@ -56,7 +56,13 @@ pub struct Layer<'a> {
 
 /// Render the layers over `background` (RGB, the camera's size); each layer has its own z-buffer, so a
 /// later layer is seen through earlier ones.
-pub fn render_overlay(background: &Image<u8>, layers: &[Layer], pose: &CameraPose, k: &Intrinsics, dist: &Distortion) -> Image<u8> {
+pub fn render_overlay(
+    background: &Image<u8>,
+    layers: &[Layer],
+    pose: &CameraPose,
+    k: &Intrinsics,
+    dist: &Distortion,
+) -> Image<u8> {
     let (w, h) = (background.width, background.height);
     let mut out = if background.channels == 3 {
         background.clone()
@@ -111,7 +117,8 @@ pub fn render_overlay(background: &Image<u8>, layers: &[Layer], pose: &CameraPos
                 for c in 0..3 {
                     let src = layer.color[c] as f64 * s;
                     let dst = out.data[3 * i + c] as f64;
-                    out.data[3 * i + c] = (layer.alpha * src + (1.0 - layer.alpha) * dst).round().clamp(0.0, 255.0) as u8;
+                    out.data[3 * i + c] =
+                        (layer.alpha * src + (1.0 - layer.alpha) * dst).round().clamp(0.0, 255.0) as u8;
                 }
             }
         }

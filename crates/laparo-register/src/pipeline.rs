@@ -111,7 +111,13 @@ pub fn peak_memory_mib() -> Option<f64> {
 }
 
 /// Build the registration loss of `groups`/`targets` on `organ` (grid coordinates).
-pub fn build_loss(organ: &Organ, groups: &[SourceGroup], targets: &[TargetSpec], region_weight: f64, input: &str) -> Result<RegistrationLoss<3>> {
+pub fn build_loss(
+    organ: &Organ,
+    groups: &[SourceGroup],
+    targets: &[TargetSpec],
+    region_weight: f64,
+    input: &str,
+) -> Result<RegistrationLoss<3>> {
     if groups.len() != targets.len() {
         return Err(RegisterError::bad(input, format!("{} landmark groups, {} targets", groups.len(), targets.len())));
     }
@@ -129,7 +135,8 @@ pub fn build_loss(organ: &Organ, groups: &[SourceGroup], targets: &[TargetSpec],
         };
         if region_weight > 0.0 && region.is_none() {
             if let TargetSpec::Cloud(p) | TargetSpec::Surface(p, _) = t {
-                region = Some(RegionTerm { targets: sh(p), particles: surface_particles(organ), weight: region_weight });
+                region =
+                    Some(RegionTerm { targets: sh(p), particles: surface_particles(organ), weight: region_weight });
             }
         }
         out.push(LandmarkGroup { name: g.name.clone(), particles, target, weight: g.weight });
@@ -158,7 +165,8 @@ fn write_ply_particles(path: &Path, x: &[Vector<3>], v: &[Vector<3>], j: &[f64])
 
 /// Run a registration job, calling `progress` with every accepted iteration.
 pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<Report> {
-    std::fs::create_dir_all(&job.out).map_err(|e| RegisterError::bad(job.out.display().to_string(), format!("cannot create: {e}")))?;
+    std::fs::create_dir_all(&job.out)
+        .map_err(|e| RegisterError::bad(job.out.display().to_string(), format!("cannot create: {e}")))?;
     let organ = organ_from_mesh(&job.organ, &job.organ_config)?;
     let input = "landmarks";
     let loss = build_loss(&organ, &job.landmarks, &job.targets, job.region_weight, input)?;
@@ -180,12 +188,17 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
     let mut scene = organ.scene.clone();
     if job.resume && ckpt.exists() {
         let v: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(&ckpt).map_err(|e| RegisterError::bad(ckpt.display().to_string(), e.to_string()))?,
+            &std::fs::read_to_string(&ckpt)
+                .map_err(|e| RegisterError::bad(ckpt.display().to_string(), e.to_string()))?,
         )
         .map_err(|e| RegisterError::bad(ckpt.display().to_string(), e.to_string()))?;
-        let flat: Vec<f64> = v["v0"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+        let flat: Vec<f64> =
+            v["v0"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
         if flat.len() != 3 * n {
-            return Err(RegisterError::bad(ckpt.display().to_string(), format!("{} values for {n} particles (different set-up?)", flat.len())));
+            return Err(RegisterError::bad(
+                ckpt.display().to_string(),
+                format!("{} values for {n} particles (different set-up?)", flat.len()),
+            ));
         }
         warm = Some((0..n).map(|p| Vector::<3>::new(flat[3 * p], flat[3 * p + 1], flat[3 * p + 2])).collect());
         if let Some(e) = v["youngs_modulus_kpa"].as_f64() {
@@ -200,7 +213,7 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
     let mut obs = |r: &IterationRecord, v: &[Vector<3>]| {
         progress(r);
         e_now.set(r.youngs_modulus);
-        if r.iteration > 0 && r.iteration % every == 0 {
+        if r.iteration > 0 && r.iteration.is_multiple_of(every) {
             let flat: Vec<f64> = v.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
             let body = serde_json::json!({"iteration": r.iteration + resumed_from.unwrap_or(0), "loss": r.loss, "youngs_modulus_kpa": r.youngs_modulus, "v0": flat});
             if let Err(e) = write_atomic(&ckpt, body.to_string().as_bytes()) {
@@ -278,7 +291,12 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
         let pose = crate::overlay::CameraPose::framing(&rest_model, &k, 0.6);
         let mut layers = vec![crate::overlay::Layer { vertices: &sv, faces: &sf, color: [90, 200, 255], alpha: 0.45 }];
         if let Some(t) = &tumour_def {
-            layers.push(crate::overlay::Layer { vertices: &t.vertices, faces: &t.faces, color: [255, 220, 0], alpha: 0.8 });
+            layers.push(crate::overlay::Layer {
+                vertices: &t.vertices,
+                faces: &t.faces,
+                color: [255, 220, 0],
+                alpha: 0.8,
+            });
         }
         let o = crate::overlay::render_overlay(&img, &layers, &pose, &k, &cam.distortion);
         laparo_core::io::write_png(out("overlay.png"), &o)?;

@@ -133,14 +133,19 @@ pub fn icp(
     cfg: &IcpConfig,
 ) -> Result<IcpResult> {
     if src.len() < 3 || dst.len() < 3 {
-        return Err(RegisterError::bad("ICP", format!("needs >= 3 points (source {}, target {})", src.len(), dst.len())));
+        return Err(RegisterError::bad(
+            "ICP",
+            format!("needs >= 3 points (source {}, target {})", src.len(), dst.len()),
+        ));
     }
     if !(cfg.overlap > 0.0 && cfg.overlap <= 1.0) {
         return Err(RegisterError::param("overlap", cfg.overlap, "must be in (0, 1]"));
     }
     let normals = match (cfg.mode, dst_normals) {
         (IcpMode::PointToPlane, Some(n)) if n.len() == dst.len() => Some(n),
-        (IcpMode::PointToPlane, _) => return Err(RegisterError::bad("ICP", "point-to-plane needs one normal per target point")),
+        (IcpMode::PointToPlane, _) => {
+            return Err(RegisterError::bad("ICP", "point-to-plane needs one normal per target point"))
+        }
         _ => None,
     };
     let tree = build_tree(dst);
@@ -218,7 +223,8 @@ pub fn ransac_plane(points: &[Vector3<f64>], threshold: f64, trials: usize, seed
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut best: Option<(usize, Vector3<f64>, f64)> = None;
     for _ in 0..trials.max(1) {
-        let (i, j, k) = (rng.gen_range(0..points.len()), rng.gen_range(0..points.len()), rng.gen_range(0..points.len()));
+        let (i, j, k) =
+            (rng.gen_range(0..points.len()), rng.gen_range(0..points.len()), rng.gen_range(0..points.len()));
         let n = (points[j] - points[i]).cross(&(points[k] - points[i]));
         if n.norm() < 1e-12 {
             continue;
@@ -244,7 +250,13 @@ pub fn ransac_plane(points: &[Vector3<f64>], threshold: f64, trials: usize, seed
 }
 
 /// Ray–triangle intersection (Möller–Trumbore): distance t ≥ 0 along `dir`, if any.
-pub fn ray_triangle(o: &Vector3<f64>, dir: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Option<f64> {
+pub fn ray_triangle(
+    o: &Vector3<f64>,
+    dir: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    c: &Vector3<f64>,
+) -> Option<f64> {
     let e1 = b - a;
     let e2 = c - a;
     let p = dir.cross(&e2);

@@ -45,8 +45,9 @@ impl<const D: usize> Smoother<D> {
             base.push(flat);
             frac.push(f);
         }
-        let taps: Vec<f64> =
-            (0..=2 * radius).map(|k| (-((k as f64 - radius as f64) * h).powi(2) / (2.0 * sigma * sigma)).exp()).collect();
+        let taps: Vec<f64> = (0..=2 * radius)
+            .map(|k| (-((k as f64 - radius as f64) * h).powi(2) / (2.0 * sigma * sigma)).exp())
+            .collect();
         let mut s = Smoother { dims, base, frac, taps, scale: vec![1.0; positions.len()] };
         let ones = vec![Vector::<D>::repeat(1.0); positions.len()];
         let rows = s.apply_raw(&ones);

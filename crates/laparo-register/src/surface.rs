@@ -59,7 +59,11 @@ pub fn particle_surface(x: &[Vector<3>], spacing: f64, cfg: &SurfaceConfig) -> R
     let n: [usize; 3] = std::array::from_fn(|d| ((hi[d] - lo[d] + 2.0 * pad) / g).ceil() as usize + 1);
     let total = n[0] * n[1] * n[2];
     if total > 400_000_000 {
-        return Err(RegisterError::param("grid_step", cfg.grid_step, format!("density grid of {total} nodes is too large")));
+        return Err(RegisterError::param(
+            "grid_step",
+            cfg.grid_step,
+            format!("density grid of {total} nodes is too large"),
+        ));
     }
     let at = |i: usize, j: usize, k: usize| (i * n[1] + j) * n[2] + k;
     let mut phi = vec![0.0f64; total];
@@ -84,7 +88,8 @@ pub fn particle_surface(x: &[Vector<3>], spacing: f64, cfg: &SurfaceConfig) -> R
     for a in -m..=m {
         for b in -m..=m {
             for c in -m..=m {
-                interior += cubic(Vector::<3>::new(a as f64 + 0.5, b as f64 + 0.5, c as f64 + 0.5).norm() * spacing / h);
+                interior +=
+                    cubic(Vector::<3>::new(a as f64 + 0.5, b as f64 + 0.5, c as f64 + 0.5).norm() * spacing / h);
             }
         }
     }

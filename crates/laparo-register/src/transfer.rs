@@ -52,17 +52,17 @@ impl<const D: usize> Transfer<D> {
                 let u = (p[d] - origin[d]) / spacing;
                 let r = u.round();
                 if (u - r).abs() > 1e-6 {
-                    return Err(RegisterError::bad("particles", format!("particle {i} is not on the lattice of spacing {spacing}")));
+                    return Err(RegisterError::bad(
+                        "particles",
+                        format!("particle {i} is not on the lattice of spacing {spacing}"),
+                    ));
                 }
                 key[d] = r as i64;
             }
             index.entry(key).or_insert(i);
         }
-        let mut complete: Vec<[i64; D]> = index
-            .keys()
-            .filter(|k| (0..1usize << D).all(|c| index.contains_key(&corner(k, c))))
-            .copied()
-            .collect();
+        let mut complete: Vec<[i64; D]> =
+            index.keys().filter(|k| (0..1usize << D).all(|c| index.contains_key(&corner(k, c)))).copied().collect();
         complete.sort();
         let centres: Vec<Vector<D>> =
             complete.iter().map(|k| origin + Vector::<D>::from_fn(|d, _| (k[d] as f64 + 0.5) * spacing)).collect();
@@ -85,7 +85,10 @@ impl<const D: usize> Transfer<D> {
         let mut extrapolated = false;
         if !(0..1usize << D).all(|c| self.index.contains_key(&corner(&cell, c))) {
             let Some(tree) = &self.tree else {
-                return Err(RegisterError::bad("particles", "no complete lattice cell: too few particles to interpolate"));
+                return Err(RegisterError::bad(
+                    "particles",
+                    "no complete lattice cell: too few particles to interpolate",
+                ));
             };
             let a: [f64; D] = std::array::from_fn(|d| q[d]);
             cell = self.complete[tree.nearest_one::<SquaredEuclidean>(&a).item as usize];
@@ -112,7 +115,8 @@ impl<const D: usize> Transfer<D> {
         let mut straddles = false;
         for a in 0..=D {
             for b in a + 1..=D {
-                let rest_len = (0..D).map(|d| ((verts[a][d] - verts[b][d]) as f64).powi(2)).sum::<f64>().sqrt() * self.spacing;
+                let rest_len =
+                    (0..D).map(|d| ((verts[a][d] - verts[b][d]) as f64).powi(2)).sum::<f64>().sqrt() * self.spacing;
                 straddles |= (deformed[ids[a]] - deformed[ids[b]]).norm() > self.straddle_stretch * rest_len;
             }
         }

@@ -88,7 +88,8 @@ fn triangle_mesh_vs_brute_force() {
     let mut v: Vec<Vector<3>> = Vec::new();
     for j in 0..=nv {
         for i in 0..nu {
-            let (th, ph) = (std::f64::consts::PI * j as f64 / nv as f64, 2.0 * std::f64::consts::PI * i as f64 / nu as f64);
+            let (th, ph) =
+                (std::f64::consts::PI * j as f64 / nv as f64, 2.0 * std::f64::consts::PI * i as f64 / nu as f64);
             v.push(Vector::<3>::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
         }
     }

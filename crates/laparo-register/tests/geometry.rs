@@ -22,7 +22,11 @@ fn transfer_reproduces_affine_maps_3d_and_2d() {
     let (mut inside, mut extra) = (0, 0);
     for _ in 0..5000 {
         // points inside and slightly outside the ellipsoid
-        let q = Vector::<3>::new(10.0 + rng.gen_range(-21.0..21.0), 20.0 + rng.gen_range(-16.0..16.0), 30.0 + rng.gen_range(-11.0..11.0));
+        let q = Vector::<3>::new(
+            10.0 + rng.gen_range(-21.0..21.0),
+            20.0 + rng.gen_range(-16.0..16.0),
+            30.0 + rng.gen_range(-11.0..11.0),
+        );
         let t = tr.apply(&q, &def).unwrap();
         let err = (t.position - (a * q + b)).norm();
         assert!(err < 1e-9, "affine transfer error {err:e} mm");
@@ -48,7 +52,8 @@ fn transfer_reproduces_affine_maps_3d_and_2d() {
 fn transfer_flags_a_cut() {
     // a 2D block whose right half moves away by 4 spacings: cells across x = 0 straddle
     let rest = laparo_mpm::box_lattice(Vector::<2>::new(-5.0, 0.0), Vector::<2>::new(5.0, 4.0), 1.0);
-    let def: Vec<Vector<2>> = rest.iter().map(|p| if p[0] > 0.0 { p + Vector::<2>::new(4.0, 0.0) } else { *p }).collect();
+    let def: Vec<Vector<2>> =
+        rest.iter().map(|p| if p[0] > 0.0 { p + Vector::<2>::new(4.0, 0.0) } else { *p }).collect();
     let tr = Transfer::new(&rest, 1.0).unwrap();
     assert!(tr.apply(&Vector::<2>::new(0.0, 2.0), &def).unwrap().straddles);
     assert!(!tr.apply(&Vector::<2>::new(-3.0, 2.0), &def).unwrap().straddles);
@@ -84,7 +89,8 @@ fn sphere_surface_is_closed_manifold_within_1mm() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut h2: f64 = 0.0;
     for _ in 0..3000 {
-        let d = Vector::<3>::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)).normalize();
+        let d =
+            Vector::<3>::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)).normalize();
         h2 = h2.max(surf.distance(&(c + d * 20.0)));
     }
     eprintln!("sphere surface: {} vertices, {} faces, Hausdorff {h1:.3} / {h2:.3} mm", v.len(), f.len());
@@ -94,8 +100,9 @@ fn sphere_surface_is_closed_manifold_within_1mm() {
 #[test]
 fn umeyama_and_icp_recover_known_motions() {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
-    let src: Vec<Vector3<f64>> =
-        (0..300).map(|_| Vector3::new(rng.gen_range(-50.0..50.0), rng.gen_range(-30.0..30.0), rng.gen_range(-20.0..20.0))).collect();
+    let src: Vec<Vector3<f64>> = (0..300)
+        .map(|_| Vector3::new(rng.gen_range(-50.0..50.0), rng.gen_range(-30.0..30.0), rng.gen_range(-20.0..20.0)))
+        .collect();
     let r = *Rotation3::from_euler_angles(0.3, -0.2, 0.5).matrix();
     let t = Vector3::new(10.0, -5.0, 3.0);
     let s = 1.2;
@@ -104,7 +111,11 @@ fn umeyama_and_icp_recover_known_motions() {
     assert!((est.rotation - r).norm() < 1e-12 && (est.translation - t).norm() < 1e-10 && (est.scale - s).abs() < 1e-12);
     let rigid: Vec<Vector3<f64>> = src.iter().map(|p| r * p + t).collect();
     // ICP from a perturbed start
-    let init = Similarity { rotation: *Rotation3::from_euler_angles(0.25, -0.15, 0.45).matrix(), translation: t + Vector3::new(2.0, 1.0, -1.0), scale: 1.0 };
+    let init = Similarity {
+        rotation: *Rotation3::from_euler_angles(0.25, -0.15, 0.45).matrix(),
+        translation: t + Vector3::new(2.0, 1.0, -1.0),
+        scale: 1.0,
+    };
     let res = icp(&src, &rigid, None, init, &IcpConfig::default()).unwrap();
     assert!(res.rmse < 1e-6, "ICP rmse {}", res.rmse);
     // trimmed: 30 % outliers on the target only
@@ -125,19 +136,33 @@ fn ransac_plane_and_gravity_projection() {
             p - n * (n.dot(&p) - 7.0)
         })
         .collect();
-    pts.extend((0..100).map(|_| Vector3::new(rng.gen_range(-50.0..50.0), rng.gen_range(-50.0..50.0), rng.gen_range(20.0..60.0))));
+    pts.extend(
+        (0..100)
+            .map(|_| Vector3::new(rng.gen_range(-50.0..50.0), rng.gen_range(-50.0..50.0), rng.gen_range(20.0..60.0))),
+    );
     let plane = ransac_plane(&pts, 0.5, 200, 1).unwrap();
     assert!((plane.normal - n).norm() < 1e-9 && (plane.offset - 7.0).abs() < 1e-9 && plane.inliers == 400);
     // project a point down onto a unit square (two triangles) at z = 0
-    let v = vec![Vector3::new(0.0, 0.0, 0.0), Vector3::new(1.0, 0.0, 0.0), Vector3::new(1.0, 1.0, 0.0), Vector3::new(0.0, 1.0, 0.0)];
+    let v = vec![
+        Vector3::new(0.0, 0.0, 0.0),
+        Vector3::new(1.0, 0.0, 0.0),
+        Vector3::new(1.0, 1.0, 0.0),
+        Vector3::new(0.0, 1.0, 0.0),
+    ];
     let f = vec![[0, 1, 2], [0, 2, 3]];
-    let hit = project_along(&[Vector3::new(0.3, 0.6, 5.0), Vector3::new(3.0, 3.0, 5.0)], &Vector3::new(0.0, 0.0, -1.0), &v, &f);
+    let hit = project_along(
+        &[Vector3::new(0.3, 0.6, 5.0), Vector3::new(3.0, 3.0, 5.0)],
+        &Vector3::new(0.0, 0.0, -1.0),
+        &v,
+        &f,
+    );
     assert!((hit[0].unwrap() - Vector3::new(0.3, 0.6, 0.0)).norm() < 1e-12);
     assert!(hit[1].is_none());
 }
 
 fn p2ilf() -> Option<std::path::PathBuf> {
-    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
     if p.exists() {
         Some(p)
     } else {
@@ -158,8 +183,10 @@ fn p2ilf_liver_procrustes_icp_recovers_rigid_motion() {
     let mut rng = ChaCha8Rng::seed_from_u64(6);
     let ids: Vec<usize> = (0..10).map(|k| k * src.len() / 10).collect();
     let a: Vec<Vector3<f64>> = ids.iter().map(|&i| src[i]).collect();
-    let b: Vec<Vector3<f64>> =
-        ids.iter().map(|&i| dst[i] + Vector3::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0))).collect();
+    let b: Vec<Vector3<f64>> = ids
+        .iter()
+        .map(|&i| dst[i] + Vector3::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0)))
+        .collect();
     let init = umeyama(&a, &b, false).unwrap();
     let normals = laparo_core::mesh::TriMesh::new(dst.clone(), mesh.faces.clone()).unwrap().vertex_normals();
     for mode in [IcpMode::PointToPoint, IcpMode::PointToPlane] {
@@ -183,11 +210,16 @@ fn p2ilf_liver_organ_and_bad_inputs() {
     // memory and CFL errors name the parameter
     let e = organ_from_mesh(&path, &OrganConfig { spacing_mm: 0.3, ..Default::default() }).unwrap_err();
     assert!(e.to_string().contains("spacing_mm"), "{e}");
-    let e = organ_from_mesh(&path, &OrganConfig { spacing_mm: 6.0, dt_s: Some(1e-2), ..Default::default() }).unwrap_err();
+    let e =
+        organ_from_mesh(&path, &OrganConfig { spacing_mm: 6.0, dt_s: Some(1e-2), ..Default::default() }).unwrap_err();
     assert!(e.to_string().contains("CFL"), "{e}");
     // ROI: a ball, boundary particles fixed
     let c = organ.rest_model()[n / 2];
-    let roi = OrganConfig { spacing_mm: 6.0, roi: Some(Roi::Ball { center: [c[0], c[1], c[2]], radius_mm: 40.0 }), ..Default::default() };
+    let roi = OrganConfig {
+        spacing_mm: 6.0,
+        roi: Some(Roi::Ball { center: [c[0], c[1], c[2]], radius_mm: 40.0 }),
+        ..Default::default()
+    };
     let o2 = organ_from_points(organ.rest_model(), &roi, "liver").unwrap();
     assert!(o2.fixed_count > 0 && o2.fixed_count < o2.scene.n_particles());
     // non-closed surface

@@ -1,5 +1,6 @@
 //! End-to-end gradient of the registration loss (polyline + region terms) with respect to v₀ and E:
 //! central finite differences in f64, relative error < 1e-5, in 2D and 3D with stretch > 50 %.
+#![allow(clippy::needless_range_loop)]
 use laparo_mpm::prelude::*;
 use laparo_mpm::{simulate_with_gradient, Matrix};
 use laparo_register::prelude::*;
@@ -58,7 +59,12 @@ fn build_loss<const D: usize>(scene: &Scene<D>, seed: u64) -> RegistrationLoss<D
     let line = Polyline::open((0..15).map(|i| curve(i as f64 / 14.0)).collect());
     let cloud: Vec<Vector<D>> = (0..60).map(|_| c + Vector::<D>::from_fn(|_, _| rng.gen_range(-0.12..0.12))).collect();
     let lm = |k: usize, rng: &mut ChaCha8Rng| (0..k).map(|_| rng.gen_range(0..n)).collect::<Vec<_>>();
-    let g1 = LandmarkGroup { name: "lip".into(), particles: lm(12, &mut rng), target: GroupTarget::Shared(Arc::new(line)), weight: 1.0 };
+    let g1 = LandmarkGroup {
+        name: "lip".into(),
+        particles: lm(12, &mut rng),
+        target: GroupTarget::Shared(Arc::new(line)),
+        weight: 1.0,
+    };
     let g2 = LandmarkGroup {
         name: "region".into(),
         particles: lm(10, &mut rng),
@@ -66,7 +72,8 @@ fn build_loss<const D: usize>(scene: &Scene<D>, seed: u64) -> RegistrationLoss<D
         weight: 0.7,
     };
     let mut loss = RegistrationLoss::new(vec![g1, g2]);
-    loss.region = Some(RegionTerm { targets: cloud[..30].to_vec(), particles: (0..n).step_by(3).collect(), weight: 0.5 });
+    loss.region =
+        Some(RegionTerm { targets: cloud[..30].to_vec(), particles: (0..n).step_by(3).collect(), weight: 0.5 });
     loss
 }
 

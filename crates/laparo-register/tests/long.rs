@@ -15,12 +15,19 @@ fn fig55_acceptance() {
         match case {
             Case::Stretch => {
                 let w = m.width_ratio.unwrap();
-                if !(m.residual_dx[1] < 0.1 && (w - 1.0).abs() <= 0.02 && m.mid_height_ratio <= 0.95 && m.min_j > 0.2 && m.bodies.len() == 1) {
+                if !(m.residual_dx[1] < 0.1
+                    && (w - 1.0).abs() <= 0.02
+                    && m.mid_height_ratio <= 0.95
+                    && m.min_j > 0.2
+                    && m.bodies.len() == 1)
+                {
                     fails.push(format!("(a) {m:?}"));
                 }
             }
             Case::Rupture if !two => fails.push(format!("(c) {m:?}")),
-            Case::RuptureStretch if !two || m.width_ratio.map_or(true, |w| (w - 1.0).abs() > 0.02) => fails.push(format!("(d) {m:?}")),
+            Case::RuptureStretch if !two || m.width_ratio.is_none_or(|w| (w - 1.0).abs() > 0.02) => {
+                fails.push(format!("(d) {m:?}"))
+            }
             _ => {}
         }
     }
@@ -46,10 +53,17 @@ fn p2ilf_ridge_registration_3mm() {
     let c = all.iter().sum::<laparo_mpm::Vector<3>>() / all.len() as f64;
     let field = |x: &laparo_mpm::Vector<3>| {
         let r = (x - c) / 60.0;
-        laparo_mpm::Vector::<3>::new((r[0] + 0.3).sin() + 0.5 * r[1], (1.3 * r[1] - 0.2).sin() - 0.4 * r[2], (0.7 * r[2] + 0.9 * r[0]).cos())
+        laparo_mpm::Vector::<3>::new(
+            (r[0] + 0.3).sin() + 0.5 * r[1],
+            (1.3 * r[1] - 0.2).sin() - 0.4 * r[2],
+            (0.7 * r[2] + 0.9 * r[0]).cos(),
+        )
     };
     let m = all.iter().map(|x| field(x).norm()).fold(0.0, f64::max);
-    let targets = groups.iter().map(|g| TargetSpec::Points(g.points.iter().map(|p| p + field(p) * (10.0 / m)).collect())).collect();
+    let targets = groups
+        .iter()
+        .map(|g| TargetSpec::Points(g.points.iter().map(|p| p + field(p) * (10.0 / m)).collect()))
+        .collect();
     let out = tempfile::tempdir().unwrap();
     let job = Job {
         organ,
@@ -64,7 +78,9 @@ fn p2ilf_ridge_registration_3mm() {
         resume: false,
         checkpoint_every: 10,
     };
-    let r = run_job(&job, &mut |it| eprintln!("it {} mean {:.3} mm ({:.0} s)", it.iteration, it.mean_distance, it.seconds)).unwrap();
+    let r =
+        run_job(&job, &mut |it| eprintln!("it {} mean {:.3} mm ({:.0} s)", it.iteration, it.mean_distance, it.seconds))
+            .unwrap();
     eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
     assert!(r.mean_distance_mm[1] < 1.0, "mean landmark error {} mm", r.mean_distance_mm[1]);
 }

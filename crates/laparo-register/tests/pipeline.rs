@@ -8,7 +8,11 @@ use std::path::Path;
 fn box_obj(path: &Path, lo: [f64; 3], hi: [f64; 3]) {
     let mut s = String::new();
     for i in 0..8 {
-        let p = [if i & 1 == 0 { lo[0] } else { hi[0] }, if i & 2 == 0 { lo[1] } else { hi[1] }, if i & 4 == 0 { lo[2] } else { hi[2] }];
+        let p = [
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ];
         s.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
     }
     // outward-oriented faces of the cube (1-based)
@@ -38,7 +42,11 @@ fn job(dir: &Path) -> Job {
     let targets = read_targets(&dir.join("T.json"), &landmarks).unwrap();
     // a grey 320×240 image and its camera
     laparo_core::io::write_png(dir.join("img.png"), &laparo_core::image::Image::filled(320, 240, 3, 128u8)).unwrap();
-    std::fs::write(dir.join("cam.json"), r#"{"fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "k1": -0.1}"#).unwrap();
+    std::fs::write(
+        dir.join("cam.json"),
+        r#"{"fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "k1": -0.1}"#,
+    )
+    .unwrap();
     Job {
         organ,
         organ_config: OrganConfig { spacing_mm: 2.0, steps: 60, ..Default::default() },
@@ -61,7 +69,18 @@ fn box_organ_end_to_end_and_resume() {
     let r = run_job(&j, &mut |_| {}).unwrap();
     assert_eq!(r.particles, 20 * 12 * 8);
     assert!(r.mean_distance_mm[1] < 0.6 * r.mean_distance_mm[0], "{:?}", r.mean_distance_mm);
-    for f in ["particles_registered.ply", "particles_rest.ply", "surface_registered.ply", "organ_deformed.obj", "tumour_deformed.obj", "overlay.png", "loss.csv", "loss.png", "report.json", "checkpoint_v0.json"] {
+    for f in [
+        "particles_registered.ply",
+        "particles_rest.ply",
+        "surface_registered.ply",
+        "organ_deformed.obj",
+        "tumour_deformed.obj",
+        "overlay.png",
+        "loss.csv",
+        "loss.png",
+        "report.json",
+        "checkpoint_v0.json",
+    ] {
         assert!(j.out.join(f).exists(), "{f} missing");
     }
     // the tumour moved with the body and lies inside it (no extrapolation)
@@ -77,7 +96,12 @@ fn box_organ_end_to_end_and_resume() {
     j2.optimizer.iterations = 1;
     let r2 = run_job(&j2, &mut |_| {}).unwrap();
     assert!(r2.resumed_from.is_some());
-    assert!((r2.mean_distance_mm[0] - r.mean_distance_mm[1]).abs() < 1e-9, "{} vs {}", r2.mean_distance_mm[0], r.mean_distance_mm[1]);
+    assert!(
+        (r2.mean_distance_mm[0] - r.mean_distance_mm[1]).abs() < 1e-9,
+        "{} vs {}",
+        r2.mean_distance_mm[0],
+        r.mean_distance_mm[1]
+    );
 }
 
 #[test]
@@ -85,14 +109,19 @@ fn bad_inputs_name_the_input() {
     let dir = tempfile::tempdir().unwrap();
     let mut j = job(dir.path());
     // landmark outside the body
-    std::fs::write(dir.path().join("L2.json"), r#"{"groups": [{"name": "tip", "points": [[90.0, 12.0, 8.0]]}]}"#).unwrap();
+    std::fs::write(dir.path().join("L2.json"), r#"{"groups": [{"name": "tip", "points": [[90.0, 12.0, 8.0]]}]}"#)
+        .unwrap();
     let lm = read_landmarks(&dir.path().join("L2.json")).unwrap();
     j.targets = vec![laparo_register::io::TargetSpec::Points(vec![lm[0].points[0]])];
     j.landmarks = lm;
     let e = run_job(&j, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("landmark 0") && e.contains("outside the body"), "{e}");
     // empty target file
-    std::fs::write(dir.path().join("empty.ply"), "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n").unwrap();
+    std::fs::write(
+        dir.path().join("empty.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+    )
+    .unwrap();
     let e = read_targets(&dir.path().join("empty.ply"), &j.landmarks).unwrap_err().to_string();
     assert!(e.contains("empty.ply"), "{e}");
     // empty landmark file and a bad JSON
@@ -101,6 +130,10 @@ fn bad_inputs_name_the_input() {
     std::fs::write(dir.path().join("L4.json"), "{").unwrap();
     assert!(read_landmarks(&dir.path().join("L4.json")).unwrap_err().to_string().contains("L4.json"));
     // target count mismatch for paired points
-    std::fs::write(dir.path().join("T2.json"), r#"{"groups": [{"name": "tip", "points": [[1.0, 2.0, 3.0], [1.0, 2.0, 3.0]]}]}"#).unwrap();
+    std::fs::write(
+        dir.path().join("T2.json"),
+        r#"{"groups": [{"name": "tip", "points": [[1.0, 2.0, 3.0], [1.0, 2.0, 3.0]]}]}"#,
+    )
+    .unwrap();
     assert!(read_targets(&dir.path().join("T2.json"), &j.landmarks).unwrap_err().to_string().contains("T2.json"));
 }

@@ -14,11 +14,15 @@ fn smooth_field(scene: &Scene<2>, seed: u64) -> Vec<Vector<2>> {
             (
                 Vector::<2>::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)),
                 Vector::<2>::new(rng.gen_range(-6.0..6.0), rng.gen_range(-6.0..6.0)),
-                rng.gen_range(0.0..6.28),
+                rng.gen_range(0.0..std::f64::consts::TAU),
             )
         })
         .collect();
-    scene.positions.iter().map(|x| modes.iter().fold(Vector::<2>::zeros(), |a, (amp, k, ph)| a + amp * (k.dot(x) + ph).sin())).collect()
+    scene
+        .positions
+        .iter()
+        .map(|x| modes.iter().fold(Vector::<2>::zeros(), |a, (amp, k, ph)| a + amp * (k.dot(x) + ph).sin()))
+        .collect()
 }
 
 fn max_disp(scene: &Scene<2>) -> f64 {

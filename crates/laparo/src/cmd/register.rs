@@ -60,13 +60,20 @@ pub fn fig55_figures(out: &std::path::Path, cfg: &OptimizerConfig) -> Result<Vec
     for case in Case::ALL {
         let marks = case_marks(&scene, case);
         let ones = vec![1.0; scene.n_particles()];
-        laparo_core::io::write_png(out.join(format!("{}_before.png", case.label())), &render_case(&scene.positions, &ones, &marks, 420))?;
+        laparo_core::io::write_png(
+            out.join(format!("{}_before.png", case.label())),
+            &render_case(&scene.positions, &ones, &marks, 420),
+        )?;
         let (m, x, j) = run_case(case, cfg)?;
         laparo_core::io::write_png(out.join(format!("{}_after.png", case.label())), &render_case(&x, &j, &marks, 420))?;
         let lp = out.join(format!("{}_loss.png", case.label()));
         laparo_core::atomic::write_atomic_with(&lp, |tmp| {
             let t = tmp.with_extension("png");
-            laparo_mpm::render::plot_loss_curve(&t, &m.curve_dx, &format!("{}: mean landmark distance (Δx)", case.label()))?;
+            laparo_mpm::render::plot_loss_curve(
+                &t,
+                &m.curve_dx,
+                &format!("{}: mean landmark distance (Δx)", case.label()),
+            )?;
             std::fs::rename(&t, tmp).map_err(|e| laparo_core::CoreError::io(tmp, e))
         })?;
         all.push(m);
@@ -209,10 +216,16 @@ pub struct SynthArgs {
 
 fn parse_roi(s: &str) -> Result<Roi> {
     let (kind, rest) = s.split_once(':').context("--roi: expected ball:x,y,z,r or box:x0,y0,z0,x1,y1,z1")?;
-    let v: Vec<f64> = rest.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().context("--roi: numbers")?;
+    let v: Vec<f64> = rest
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .context("--roi: numbers")?;
     match (kind, v.len()) {
         ("ball", 4) if v[3] > 0.0 => Ok(Roi::Ball { center: [v[0], v[1], v[2]], radius_mm: v[3] }),
-        ("box", 6) if (0..3).all(|d| v[d] < v[d + 3]) => Ok(Roi::Box { lo: [v[0], v[1], v[2]], hi: [v[3], v[4], v[5]] }),
+        ("box", 6) if (0..3).all(|d| v[d] < v[d + 3]) => {
+            Ok(Roi::Box { lo: [v[0], v[1], v[2]], hi: [v[3], v[4], v[5]] })
+        }
         _ => bail!("--roi {s}: expected ball:x,y,z,r (r > 0) or box:x0,y0,z0,x1,y1,z1 (lo < hi)"),
     }
 }
@@ -223,7 +236,8 @@ pub fn run(a: RegisterArgs) -> Result<()> {
         Some(RegisterSub::SynthTargets(s)) => synth(s),
         Some(RegisterSub::Fig55 { out, iterations, optimizer }) => {
             let kind = optimizer_kind(&optimizer)?;
-            let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
+            let base =
+                if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
             let cfg = OptimizerConfig { kind, iterations, ..base };
             for m in fig55_figures(&out, &cfg)? {
                 println!(
@@ -297,7 +311,8 @@ fn deformable(a: RunArgs) -> Result<()> {
     };
     let pb = ProgressBar::new(optimizer.iterations as u64);
     pb.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} it  {msg}  [{elapsed_precise}]").unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template("{bar:30} {pos}/{len} it  {msg}  [{elapsed_precise}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let report = run_job(&job, &mut |r| {
         pb.set_position(r.iteration as u64);
@@ -364,12 +379,21 @@ fn rigid(a: RigidArgs) -> Result<()> {
             bail!("{}: point-to-plane ICP needs a target mesh with faces (normals)", a.target.display());
         }
         let normals = if dst.faces.is_empty() { None } else { Some(dst.vertex_normals()) };
-        let r = icp(&src.vertices, &dst.vertices, normals.as_deref(), t, &IcpConfig { mode, overlap: a.overlap, ..Default::default() })?;
+        let r = icp(
+            &src.vertices,
+            &dst.vertices,
+            normals.as_deref(),
+            t,
+            &IcpConfig { mode, overlap: a.overlap, ..Default::default() },
+        )?;
         t = r.transform;
         icp_rmse = Some(r.rmse);
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let aligned = laparo_core::mesh::TriMesh { vertices: src.vertices.iter().map(|p| t.apply(p)).collect(), faces: src.faces.clone() };
+    let aligned = laparo_core::mesh::TriMesh {
+        vertices: src.vertices.iter().map(|p| t.apply(p)).collect(),
+        faces: src.faces.clone(),
+    };
     laparo_core::mesh::write_ply(a.out.join("source_aligned.ply"), &aligned)?;
     let body = serde_json::json!({"transform": t, "procrustes_rmse_mm": procrustes_rmse, "icp_rmse_mm": icp_rmse});
     laparo_core::atomic::write_atomic(&a.out.join("transform.json"), serde_json::to_string_pretty(&body)?.as_bytes())?;
@@ -397,12 +421,17 @@ fn synth(a: SynthArgs) -> Result<()> {
     let c = all.iter().sum::<Vector<3>>() / all.len() as f64;
     let field = |x: &Vector<3>| {
         let r = (x - c) / 60.0;
-        Vector::<3>::new((r[0] + 0.3).sin() + 0.5 * r[1], (1.3 * r[1] - 0.2).sin() - 0.4 * r[2], (0.7 * r[2] + 0.9 * r[0]).cos())
+        Vector::<3>::new(
+            (r[0] + 0.3).sin() + 0.5 * r[1],
+            (1.3 * r[1] - 0.2).sin() - 0.4 * r[2],
+            (0.7 * r[2] + 0.9 * r[0]).cos(),
+        )
     };
     let m = all.iter().map(|x| field(x).norm()).fold(0.0, f64::max);
     let s = a.max_displacement_mm / m;
     let pts = |g: &SourceGroup| g.points.iter().map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
-    let moved = |g: &SourceGroup| g.points.iter().map(|p| p + field(p) * s).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
+    let moved =
+        |g: &SourceGroup| g.points.iter().map(|p| p + field(p) * s).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
     let l = serde_json::json!({"groups": groups.iter().map(|g| serde_json::json!({"name": g.name, "points": pts(g)})).collect::<Vec<_>>()});
     let t = serde_json::json!({"groups": groups.iter().map(|g| serde_json::json!({"name": g.name, "type": "points", "points": moved(g)})).collect::<Vec<_>>()});
     laparo_core::atomic::write_atomic(&a.landmarks_out, serde_json::to_string_pretty(&l)?.as_bytes())?;
