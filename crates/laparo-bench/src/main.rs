@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 mod cats;
 mod cpc;
 mod depth;
+mod features;
 mod mpm;
 mod register;
 mod stereo;
@@ -39,6 +40,8 @@ enum Command {
     Mpm(mpm::BenchArgs),
     /// RODS-MPM registration on the thesis 3D configuration (optionally vs DiffTaichi, same session).
     Register(register::BenchArgs),
+    /// SIFT/ORB detect+describe and matching vs OpenCV (../shared/bench/features_ref.py).
+    Features(features::BenchArgs),
 }
 
 fn main() {
@@ -50,6 +53,7 @@ fn main() {
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
         Command::Register(a) => register::run(a),
+        Command::Features(a) => features::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the
     // libraries' parallel regions start and end on a pool thread; timings are then those a

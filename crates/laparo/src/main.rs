@@ -38,6 +38,9 @@ enum Command {
     Mpm(cmd::mpm::MpmCmd),
     /// RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
     Register(cmd::register::RegisterArgs),
+    /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
+    #[command(subcommand)]
+    Features(cmd::features::FeaturesCmd),
     /// Run every module on built-in data and write an HTML report.
     Demo(demo::DemoArgs),
     /// Benchmarks moved to the separate `laparo-bench` binary (this only says how to run it).
@@ -57,6 +60,7 @@ fn main() {
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
         Command::Register(a) => cmd::register::run(a),
+        Command::Features(c) => cmd::features::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(
             "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \
