@@ -16,6 +16,7 @@ mod depth;
 mod features;
 mod geo;
 mod mpm;
+mod register;
 mod stereo;
 mod timing;
 
@@ -38,6 +39,8 @@ enum Command {
     Cpc(cpc::BenchArgs),
     /// MPM forward and forward+backward wall time per iteration on the DiffTaichi RODS box problem.
     Mpm(mpm::BenchArgs),
+    /// RODS-MPM registration on the thesis 3D configuration (optionally vs DiffTaichi, same session).
+    Register(register::BenchArgs),
     /// SIFT/ORB detect+describe and matching vs OpenCV (../shared/bench/features_ref.py).
     Features(features::BenchArgs),
     /// RANSAC H/F and self-rectification timings (optionally against OpenCV stereoRectifyUncalibrated).
@@ -52,6 +55,7 @@ fn main() {
         Command::Stereo(a) => stereo::run(a),
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
+        Command::Register(a) => register::run(a),
         Command::Features(a) => features::run(a),
         Command::Geo(a) => geo::run(a),
     };

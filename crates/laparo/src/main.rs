@@ -36,6 +36,8 @@ enum Command {
     /// Differentiable Material Point Method simulation (thesis §5.2.3–5.2.4).
     #[command(subcommand)]
     Mpm(cmd::mpm::MpmCmd),
+    /// RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
+    Register(cmd::register::RegisterArgs),
     /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
     #[command(subcommand)]
     Features(cmd::features::FeaturesCmd),
@@ -57,6 +59,7 @@ fn main() {
         Command::Stereo(c) => cmd::stereo::run(c),
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
+        Command::Register(a) => cmd::register::run(a),
         Command::Features(c) => cmd::features::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(

@@ -7,4 +7,5 @@ pub mod depth;
 pub mod depth_tools;
 pub mod features;
 pub mod mpm;
+pub mod register;
 pub mod stereo;

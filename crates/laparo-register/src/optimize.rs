@@ -1,0 +1,437 @@
+//! Optimisers of the RODS problem (eqs. 5.8–5.9): find the initial particle velocities v₀ (and
+//! optionally E) that bring the simulated landmarks onto their targets after T steps.
+//!
+//! * [`OptimizerKind::Lbfgs`] (default): v₀ = v_warm + S θ with the Gaussian preconditioner S
+//!   ([`crate::smoothing`]), L-BFGS on θ with an Armijo backtracking line search; every trial step is
+//!   capped to a physical displacement (max |Δv₀|·T·Δt ≤ `max_step_dx`·Δx).
+//! * [`OptimizerKind::Adam`]: Adam on θ with the same cap, a rejected step halves the rate.
+//! * [`OptimizerKind::ThesisGd`]: the thesis' plain gradient descent on raw v₀ from v₀ = 0 (eq. 5.9),
+//!   α₀ then ×`thesis_decay` (0.5) whenever a step would raise the loss (the thesis states "initial lr
+//!   25, decay 0.5, 500 iterations" without the schedule or units; α₀ defaults to the step that moves
+//!   the fastest particle by `max_step_dx`·Δx).
+//!
+//! Joint identification of E (`joint_youngs_modulus`) optimises φ = ln(E/E₀) with θ. One deformed
+//! snapshot identifies E poorly (v₀ and E trade off: a stiffer body with faster initial velocities
+//! reaches the same shape), so treat the recovered E as a by-product, not a measurement (§5.5).
+use crate::error::{RegisterError, Result};
+use crate::loss::RegistrationLoss;
+use crate::smoothing::Smoother;
+use laparo_mpm::{simulate_with_gradient_in, GradientWorkspace, ParticleState, Scene, Vector};
+use std::time::Instant;
+
+/// Which optimiser.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OptimizerKind {
+    /// Preconditioned L-BFGS with line search (default).
+    Lbfgs,
+    /// Preconditioned Adam with backtracking.
+    Adam,
+    /// The thesis' gradient descent from v₀ = 0 (no preconditioning).
+    ThesisGd,
+}
+
+/// Optimiser settings (lengths in units of the grid cell Δx).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct OptimizerConfig {
+    /// Optimiser.
+    pub kind: OptimizerKind,
+    /// Maximum number of iterations (accepted steps).
+    pub iterations: usize,
+    /// σ of the Gaussian preconditioner in Δx (0 = none).
+    pub smoothing_dx: f64,
+    /// Largest landmark displacement per step, |Δv₀|·T·Δt, in Δx.
+    pub max_step_dx: f64,
+    /// Stop when the loss fell by less than this fraction over `patience` iterations.
+    pub rel_tol: f64,
+    /// Window of the relative-decrease test.
+    pub patience: usize,
+    /// Stop when the mean landmark distance (eq. 5.10, unsmoothed) is at most this (length units).
+    pub target_mean_distance: f64,
+    /// Thesis GD: initial step α₀ (None = from `max_step_dx`).
+    pub thesis_lr: Option<f64>,
+    /// Thesis GD: step factor after a rejected step.
+    pub thesis_decay: f64,
+    /// L-BFGS memory.
+    pub lbfgs_memory: usize,
+    /// Line search: maximum halvings.
+    pub max_backtracks: usize,
+    /// Also optimise E (log-parameterised).
+    pub joint_youngs_modulus: bool,
+}
+
+impl Default for OptimizerConfig {
+    fn default() -> Self {
+        OptimizerConfig {
+            kind: OptimizerKind::Lbfgs,
+            iterations: 50,
+            smoothing_dx: 2.0,
+            max_step_dx: 0.5,
+            rel_tol: 1e-4,
+            patience: 5,
+            target_mean_distance: 0.0,
+            thesis_lr: None,
+            thesis_decay: 0.5,
+            lbfgs_memory: 10,
+            max_backtracks: 10,
+            joint_youngs_modulus: false,
+        }
+    }
+}
+
+impl OptimizerConfig {
+    /// The thesis mode: gradient descent, 500 iterations, decay 0.5.
+    pub fn thesis() -> Self {
+        OptimizerConfig { kind: OptimizerKind::ThesisGd, iterations: 500, smoothing_dx: 0.0, ..Default::default() }
+    }
+}
+
+/// One accepted iteration.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct IterationRecord {
+    /// Iteration (0 = the starting point).
+    pub iteration: usize,
+    /// Loss (as optimised, smoothed distance).
+    pub loss: f64,
+    /// Mean landmark distance (eq. 5.10, unsmoothed, length units).
+    pub mean_distance: f64,
+    /// Young's modulus.
+    pub youngs_modulus: f64,
+    /// Landmark-displacement size of the accepted step (length units).
+    pub step: f64,
+    /// Simulations (forward + backward) so far.
+    pub evaluations: usize,
+    /// Wall time so far (s).
+    pub seconds: f64,
+}
+
+/// Result of [`register`].
+pub struct Registration<const D: usize> {
+    /// Optimised initial velocities v₀.
+    pub velocities: Vec<Vector<D>>,
+    /// Young's modulus (changed only with joint identification).
+    pub youngs_modulus: f64,
+    /// Accepted iterations (first = start).
+    pub history: Vec<IterationRecord>,
+    /// Final particle state of the best v₀.
+    pub final_state: ParticleState<D>,
+    /// Why the optimiser stopped.
+    pub stop_reason: String,
+}
+
+struct Eval<const D: usize> {
+    loss: f64,
+    grad: Vec<f64>,
+    state: ParticleState<D>,
+}
+
+struct Problem<'a, const D: usize> {
+    scene: Scene<D>,
+    loss: &'a RegistrationLoss<D>,
+    smoother: Option<Smoother<D>>,
+    warm: Vec<Vector<D>>,
+    e0: f64,
+    joint: bool,
+    ws: GradientWorkspace<D>,
+    evaluations: usize,
+}
+
+fn flat<const D: usize>(v: &[Vector<D>]) -> Vec<f64> {
+    v.iter().flat_map(|x| x.iter().copied().collect::<Vec<_>>()).collect()
+}
+
+fn unflat<const D: usize>(x: &[f64], n: usize) -> Vec<Vector<D>> {
+    (0..n).map(|p| Vector::<D>::from_fn(|d, _| x[p * D + d])).collect()
+}
+
+impl<const D: usize> Problem<'_, D> {
+    fn n(&self) -> usize {
+        self.scene.n_particles()
+    }
+    /// Velocity change of a parameter change (S applied).
+    fn dv(&self, dx: &[f64]) -> Vec<Vector<D>> {
+        let d = unflat::<D>(dx, self.n());
+        match &self.smoother {
+            Some(s) => s.apply(&d),
+            None => d,
+        }
+    }
+    fn eval(&mut self, x: &[f64]) -> Result<Eval<D>> {
+        let dv = self.dv(x);
+        for p in 0..self.n() {
+            self.scene.velocities[p] = self.warm[p] + dv[p];
+        }
+        if self.joint {
+            self.scene.material.youngs_modulus = self.e0 * x[self.n() * D].exp();
+        }
+        let g = simulate_with_gradient_in(&mut self.ws, &self.scene, self.loss)?;
+        self.evaluations += 1;
+        if !g.loss.is_finite() {
+            return Err(RegisterError::bad("registration", "the loss became non-finite (simulation unstable)"));
+        }
+        let gv = match &self.smoother {
+            Some(s) => s.apply(&g.d_velocities),
+            None => g.d_velocities.clone(),
+        };
+        let mut grad = flat(&gv);
+        if self.joint {
+            grad.push(self.scene.material.youngs_modulus * g.d_youngs_modulus);
+        }
+        Ok(Eval { loss: g.loss, grad, state: g.final_state })
+    }
+    /// Largest landmark displacement |Δv|·T·Δt of a parameter step.
+    fn step_length(&self, dx: &[f64]) -> f64 {
+        let t = self.scene.steps as f64 * self.scene.dt;
+        self.dv(dx).iter().map(|v| v.norm()).fold(0.0, f64::max) * t
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Optimise v₀ (and E) of `scene` for `loss`. `warm` = starting v₀ (video warm start; None = the
+/// scene's velocities for L-BFGS/Adam, zero for thesis GD). `observer` sees every accepted iteration
+/// and the current v₀; returning false stops the run.
+pub fn register<const D: usize>(
+    scene: &Scene<D>,
+    loss: &RegistrationLoss<D>,
+    cfg: &OptimizerConfig,
+    warm: Option<&[Vector<D>]>,
+    observer: &mut dyn FnMut(&IterationRecord, &[Vector<D>]) -> bool,
+) -> Result<Registration<D>> {
+    scene.validate()?;
+    let n = scene.n_particles();
+    if loss.groups.iter().all(|g| g.particles.is_empty()) && loss.region.is_none() {
+        return Err(RegisterError::bad("landmarks", "no landmark and no region term: nothing to register"));
+    }
+    for g in &loss.groups {
+        if let Some(&p) = g.particles.iter().find(|&&p| p >= n) {
+            return Err(RegisterError::bad(
+                format!("landmark group `{}`", g.name),
+                format!("particle index {p} >= {n}"),
+            ));
+        }
+    }
+    let check =
+        |name: &str, v: f64, ok: bool| if ok { Ok(()) } else { Err(RegisterError::param(name, v, "out of range")) };
+    check("max_step_dx", cfg.max_step_dx, cfg.max_step_dx > 0.0)?;
+    check("smoothing_dx", cfg.smoothing_dx, cfg.smoothing_dx >= 0.0)?;
+    check("thesis_decay", cfg.thesis_decay, cfg.thesis_decay > 0.0 && cfg.thesis_decay < 1.0)?;
+    let thesis = cfg.kind == OptimizerKind::ThesisGd;
+    let warm: Vec<Vector<D>> = match warm {
+        Some(w) if w.len() == n => w.to_vec(),
+        Some(w) => {
+            return Err(RegisterError::bad("warm start", format!("{} velocities for {n} particles", w.len())));
+        }
+        None if thesis => vec![Vector::<D>::zeros(); n],
+        None => scene.velocities.clone(),
+    };
+    let dxl = scene.grid.dx;
+    let smoother = if thesis { None } else { Smoother::new(&scene.positions, cfg.smoothing_dx * dxl, dxl) };
+    let joint = cfg.joint_youngs_modulus;
+    let mut pb = Problem {
+        scene: scene.clone(),
+        loss,
+        smoother,
+        warm,
+        e0: scene.material.youngs_modulus,
+        joint,
+        ws: GradientWorkspace::new(),
+        evaluations: 0,
+    };
+    let dim = n * D + joint as usize;
+    let start = Instant::now();
+    let mut x = vec![0.0; dim];
+    let mut cur = pb.eval(&x)?;
+    let max_step = cfg.max_step_dx * dxl;
+    let mut history = Vec::new();
+    let record = |it: usize, e: &Eval<D>, pb: &Problem<D>, step: f64| IterationRecord {
+        iteration: it,
+        loss: e.loss,
+        mean_distance: loss.mean_distance(&e.state.x),
+        youngs_modulus: pb.scene.material.youngs_modulus,
+        step,
+        evaluations: pb.evaluations,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    let r0 = record(0, &cur, &pb, 0.0);
+    let mut go_on = observer(&r0, &pb.scene.velocities);
+    history.push(r0);
+    let mut stop_reason = String::from("iteration limit");
+    // optimiser state
+    let mut mem_s: Vec<Vec<f64>> = Vec::new();
+    let mut mem_y: Vec<Vec<f64>> = Vec::new();
+    let mut adam_m = vec![0.0; dim];
+    let mut adam_v = vec![0.0; dim];
+    let mut adam_lr = 0.0;
+    let mut gd_alpha = cfg.thesis_lr.unwrap_or(0.0);
+    let mut it = 0;
+    while go_on && it < cfg.iterations {
+        if history.last().is_some_and(|r| r.mean_distance <= cfg.target_mean_distance) {
+            stop_reason = "target mean distance reached".into();
+            break;
+        }
+        if history.len() > cfg.patience && cfg.patience > 0 {
+            let old = history[history.len() - 1 - cfg.patience].loss;
+            if old - cur.loss <= cfg.rel_tol * old.abs() {
+                stop_reason = format!("relative decrease below {} over {} iterations", cfg.rel_tol, cfg.patience);
+                break;
+            }
+        }
+        let g = cur.grad.clone();
+        let gnorm = dot(&g, &g).sqrt();
+        if gnorm == 0.0 || !gnorm.is_finite() {
+            stop_reason = "zero gradient".into();
+            break;
+        }
+        // search direction
+        let dir: Vec<f64> = match cfg.kind {
+            OptimizerKind::ThesisGd => g.iter().map(|v| -v).collect(),
+            OptimizerKind::Lbfgs => {
+                let mut q = g.clone();
+                let k = mem_s.len();
+                let mut alphas = vec![0.0; k];
+                for i in (0..k).rev() {
+                    let rho = 1.0 / dot(&mem_y[i], &mem_s[i]);
+                    alphas[i] = rho * dot(&mem_s[i], &q);
+                    for (qj, yj) in q.iter_mut().zip(&mem_y[i]) {
+                        *qj -= alphas[i] * yj;
+                    }
+                }
+                if k > 0 {
+                    let gamma = dot(&mem_s[k - 1], &mem_y[k - 1]) / dot(&mem_y[k - 1], &mem_y[k - 1]);
+                    q.iter_mut().for_each(|v| *v *= gamma);
+                }
+                for i in 0..k {
+                    let rho = 1.0 / dot(&mem_y[i], &mem_s[i]);
+                    let beta = rho * dot(&mem_y[i], &q);
+                    for (qj, sj) in q.iter_mut().zip(&mem_s[i]) {
+                        *qj += (alphas[i] - beta) * sj;
+                    }
+                }
+                let d: Vec<f64> = q.iter().map(|v| -v).collect();
+                if dot(&d, &g) >= 0.0 {
+                    mem_s.clear();
+                    mem_y.clear();
+                    g.iter().map(|v| -v).collect()
+                } else {
+                    d
+                }
+            }
+            OptimizerKind::Adam => {
+                let t = (it + 1) as f64;
+                let (b1, b2) = (0.9f64, 0.999f64);
+                for i in 0..dim {
+                    adam_m[i] = b1 * adam_m[i] + (1.0 - b1) * g[i];
+                    adam_v[i] = b2 * adam_v[i] + (1.0 - b2) * g[i] * g[i];
+                }
+                let vmax = adam_v.iter().cloned().fold(0.0, f64::max).sqrt();
+                (0..dim)
+                    .map(|i| {
+                        let mh = adam_m[i] / (1.0 - b1.powf(t));
+                        let vh = adam_v[i] / (1.0 - b2.powf(t));
+                        -mh / (vh.sqrt() + 1e-8 * vmax + 1e-300)
+                    })
+                    .collect()
+            }
+        };
+        // step size: physical cap
+        let len = pb.step_length(&dir);
+        let mut cap = if len > 0.0 { max_step / len } else { 1.0 };
+        if joint {
+            let de = dir[dim - 1].abs();
+            if de > 0.0 {
+                cap = cap.min(0.25 / de);
+            }
+        }
+        let mut alpha = match cfg.kind {
+            OptimizerKind::Lbfgs => {
+                if mem_s.is_empty() {
+                    cap
+                } else {
+                    cap.min(1.0)
+                }
+            }
+            OptimizerKind::Adam => {
+                if adam_lr == 0.0 {
+                    adam_lr = cap;
+                }
+                adam_lr.min(cap)
+            }
+            OptimizerKind::ThesisGd => {
+                if gd_alpha == 0.0 {
+                    gd_alpha = cap;
+                }
+                gd_alpha
+            }
+        };
+        let slope = dot(&g, &dir);
+        let mut accepted = None;
+        for _ in 0..=cfg.max_backtracks {
+            let xt: Vec<f64> = x.iter().zip(&dir).map(|(a, b)| a + alpha * b).collect();
+            let trial = match pb.eval(&xt) {
+                Ok(e) => Some(e),
+                Err(RegisterError::Mpm(_)) => None, // left the domain: shorter step
+                Err(e) => return Err(e),
+            };
+            if let Some(e) = trial {
+                let ok = match cfg.kind {
+                    OptimizerKind::Lbfgs => e.loss <= cur.loss + 1e-4 * alpha * slope,
+                    _ => e.loss < cur.loss,
+                };
+                if ok {
+                    accepted = Some((xt, e, alpha));
+                    break;
+                }
+            }
+            alpha *= 0.5;
+            match cfg.kind {
+                OptimizerKind::ThesisGd => gd_alpha *= cfg.thesis_decay,
+                OptimizerKind::Adam => adam_lr *= 0.5,
+                OptimizerKind::Lbfgs => {}
+            }
+        }
+        let Some((xt, e, alpha)) = accepted else {
+            if cfg.kind == OptimizerKind::Lbfgs && !mem_s.is_empty() {
+                mem_s.clear();
+                mem_y.clear();
+                continue;
+            }
+            stop_reason = "line search failed (no decrease along the search direction)".into();
+            break;
+        };
+        if cfg.kind == OptimizerKind::Lbfgs {
+            let s: Vec<f64> = xt.iter().zip(&x).map(|(a, b)| a - b).collect();
+            let y: Vec<f64> = e.grad.iter().zip(&g).map(|(a, b)| a - b).collect();
+            let sy = dot(&s, &y);
+            if sy > 1e-12 * dot(&s, &s).sqrt() * dot(&y, &y).sqrt() {
+                mem_s.push(s);
+                mem_y.push(y);
+                if mem_s.len() > cfg.lbfgs_memory {
+                    mem_s.remove(0);
+                    mem_y.remove(0);
+                }
+            }
+        }
+        let step_len = alpha * len;
+        x = xt;
+        cur = e;
+        it += 1;
+        let rec = record(it, &cur, &pb, step_len);
+        // scene.velocities hold the last evaluated (= accepted) v₀
+        go_on = observer(&rec, &pb.scene.velocities);
+        history.push(rec);
+        if !go_on {
+            stop_reason = "stopped by the caller".into();
+        }
+    }
+    if history.last().is_some_and(|r| r.mean_distance <= cfg.target_mean_distance) {
+        stop_reason = "target mean distance reached".into();
+    }
+    // v₀ and E of the accepted point
+    let dv = pb.dv(&x);
+    let velocities: Vec<Vector<D>> = (0..n).map(|p| pb.warm[p] + dv[p]).collect();
+    let youngs_modulus = if joint { pb.e0 * x[dim - 1].exp() } else { pb.e0 };
+    Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason })
+}

@@ -1,0 +1,139 @@
+//! End-to-end `run_job` on a small box organ: outputs written, report consistent, resume, bad inputs.
+use laparo_register::io::{read_landmarks, read_targets};
+use laparo_register::optimize::OptimizerConfig;
+use laparo_register::organ::OrganConfig;
+use laparo_register::pipeline::{run_job, Job};
+use std::path::Path;
+
+fn box_obj(path: &Path, lo: [f64; 3], hi: [f64; 3]) {
+    let mut s = String::new();
+    for i in 0..8 {
+        let p = [
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ];
+        s.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
+    }
+    // outward-oriented faces of the cube (1-based)
+    for f in [[1, 3, 4, 2], [5, 6, 8, 7], [1, 2, 6, 5], [3, 7, 8, 4], [1, 5, 7, 3], [2, 4, 8, 6]] {
+        s.push_str(&format!("f {} {} {}\nf {} {} {}\n", f[0], f[1], f[2], f[0], f[2], f[3]));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+fn job(dir: &Path) -> Job {
+    let organ = dir.join("organ.obj");
+    box_obj(&organ, [0.0, 0.0, 0.0], [40.0, 24.0, 16.0]);
+    let tumour = dir.join("tumour.obj");
+    box_obj(&tumour, [15.0, 8.0, 5.0], [22.0, 14.0, 10.0]);
+    std::fs::write(
+        dir.join("L.json"),
+        r#"{"groups": [{"name": "tip", "points": [[39.0, 12.0, 8.0], [39.0, 4.0, 8.0]]}, {"name": "edge", "points": [[20.0, 23.0, 8.0]]}]}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("T.json"),
+        r#"{"groups": [{"name": "tip", "type": "points", "points": [[42.0, 12.0, 8.0], [42.0, 4.0, 8.0]]},
+                      {"name": "edge", "type": "polyline", "points": [[0.0, 25.5, 8.0], [40.0, 25.5, 8.0]]}]}"#,
+    )
+    .unwrap();
+    let landmarks = read_landmarks(&dir.join("L.json")).unwrap();
+    let targets = read_targets(&dir.join("T.json"), &landmarks).unwrap();
+    // a grey 320×240 image and its camera
+    laparo_core::io::write_png(dir.join("img.png"), &laparo_core::image::Image::filled(320, 240, 3, 128u8)).unwrap();
+    std::fs::write(
+        dir.join("cam.json"),
+        r#"{"fx": 300, "fy": 300, "cx": 160, "cy": 120, "width": 320, "height": 240, "k1": -0.1}"#,
+    )
+    .unwrap();
+    Job {
+        organ,
+        organ_config: OrganConfig { spacing_mm: 2.0, steps: 60, ..Default::default() },
+        landmarks,
+        targets,
+        region_weight: 0.0,
+        optimizer: OptimizerConfig { iterations: 6, ..Default::default() },
+        tumour: Some(tumour),
+        overlay: Some((dir.join("img.png"), dir.join("cam.json"))),
+        out: dir.join("out"),
+        resume: false,
+        checkpoint_every: 2,
+    }
+}
+
+#[test]
+fn box_organ_end_to_end_and_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let j = job(dir.path());
+    let r = run_job(&j, &mut |_| {}).unwrap();
+    assert_eq!(r.particles, 20 * 12 * 8);
+    assert!(r.mean_distance_mm[1] < 0.6 * r.mean_distance_mm[0], "{:?}", r.mean_distance_mm);
+    for f in [
+        "particles_registered.ply",
+        "particles_rest.ply",
+        "surface_registered.ply",
+        "organ_deformed.obj",
+        "tumour_deformed.obj",
+        "overlay.png",
+        "loss.csv",
+        "loss.png",
+        "report.json",
+        "checkpoint_v0.json",
+    ] {
+        assert!(j.out.join(f).exists(), "{f} missing");
+    }
+    // the tumour moved with the body and lies inside it (no extrapolation)
+    assert_eq!(r.tumour_flags.unwrap()[0], 0);
+    let csv = std::fs::read_to_string(j.out.join("loss.csv")).unwrap();
+    assert_eq!(csv.lines().count(), r.iterations + 2);
+    // the overlay differs from the grey background where the organ projects
+    let o = laparo_core::io::read_rgb8(j.out.join("overlay.png")).unwrap();
+    assert!(o.data.iter().filter(|&&v| v != 128).count() > 1000);
+    // resume: starts from the checkpoint (its loss), does not restart from the rest state
+    let mut j2 = j.clone();
+    j2.resume = true;
+    j2.optimizer.iterations = 1;
+    let r2 = run_job(&j2, &mut |_| {}).unwrap();
+    assert!(r2.resumed_from.is_some());
+    assert!(
+        (r2.mean_distance_mm[0] - r.mean_distance_mm[1]).abs() < 1e-9,
+        "{} vs {}",
+        r2.mean_distance_mm[0],
+        r.mean_distance_mm[1]
+    );
+}
+
+#[test]
+fn bad_inputs_name_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut j = job(dir.path());
+    // landmark outside the body
+    std::fs::write(dir.path().join("L2.json"), r#"{"groups": [{"name": "tip", "points": [[90.0, 12.0, 8.0]]}]}"#)
+        .unwrap();
+    let lm = read_landmarks(&dir.path().join("L2.json")).unwrap();
+    j.targets = vec![laparo_register::io::TargetSpec::Points(vec![lm[0].points[0]])];
+    j.landmarks = lm;
+    let e = run_job(&j, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("landmark 0") && e.contains("outside the body"), "{e}");
+    // empty target file
+    std::fs::write(
+        dir.path().join("empty.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+    )
+    .unwrap();
+    let e = read_targets(&dir.path().join("empty.ply"), &j.landmarks).unwrap_err().to_string();
+    assert!(e.contains("empty.ply"), "{e}");
+    // empty landmark file and a bad JSON
+    std::fs::write(dir.path().join("L3.json"), r#"{"groups": []}"#).unwrap();
+    assert!(read_landmarks(&dir.path().join("L3.json")).unwrap_err().to_string().contains("L3.json"));
+    std::fs::write(dir.path().join("L4.json"), "{").unwrap();
+    assert!(read_landmarks(&dir.path().join("L4.json")).unwrap_err().to_string().contains("L4.json"));
+    // target count mismatch for paired points
+    std::fs::write(
+        dir.path().join("T2.json"),
+        r#"{"groups": [{"name": "tip", "points": [[1.0, 2.0, 3.0], [1.0, 2.0, 3.0]]}]}"#,
+    )
+    .unwrap();
+    assert!(read_targets(&dir.path().join("T2.json"), &j.landmarks).unwrap_err().to_string().contains("T2.json"));
+}

@@ -1,0 +1,441 @@
+//! `laparo register ...`: RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use laparo_mpm::Vector;
+use laparo_register::io::{read_landmarks, read_p2ilf_contours, read_targets, SourceGroup};
+use laparo_register::optimize::{OptimizerConfig, OptimizerKind};
+use laparo_register::organ::{OrganConfig, Roi};
+use laparo_register::pipeline::{run_job, Job};
+use laparo_register::rigid::{icp, rmse, umeyama, IcpConfig, IcpMode, Similarity};
+use std::path::PathBuf;
+
+/// `laparo register`: deformable registration, or a subcommand.
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct RegisterArgs {
+    #[command(subcommand)]
+    pub sub: Option<RegisterSub>,
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// Subcommands of `laparo register`.
+#[derive(Subcommand)]
+pub enum RegisterSub {
+    /// Rigid alignment: landmark Procrustes (Umeyama) then ICP (point-to-point or point-to-plane).
+    Rigid(RigidArgs),
+    /// Write landmarks + targets from P2ILF 3D contours displaced by a smooth field (benchmarks).
+    SynthTargets(SynthArgs),
+    /// Fig. 5.5 in 2D: the four cases (stretch, curve, rupture, rupture + stretch) as PNGs + metrics.
+    Fig55 {
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Iterations per case.
+        #[arg(long, default_value_t = 50)]
+        iterations: usize,
+        /// Optimiser: lbfgs, adam, thesis-gd.
+        #[arg(long, default_value = "lbfgs")]
+        optimizer: String,
+    },
+}
+
+fn optimizer_kind(s: &str) -> Result<OptimizerKind> {
+    Ok(match s {
+        "lbfgs" => OptimizerKind::Lbfgs,
+        "adam" => OptimizerKind::Adam,
+        "thesis-gd" => OptimizerKind::ThesisGd,
+        o => bail!("--optimizer {o}: expected lbfgs, adam or thesis-gd"),
+    })
+}
+
+/// Run the four Fig. 5.5 cases, writing `<case>_before.png`, `<case>_after.png`, `<case>_loss.png` and
+/// `fig55.json` into `out`; returns the metrics.
+pub fn fig55_figures(out: &std::path::Path, cfg: &OptimizerConfig) -> Result<Vec<laparo_register::fig55::CaseMetrics>> {
+    use laparo_register::fig55::*;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let scene = square_scene();
+    let mut all = Vec::new();
+    for case in Case::ALL {
+        let marks = case_marks(&scene, case);
+        let ones = vec![1.0; scene.n_particles()];
+        laparo_core::io::write_png(
+            out.join(format!("{}_before.png", case.label())),
+            &render_case(&scene.positions, &ones, &marks, 420),
+        )?;
+        let (m, x, j) = run_case(case, cfg)?;
+        laparo_core::io::write_png(out.join(format!("{}_after.png", case.label())), &render_case(&x, &j, &marks, 420))?;
+        let lp = out.join(format!("{}_loss.png", case.label()));
+        laparo_core::atomic::write_atomic_with(&lp, |tmp| {
+            let t = tmp.with_extension("png");
+            laparo_mpm::render::plot_loss_curve(
+                &t,
+                &m.curve_dx,
+                &format!("{}: mean landmark distance (Δx)", case.label()),
+            )?;
+            std::fs::rename(&t, tmp).map_err(|e| laparo_core::CoreError::io(tmp, e))
+        })?;
+        all.push(m);
+    }
+    laparo_core::atomic::write_atomic(&out.join("fig55.json"), serde_json::to_string_pretty(&all)?.as_bytes())?;
+    Ok(all)
+}
+
+/// Deformable registration arguments.
+#[derive(Args)]
+pub struct RunArgs {
+    /// Organ: closed surface (OBJ/PLY/STL) or tetrahedral mesh (.msh/.vtk), mm.
+    #[arg(long)]
+    pub organ: Option<PathBuf>,
+    /// Source landmarks (JSON groups or CSV group,x,y,z; mm).
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Targets: JSON groups (points/polyline/cloud) or a PLY/OBJ surface or point cloud.
+    #[arg(long)]
+    pub target: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Particle spacing (mm); grid cell = 2 × spacing unless --dx-mm.
+    #[arg(long, default_value_t = 3.0)]
+    pub spacing_mm: f64,
+    /// Grid cell (mm).
+    #[arg(long)]
+    pub dx_mm: Option<f64>,
+    /// Optimiser: lbfgs (default, preconditioned), adam, thesis-gd.
+    #[arg(long, default_value = "lbfgs")]
+    pub optimizer: String,
+    /// Maximum iterations (thesis-gd: 500 by default).
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Region of interest: ball:x,y,z,r or box:x0,y0,z0,x1,y1,z1 (mm); its boundary particles are fixed.
+    #[arg(long)]
+    pub roi: Option<String>,
+    /// Tumour (or any internal structure) mesh to deform (mm).
+    #[arg(long)]
+    pub tumour: Option<PathBuf>,
+    /// Image for the overlay (with --camera).
+    #[arg(long)]
+    pub image: Option<PathBuf>,
+    /// Camera intrinsics file (JSON/YAML; pinhole + distortion).
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    /// Young's modulus (kPa).
+    #[arg(long, default_value_t = 4.1)]
+    pub youngs_modulus_kpa: f64,
+    /// Poisson's ratio.
+    #[arg(long, default_value_t = 0.49)]
+    pub poisson_ratio: f64,
+    /// Density (kg/m³).
+    #[arg(long, default_value_t = 1000.0)]
+    pub density_kg_m3: f64,
+    /// Horizon T (steps).
+    #[arg(long, default_value_t = 200)]
+    pub steps: usize,
+    /// Time step (s); default from the CFL condition.
+    #[arg(long)]
+    pub dt_s: Option<f64>,
+    /// Weight of the one-sided target→source term for surface / point-cloud targets.
+    #[arg(long, default_value_t = 0.0)]
+    pub region_weight: f64,
+    /// Also identify E (poorly identifiable from one snapshot; see the crate README).
+    #[arg(long)]
+    pub joint_e: bool,
+    /// Gaussian preconditioner σ (grid cells).
+    #[arg(long, default_value_t = 2.0)]
+    pub smoothing_dx: f64,
+    /// Largest landmark displacement per step (grid cells).
+    #[arg(long, default_value_t = 0.5)]
+    pub max_step_dx: f64,
+    /// Stop when the mean landmark distance is at most this (mm).
+    #[arg(long, default_value_t = 0.0)]
+    pub target_mean_mm: f64,
+    /// Resume from OUT/checkpoint_v0.json.
+    #[arg(long)]
+    pub resume: bool,
+    /// Checkpoint v₀ every N iterations.
+    #[arg(long, default_value_t = 5)]
+    pub checkpoint_every: usize,
+    /// Memory available for the adjoint checkpoints (GB); default: MemAvailable.
+    #[arg(long)]
+    pub memory_gb: Option<f64>,
+}
+
+/// `laparo register rigid`.
+#[derive(Args)]
+pub struct RigidArgs {
+    /// Source mesh or point cloud (mm).
+    #[arg(long)]
+    pub source: PathBuf,
+    /// Target mesh or point cloud (mm).
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Source landmarks (JSON/CSV) for Procrustes.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Target landmarks (JSON/CSV, same groups and order).
+    #[arg(long)]
+    pub target_landmarks: Option<PathBuf>,
+    /// Also estimate a scale in Procrustes.
+    #[arg(long)]
+    pub scale: bool,
+    /// ICP variant: point-to-point, point-to-plane or none.
+    #[arg(long, default_value = "point-to-point")]
+    pub icp: String,
+    /// Fraction of closest pairs kept (trimmed ICP).
+    #[arg(long, default_value_t = 1.0)]
+    pub overlap: f64,
+    /// Output folder (transform.json, source_aligned.ply).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `laparo register synth-targets`.
+#[derive(Args)]
+pub struct SynthArgs {
+    /// Organ mesh (OBJ, mm) whose vertex ids the contours use.
+    #[arg(long)]
+    pub organ: PathBuf,
+    /// P2ILF 3D contours JSON.
+    #[arg(long)]
+    pub contours: PathBuf,
+    /// Largest displacement of the smooth field (mm).
+    #[arg(long, default_value_t = 10.0)]
+    pub max_displacement_mm: f64,
+    /// Only contours of this type (e.g. Ridge).
+    #[arg(long)]
+    pub only: Option<String>,
+    /// Output landmarks JSON.
+    #[arg(long)]
+    pub landmarks_out: PathBuf,
+    /// Output targets JSON.
+    #[arg(long)]
+    pub targets_out: PathBuf,
+}
+
+fn parse_roi(s: &str) -> Result<Roi> {
+    let (kind, rest) = s.split_once(':').context("--roi: expected ball:x,y,z,r or box:x0,y0,z0,x1,y1,z1")?;
+    let v: Vec<f64> = rest
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .context("--roi: numbers")?;
+    match (kind, v.len()) {
+        ("ball", 4) if v[3] > 0.0 => Ok(Roi::Ball { center: [v[0], v[1], v[2]], radius_mm: v[3] }),
+        ("box", 6) if (0..3).all(|d| v[d] < v[d + 3]) => {
+            Ok(Roi::Box { lo: [v[0], v[1], v[2]], hi: [v[3], v[4], v[5]] })
+        }
+        _ => bail!("--roi {s}: expected ball:x,y,z,r (r > 0) or box:x0,y0,z0,x1,y1,z1 (lo < hi)"),
+    }
+}
+
+pub fn run(a: RegisterArgs) -> Result<()> {
+    match a.sub {
+        Some(RegisterSub::Rigid(r)) => rigid(r),
+        Some(RegisterSub::SynthTargets(s)) => synth(s),
+        Some(RegisterSub::Fig55 { out, iterations, optimizer }) => {
+            let kind = optimizer_kind(&optimizer)?;
+            let base =
+                if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
+            let cfg = OptimizerConfig { kind, iterations, ..base };
+            for m in fig55_figures(&out, &cfg)? {
+                println!(
+                    "{}: residual {:.3} -> {:.3} dx, width/target {}, mid-height ratio {:.3}, min J {:.3}, bodies {:?}, gap {} dx, {} it, {:.1} s",
+                    m.case,
+                    m.residual_dx[0],
+                    m.residual_dx[1],
+                    m.width_ratio.map_or("-".into(), |w| format!("{w:.4}")),
+                    m.mid_height_ratio,
+                    m.min_j,
+                    m.bodies.iter().take(3).map(|b| format!("{b:.3}")).collect::<Vec<_>>(),
+                    m.gap_dx.map_or("-".into(), |g| format!("{g:.2}")),
+                    m.iterations,
+                    m.seconds
+                );
+            }
+            Ok(())
+        }
+        None => deformable(a.run),
+    }
+}
+
+fn deformable(a: RunArgs) -> Result<()> {
+    let need = |o: &Option<PathBuf>, name: &str| o.clone().with_context(|| format!("--{name} is required"));
+    let organ = need(&a.organ, "organ")?;
+    let lm_path = need(&a.landmarks, "landmarks")?;
+    let tg_path = need(&a.target, "target")?;
+    let out = need(&a.out, "out")?;
+    let kind = optimizer_kind(&a.optimizer)?;
+    let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
+    let optimizer = OptimizerConfig {
+        kind,
+        iterations: a.iterations.unwrap_or(base.iterations),
+        smoothing_dx: if kind == OptimizerKind::ThesisGd { 0.0 } else { a.smoothing_dx },
+        max_step_dx: a.max_step_dx,
+        target_mean_distance: a.target_mean_mm,
+        joint_youngs_modulus: a.joint_e,
+        ..base
+    };
+    let organ_config = OrganConfig {
+        spacing_mm: a.spacing_mm,
+        dx_mm: a.dx_mm,
+        youngs_modulus_kpa: a.youngs_modulus_kpa,
+        poisson_ratio: a.poisson_ratio,
+        density_kg_m3: a.density_kg_m3,
+        steps: a.steps,
+        dt_s: a.dt_s,
+        roi: a.roi.as_deref().map(parse_roi).transpose()?,
+        memory_limit_bytes: a.memory_gb.map(|g| g * 1e9),
+        ..Default::default()
+    };
+    let landmarks = read_landmarks(&lm_path)?;
+    let targets = read_targets(&tg_path, &landmarks)?;
+    let overlay = match (a.image, a.camera) {
+        (Some(i), Some(c)) => Some((i, c)),
+        (None, None) => None,
+        _ => bail!("--image and --camera go together"),
+    };
+    let job = Job {
+        organ,
+        organ_config,
+        landmarks,
+        targets,
+        region_weight: a.region_weight,
+        optimizer: optimizer.clone(),
+        tumour: a.tumour,
+        overlay,
+        out: out.clone(),
+        resume: a.resume,
+        checkpoint_every: a.checkpoint_every,
+    };
+    let pb = ProgressBar::new(optimizer.iterations as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} it  {msg}  [{elapsed_precise}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let report = run_job(&job, &mut |r| {
+        pb.set_position(r.iteration as u64);
+        pb.set_message(format!("loss {:.4e}  mean landmark distance {:.3} mm", r.loss, r.mean_distance));
+    })?;
+    pb.finish_and_clear();
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "{} particles ({} fixed), spacing {} mm, Δx {} mm, n_grid {}, T {} × Δt {:.3e} s; mean landmark distance {:.3} → {:.3} mm \
+         in {} iterations ({} simulations, {:.2} s each, peak {:.0} MiB); stop: {}",
+        report.particles,
+        report.fixed_particles,
+        report.spacing_mm,
+        report.dx_mm,
+        report.n_grid,
+        report.steps,
+        report.dt_s,
+        report.mean_distance_mm[0],
+        report.mean_distance_mm[1],
+        report.iterations,
+        report.simulations,
+        report.seconds_per_simulation,
+        report.peak_memory_mib.unwrap_or(f64::NAN),
+        report.stop_reason
+    );
+    println!("wrote {} (+ report.json)", report.outputs.join(", "));
+    let _ = out;
+    Ok(())
+}
+
+fn rigid(a: RigidArgs) -> Result<()> {
+    let src = laparo_core::mesh::read_mesh(&a.source)?;
+    let dst = laparo_core::mesh::read_mesh(&a.target)?;
+    if src.vertices.is_empty() || dst.vertices.is_empty() {
+        bail!("{}: empty", if src.vertices.is_empty() { a.source.display() } else { a.target.display() });
+    }
+    let mut t = Similarity::identity();
+    let mut procrustes_rmse = None;
+    match (&a.landmarks, &a.target_landmarks) {
+        (Some(l), Some(tl)) => {
+            let flat = |g: Vec<SourceGroup>| g.into_iter().flat_map(|g| g.points).collect::<Vec<Vector<3>>>();
+            let (ls, lt) = (flat(read_landmarks(l)?), flat(read_landmarks(tl)?));
+            if ls.len() != lt.len() {
+                bail!("{} has {} landmarks, {} has {}", l.display(), ls.len(), tl.display(), lt.len());
+            }
+            t = umeyama(&ls, &lt, a.scale)?;
+            let moved: Vec<Vector<3>> = ls.iter().map(|p| t.apply(p)).collect();
+            procrustes_rmse = Some(rmse(&moved, &lt));
+        }
+        (None, None) => {}
+        _ => bail!("--landmarks and --target-landmarks go together"),
+    }
+    let mode = match a.icp.as_str() {
+        "point-to-point" => Some(IcpMode::PointToPoint),
+        "point-to-plane" => Some(IcpMode::PointToPlane),
+        "none" => None,
+        o => bail!("--icp {o}: expected point-to-point, point-to-plane or none"),
+    };
+    let mut icp_rmse = None;
+    if let Some(mode) = mode {
+        if mode == IcpMode::PointToPlane && dst.faces.is_empty() {
+            bail!("{}: point-to-plane ICP needs a target mesh with faces (normals)", a.target.display());
+        }
+        let normals = if dst.faces.is_empty() { None } else { Some(dst.vertex_normals()) };
+        let r = icp(
+            &src.vertices,
+            &dst.vertices,
+            normals.as_deref(),
+            t,
+            &IcpConfig { mode, overlap: a.overlap, ..Default::default() },
+        )?;
+        t = r.transform;
+        icp_rmse = Some(r.rmse);
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let aligned = laparo_core::mesh::TriMesh {
+        vertices: src.vertices.iter().map(|p| t.apply(p)).collect(),
+        faces: src.faces.clone(),
+    };
+    laparo_core::mesh::write_ply(a.out.join("source_aligned.ply"), &aligned)?;
+    let body = serde_json::json!({"transform": t, "procrustes_rmse_mm": procrustes_rmse, "icp_rmse_mm": icp_rmse});
+    laparo_core::atomic::write_atomic(&a.out.join("transform.json"), serde_json::to_string_pretty(&body)?.as_bytes())?;
+    println!(
+        "rigid: Procrustes RMSE {} mm, ICP RMSE {} mm, scale {:.6}; wrote {}",
+        procrustes_rmse.map_or("-".into(), |v| format!("{v:.4}")),
+        icp_rmse.map_or("-".into(), |v| format!("{v:.4}")),
+        t.scale,
+        a.out.join("transform.json").display()
+    );
+    Ok(())
+}
+
+fn synth(a: SynthArgs) -> Result<()> {
+    let mesh = laparo_core::mesh::read_mesh(&a.organ)?;
+    let mut groups = read_p2ilf_contours(&a.contours, &mesh.vertices)?;
+    if let Some(only) = &a.only {
+        groups.retain(|g| g.name.starts_with(only.as_str()));
+        if groups.is_empty() {
+            bail!("{}: no contour of type {only}", a.contours.display());
+        }
+    }
+    // smooth field: u(x) = A ⊙ sin(k·(x − c) + φ), scaled to max |u| over the landmarks = max_displacement_mm
+    let all: Vec<Vector<3>> = groups.iter().flat_map(|g| g.points.clone()).collect();
+    let c = all.iter().sum::<Vector<3>>() / all.len() as f64;
+    let field = |x: &Vector<3>| {
+        let r = (x - c) / 60.0;
+        Vector::<3>::new(
+            (r[0] + 0.3).sin() + 0.5 * r[1],
+            (1.3 * r[1] - 0.2).sin() - 0.4 * r[2],
+            (0.7 * r[2] + 0.9 * r[0]).cos(),
+        )
+    };
+    let m = all.iter().map(|x| field(x).norm()).fold(0.0, f64::max);
+    let s = a.max_displacement_mm / m;
+    let pts = |g: &SourceGroup| g.points.iter().map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
+    let moved =
+        |g: &SourceGroup| g.points.iter().map(|p| p + field(p) * s).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
+    let l = serde_json::json!({"groups": groups.iter().map(|g| serde_json::json!({"name": g.name, "points": pts(g)})).collect::<Vec<_>>()});
+    let t = serde_json::json!({"groups": groups.iter().map(|g| serde_json::json!({"name": g.name, "type": "points", "points": moved(g)})).collect::<Vec<_>>()});
+    laparo_core::atomic::write_atomic(&a.landmarks_out, serde_json::to_string_pretty(&l)?.as_bytes())?;
+    laparo_core::atomic::write_atomic(&a.targets_out, serde_json::to_string_pretty(&t)?.as_bytes())?;
+    println!("{} landmarks in {} groups, displaced by up to {} mm", all.len(), groups.len(), a.max_displacement_mm);
+    Ok(())
+}
