@@ -15,6 +15,7 @@ mod cpc;
 mod depth;
 mod mpm;
 mod stereo;
+mod stereo_match;
 mod timing;
 
 #[derive(Parser)]
@@ -36,6 +37,8 @@ enum Command {
     Cpc(cpc::BenchArgs),
     /// MPM forward and forward+backward wall time per iteration on the DiffTaichi RODS box problem.
     Mpm(mpm::BenchArgs),
+    /// SGM matching (laparo_stereo::sgm) against OpenCV StereoSGBM (../shared/bench/sgbm_ref.py), interleaved.
+    StereoMatch(stereo_match::BenchArgs),
 }
 
 fn main() {
@@ -46,6 +49,7 @@ fn main() {
         Command::Stereo(a) => stereo::run(a),
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
+        Command::StereoMatch(a) => stereo_match::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the
     // libraries' parallel regions start and end on a pool thread; timings are then those a

@@ -8,6 +8,9 @@ pub mod error;
 pub mod eval;
 pub mod rectify;
 
+// Semi-global matching with signed ranges and vertical tolerance (issue 14).
+pub mod sgm;
+
 // CATS camera augmentation (eqs. 3.5-3.9), its configuration and dataset layouts.
 pub mod augment;
 pub mod cats_params;
