@@ -6,3 +6,4 @@ pub mod depth;
 pub mod depth_tools;
 pub mod mpm;
 pub mod stereo;
+pub mod stereo_match;

@@ -24,6 +24,10 @@ pub enum StereoCmd {
     /// Convert a left disparity map to depth (mm) with d = f b / z + (c_x^L − c_x^R) (§3.3.8),
     /// optionally to a point cloud (PLY).
     Disp2depth(Disp2DepthArgs),
+    /// Semi-global matching of a raw or calibrated pair with a signed range [A, B) and an
+    /// optional vertical tolerance: disparity (PFM, +inf invalid), confidence, depth (mm),
+    /// colour maps with colour bars and stats.json (thesis §3.3).
+    Match(super::stereo_match::MatchArgs),
 }
 
 /// Calibration arguments shared by the subcommands.
@@ -149,6 +153,7 @@ pub fn run(c: StereoCmd) -> anyhow::Result<()> {
         StereoCmd::Rectify(a) => run_rectify(a),
         StereoCmd::Eval(a) => run_eval(a),
         StereoCmd::Disp2depth(a) => run_disp2depth(a),
+        StereoCmd::Match(a) => super::stereo_match::run_match(a),
     }
 }
 
