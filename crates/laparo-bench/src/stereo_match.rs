@@ -50,6 +50,18 @@ pub struct BenchArgs {
     /// Python interpreter.
     #[arg(long, default_value = "python3")]
     pub python: String,
+    /// Override P1 of the laparo modes (census bits).
+    #[arg(long)]
+    pub p1: Option<u16>,
+    /// Override P2 of the laparo modes.
+    #[arg(long)]
+    pub p2: Option<u16>,
+    /// Override the P2 adaptation γ of the laparo modes.
+    #[arg(long)]
+    pub gamma: Option<u16>,
+    /// Override the uniqueness margin (%) of the laparo modes.
+    #[arg(long)]
+    pub uniqueness: Option<u8>,
     /// Write all figures here (JSON).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -99,12 +111,17 @@ fn metrics(pred: &[f32], gt: &Image<f64>) -> serde_json::Value {
     })
 }
 
-fn params(mode: &str, lo: i32, hi: i32) -> anyhow::Result<SgmParams> {
-    Ok(match mode {
+fn params(a: &BenchArgs, mode: &str, lo: i32, hi: i32) -> anyhow::Result<SgmParams> {
+    let mut p = match mode {
         "default" => SgmParams::new(lo, hi),
         "accurate" => SgmParams::accurate(lo, hi),
         m => bail!("unknown laparo mode {m:?} (default, accurate)"),
-    })
+    };
+    p.p1 = a.p1.unwrap_or(p.p1);
+    p.p2 = a.p2.unwrap_or(p.p2);
+    p.p2_gamma = a.gamma.unwrap_or(p.p2_gamma);
+    p.uniqueness_pct = a.uniqueness.unwrap_or(p.uniqueness_pct);
+    Ok(p)
 }
 
 /// Run the benchmark.
@@ -139,7 +156,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     }
     for round in 0..a.rounds.max(1) {
         for (mi, m) in modes.iter().enumerate() {
-            let p = params(m, lo, hi)?;
+            let p = params(&a, m, lo, hi)?;
             let mut out = match_pair(&l, &r, &p)?; // warm-up
             for _ in 0..a.repeats.max(1) {
                 let t = Instant::now();

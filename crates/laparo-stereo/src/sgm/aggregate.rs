@@ -9,7 +9,7 @@
 //! `d ± 1` neighbours are plain unaligned loads. Lanes ≥ nd are held at 0xFFFF. The AVX2 kernel
 //! and the scalar kernel perform the same u16 operations (saturating adds for `+ P1`, `+ P2` and
 //! the sum into S, wrapping `C + t − min` which never wraps): results are identical bit for bit.
-use super::cost::{pixel_costs, row_costs, tolerance_rows, CostGeom};
+use super::cost::{row_costs, tolerance_rows, CostGeom};
 use rayon::prelude::*;
 
 /// Sentinel lanes on each side of a path buffer.
@@ -162,7 +162,7 @@ pub fn pass_horizontal(inp: &Inputs, s: &mut [u16]) {
         || (vec![0u8; w * ndp], path_buffer(ndp), path_buffer(ndp)),
         |(costs, a, b), (y, srow)| {
             let rows = tolerance_rows(inp.census_r, w, inp.h, y, inp.vtol);
-            row_costs(&g, 0, w, &inp.census_l[y * w..(y + 1) * w], &rows, costs);
+            row_costs(inp.avx2, &g, 0, w, &inp.census_l[y * w..(y + 1) * w], &rows, costs);
             let gray = &inp.gray_l[y * w..(y + 1) * w];
             // left → right
             let mut m = path_start(&costs[..ndp], g.nd, ndp, a, &mut srow[..ndp]);
@@ -220,7 +220,7 @@ where
             for step in 0..h {
                 let y = if down { step } else { h - 1 - step };
                 let rows = tolerance_rows(inp.census_r, w, h, y, inp.vtol);
-                row_costs(&g, x0, x1, &inp.census_l[y * w..(y + 1) * w], &rows, &mut costs);
+                row_costs(inp.avx2, &g, x0, x1, &inp.census_l[y * w..(y + 1) * w], &rows, &mut costs);
                 for i in 0..nc {
                     let x = x0 + i;
                     // SAFETY: pixel (x, y) belongs to this chunk only.
@@ -277,24 +277,25 @@ pub fn pass_diagonal(inp: &Inputs, s: &mut [u16]) {
                 .enumerate()
                 .for_each(|(ci, ((((sc, ca), cb), na), nb))| {
                     let x0 = ci * DIAG_CHUNK;
-                    let mut c = vec![0u8; ndp];
+                    let mut cc = vec![0u8; na.len() * ndp];
+                    row_costs(inp.avx2, &g, x0, x0 + na.len(), &inp.census_l[y * w..(y + 1) * w], &rows, &mut cc);
                     for i in 0..na.len() {
                         let x = x0 + i;
-                        pixel_costs(&g, x, inp.census_l[y * w + x], &rows, &mut c);
+                        let c = &cc[i * ndp..(i + 1) * ndp];
                         let spx = &mut sc[i * ndp..(i + 1) * ndp];
                         let ga = &mut ca[i * stride..(i + 1) * stride];
                         na[i] = if step == 0 || x == 0 {
-                            path_start(&c, g.nd, ndp, ga, spx)
+                            path_start(c, g.nd, ndp, ga, spx)
                         } else {
                             let p2 = inp.pen.p2_at(inp.gray_l[y * w + x], inp.gray_l[yp * w + x - 1]);
-                            path_step(inp.avx2, &pa[(x - 1) * stride..x * stride], ma[x - 1], inp.pen.p1, p2, &c, g.nd, ndp, ga, spx)
+                            path_step(inp.avx2, &pa[(x - 1) * stride..x * stride], ma[x - 1], inp.pen.p1, p2, c, g.nd, ndp, ga, spx)
                         };
                         let gb = &mut cb[i * stride..(i + 1) * stride];
                         nb[i] = if step == 0 || x + 1 == w {
-                            path_start(&c, g.nd, ndp, gb, spx)
+                            path_start(c, g.nd, ndp, gb, spx)
                         } else {
                             let p2 = inp.pen.p2_at(inp.gray_l[y * w + x], inp.gray_l[yp * w + x + 1]);
-                            path_step(inp.avx2, &pb[(x + 1) * stride..(x + 2) * stride], mb[x + 1], inp.pen.p1, p2, &c, g.nd, ndp, gb, spx)
+                            path_step(inp.avx2, &pb[(x + 1) * stride..(x + 2) * stride], mb[x + 1], inp.pen.p1, p2, c, g.nd, ndp, gb, spx)
                         };
                     }
                 });

@@ -122,13 +122,30 @@ pub fn pixel_costs(g: &CostGeom, x: usize, cl: u64, right_rows: &[&[u64]], out: 
     }
 }
 
-/// Costs of pixels `x0..x1` of one row into `out` (`(x1 − x0) × ndp`).
 #[inline(always)]
-pub fn row_costs(g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], right_rows: &[&[u64]], out: &mut [u8]) {
+fn row_costs_impl(g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], right_rows: &[&[u64]], out: &mut [u8]) {
     for x in x0..x1 {
         let o = (x - x0) * g.ndp;
         pixel_costs(g, x, left_row[x], right_rows, &mut out[o..o + g.ndp]);
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,popcnt")]
+unsafe fn row_costs_avx2(g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], right_rows: &[&[u64]], out: &mut [u8]) {
+    row_costs_impl(g, x0, x1, left_row, right_rows, out)
+}
+
+/// Costs of pixels `x0..x1` of one row into `out` (`(x1 − x0) × ndp`); `avx2` selects the
+/// build compiled for AVX2 + popcnt (same integer results).
+pub fn row_costs(avx2: bool, g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], right_rows: &[&[u64]], out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` is only true when AVX2 and popcnt were detected at run time.
+        return unsafe { row_costs_avx2(g, x0, x1, left_row, right_rows, out) };
+    }
+    let _ = avx2;
+    row_costs_impl(g, x0, x1, left_row, right_rows, out)
 }
 
 /// The rows y + δ, δ ∈ [−k, k] clipped to the image, centre row first (so that the minimum over

@@ -82,8 +82,8 @@ impl SgmParams {
             d_min,
             d_max,
             paths: Paths::Four,
-            p1: 7,
-            p2: 100,
+            p1: 5,
+            p2: 60,
             p2_gamma: 16,
             uniqueness_pct: 10,
             lr_max_diff: Some(1),
@@ -95,9 +95,9 @@ impl SgmParams {
         }
     }
 
-    /// The accurate mode: 8 paths, otherwise as [`new`](Self::new).
+    /// The accurate mode: 8 paths, P1 = 7, P2 = 100, otherwise as [`new`](Self::new).
     pub fn accurate(d_min: i32, d_max: i32) -> Self {
-        SgmParams { paths: Paths::Eight, ..Self::new(d_min, d_max) }
+        SgmParams { paths: Paths::Eight, p1: 7, p2: 100, ..Self::new(d_min, d_max) }
     }
 
     /// Number of disparities `d_max − d_min`.
