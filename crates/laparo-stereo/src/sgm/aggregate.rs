@@ -10,7 +10,6 @@
 //! and the scalar kernel perform the same u16 operations (saturating adds for `+ P1`, `+ P2` and
 //! the sum into S, wrapping `C + t − min` which never wraps): results are identical bit for bit.
 use super::cost::{row_costs, tolerance_rows, CostGeom};
-use rayon::prelude::*;
 
 /// Sentinel lanes on each side of a path buffer.
 pub const SENT: usize = 16;
@@ -154,157 +153,80 @@ pub struct Inputs<'a> {
     pub avx2: bool,
 }
 
-/// Horizontal paths (left→right, right→left) of every row, added into `s` (parallel over rows).
-pub fn pass_horizontal(inp: &Inputs, s: &mut [u16]) {
-    let g = inp.g;
-    let (w, ndp) = (g.w, g.ndp);
-    s.par_chunks_mut(w * ndp).enumerate().for_each_init(
-        || (vec![0u8; w * ndp], path_buffer(ndp), path_buffer(ndp)),
-        |(costs, a, b), (y, srow)| {
-            let rows = tolerance_rows(inp.census_r, w, inp.h, y, inp.vtol);
-            row_costs(inp.avx2, &g, 0, w, &inp.census_l[y * w..(y + 1) * w], &rows, costs);
-            let gray = &inp.gray_l[y * w..(y + 1) * w];
-            // left → right
-            let mut m = path_start(&costs[..ndp], g.nd, ndp, a, &mut srow[..ndp]);
-            for x in 1..w {
-                let p2 = inp.pen.p2_at(gray[x], gray[x - 1]);
-                let o = x * ndp;
-                m = path_step(inp.avx2, a, m, inp.pen.p1, p2, &costs[o..o + ndp], g.nd, ndp, b, &mut srow[o..o + ndp]);
-                std::mem::swap(a, b);
-            }
-            // right → left
-            let o = (w - 1) * ndp;
-            let mut m = path_start(&costs[o..o + ndp], g.nd, ndp, a, &mut srow[o..o + ndp]);
-            for x in (0..w - 1).rev() {
-                let p2 = inp.pen.p2_at(gray[x], gray[x + 1]);
-                let o = x * ndp;
-                m = path_step(inp.avx2, a, m, inp.pen.p1, p2, &costs[o..o + ndp], g.nd, ndp, b, &mut srow[o..o + ndp]);
-                std::mem::swap(a, b);
-            }
-        },
-    );
-}
-
-/// Raw pointer to S shared by column-chunk workers that touch disjoint columns.
-#[derive(Clone, Copy)]
-struct SPtr(*mut u16);
-// SAFETY: workers write disjoint (row, column) cells only.
-unsafe impl Send for SPtr {}
-unsafe impl Sync for SPtr {}
-
-/// Columns per chunk of the vertical pass (fixed, so the work split never depends on threads).
-pub const COL_CHUNK: usize = 16;
-
-/// Vertical paths (top→bottom, bottom→top) added into `s`, in column chunks (parallel). After
-/// the bottom→top step of a pixel its S is final; `finish(x, y, s_pixel)` is called then.
-pub fn pass_vertical<F>(inp: &Inputs, s: &mut [u16], finish: F)
-where
-    F: Fn(usize, usize, &[u16]) + Sync,
-{
-    let g = inp.g;
-    let (w, h, ndp) = (g.w, inp.h, g.ndp);
-    assert_eq!(s.len(), w * h * ndp);
-    let sp = SPtr(s.as_mut_ptr());
-    let n_chunks = w.div_ceil(COL_CHUNK);
-    (0..n_chunks).into_par_iter().for_each(|ci| {
-        let sp = sp;
-        let x0 = ci * COL_CHUNK;
-        let x1 = (x0 + COL_CHUNK).min(w);
-        let nc = x1 - x0;
-        let stride = ndp + 2 * SENT;
-        let mut prev = vec![0xFFFFu16; nc * stride];
-        let mut cur = vec![0xFFFFu16; nc * stride];
-        let mut mins = vec![0u16; nc];
-        let mut costs = vec![0u8; nc * ndp];
-        for down in [true, false] {
-            for step in 0..h {
-                let y = if down { step } else { h - 1 - step };
-                let rows = tolerance_rows(inp.census_r, w, h, y, inp.vtol);
-                row_costs(inp.avx2, &g, x0, x1, &inp.census_l[y * w..(y + 1) * w], &rows, &mut costs);
-                for i in 0..nc {
-                    let x = x0 + i;
-                    // SAFETY: pixel (x, y) belongs to this chunk only.
-                    let spx = unsafe { std::slice::from_raw_parts_mut(sp.0.add((y * w + x) * ndp), ndp) };
-                    let c = &costs[i * ndp..(i + 1) * ndp];
-                    let cb = &mut cur[i * stride..(i + 1) * stride];
-                    mins[i] = if step == 0 {
-                        path_start(c, g.nd, ndp, cb, spx)
-                    } else {
-                        let yp = if down { y - 1 } else { y + 1 };
-                        let p2 = inp.pen.p2_at(inp.gray_l[y * w + x], inp.gray_l[yp * w + x]);
-                        path_step(inp.avx2, &prev[i * stride..(i + 1) * stride], mins[i], inp.pen.p1, p2, c, g.nd, ndp, cb, spx)
-                    };
-                    if !down {
-                        finish(x, y, spx);
-                    }
-                }
-                std::mem::swap(&mut prev, &mut cur);
-            }
-        }
-    });
-}
-
-/// Pixels per chunk of a diagonal row step (fixed, independent of the thread count).
-pub const DIAG_CHUNK: usize = 64;
-
-/// The four diagonal paths (8-path mode), added into `s`: rows are swept top→bottom then
-/// bottom→top; within a row the pixels are independent (parallel in fixed chunks).
-pub fn pass_diagonal(inp: &Inputs, s: &mut [u16]) {
+/// One sweep over the rows, forward (top→bottom: left→right, top→bottom and, with `eight`, the
+/// two downward diagonals) or backward (bottom→top: right→left, bottom→top, upward diagonals).
+/// The paths of a sweep share the row's costs; their sum is written to `s` (`h × w × ndp`).
+/// A sweep is sequential over rows; the forward and the backward sweep run in parallel
+/// ([`aggregate`]), so the result never depends on the thread count.
+pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
     let g = inp.g;
     let (w, h, ndp) = (g.w, inp.h, g.ndp);
     let stride = ndp + 2 * SENT;
-    // Two directions per sweep: A comes from (x − 1, y ∓ 1), B from (x + 1, y ∓ 1).
-    let mut prev_a = vec![0xFFFFu16; w * stride];
-    let mut prev_b = vec![0xFFFFu16; w * stride];
-    let mut cur_a = vec![0xFFFFu16; w * stride];
-    let mut cur_b = vec![0xFFFFu16; w * stride];
-    let mut min_a = vec![0u16; w];
-    let mut min_b = vec![0u16; w];
-    let mut nmin_a = vec![0u16; w];
-    let mut nmin_b = vec![0u16; w];
-    for down in [true, false] {
-        for step in 0..h {
-            let y = if down { step } else { h - 1 - step };
-            let yp = if down { y.wrapping_sub(1) } else { y + 1 };
-            let rows = tolerance_rows(inp.census_r, w, h, y, inp.vtol);
-            let srow = &mut s[y * w * ndp..(y + 1) * w * ndp];
-            let (pa, pb, ma, mb) = (&prev_a, &prev_b, &min_a, &min_b);
-            srow.par_chunks_mut(DIAG_CHUNK * ndp)
-                .zip(cur_a.par_chunks_mut(DIAG_CHUNK * stride))
-                .zip(cur_b.par_chunks_mut(DIAG_CHUNK * stride))
-                .zip(nmin_a.par_chunks_mut(DIAG_CHUNK))
-                .zip(nmin_b.par_chunks_mut(DIAG_CHUNK))
-                .enumerate()
-                .for_each(|(ci, ((((sc, ca), cb), na), nb))| {
-                    let x0 = ci * DIAG_CHUNK;
-                    let mut cc = vec![0u8; na.len() * ndp];
-                    row_costs(inp.avx2, &g, x0, x0 + na.len(), &inp.census_l[y * w..(y + 1) * w], &rows, &mut cc);
-                    for i in 0..na.len() {
-                        let x = x0 + i;
-                        let c = &cc[i * ndp..(i + 1) * ndp];
-                        let spx = &mut sc[i * ndp..(i + 1) * ndp];
-                        let ga = &mut ca[i * stride..(i + 1) * stride];
-                        na[i] = if step == 0 || x == 0 {
-                            path_start(c, g.nd, ndp, ga, spx)
-                        } else {
-                            let p2 = inp.pen.p2_at(inp.gray_l[y * w + x], inp.gray_l[yp * w + x - 1]);
-                            path_step(inp.avx2, &pa[(x - 1) * stride..x * stride], ma[x - 1], inp.pen.p1, p2, c, g.nd, ndp, ga, spx)
-                        };
-                        let gb = &mut cb[i * stride..(i + 1) * stride];
-                        nb[i] = if step == 0 || x + 1 == w {
-                            path_start(c, g.nd, ndp, gb, spx)
-                        } else {
-                            let p2 = inp.pen.p2_at(inp.gray_l[y * w + x], inp.gray_l[yp * w + x + 1]);
-                            path_step(inp.avx2, &pb[(x + 1) * stride..(x + 2) * stride], mb[x + 1], inp.pen.p1, p2, c, g.nd, ndp, gb, spx)
-                        };
-                    }
-                });
-            std::mem::swap(&mut prev_a, &mut cur_a);
-            std::mem::swap(&mut prev_b, &mut cur_b);
-            std::mem::swap(&mut min_a, &mut nmin_a);
-            std::mem::swap(&mut min_b, &mut nmin_b);
+    let mut costs = vec![0u8; w * ndp];
+    let (mut ha, mut hb) = (path_buffer(ndp), path_buffer(ndp));
+    let n_dirs = if eight { 3 } else { 1 }; // vertical, diagonal from x − 1, diagonal from x + 1
+    let mut prev = vec![0xFFFFu16; n_dirs * w * stride];
+    let mut cur = vec![0xFFFFu16; n_dirs * w * stride];
+    let mut pmin = vec![0u16; n_dirs * w];
+    let mut cmin = vec![0u16; n_dirs * w];
+    let (p1, pen, avx2, nd) = (inp.pen.p1, inp.pen, inp.avx2, g.nd);
+    for step in 0..h {
+        let y = if forward { step } else { h - 1 - step };
+        let yp = if forward { y.wrapping_sub(1) } else { y + 1 };
+        let rows = tolerance_rows(inp.census_r, w, h, y, inp.vtol);
+        row_costs(avx2, &g, 0, w, &inp.census_l[y * w..(y + 1) * w], &rows, &mut costs);
+        let srow = &mut s[y * w * ndp..(y + 1) * w * ndp];
+        srow.fill(0);
+        let gray = &inp.gray_l[y * w..(y + 1) * w];
+        // Horizontal path.
+        let xs: Box<dyn Iterator<Item = usize>> = if forward { Box::new(0..w) } else { Box::new((0..w).rev()) };
+        let mut m = 0u16;
+        for (i, x) in xs.enumerate() {
+            let o = x * ndp;
+            let c = &costs[o..o + ndp];
+            let sp = &mut srow[o..o + ndp];
+            m = if i == 0 {
+                path_start(c, nd, ndp, &mut ha, sp)
+            } else {
+                let xq = if forward { x - 1 } else { x + 1 };
+                path_step(avx2, &hb, m, p1, pen.p2_at(gray[x], gray[xq]), c, nd, ndp, &mut ha, sp)
+            };
+            std::mem::swap(&mut ha, &mut hb);
         }
+        // Vertical and diagonal paths, from the previous row.
+        let gprev = if step > 0 { &inp.gray_l[yp * w..(yp + 1) * w] } else { gray };
+        for k in 0..n_dirs {
+            for x in 0..w {
+                let o = x * ndp;
+                let c = &costs[o..o + ndp];
+                let sp = &mut srow[o..o + ndp];
+                let xq = match k {
+                    0 => Some(x),
+                    1 => x.checked_sub(1),
+                    _ => (x + 1 < w).then_some(x + 1),
+                };
+                let cb = &mut cur[(k * w + x) * stride..(k * w + x + 1) * stride];
+                cmin[k * w + x] = match xq {
+                    Some(xq) if step > 0 => {
+                        let pb = &prev[(k * w + xq) * stride..(k * w + xq + 1) * stride];
+                        path_step(avx2, pb, pmin[k * w + xq], p1, pen.p2_at(gray[x], gprev[xq]), c, nd, ndp, cb, sp)
+                    }
+                    _ => path_start(c, nd, ndp, cb, sp),
+                };
+            }
+        }
+        std::mem::swap(&mut prev, &mut cur);
+        std::mem::swap(&mut pmin, &mut cmin);
     }
+}
+
+/// Aggregate all paths (eq. 14): the forward and the backward [`sweep`] in parallel
+/// (`rayon::join`), returning their two partial sums `S = S_f + S_b` (added at selection).
+pub fn aggregate(inp: &Inputs, eight: bool) -> (Vec<u16>, Vec<u16>) {
+    let n = inp.g.w * inp.h * inp.g.ndp;
+    let (mut sf, mut sb) = (vec![0u16; n], vec![0u16; n]);
+    rayon::join(|| sweep(inp, true, eight, &mut sf), || sweep(inp, false, eight, &mut sb));
+    (sf, sb)
 }
 
 #[cfg(test)]

@@ -192,12 +192,6 @@ pub fn avx2_available() -> bool {
     false
 }
 
-#[derive(Clone, Copy)]
-struct SelPtr(*mut select::Selection);
-// SAFETY: every pixel's selection is written by exactly one worker.
-unsafe impl Send for SelPtr {}
-unsafe impl Sync for SelPtr {}
-
 /// Match a stereo pair (8-bit grey/RGB/RGBA, same size): SGM with the stages listed in the
 /// module documentation. Errors name the parameter (empty range, size mismatch, ...).
 pub fn match_pair(left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> Result<SgmOutput, StereoError> {
@@ -239,20 +233,21 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
         pen: aggregate::Penalties { p1: p.p1, p2: p.p2, gamma: p.p2_gamma },
         avx2,
     };
-    let mut s = vec![0u16; w * h * ndp];
-    aggregate::pass_horizontal(&inp, &mut s);
-    if p.paths == Paths::Eight {
-        aggregate::pass_diagonal(&inp, &mut s);
-    }
+    let (sf, sb) = aggregate::aggregate(&inp, p.paths == Paths::Eight);
     let mut sel = vec![select::Selection::default(); w * h];
-    let sp = SelPtr(sel.as_mut_ptr());
-    aggregate::pass_vertical(&inp, &mut s, |x, y, spx| {
-        let sp = sp;
-        let v = select::select(avx2, spx, nd, ndp);
-        // SAFETY: (x, y) is visited once, by one worker.
-        unsafe { *sp.0.add(y * w + x) = v };
-    });
-    drop(s);
+    sel.par_chunks_mut(w).enumerate().for_each_init(
+        || vec![0u16; ndp],
+        |buf, (y, row)| {
+            for (x, out) in row.iter_mut().enumerate() {
+                let o = (y * w + x) * ndp;
+                for ((b, &f), &k) in buf.iter_mut().zip(&sf[o..o + ndp]).zip(&sb[o..o + ndp]) {
+                    *b = f.saturating_add(k);
+                }
+                *out = select::select(avx2, buf, nd, ndp);
+            }
+        },
+    );
+    drop((sf, sb));
 
     // Per row: sub-pixel disparity, uniqueness, confidence, left–right check.
     let mut disp = vec![f32::INFINITY; w * h];
