@@ -224,9 +224,29 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
 /// (`rayon::join`), returning their two partial sums `S = S_f + S_b` (added at selection).
 pub fn aggregate(inp: &Inputs, eight: bool) -> (Vec<u16>, Vec<u16>) {
     let n = inp.g.w * inp.h * inp.g.ndp;
-    let (mut sf, mut sb) = (vec![0u16; n], vec![0u16; n]);
+    let (mut sf, mut sb) = (take_buffer(n), take_buffer(n));
     rayon::join(|| sweep(inp, true, eight, &mut sf), || sweep(inp, false, eight, &mut sb));
     (sf, sb)
+}
+
+/// Reused S volumes: a video or a benchmark matches pair after pair of one size, and a fresh
+/// 50–300 MB allocation per pair costs more in page faults than the matching itself.
+static POOL: std::sync::Mutex<Vec<Vec<u16>>> = std::sync::Mutex::new(Vec::new());
+
+/// A buffer of `n` u16 (contents unspecified: [`sweep`] writes every row before use).
+fn take_buffer(n: usize) -> Vec<u16> {
+    let mut v = POOL.lock().map(|mut p| p.pop()).ok().flatten().unwrap_or_default();
+    v.resize(n, 0);
+    v
+}
+
+/// Give S volumes back for the next pair (at most two are kept).
+pub fn recycle(v: Vec<u16>) {
+    if let Ok(mut p) = POOL.lock() {
+        if p.len() < 2 {
+            p.push(v);
+        }
+    }
 }
 
 #[cfg(test)]

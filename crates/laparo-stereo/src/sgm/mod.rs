@@ -247,7 +247,8 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
             }
         },
     );
-    drop((sf, sb));
+    aggregate::recycle(sf);
+    aggregate::recycle(sb);
 
     // Per row: sub-pixel disparity, uniqueness, confidence, left–right check.
     let mut disp = vec![f32::INFINITY; w * h];
