@@ -43,14 +43,14 @@ pub fn path_buffer(ndp: usize) -> Vec<u16> {
     vec![0xFFFF; ndp + 2 * SENT]
 }
 
-/// First pixel of a path: `L = C`; adds into `s`, returns min_d L.
+/// First pixel of a path: `L = C`; adds into `s` (`ADD`) or writes it, returns min_d L.
 #[inline(always)]
-pub fn path_start(cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub fn path_start<const ADD: bool>(cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
     let mut m = u16::MAX;
     for d in 0..ndp {
         let l = if d < nd { cost[d] as u16 } else { 0xFFFF };
         cur[SENT + d] = l;
-        s[d] = s[d].saturating_add(l);
+        s[d] = if ADD { s[d].saturating_add(l) } else { l };
         m = m.min(l);
     }
     m
@@ -59,7 +59,7 @@ pub fn path_start(cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [
 /// One step of eq. 13 (portable). `prev`/`cur` are path buffers, `s` the pixel's S slice.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn path_step_scalar(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub fn path_step_scalar<const ADD: bool>(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
     let pm2 = prev_min.saturating_add(p2);
     let mut m = u16::MAX;
     for d in 0..ndp {
@@ -73,7 +73,7 @@ pub fn path_step_scalar(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u
             0xFFFF
         };
         cur[SENT + d] = l;
-        s[d] = s[d].saturating_add(l);
+        s[d] = if ADD { s[d].saturating_add(l) } else { l };
         m = m.min(l);
     }
     m
@@ -86,7 +86,7 @@ pub fn path_step_scalar(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::too_many_arguments)]
-pub unsafe fn path_step_avx2(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub unsafe fn path_step_avx2<const ADD: bool>(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
     use std::arch::x86_64::*;
     debug_assert!(prev.len() >= ndp + 2 * SENT && cur.len() >= ndp + 2 * SENT && s.len() >= ndp && cost.len() >= ndp);
     let pm2 = _mm256_set1_epi16(prev_min.saturating_add(p2) as i16);
@@ -112,7 +112,11 @@ pub unsafe fn path_step_avx2(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost
         }
         _mm256_storeu_si256(cp.add(j) as *mut __m256i, l);
         let sp = s.as_mut_ptr().add(j) as *mut __m256i;
-        _mm256_storeu_si256(sp, _mm256_adds_epu16(_mm256_loadu_si256(sp), l));
+        if ADD {
+            _mm256_storeu_si256(sp, _mm256_adds_epu16(_mm256_loadu_si256(sp), l));
+        } else {
+            _mm256_storeu_si256(sp, l);
+        }
         vmin = _mm256_min_epu16(vmin, l);
         j += 16;
     }
@@ -123,14 +127,14 @@ pub unsafe fn path_step_avx2(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost
 /// Dispatching step.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn path_step(avx2: bool, prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub fn path_step<const ADD: bool>(avx2: bool, prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: `avx2` is only true when the CPU was checked at run time.
-        return unsafe { path_step_avx2(prev, prev_min, p1, p2, cost, nd, ndp, cur, s) };
+        return unsafe { path_step_avx2::<ADD>(prev, prev_min, p1, p2, cost, nd, ndp, cur, s) };
     }
     let _ = avx2;
-    path_step_scalar(prev, prev_min, p1, p2, cost, nd, ndp, cur, s)
+    path_step_scalar::<ADD>(prev, prev_min, p1, p2, cost, nd, ndp, cur, s)
 }
 
 /// Everything the passes read.
@@ -176,7 +180,6 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
         let rows = tolerance_rows(inp.census_r, w, h, y, inp.vtol);
         row_costs(avx2, &g, 0, w, &inp.census_l[y * w..(y + 1) * w], &rows, &mut costs);
         let srow = &mut s[y * w * ndp..(y + 1) * w * ndp];
-        srow.fill(0);
         let gray = &inp.gray_l[y * w..(y + 1) * w];
         // Horizontal path.
         let xs: Box<dyn Iterator<Item = usize>> = if forward { Box::new(0..w) } else { Box::new((0..w).rev()) };
@@ -186,10 +189,10 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
             let c = &costs[o..o + ndp];
             let sp = &mut srow[o..o + ndp];
             m = if i == 0 {
-                path_start(c, nd, ndp, &mut ha, sp)
+                path_start::<false>(c, nd, ndp, &mut ha, sp)
             } else {
                 let xq = if forward { x - 1 } else { x + 1 };
-                path_step(avx2, &hb, m, p1, pen.p2_at(gray[x], gray[xq]), c, nd, ndp, &mut ha, sp)
+                path_step::<false>(avx2, &hb, m, p1, pen.p2_at(gray[x], gray[xq]), c, nd, ndp, &mut ha, sp)
             };
             std::mem::swap(&mut ha, &mut hb);
         }
@@ -209,9 +212,9 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
                 cmin[k * w + x] = match xq {
                     Some(xq) if step > 0 => {
                         let pb = &prev[(k * w + xq) * stride..(k * w + xq + 1) * stride];
-                        path_step(avx2, pb, pmin[k * w + xq], p1, pen.p2_at(gray[x], gprev[xq]), c, nd, ndp, cb, sp)
+                        path_step::<true>(avx2, pb, pmin[k * w + xq], p1, pen.p2_at(gray[x], gprev[xq]), c, nd, ndp, cb, sp)
                     }
-                    _ => path_start(c, nd, ndp, cb, sp),
+                    _ => path_start::<true>(c, nd, ndp, cb, sp),
                 };
             }
         }
@@ -268,7 +271,7 @@ mod tests {
         // d0: min(10, 4+3, 4+20) = 7 → 5 + 7 − 4 = 8; d1: min(4, ..) = 4 → 7; d2: min(30, 4+3, 24) = 7 → 2 + 7 − 4 = 5.
         let mut cur = path_buffer(ndp);
         let mut s = vec![1u16; ndp];
-        let m = path_step_scalar(&prev, 4, p1, p2, &cost, nd, ndp, &mut cur, &mut s);
+        let m = path_step_scalar::<true>(&prev, 4, p1, p2, &cost, nd, ndp, &mut cur, &mut s);
         assert_eq!(&cur[SENT..SENT + 3], &[8, 7, 5]);
         assert_eq!(m, 5);
         assert_eq!(&s[..3], &[9, 8, 6]);
@@ -295,8 +298,8 @@ mod tests {
             let s0: Vec<u16> = (0..ndp).map(|_| rng.gen_range(0..3000)).collect();
             let (mut c1, mut c2) = (path_buffer(ndp), path_buffer(ndp));
             let (mut s1, mut s2) = (s0.clone(), s0.clone());
-            let m1 = path_step_scalar(&prev, pm, 7, 90, &cost, nd, ndp, &mut c1, &mut s1);
-            let m2 = unsafe { path_step_avx2(&prev, pm, 7, 90, &cost, nd, ndp, &mut c2, &mut s2) };
+            let m1 = path_step_scalar::<true>(&prev, pm, 7, 90, &cost, nd, ndp, &mut c1, &mut s1);
+            let m2 = unsafe { path_step_avx2::<true>(&prev, pm, 7, 90, &cost, nd, ndp, &mut c2, &mut s2) };
             assert_eq!((m1, &c1, &s1), (m2, &c2, &s2), "nd = {nd}");
         }
     }
