@@ -52,10 +52,10 @@ mod tests {
     fn occluded_pixel_rejected_consistent_kept() {
         // x = 3 and x = 4 both choose x_R = 1 (d = 2 and d = 3); x = 4 has the lower cost, so the
         // right pixel 1 says d = 3 and x = 3 (d = 2 → |3 − 2| = 1 ≤ 1 kept with max_diff 1,
-        // rejected with 0).
-        let best = [0, 0, 0, 2, 3];
+        // rejected with 0). x = 1, 2 match outside the image (d = 9): nothing to check.
+        let best = [0, 9, 9, 2, 3];
         let smin = [5, 5, 5, 9, 4];
-        let mut d = [0.0f32, 0.0, 0.0, 2.0, 3.0];
+        let mut d = [0.0f32, 9.0, 9.0, 2.0, 3.0];
         assert_eq!(lr_check_row(&best, &smin, &mut d, 1), 0);
         assert_eq!(lr_check_row(&best, &smin, &mut d, 0), 1);
         assert!(d[3].is_infinite() && d[4] == 3.0);
