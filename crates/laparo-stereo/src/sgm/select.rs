@@ -27,8 +27,9 @@ impl Selection {
         pct == 0 || self.second as u32 * (100 - pct.min(99) as u32) >= self.smin as u32 * 100
     }
 
-    /// Sub-pixel offset in (−0.5, 0.5) of the parabola fit (0 at the ends of the range or on a
-    /// flat triple).
+    /// Sub-pixel offset in [−0.5, 0.5] of the parabola fit (0 at the ends of the range or on a
+    /// flat triple), rounded to 1/256 px so that `d_min + best + offset` is exact in f32 for
+    /// |d| < 32768 (a shift of the range then shifts the output bit for bit).
     #[inline]
     pub fn subpixel_offset(&self) -> f32 {
         if self.left == 0xFFFF || self.right == 0xFFFF {
@@ -39,7 +40,7 @@ impl Selection {
         if den <= 0 {
             return 0.0;
         }
-        (l - r) as f32 / (2 * den) as f32
+        ((l - r) as f32 / (2 * den) as f32 * 256.0).round() / 256.0
     }
 
     /// Confidence in [0, 1]: `(second − best) / second` (0 when second is 0).
@@ -156,7 +157,7 @@ mod tests {
         let sel = select_scalar(&s, 6);
         assert_eq!(sel, Selection { best: 4, smin: 11, second: 12, left: 20, right: 60 });
         // parabola through (3, 20), (4, 11), (5, 60): offset (20 − 60) / (2 · 58)
-        assert!((sel.subpixel_offset() - (-40.0 / 116.0)).abs() < 1e-7);
+        assert_eq!(sel.subpixel_offset(), (-40.0f32 / 116.0 * 256.0).round() / 256.0);
         assert!(sel.unique(5) && !sel.unique(10));
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("bmi1") {
