@@ -20,6 +20,8 @@ pub enum StereoCmd {
     Rectify(RectifyArgs),
     /// Evaluate a predicted disparity map: EPE, Bad-1/2/3 and, with a calibration, depth MAE,
     /// RMSE, Abs Rel and δ_0.25 (Tables 3.7–3.8). Writes JSON, markdown and colour-mapped maps.
+    /// Every finite GT disparity is valid, negative ones included (public SCARED evaluators keep
+    /// only GT > 0 and so drop most pixels of raw, uncalibrated pairs).
     Eval(EvalArgs),
     /// Convert a left disparity map to depth (mm) with d = f b / z + (c_x^L − c_x^R) (§3.3.8),
     /// optionally to a point cloud (PLY).
