@@ -55,7 +55,7 @@ impl CalibArgs {
 
     /// [`read`](Self::read), taking the size of the images being processed (`w`, `h`) for a
     /// calibration file that states none (SCARED's), unless --width/--height are given.
-    fn read_for_images(&self, w: usize, h: usize) -> anyhow::Result<Option<StereoCalibration>> {
+    pub(crate) fn read_for_images(&self, w: usize, h: usize) -> anyhow::Result<Option<StereoCalibration>> {
         let sized = CalibArgs { width: self.width.or(Some(w)), height: self.height.or(Some(h)), ..self.clone() };
         sized.read()
     }
