@@ -129,7 +129,11 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let default_pair = a.left.is_none();
     let left = a.left.clone().unwrap_or_else(|| PathBuf::from(format!("{MB}/motorcycle_left.png")));
     let right = a.right.clone().unwrap_or_else(|| PathBuf::from(format!("{MB}/motorcycle_right.png")));
-    let gt_path = if a.no_gt { None } else { a.gt.clone().or_else(|| default_pair.then(|| PathBuf::from(format!("{MB}/motorcycle_disp.npy")))) };
+    let gt_path = if a.no_gt {
+        None
+    } else {
+        a.gt.clone().or_else(|| default_pair.then(|| PathBuf::from(format!("{MB}/motorcycle_disp.npy"))))
+    };
     let l = laparo_core::io::read_image(&left).with_context(|| format!("left image {}", left.display()))?;
     let r = laparo_core::io::read_image(&right).with_context(|| format!("right image {}", right.display()))?;
     let gt = match &gt_path {
@@ -204,7 +208,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         }
     }
     let ref_ms = peer_best.iter().find(|(k, _)| k.contains("SGBM_3WAY")).map(|(_, v)| v.0);
-    println!("| method | ms (best of {}) | vs 3WAY | density | EPE valid | EPE filled | Bad-1 f % | Bad-2 f % | Bad-3 f % |", a.rounds * a.repeats);
+    println!(
+        "| method | ms (best of {}) | vs 3WAY | density | EPE valid | EPE filled | Bad-1 f % | Bad-2 f % | Bad-3 f % |",
+        a.rounds * a.repeats
+    );
     println!("|---|---|---|---|---|---|---|---|---|");
     let row = |name: &str, ms: f64, v: &serde_json::Value| {
         let f = |k: &str| v[k].as_f64().map(|x| format!("{x:.3}")).unwrap_or("—".into());
@@ -231,7 +238,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         all.insert(k.clone(), rec.clone());
     }
     if let Some(p) = &a.json {
-        laparo_core::atomic::write_atomic(p, serde_json::to_string_pretty(&serde_json::Value::Object(all))?.as_bytes())?;
+        laparo_core::atomic::write_atomic(
+            p,
+            serde_json::to_string_pretty(&serde_json::Value::Object(all))?.as_bytes(),
+        )?;
     }
     Ok(())
 }

@@ -84,7 +84,13 @@ fn avx2_equals_scalar_and_threads_do_not_matter() {
             let b = pool(2).install(|| match_pair(&l, &r, &p).unwrap());
             let s = pool(2).install(|| match_pair(&l, &r, &SgmParams { kernel: Kernel::Scalar, ..p.clone() }).unwrap());
             let bits = |o: &laparo_stereo::sgm::SgmOutput| -> Vec<u32> {
-                o.disparity.data.iter().chain(&o.confidence.data).chain(o.dy.iter().flat_map(|d| d.data.iter())).map(|v| v.to_bits()).collect()
+                o.disparity
+                    .data
+                    .iter()
+                    .chain(&o.confidence.data)
+                    .chain(o.dy.iter().flat_map(|d| d.data.iter()))
+                    .map(|v| v.to_bits())
+                    .collect()
             };
             assert_eq!(bits(&a), bits(&b), "1 vs 2 threads, {paths:?}, vt {vt}");
             assert_eq!(bits(&a), bits(&s), "AVX2 vs scalar, {paths:?}, vt {vt}");
@@ -149,7 +155,8 @@ fn middlebury_motorcycle_beats_opencv() {
     let (dens, epe, _b1, b2, b3) = scores(&match_pair(&l, &r, &SgmParams::new(0, 64)).unwrap().disparity.data, &gt);
     eprintln!("default: density {dens:.3} EPE filled {epe:.3} Bad-2 {b2:.2} Bad-3 {b3:.2}");
     assert!(dens >= 0.865 && epe <= 1.591 && b2 <= 9.648 && b3 <= 8.724);
-    let (dens, epe, _b1, b2, b3) = scores(&match_pair(&l, &r, &SgmParams::accurate(0, 64)).unwrap().disparity.data, &gt);
+    let (dens, epe, _b1, b2, b3) =
+        scores(&match_pair(&l, &r, &SgmParams::accurate(0, 64)).unwrap().disparity.data, &gt);
     eprintln!("accurate: density {dens:.3} EPE filled {epe:.3} Bad-2 {b2:.2} Bad-3 {b3:.2}");
     assert!(dens >= 0.861 && epe < 1.453 && b2 < 8.916 && b3 < 8.015);
 }
@@ -164,10 +171,19 @@ fn vertical_tolerance_recovers_rectified_accuracy() {
     use nalgebra::Matrix3;
     let Some((l, r, gt)) = middlebury() else { return };
     let (w, h) = (l.width, l.height);
-    let k = Intrinsics { fx: 1000.0, fy: 1000.0, cx: (w as f64 - 1.0) / 2.0, cy: (h as f64 - 1.0) / 2.0, skew: 0.0, width: w, height: h };
+    let k = Intrinsics {
+        fx: 1000.0,
+        fy: 1000.0,
+        cx: (w as f64 - 1.0) / 2.0,
+        cy: (h as f64 - 1.0) / 2.0,
+        skew: 0.0,
+        width: w,
+        height: h,
+    };
     let mut k_rel = Matrix3::identity();
     k_rel[(1, 2)] = 0.3;
-    let aug = CameraAugmentation::from_euler_deg(k, Distortion::default(), [0.0, 0.0, 0.1], k_rel, Distortion::default());
+    let aug =
+        CameraAugmentation::from_euler_deg(k, Distortion::default(), [0.0, 0.0, 0.1], k_rel, Distortion::default());
     let r2 = augment_image(&r, &aug).unwrap().image;
     let map = aug.map().unwrap();
     // Exact GT of the augmented pair: left (x, y) ↔ right source (x − d, y) → augmented right.
@@ -199,7 +215,11 @@ fn vertical_tolerance_recovers_rectified_accuracy() {
     let dy = out.dy.unwrap();
     assert!(dy.data.iter().all(|v| v.is_nan() || v.abs() <= 1.0));
     let mean = |x0: usize, x1: usize| {
-        let v: Vec<f32> = (0..h).flat_map(|y| (x0..x1).map(move |x| (x, y))).map(|(x, y)| dy.get(x, y, 0)).filter(|v| v.is_finite()).collect();
+        let v: Vec<f32> = (0..h)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .map(|(x, y)| dy.get(x, y, 0))
+            .filter(|v| v.is_finite())
+            .collect();
         v.iter().sum::<f32>() / v.len() as f32
     };
     // True dy: 0.3 + (x − c_x) sin 0.1°: −0.35..−0.02 px in the left quarter, 0.62..0.95 in the right.

@@ -59,7 +59,17 @@ pub fn path_start<const ADD: bool>(cost: &[u8], nd: usize, ndp: usize, cur: &mut
 /// One step of eq. 13 (portable). `prev`/`cur` are path buffers, `s` the pixel's S slice.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn path_step_scalar<const ADD: bool>(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub fn path_step_scalar<const ADD: bool>(
+    prev: &[u16],
+    prev_min: u16,
+    p1: u16,
+    p2: u16,
+    cost: &[u8],
+    nd: usize,
+    ndp: usize,
+    cur: &mut [u16],
+    s: &mut [u16],
+) -> u16 {
     let pm2 = prev_min.saturating_add(p2);
     let mut m = u16::MAX;
     for d in 0..ndp {
@@ -86,7 +96,17 @@ pub fn path_step_scalar<const ADD: bool>(prev: &[u16], prev_min: u16, p1: u16, p
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::too_many_arguments)]
-pub unsafe fn path_step_avx2<const ADD: bool>(prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub unsafe fn path_step_avx2<const ADD: bool>(
+    prev: &[u16],
+    prev_min: u16,
+    p1: u16,
+    p2: u16,
+    cost: &[u8],
+    nd: usize,
+    ndp: usize,
+    cur: &mut [u16],
+    s: &mut [u16],
+) -> u16 {
     use std::arch::x86_64::*;
     debug_assert!(prev.len() >= ndp + 2 * SENT && cur.len() >= ndp + 2 * SENT && s.len() >= ndp && cost.len() >= ndp);
     let pm2 = _mm256_set1_epi16(prev_min.saturating_add(p2) as i16);
@@ -127,7 +147,18 @@ pub unsafe fn path_step_avx2<const ADD: bool>(prev: &[u16], prev_min: u16, p1: u
 /// Dispatching step.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn path_step<const ADD: bool>(avx2: bool, prev: &[u16], prev_min: u16, p1: u16, p2: u16, cost: &[u8], nd: usize, ndp: usize, cur: &mut [u16], s: &mut [u16]) -> u16 {
+pub fn path_step<const ADD: bool>(
+    avx2: bool,
+    prev: &[u16],
+    prev_min: u16,
+    p1: u16,
+    p2: u16,
+    cost: &[u8],
+    nd: usize,
+    ndp: usize,
+    cur: &mut [u16],
+    s: &mut [u16],
+) -> u16 {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: `avx2` is only true when the CPU was checked at run time.
@@ -212,7 +243,18 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
                 cmin[k * w + x] = match xq {
                     Some(xq) if step > 0 => {
                         let pb = &prev[(k * w + xq) * stride..(k * w + xq + 1) * stride];
-                        path_step::<true>(avx2, pb, pmin[k * w + xq], p1, pen.p2_at(gray[x], gprev[xq]), c, nd, ndp, cb, sp)
+                        path_step::<true>(
+                            avx2,
+                            pb,
+                            pmin[k * w + xq],
+                            p1,
+                            pen.p2_at(gray[x], gprev[xq]),
+                            c,
+                            nd,
+                            ndp,
+                            cb,
+                            sp,
+                        )
                     }
                     _ => path_start::<true>(c, nd, ndp, cb, sp),
                 };

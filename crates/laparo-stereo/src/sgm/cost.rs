@@ -124,9 +124,9 @@ pub fn pixel_costs(g: &CostGeom, x: usize, cl: u64, right_rows: &[&[u64]], out: 
 
 #[inline(always)]
 fn row_costs_impl(g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], right_rows: &[&[u64]], out: &mut [u8]) {
-    for x in x0..x1 {
-        let o = (x - x0) * g.ndp;
-        pixel_costs(g, x, left_row[x], right_rows, &mut out[o..o + g.ndp]);
+    for (i, &cl) in left_row[x0..x1].iter().enumerate() {
+        let o = i * g.ndp;
+        pixel_costs(g, x0 + i, cl, right_rows, &mut out[o..o + g.ndp]);
     }
 }
 
@@ -138,7 +138,15 @@ unsafe fn row_costs_avx2(g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], r
 
 /// Costs of pixels `x0..x1` of one row into `out` (`(x1 − x0) × ndp`); `avx2` selects the
 /// build compiled for AVX2 + popcnt (same integer results).
-pub fn row_costs(avx2: bool, g: &CostGeom, x0: usize, x1: usize, left_row: &[u64], right_rows: &[&[u64]], out: &mut [u8]) {
+pub fn row_costs(
+    avx2: bool,
+    g: &CostGeom,
+    x0: usize,
+    x1: usize,
+    left_row: &[u64],
+    right_rows: &[&[u64]],
+    out: &mut [u8],
+) {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: `avx2` is only true when AVX2 and popcnt were detected at run time.
@@ -166,7 +174,17 @@ pub fn tolerance_rows(census_r: &[u64], w: usize, h: usize, y: usize, k: usize) 
 /// Vertical offset δ (px) that realises the cost of disparity `d` at `(x, y)`: the δ with the
 /// smallest Hamming distance, ties to the smallest |δ| then to the negative one; `None` when
 /// `x − d` is outside the image.
-pub fn best_dy(census_l: &[u64], census_r: &[u64], w: usize, h: usize, x: usize, y: usize, d: i32, k: usize) -> Option<i32> {
+#[allow(clippy::too_many_arguments)]
+pub fn best_dy(
+    census_l: &[u64],
+    census_r: &[u64],
+    w: usize,
+    h: usize,
+    x: usize,
+    y: usize,
+    d: i32,
+    k: usize,
+) -> Option<i32> {
     let xr = x as i64 - d as i64;
     if xr < 0 || xr >= w as i64 {
         return None;
@@ -216,7 +234,8 @@ mod tests {
         let mut out = vec![9u8; 16];
         pixel_costs(&g, 0, l[0], &[&r], &mut out);
         // x = 0: d = −2..2 → x_R = 2, 1, 0, −1, −2.
-        let want = [(0b1011u64 ^ 2).count_ones() as u8, (0b1011u64 ^ 1).count_ones() as u8, 3, NEUTRAL_COST, NEUTRAL_COST];
+        let want =
+            [(0b1011u64 ^ 2).count_ones() as u8, (0b1011u64 ^ 1).count_ones() as u8, 3, NEUTRAL_COST, NEUTRAL_COST];
         assert_eq!(&out[..5], &want);
         assert!(out[5..].iter().all(|&v| v == 0));
     }

@@ -30,14 +30,14 @@ pub fn lr_check_row(best: &[i32], smin: &[u16], disp: &mut [f32], max_diff: i32)
         r != i32::MIN && (r - dc).abs() > max_diff
     };
     let mut n = 0;
-    for x in 0..w {
-        let d = disp[x];
+    for (x, dx) in disp.iter_mut().enumerate() {
+        let d = *dx;
         if !d.is_finite() {
             continue;
         }
         let (lo, hi) = (d.floor() as i32, d.ceil() as i32);
         if inconsistent(lo, x) && inconsistent(hi, x) {
-            disp[x] = f32::INFINITY;
+            *dx = f32::INFINITY;
             n += 1;
         }
     }

@@ -123,9 +123,12 @@ impl SgmParams {
             return bad("uniqueness", format!("{} % (must be < 100)", self.uniqueness_pct));
         }
         if self.vertical_tol > MAX_VERTICAL_TOL {
-            return bad("vertical tolerance", format!("{} rows, at most {MAX_VERTICAL_TOL} (rectify larger offsets)", self.vertical_tol));
+            return bad(
+                "vertical tolerance",
+                format!("{} rows, at most {MAX_VERTICAL_TOL} (rectify larger offsets)", self.vertical_tol),
+            );
         }
-        if !(self.speckle_range >= 0.0) {
+        if self.speckle_range.is_nan() || self.speckle_range < 0.0 {
             return bad("speckle range", format!("{}", self.speckle_range));
         }
         Ok(())
@@ -215,7 +218,11 @@ pub fn match_pair(left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> Result<
 pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Result<SgmOutput, StereoError> {
     p.validate()?;
     if gl.len() != w * h || gr.len() != w * h {
-        return Err(StereoError::SizeMismatch(format!("grey buffers of {} and {} bytes for {w}x{h}", gl.len(), gr.len())));
+        return Err(StereoError::SizeMismatch(format!(
+            "grey buffers of {} and {} bytes for {w}x{h}",
+            gl.len(),
+            gr.len()
+        )));
     }
     let avx2 = p.kernel == Kernel::Auto && avx2_available();
     let nd = p.n_disparities();
@@ -309,6 +316,15 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
         disparity: Image { width: w, height: h, channels: 1, data: disp },
         confidence: Image { width: w, height: h, channels: 1, data: conf },
         dy,
-        stats: SgmStats { width: w, height: h, n_valid, n_not_unique, n_lr_rejected, n_speckle_removed, n_filled, avx2 },
+        stats: SgmStats {
+            width: w,
+            height: h,
+            n_valid,
+            n_not_unique,
+            n_lr_rejected,
+            n_speckle_removed,
+            n_filled,
+            avx2,
+        },
     })
 }

@@ -93,7 +93,7 @@ fn finish(s: &[u16], nd: usize, best: usize, smin: u16, second: u16) -> Selectio
 #[target_feature(enable = "avx2,bmi1")]
 pub unsafe fn select_avx2(s: &[u16], nd: usize, ndp: usize) -> Selection {
     use std::arch::x86_64::*;
-    debug_assert!(s.len() >= ndp && ndp % 16 == 0);
+    debug_assert!(s.len() >= ndp && ndp.is_multiple_of(16));
     let p = s.as_ptr();
     let mut vmin = _mm256_set1_epi16(-1);
     let mut j = 0;

@@ -104,7 +104,13 @@ fn f32_to_f64(img: &Image<f32>) -> Image<f64> {
     img.map(|v| if v.is_finite() { v as f64 } else { f64::NAN })
 }
 
-fn save_colour(path: &Path, img: &Image<f64>, cmap: Colormap, label: &str, fixed: Option<(f64, f64)>) -> anyhow::Result<()> {
+fn save_colour(
+    path: &Path,
+    img: &Image<f64>,
+    cmap: Colormap,
+    label: &str,
+    fixed: Option<(f64, f64)>,
+) -> anyhow::Result<()> {
     let (lo, hi) = fixed.or_else(|| percentile_range(img, 1.0, 99.0)).unwrap_or((0.0, 1.0));
     let (lo, hi) = if hi > lo { (lo, hi) } else { (lo - 1.0, lo + 1.0) };
     laparo_core::io::write_png(path, &with_colorbar(&colorize(img, lo, hi, cmap), lo, hi, cmap, label))?;
@@ -165,7 +171,8 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
             for warn in super::stereo::check_calibration_fits(c, w, h, &label)? {
                 eprintln!("warning: {warn}");
             }
-            let rect = Rectification::new(c, RectifyOptions::default()).context("cannot rectify with this calibration")?;
+            let rect =
+                Rectification::new(c, RectifyOptions::default()).context("cannot rectify with this calibration")?;
             let (l, _) = rect.rectify_image(Side::Left, &left)?;
             let (r, _) = rect.rectify_image(Side::Right, &right)?;
             laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
@@ -186,7 +193,13 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
     write_pfm(&o.join("confidence.pfm"), &out.confidence)?;
     let disp64 = f32_to_f64(&disp);
     save_colour(&o.join("disparity.png"), &disp64, Colormap::Turbo, "disparity [px]", None)?;
-    save_colour(&o.join("confidence.png"), &out.confidence.map(|v| v as f64), Colormap::Viridis, "confidence", Some((0.0, 1.0)))?;
+    save_colour(
+        &o.join("confidence.png"),
+        &out.confidence.map(|v| v as f64),
+        Colormap::Viridis,
+        "confidence",
+        Some((0.0, 1.0)),
+    )?;
     if let Some(dy) = &out.dy {
         write_pfm(&o.join("dy.pfm"), dy)?;
         let k = a.vertical_tol as f64;
@@ -203,7 +216,8 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
         save_colour(&o.join("depth.png"), &depth, Colormap::Viridis, "depth [mm]", None)?;
         let mut z: Vec<f64> = depth.data.iter().cloned().filter(|v| v.is_finite()).collect();
         if !z.is_empty() {
-            depth_stats = serde_json::json!({"n": z.len(), "median_mm": laparo_core::stats::median(&mut z), "geometry": g});
+            depth_stats =
+                serde_json::json!({"n": z.len(), "median_mm": laparo_core::stats::median(&mut z), "geometry": g});
         }
     }
     let mut raw = serde_json::Value::Null;
@@ -233,7 +247,10 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
         "frame": if rect.is_some() { "rectified (calibrated); disparity_raw.pfm is the raw left frame" } else { "raw left frame" },
         "depth": depth_stats, "raw_frame": raw,
     });
-    laparo_core::atomic::write_atomic(&o.join("stats.json"), (serde_json::to_string_pretty(&stats)? + "\n").as_bytes())?;
+    laparo_core::atomic::write_atomic(
+        &o.join("stats.json"),
+        (serde_json::to_string_pretty(&stats)? + "\n").as_bytes(),
+    )?;
     println!(
         "matched {}x{} over [{lo}, {hi}) px ({} paths{}) in {ms:.0} ms: {:.1} % valid, d p1/50/99 {:.1}/{:.1}/{:.1} px -> {}",
         w,

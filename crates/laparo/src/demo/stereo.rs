@@ -510,6 +510,7 @@ fn sgm_subsection(dir: &Path) -> Result<Option<(String, serde_json::Value)>> {
     fill_background(&mut filled, w, h);
     let (mut n, mut nv, mut e, mut b3, mut neg) = (0usize, 0usize, 0f64, 0usize, 0usize);
     let mut err = Image::filled(w, h, 1, f64::NAN);
+    #[allow(clippy::needless_range_loop)]
     for i in 0..w * h {
         let g = gt.data[i] as f64;
         if !g.is_finite() {
