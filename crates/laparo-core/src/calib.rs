@@ -32,13 +32,21 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(into = "StereoJson", try_from = "StereoJson")]
 pub struct StereoCalibration {
+    /// Image width (px), both cameras.
     pub width: usize,
+    /// Image height (px), both cameras.
     pub height: usize,
+    /// Left camera intrinsics (px).
     pub left: Intrinsics,
+    /// Left camera lens distortion.
     pub left_dist: Distortion,
+    /// Right camera intrinsics (px).
     pub right: Intrinsics,
+    /// Right camera lens distortion.
     pub right_dist: Distortion,
+    /// Rotation R of `X_right = R · X_left + T`.
     pub r: Matrix3<f64>,
+    /// Translation T of `X_right = R · X_left + T` (mm).
     pub t_mm: Vector3<f64>,
 }
 

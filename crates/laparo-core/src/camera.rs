@@ -9,14 +9,20 @@ use serde::{Deserialize, Serialize};
 /// Pinhole intrinsics: focal lengths and principal point in px, image size in px.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Intrinsics {
+    /// Focal length along x (px).
     pub fx: f64,
+    /// Focal length along y (px).
     pub fy: f64,
+    /// Principal point x (px; pixel centres at integers).
     pub cx: f64,
+    /// Principal point y (px).
     pub cy: f64,
     /// Skew (K[0,1]); 0 for nearly every camera.
     #[serde(default)]
     pub skew: f64,
+    /// Image width (px).
     pub width: usize,
+    /// Image height (px).
     pub height: usize,
 }
 
@@ -103,23 +109,35 @@ impl Intrinsics {
 /// (k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4); unused ones are 0.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Distortion {
+    /// Radial coefficient k1.
     pub k1: f64,
+    /// Radial coefficient k2.
     pub k2: f64,
+    /// Tangential coefficient p1.
     pub p1: f64,
+    /// Tangential coefficient p2.
     pub p2: f64,
+    /// Radial coefficient k3.
     pub k3: f64,
+    /// Rational-model denominator coefficient k4 (OpenCV rational model).
     #[serde(default)]
     pub k4: f64,
+    /// Rational-model denominator coefficient k5.
     #[serde(default)]
     pub k5: f64,
+    /// Rational-model denominator coefficient k6.
     #[serde(default)]
     pub k6: f64,
+    /// Thin-prism coefficient s1.
     #[serde(default)]
     pub s1: f64,
+    /// Thin-prism coefficient s2.
     #[serde(default)]
     pub s2: f64,
+    /// Thin-prism coefficient s3.
     #[serde(default)]
     pub s3: f64,
+    /// Thin-prism coefficient s4.
     #[serde(default)]
     pub s4: f64,
 }

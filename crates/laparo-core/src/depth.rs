@@ -8,8 +8,10 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum DepthUnit {
+    /// Metres.
     #[serde(alias = "metres", alias = "meters")]
     M,
+    /// Millimetres.
     #[serde(alias = "millimetres", alias = "millimeters")]
     Mm,
 }
@@ -47,9 +49,13 @@ impl std::fmt::Display for DepthUnit {
 /// A depth map (z along the optical axis) in a stated unit; row-major, f64.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DepthMap {
+    /// Width (px).
     pub width: usize,
+    /// Height (px).
     pub height: usize,
+    /// Unit of `data`.
     pub unit: DepthUnit,
+    /// Row-major depth values (z along the optical axis); non-finite or ≤ 0 = invalid.
     pub data: Vec<f64>,
 }
 

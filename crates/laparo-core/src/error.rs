@@ -7,13 +7,28 @@ pub enum CoreError {
     /// The operating system failed to read or write `path`. The OS error is part of the message
     /// (not also reported as `source()`, so an error chain does not print it twice).
     #[error("{path}: {error}")]
-    Io { path: PathBuf, error: std::io::Error },
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The operating-system error.
+        error: std::io::Error,
+    },
     /// `path` could be read but its content is not what its format requires.
     #[error("{path}: {msg}")]
-    Format { path: PathBuf, msg: String },
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with its content.
+        msg: String,
+    },
     /// A parameter or an in-memory value is invalid (the message names it).
     #[error("invalid {what}: {msg}")]
-    Invalid { what: String, msg: String },
+    Invalid {
+        /// The parameter or value.
+        what: String,
+        /// What is wrong with it.
+        msg: String,
+    },
     /// Two inputs that must agree in size do not.
     #[error("size mismatch: {0}")]
     SizeMismatch(String),

@@ -6,9 +6,13 @@ use crate::error::{CoreError, Result};
 /// Pixel centres are at integer coordinates (x = 0 is the centre of the first column).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image<T> {
+    /// Width (px).
     pub width: usize,
+    /// Height (px).
     pub height: usize,
+    /// Interleaved channels per pixel (1 grey, 3 RGB, 4 RGBA).
     pub channels: usize,
+    /// Row-major, channel-interleaved values: `(y * width + x) * channels + c`.
     pub data: Vec<T>,
 }
 

@@ -5,6 +5,7 @@
 //! formats surgical-vision users exchange (PNG 8/16-bit, JPEG, .npy/.npz, PFM, float TIFF,
 //! OpenCV FileStorage YAML, JSON, OBJ/PLY/STL, Gmsh .msh, legacy VTK), and PNG/SVG figures with a
 //! bundled font. See the crate README for the format conventions.
+#![warn(missing_docs)]
 
 pub mod atomic;
 pub mod calib;

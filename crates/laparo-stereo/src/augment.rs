@@ -209,6 +209,7 @@ pub struct CameraMap {
     dist_out: Option<Distortion>,
     /// Image size (source and augmented).
     pub width: usize,
+    /// Image height (px).
     pub height: usize,
 }
 
@@ -346,7 +347,9 @@ impl CameraMap {
 /// A warped image with its validity mask (true where the source pixel existed).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Warped<T> {
+    /// The warped image.
     pub image: Image<T>,
+    /// True where the source pixel existed.
     pub valid: Mask,
 }
 
@@ -419,11 +422,17 @@ impl std::str::FromStr for GtRule {
 /// right: x_L = x + d; non-finite = unknown) and optional occlusion masks.
 #[derive(Clone, Debug)]
 pub struct StereoSample {
+    /// Left image (8-bit).
     pub left: Image<u8>,
+    /// Right image (8-bit).
     pub right: Image<u8>,
+    /// Left disparity GT (px; x_R = x − d; non-finite = unknown).
     pub disp_left: Option<Image<f32>>,
+    /// Right disparity GT (px; x_L = x + d; non-finite = unknown).
     pub disp_right: Option<Image<f32>>,
+    /// Left occlusion mask (true = occluded).
     pub occ_left: Option<Mask>,
+    /// Right occlusion mask (true = occluded).
     pub occ_right: Option<Mask>,
 }
 
@@ -431,19 +440,28 @@ pub struct StereoSample {
 /// y of the correspondence in the other augmented view minus y of the pixel, px (NaN if unknown).
 #[derive(Clone, Debug)]
 pub struct AugmentedDisparity {
+    /// Disparity (px), +inf where unknown.
     pub disparity: Image<f32>,
+    /// True where the disparity is known.
     pub valid: Mask,
+    /// Vertical residual (px) of the exact rule; NaN where unknown.
     pub vertical_residual: Option<Image<f32>>,
 }
 
 /// An augmented stereo sample.
 #[derive(Clone, Debug)]
 pub struct AugmentedStereo {
+    /// Augmented left image and its validity.
     pub left: Warped<u8>,
+    /// Augmented right image and its validity.
     pub right: Warped<u8>,
+    /// Augmented left disparity.
     pub disp_left: Option<AugmentedDisparity>,
+    /// Augmented right disparity.
     pub disp_right: Option<AugmentedDisparity>,
+    /// Warped left occlusion mask.
     pub occ_left: Option<Mask>,
+    /// Warped right occlusion mask.
     pub occ_right: Option<Mask>,
 }
 

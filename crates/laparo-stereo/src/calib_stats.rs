@@ -129,6 +129,7 @@ pub fn euler_deg(r: &Matrix3<f64>) -> [f64; 3] {
 pub struct CalibStats {
     /// Image size (px) used for the distortion displacement.
     pub width: usize,
+    /// Image height (px).
     pub height: usize,
     /// Euler angles `[x, y, z]` (deg) of the left camera's rotation from the ideal frame.
     pub left_euler_deg: [f64; 3],
@@ -146,6 +147,7 @@ pub struct CalibStats {
     pub relative_rotation_deg: f64,
     /// Largest distortion displacement inside the left / right image (px).
     pub left_max_distortion_px: f64,
+    /// Largest distortion displacement inside the right image (px).
     pub right_max_distortion_px: f64,
     /// Max of the two.
     pub max_distortion_px: f64,
@@ -250,10 +252,13 @@ pub fn stereo_extrinsics_from_rotations(
 /// Mean and standard deviation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MeanStd {
+    /// Mean.
     pub mean: f64,
     /// Population standard deviation (divide by n, the maximum-likelihood Gaussian fit; numpy's default).
     pub std: f64,
+    /// Minimum.
     pub min: f64,
+    /// Maximum.
     pub max: f64,
 }
 
@@ -279,12 +284,17 @@ impl MeanStd {
 /// Summary statistics over a set of calibrations (one row pair of Table 3.6, plus offsets).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StatsSummary {
+    /// Number of calibrations.
     pub n: usize,
     /// Per angle `[x, y, z]`.
     pub left_euler_deg: [MeanStd; 3],
+    /// Right camera Euler angles `[x, y, z]` (deg).
     pub right_euler_deg: [MeanStd; 3],
+    /// `c_x^L − c_x^R` (px).
     pub principal_point_offset_px: MeanStd,
+    /// `|T|` (mm).
     pub baseline_mm: MeanStd,
+    /// Largest distortion displacement of either image (px).
     pub max_distortion_px: MeanStd,
 }
 

@@ -40,11 +40,24 @@ pub use crate::error::ConfigError;
 #[serde(tag = "dist", rename_all = "lowercase")]
 pub enum Dist {
     /// Always `value`.
-    Fixed { value: f64 },
+    Fixed {
+        /// The value.
+        value: f64,
+    },
     /// Gaussian N(mean, std²) (eq. 3.7).
-    Normal { mean: f64, std: f64 },
+    Normal {
+        /// Mean.
+        mean: f64,
+        /// Standard deviation.
+        std: f64,
+    },
     /// Uniform on [min, max] (Δx_right ~ U(−100, 0), §3.3.5).
-    Uniform { min: f64, max: f64 },
+    Uniform {
+        /// Lower bound.
+        min: f64,
+        /// Upper bound.
+        max: f64,
+    },
 }
 
 impl Dist {
@@ -115,14 +128,19 @@ pub struct EulerDist {
 /// Distributions of the augmented camera's Brown–Conrady coefficients θ' (eq. 3.5); all 0 by default.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DistortionDist {
+    /// Distribution of k1.
     #[serde(default = "zero")]
     pub k1: Dist,
+    /// Distribution of k2.
     #[serde(default = "zero")]
     pub k2: Dist,
+    /// Distribution of p1.
     #[serde(default = "zero")]
     pub p1: Dist,
+    /// Distribution of p2.
     #[serde(default = "zero")]
     pub p2: Dist,
+    /// Distribution of k3.
     #[serde(default = "zero")]
     pub k3: Dist,
 }
@@ -170,10 +188,12 @@ pub struct DisparityOffsetDist {
 pub struct SourceCamera {
     /// Focal lengths, px.
     pub fx: f64,
+    /// Focal length along y, px.
     pub fy: f64,
     /// Principal point, px; image centre ((w − 1)/2, (h − 1)/2) when absent.
     #[serde(default)]
     pub cx: Option<f64>,
+    /// Principal point y, px; image centre when absent.
     #[serde(default)]
     pub cy: Option<f64>,
     /// Right principal point x, px, when it differs from the left one (Middlebury cx1).

@@ -20,7 +20,9 @@ pub struct DisparityGeometry {
     pub baseline_mm: f64,
     /// Principal points (px).
     pub cx_left: f64,
+    /// Right principal point x (px).
     pub cx_right: f64,
+    /// Principal point y (px; both cameras after rectification).
     pub cy: f64,
 }
 

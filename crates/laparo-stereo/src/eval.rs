@@ -56,8 +56,11 @@ pub struct BadK {
 pub struct DepthMetrics {
     /// Pixels with valid GT depth.
     pub n_valid: usize,
+    /// Mean |z − z*| (mm).
     pub mae_mm: f64,
+    /// Root-mean-square z − z* (mm).
     pub rmse_mm: f64,
+    /// Mean |z − z*| / z*.
     pub abs_rel: f64,
     /// Fraction (0..1) with max(z/z*, z*/z) < 1.25^0.25.
     pub delta_0_25: f64,
@@ -70,7 +73,9 @@ pub struct DepthMetrics {
 /// All metrics of one prediction.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StereoMetrics {
+    /// Image width (px).
     pub width: usize,
+    /// Image height (px).
     pub height: usize,
     /// Valid GT pixels.
     pub n_valid: usize,
@@ -78,7 +83,9 @@ pub struct StereoMetrics {
     pub n_pred_missing: usize,
     /// Mean |d − d*| (px) over valid GT pixels with a finite prediction.
     pub epe_px: f64,
+    /// Bad-k fractions for each threshold k.
     pub bad: Vec<BadK>,
+    /// Depth metrics, when a geometry was given.
     pub depth: Option<DepthMetrics>,
 }
 
@@ -122,6 +129,7 @@ pub struct EvalMaps {
     pub disparity_error_px: Image<f64>,
     /// Predicted and GT depth (mm), when a geometry was given (prediction clamped).
     pub depth_pred_mm: Option<Image<f64>>,
+    /// Ground-truth depth (mm).
     pub depth_gt_mm: Option<Image<f64>>,
     /// |z − z*| (mm) on pixels with valid GT depth.
     pub depth_error_mm: Option<Image<f64>>,

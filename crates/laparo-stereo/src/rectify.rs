@@ -56,7 +56,9 @@ impl Default for RectifyOptions {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Side {
+    /// The left camera.
     Left,
+    /// The right camera.
     Right,
 }
 
@@ -67,9 +69,11 @@ pub struct Rectification {
     pub calib: StereoCalibration,
     /// Rectifying rotations: `X_rect,left = r1 X_left`, `X_rect,right = r2 X_right`.
     pub r1: Matrix3<f64>,
+    /// Right rectifying rotation.
     pub r2: Matrix3<f64>,
     /// New (rectified) cameras: same f, same c_y; same c_x when principal points are aligned.
     pub k1: Intrinsics,
+    /// New right camera.
     pub k2: Intrinsics,
     /// |T| (mm).
     pub baseline_mm: f64,
@@ -81,10 +85,13 @@ pub struct Rectification {
 /// `laparo stereo rectify` next to the rectified calibration.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RectificationInfo {
+    /// Image width (px).
     pub width: usize,
+    /// Image height (px).
     pub height: usize,
     /// New camera matrices (3×3, row-major).
     pub k_left: [[f64; 3]; 3],
+    /// New right camera matrix (3×3, row-major).
     pub k_right: [[f64; 3]; 3],
     /// Rectified focal length (px).
     pub focal_px: f64,
@@ -94,11 +101,17 @@ pub struct RectificationInfo {
     pub doffs_px: f64,
     /// `R1`, `R2`, `P1`, `P2`, `Q` as OpenCV's `stereoRectify` (T in mm).
     pub r1: [[f64; 3]; 3],
+    /// OpenCV `R2`.
     pub r2: [[f64; 3]; 3],
+    /// OpenCV `P1` (3×4).
     pub p1: [[f64; 4]; 3],
+    /// OpenCV `P2` (3×4).
     pub p2: [[f64; 4]; 3],
+    /// OpenCV `Q` (4×4, T in mm).
     pub q: [[f64; 4]; 4],
+    /// Free scaling α of `stereoRectify` (0 = only valid pixels, 1 = all source pixels).
     pub alpha: f64,
+    /// Whether c_x of both rectified cameras was made equal.
     pub align_principal_points: bool,
 }
 

@@ -12,9 +12,11 @@ use nalgebra::{Matrix3, Vector3};
 pub struct Scene {
     /// Background plane n·P = c (n not necessarily unit).
     pub plane_n: Vector3<f64>,
+    /// Plane offset c of n·P = c (mm).
     pub plane_c: f64,
     /// Axis-aligned box [min, max].
     pub box_min: Vector3<f64>,
+    /// Upper corner of the box (mm).
     pub box_max: Vector3<f64>,
 }
 

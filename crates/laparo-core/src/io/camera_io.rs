@@ -42,13 +42,21 @@ pub fn check_image_size(width: u64, height: u64, what: &str) -> Result<(usize, u
 /// the file has none) and the image size when the file states it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraFile {
+    /// The file it was read from (named in errors).
     pub path: PathBuf,
+    /// Focal length along x (px).
     pub fx: f64,
+    /// Focal length along y (px).
     pub fy: f64,
+    /// Principal point x (px).
     pub cx: f64,
+    /// Principal point y (px).
     pub cy: f64,
+    /// Skew (K[0,1]), usually 0.
     pub skew: f64,
+    /// Image size (width, height) in px, when the file gives it.
     pub size: Option<(usize, usize)>,
+    /// Lens distortion (all zero when the file has none).
     pub distortion: Distortion,
 }
 

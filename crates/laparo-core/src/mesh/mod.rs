@@ -37,24 +37,33 @@ use std::path::Path;
 /// (right-hand rule) gives outward normals.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {
+    /// Vertex positions (the file's unit, usually mm).
     pub vertices: Vec<Vector3<f64>>,
+    /// Triangles as vertex indices, counter-clockwise seen from outside.
     pub faces: Vec<[usize; 3]>,
 }
 
 /// A tetrahedral volume mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TetMesh {
+    /// Vertex positions (the file's unit, usually mm).
     pub vertices: Vec<Vector3<f64>>,
+    /// Tetrahedra as vertex indices.
     pub tets: Vec<[usize; 4]>,
 }
 
 /// Triangles and tetrahedra of one file (Gmsh, VTK), with their physical/cell tags (0 if none).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MixedMesh {
+    /// Vertex positions (the file's unit).
     pub vertices: Vec<Vector3<f64>>,
+    /// Surface triangles as vertex indices.
     pub triangles: Vec<[usize; 3]>,
+    /// Physical tag of each triangle (Gmsh physical group; 0 if none).
     pub triangle_tags: Vec<i64>,
+    /// Tetrahedra as vertex indices.
     pub tets: Vec<[usize; 4]>,
+    /// Physical tag of each tetrahedron (0 if none).
     pub tet_tags: Vec<i64>,
 }
 

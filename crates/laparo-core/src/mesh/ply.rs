@@ -256,7 +256,9 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
 /// PLY body encoding for [`write_ply_with`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PlyEncoding {
+    /// ASCII PLY.
     Ascii,
+    /// Binary little-endian PLY.
     BinaryLittleEndian,
 }
 

@@ -47,6 +47,7 @@ mod tests;
 
 pub use kernel::{bilerp, homography_row, lerp, Real};
 
+use crate::camera::{Distortion, Intrinsics};
 use crate::error::{CoreError, Result};
 use crate::image::{Image, Mask};
 use rayon::prelude::*;
@@ -241,6 +242,20 @@ impl CoordMap {
     /// The identity map of a `width`×`height` image.
     pub fn identity(width: usize, height: usize) -> CoordMap {
         let xy = (0..width * height).map(|i| [(i % width) as f32, (i / width) as f32]).collect();
+        CoordMap { width, height, xy }
+    }
+
+    /// The undistortion map of camera `k` with lens `distortion` (OpenCV `initUndistortRectifyMap`
+    /// with R = I and P = K): output pixel (u, v) of the ideal pinhole image with the same `k`
+    /// samples the distorted image at `distortion.distort_pixel(k, u, v)` (px).
+    pub fn undistort(k: &Intrinsics, distortion: &Distortion, width: usize, height: usize) -> CoordMap {
+        let xy = (0..width * height)
+            .into_par_iter()
+            .map(|i| {
+                let (u, v) = distortion.distort_pixel(k, (i % width) as f64, (i / width) as f64);
+                [u as f32, v as f32]
+            })
+            .collect();
         CoordMap { width, height, xy }
     }
 }

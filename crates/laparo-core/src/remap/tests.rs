@@ -321,3 +321,23 @@ fn homography_row_identity_is_exact() {
         assert_eq!((a, b), (i as f32 - 7.0, 3.0));
     }
 }
+
+/// The undistortion map inverts the distortion: a point drawn in the distorted image at
+/// `distort_pixel(p)` lands back at `p` (closed form of the map, checked against the camera
+/// model's own iterative undistortion).
+#[test]
+fn undistort_map_inverts_the_camera_distortion() {
+    let k = Intrinsics::new(500.0, 505.0, 321.5, 238.0, 640, 480).unwrap();
+    let d = Distortion::brown_conrady(-0.23, 0.34, 0.001, -0.0005, -0.24);
+    let map = CoordMap::undistort(&k, &d, 640, 480);
+    for &(u, v) in &[(10usize, 12usize), (320, 240), (600, 400), (100, 450)] {
+        let [sx, sy] = map.xy[v * 640 + u];
+        let (bu, bv) = d.undistort_pixel(&k, sx as f64, sy as f64).unwrap();
+        assert!(
+            (bu - u as f64).abs() < 1e-3 && (bv - v as f64).abs() < 1e-3,
+            "({u},{v}) -> ({sx},{sy}) -> ({bu},{bv})"
+        );
+    }
+    // With zero distortion the map is the identity.
+    assert_eq!(CoordMap::undistort(&k, &Distortion::default(), 64, 48), CoordMap::identity(64, 48));
+}

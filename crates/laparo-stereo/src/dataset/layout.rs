@@ -38,9 +38,13 @@ impl std::str::FromStr for Layout {
 pub struct SampleFiles {
     /// Left image path relative to the root, without extension, `/`-separated.
     pub id: String,
+    /// Left image.
     pub left: PathBuf,
+    /// Right image.
     pub right: PathBuf,
+    /// Left disparity GT, when the layout has one.
     pub disp_left: Option<PathBuf>,
+    /// Right disparity GT, when the layout has one.
     pub disp_right: Option<PathBuf>,
     /// Middlebury `calib.txt`.
     pub calib: Option<PathBuf>,

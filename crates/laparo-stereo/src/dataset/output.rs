@@ -13,32 +13,44 @@ use std::path::{Path, PathBuf};
 /// Summary numbers of one augmented sample (stored in the sidecar).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SampleStats {
+    /// Fraction of augmented left pixels with a source pixel.
     pub valid_fraction_left: f64,
+    /// Fraction of augmented right pixels with a source pixel.
     pub valid_fraction_right: f64,
     /// Fraction of augmented left pixels with a known disparity.
     pub disparity_valid_fraction: Option<f64>,
+    /// Smallest known augmented disparity (px).
     pub disparity_min_px: Option<f64>,
+    /// Largest known augmented disparity (px).
     pub disparity_max_px: Option<f64>,
     /// Exact rule: mean and max |vertical residual| (px).
     pub vertical_residual_mean_abs_px: Option<f64>,
+    /// Exact rule: max |vertical residual| (px).
     pub vertical_residual_max_abs_px: Option<f64>,
 }
 
 /// The JSON sidecar of an augmented sample.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Sidecar {
+    /// Version of laparo that wrote the sample.
     pub laparo_version: String,
+    /// Sample id (left image path relative to the root, without extension).
     pub sample_id: String,
+    /// Run seed.
     pub seed: u64,
     /// The ChaCha8 seed derived from (seed, sample_id).
     pub sample_seed: u64,
+    /// How the disparity GT was carried through the warp.
     pub gt_rule: GtRule,
+    /// The config file (or `default`) the parameters were sampled from.
     pub config_source: String,
     /// The sampled parameters (re-apply with `laparo cats apply --params`).
     pub params: StereoAugmentation,
     /// H = K_rel K R K⁻¹ of each camera, row-major.
     pub homography_left: Mat3Rows,
+    /// H of the right camera, row-major.
     pub homography_right: Mat3Rows,
+    /// Summary numbers of the sample.
     pub stats: SampleStats,
     /// [`run_params_hash`] of the run that wrote this sample (resume check); empty in sidecars
     /// of older versions.
@@ -108,11 +120,17 @@ fn disp_stats(d: &AugmentedDisparity, st: &mut SampleStats) {
 
 /// Output locations of one sample.
 pub struct OutputPaths {
+    /// Augmented left image.
     pub left: PathBuf,
+    /// Augmented right image.
     pub right: PathBuf,
+    /// Augmented left disparity (PFM).
     pub disp_left: Option<PathBuf>,
+    /// Augmented right disparity (PFM).
     pub disp_right: Option<PathBuf>,
+    /// JSON sidecar.
     pub sidecar: PathBuf,
+    /// Folder of auxiliary outputs (masks, residuals).
     pub aux_dir: PathBuf,
 }
 

@@ -8,10 +8,11 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::atomic::write_atomic;
-use laparo_core::camera::Intrinsics;
+use laparo_core::camera::{Distortion, Intrinsics};
 use laparo_core::depth::{DepthMap, DepthUnit};
 use laparo_core::image::{Image, Mask};
 use laparo_core::io;
+use laparo_core::remap::{remap, CoordMap, Interp};
 use laparo_cpc::lambda::{auto_lambda, default_lambda_grid};
 use laparo_cpc::pipeline::LambdaChoice;
 use laparo_cpc::scene::{self, SceneSpec, Surface, Texture};
@@ -38,8 +39,8 @@ pub struct InputArgs {
     /// Unit of the depth file (m or mm).
     #[arg(long, default_value = "mm")]
     pub depth_unit: DepthUnit,
-    /// Intrinsics (px): JSON {"fx","fy","cx","cy"} or {"K": 3x3}, numbers or numeric strings, optional "width"/"height" and distortion; ROS camera_info / OpenCV YAML; COLMAP cameras.txt. The size defaults to the depth map's; a camera with lens
-    /// distortion is refused (undistort first).
+    /// Intrinsics (px): JSON {"fx","fy","cx","cy"} or {"K": 3x3}, numbers or numeric strings, optional "width"/"height" and distortion; ROS camera_info / OpenCV YAML; COLMAP cameras.txt. The size defaults to the depth map's. With lens
+    /// distortion, image, depth and mask are undistorted first (same K; written as undistorted.png) and every output is in that pinhole frame.
     #[arg(long)]
     pub intrinsics: PathBuf,
     /// ROI mask (PNG/JPEG/TIFF: channel 0 non-zero; npy/npz/PFM/EXR: finite and non-zero); default: every pixel with valid depth.
@@ -134,11 +135,12 @@ pub fn run(c: CpcCmd) -> Result<()> {
 }
 
 /// The intrinsics of `--intrinsics` for a `w`×`h` depth map, through the shared camera reader
-/// (JSON `fx..cy` or `K`, numbers or numeric strings, ROS / OpenCV YAML, COLMAP, EndoVis). The CPC
-/// warp models a pinhole camera: a file with lens distortion is refused with a clear error.
-fn read_intrinsics(path: &Path, w: usize, h: usize) -> Result<Intrinsics> {
+/// (JSON `fx..cy` or `K`, numbers or numeric strings, ROS / OpenCV YAML, COLMAP, EndoVis), and
+/// its lens distortion if it has one (CPC models a pinhole camera: the inputs are undistorted).
+fn read_intrinsics(path: &Path, w: usize, h: usize) -> Result<(Intrinsics, Option<Distortion>)> {
     let cam = io::read_camera(path).with_context(|| format!("reading intrinsics {}", path.display()))?;
-    Ok(cam.intrinsics_undistorted(Some((w, h)), "cpc warp")?)
+    let k = cam.intrinsics(Some((w, h))).with_context(|| format!("intrinsics {}", path.display()))?;
+    Ok((k, cam.has_distortion().then_some(cam.distortion)))
 }
 
 fn read_mask(path: &Path) -> Result<Mask> {
@@ -150,6 +152,9 @@ struct Inputs {
     k: Intrinsics,
     roi: Mask,
     params: CpcParams,
+    /// The lens distortion of `--intrinsics` and its undistortion map, when it has one: `depth`
+    /// and `roi` are then already undistorted, the image must be too.
+    undistort: Option<(Distortion, CoordMap)>,
 }
 
 /// `resize`: bring the depth map to (width, height) px first (a prediction at network resolution).
@@ -161,8 +166,8 @@ fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::
             depth = resize_depth(&depth, w, h, f)?;
         }
     }
-    let k = read_intrinsics(&a.intrinsics, depth.width, depth.height)?;
-    let roi = match &a.mask {
+    let (k, distortion) = read_intrinsics(&a.intrinsics, depth.width, depth.height)?;
+    let mut roi = match &a.mask {
         Some(p) => read_mask(p)?,
         None => depth.valid_mask(),
     };
@@ -187,7 +192,21 @@ fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::
         conformal: ConformalParams { theta_rad: a.theta_deg.to_radians(), ..ConformalParams::default() },
         ..CpcParams::default()
     };
-    Ok(Inputs { depth, k, roi, params })
+    // Lens distortion is applied, never ignored: depth (bilinear; NaN where any neighbour is
+    // invalid) and ROI (nearest) are resampled into the pinhole image with the same K.
+    let undistort = match distortion {
+        Some(d) => {
+            let map = CoordMap::undistort(&k, &d, depth.width, depth.height);
+            let dimg = depth.to_image().map(|v| if DepthMap::is_valid(v) { v } else { f64::NAN });
+            let (ud, _) = remap(&dimg, &map, Interp::Bilinear, f64::NAN)?;
+            depth = DepthMap::new(ud.width, ud.height, depth.unit, ud.data)?;
+            let (ur, _) = remap(&roi.map(|b| b as u8), &map, Interp::Nearest, 0u8)?;
+            roi = ur.map(|v| v != 0);
+            Some((d, map))
+        }
+        None => None,
+    };
+    Ok(Inputs { depth, k, roi, params, undistort })
 }
 
 fn f32_map(m: &Image<f64>) -> Image<f32> {
@@ -195,7 +214,8 @@ fn f32_map(m: &Image<f64>) -> Image<f32> {
 }
 
 /// Files `cpc warp` writes into its output folder.
-const WARP_OUTPUTS: [&str; 7] = [
+const WARP_OUTPUTS: [&str; 8] = [
+    "undistorted.png",
     "warped.png",
     "mask.png",
     "map_backward.npy",
@@ -352,9 +372,16 @@ fn warp_one(
     if a.equiareal {
         inp.params.equiareal = Some(Default::default());
     }
+    let image = match &inp.undistort {
+        Some((_, map)) => remap(&image, map, Interp::Bilinear, 0u8)?.0,
+        None => image,
+    };
     let mut r = laparo_cpc::cpc_warp_with(solver, &image, &inp.depth, &inp.k, &inp.roi, &inp.params)?;
     let t = Instant::now();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    if inp.undistort.is_some() {
+        io::write_png(out.join("undistorted.png"), &image)?;
+    }
     io::write_png(out.join("warped.png"), &r.warped)?;
     io::write_png(out.join("mask.png"), &r.mask.map(|b| if b { 255u8 } else { 0 }))?;
     let maps = r.warp.maps();
@@ -369,6 +396,12 @@ fn warp_one(
     let mut stats = serde_json::to_value(&r.stats)?;
     stats["inputs"] = json!({"image": image_path, "depth": input.depth, "depth_unit": input.depth_unit.to_string(),
         "intrinsics": input.intrinsics, "mask": input.mask, "resize_depth": a.resize_depth});
+    if let Some((d, _)) = &inp.undistort {
+        stats["undistorted"] = json!({
+            "distortion_opencv": d.to_opencv(),
+            "note": "the camera has lens distortion: image, depth and mask were undistorted to the pinhole camera with the same K (undistorted.png); every output is in that frame"
+        });
+    }
     stats["maps"] = json!({
         "map_backward.npy": "HxWx2 float32, canvas pixel -> original (x, y) px, NaN where invalid",
         "map_forward.npy": "HxWx2 float32 (original size), original pixel -> canvas (x, y) px, NaN outside the mesh"

@@ -16,11 +16,15 @@ use std::path::{Path, PathBuf};
 /// A dense matrix from a `!!opencv-matrix` node (row-major, `channels` interleaved).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FsMatrix {
+    /// Rows.
     pub rows: usize,
+    /// Columns.
     pub cols: usize,
+    /// Interleaved channels per element.
     pub channels: usize,
     /// OpenCV element type code as written (`d`, `f`, `i`, `u`, `3d`, ...).
     pub dt: String,
+    /// Row-major values (channels interleaved), as f64.
     pub data: Vec<f64>,
 }
 
@@ -57,12 +61,17 @@ impl FsMatrix {
 /// One node of an OpenCV FileStorage document.
 #[derive(Clone, Debug, PartialEq)]
 pub enum FsNode {
+    /// An integer scalar.
     Int(i64),
+    /// A real scalar.
     Real(f64),
+    /// A string scalar.
     Str(String),
+    /// A sequence `[ ... ]` or `- ...` items.
     Seq(Vec<FsNode>),
     /// A mapping, keys in file order.
     Map(Vec<(String, FsNode)>),
+    /// An `!!opencv-matrix`.
     Mat(FsMatrix),
     /// `key:` with nothing after it.
     Empty,
@@ -114,6 +123,7 @@ impl FsNode {
 pub struct FileStorage {
     /// The file it was read from (used in error messages; empty for in-memory documents).
     pub path: PathBuf,
+    /// Top-level key/value pairs in file order.
     pub entries: Vec<(String, FsNode)>,
 }
 
