@@ -13,6 +13,8 @@ use clap::{Parser, Subcommand};
 mod cats;
 mod cpc;
 mod depth;
+mod features;
+mod geo;
 mod mpm;
 mod stereo;
 mod stereo_match;
@@ -39,6 +41,10 @@ enum Command {
     Mpm(mpm::BenchArgs),
     /// SGM matching (laparo_stereo::sgm) against OpenCV StereoSGBM (../shared/bench/sgbm_ref.py), interleaved.
     StereoMatch(stereo_match::BenchArgs),
+    /// SIFT/ORB detect+describe and matching vs OpenCV (../shared/bench/features_ref.py).
+    Features(features::BenchArgs),
+    /// RANSAC H/F and self-rectification timings (optionally against OpenCV stereoRectifyUncalibrated).
+    Geo(geo::BenchArgs),
 }
 
 fn main() {
@@ -50,6 +56,8 @@ fn main() {
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
         Command::StereoMatch(a) => stereo_match::run(a),
+        Command::Features(a) => features::run(a),
+        Command::Geo(a) => geo::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the
     // libraries' parallel regions start and end on a pool thread; timings are then those a

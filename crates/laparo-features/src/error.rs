@@ -15,6 +15,14 @@ pub enum FeaturesError {
     /// Too few correspondences, or a degenerate configuration, for a robust fit.
     #[error("estimation failed: {0}")]
     Estimation(String),
+    /// An SQLite error while writing a COLMAP database.
+    #[error("COLMAP database {path}: {msg}")]
+    Database {
+        /// The database file.
+        path: String,
+        /// What went wrong.
+        msg: String,
+    },
     /// An error from laparo-core (file I/O, formats).
     #[error(transparent)]
     Core(#[from] CoreError),

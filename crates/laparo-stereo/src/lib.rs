@@ -25,6 +25,8 @@ pub mod disparity;
 pub mod error;
 pub mod eval;
 pub mod rectify;
+// Self-rectification without a calibration (issue 14 item 3).
+pub mod self_rectify;
 
 // Semi-global matching with signed ranges and vertical tolerance (issue 14).
 pub mod sgm;

@@ -36,6 +36,9 @@ enum Command {
     /// Differentiable Material Point Method simulation (thesis §5.2.3–5.2.4).
     #[command(subcommand)]
     Mpm(cmd::mpm::MpmCmd),
+    /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
+    #[command(subcommand)]
+    Features(cmd::features::FeaturesCmd),
     /// Run every module on built-in data and write an HTML report.
     Demo(demo::DemoArgs),
     /// Benchmarks moved to the separate `laparo-bench` binary (this only says how to run it).
@@ -54,6 +57,7 @@ fn main() {
         Command::Stereo(c) => cmd::stereo::run(c),
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
+        Command::Features(c) => cmd::features::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(
             "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \

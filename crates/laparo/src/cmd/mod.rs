@@ -4,6 +4,7 @@ pub mod cats_stats;
 pub mod cpc;
 pub mod depth;
 pub mod depth_tools;
+pub mod features;
 pub mod mpm;
 pub mod stereo;
 pub mod stereo_match;

@@ -1,0 +1,215 @@
+//! `laparo-bench geo`: robust two-view geometry (laparo-features `ransac/`) and self-rectification
+//! (laparo-stereo `self_rectify`) timings, optionally against the OpenCV peer
+//! `scripts/self_rectify_opencv.py` (findFundamentalMat + stereoRectifyUncalibrated) on the
+//! same matches in the same run.
+//!
+//! Workloads: (1) H and F RANSAC on 500 synthetic correspondences, 50 % outliers, 0.5 px noise;
+//! (2) self-rectification of a CATS-perturbed Middlebury Motorcycle pair (rotations ±0.4°,
+//! principal-point shifts ±60 px) whose exact correspondences are scaled to 1280×1024
+//! (x·1280/741, y·1024/500: an axis scaling keeps rows rows), 1,500 of them + 500 random
+//! outliers as matches; timed: matches → rectifying homographies, and that plus warping two
+//! 1280×1024 RGB images.
+use crate::timing::time_min_median;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use laparo_core::{io, Image, Intrinsics};
+use laparo_features::ransac::{find_fundamental, find_homography, RansacParams};
+use laparo_stereo::augment::{augment_stereo, GtRule, StereoSample};
+use laparo_stereo::self_rectify::{exact_correspondences, perturbation, self_rectify, DyStats, SelfRectifyOptions};
+use nalgebra::{Matrix3, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use std::path::PathBuf;
+
+/// Options of `laparo-bench geo`.
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Middlebury Motorcycle directory (motorcycle_left.png, motorcycle_right.png, motorcycle_disp.pfm).
+    #[arg(long, default_value = "../shared/data/middlebury-motorcycle")]
+    pub data: PathBuf,
+    /// Seed of the CATS perturbation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Timed runs (after one warm-up; minimum and median reported).
+    #[arg(long, default_value_t = 10)]
+    pub runs: usize,
+    /// Threads for laparo (rayon) and OpenCV.
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// Python with numpy + opencv-python-headless: run the peer script in the same session.
+    #[arg(long)]
+    pub peer_python: Option<PathBuf>,
+    /// The peer script.
+    #[arg(long, default_value = "scripts/self_rectify_opencv.py")]
+    pub peer_script: PathBuf,
+}
+
+fn synthetic_h() -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let n = Normal::new(0.0, 0.5).expect("valid sigma");
+    let h = Matrix3::new(0.85, -0.31, 120.0, 0.31, 0.85, -40.0, 2e-4, -1e-4, 1.0);
+    let (mut a, mut b) = (vec![], vec![]);
+    for i in 0..500 {
+        let p = [rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0)];
+        let q = if i % 2 == 0 {
+            let v = h * Vector3::new(p[0], p[1], 1.0);
+            [v[0] / v[2], v[1] / v[2]]
+        } else {
+            [rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0)]
+        };
+        a.push([p[0] + n.sample(&mut rng), p[1] + n.sample(&mut rng)]);
+        b.push([q[0] + n.sample(&mut rng), q[1] + n.sample(&mut rng)]);
+    }
+    (a, b)
+}
+
+fn synthetic_f() -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let n = Normal::new(0.0, 0.5).expect("valid sigma");
+    let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
+    let r = *nalgebra::Rotation3::from_euler_angles(0.05, -0.2, 0.03).matrix();
+    let t = Vector3::new(0.8, 0.1, 0.15);
+    let (mut a, mut b) = (vec![], vec![]);
+    while a.len() < 500 {
+        let z = rng.gen_range(3.0..8.0);
+        let x = Vector3::new(rng.gen_range(-0.6..0.6) * z, rng.gen_range(-0.45..0.45) * z, z);
+        let (u, v) = (k * x, k * (r * x + t));
+        let p = [u[0] / u[2], u[1] / u[2]];
+        let q = if a.len() % 2 == 0 {
+            [v[0] / v[2], v[1] / v[2]]
+        } else {
+            [rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0)]
+        };
+        if !(0.0..640.0).contains(&q[0]) || !(0.0..480.0).contains(&q[1]) {
+            continue;
+        }
+        a.push([p[0] + n.sample(&mut rng), p[1] + n.sample(&mut rng)]);
+        b.push([q[0] + n.sample(&mut rng), q[1] + n.sample(&mut rng)]);
+    }
+    (a, b)
+}
+
+pub fn run(a: BenchArgs) -> Result<()> {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.max(1)).stack_size(8 << 20).build()?;
+    pool.install(|| run_in_pool(&a))
+}
+
+fn run_in_pool(a: &BenchArgs) -> Result<()> {
+    let mut out = serde_json::json!({ "threads": a.threads, "runs": a.runs });
+    // (1) RANSAC
+    let prm = RansacParams { threshold_px: 2.5, seed: 3, ..Default::default() };
+    let (h1, h2) = synthetic_h();
+    let (hmin, hmed) = time_min_median(a.runs, || {
+        find_homography(&h1, &h2, &prm).expect("synthetic homography fits");
+    });
+    let (f1, f2) = synthetic_f();
+    let fprm = RansacParams { threshold_px: 1.5, seed: 1, ..Default::default() };
+    let (fmin, fmed) = time_min_median(a.runs, || {
+        find_fundamental(&f1, &f2, &fprm).expect("synthetic F fits");
+    });
+    out["ransac_500_50pct"] = serde_json::json!({"homography_ms_min": hmin, "homography_ms_median": hmed,
+        "fundamental_ms_min": fmin, "fundamental_ms_median": fmed});
+    // (2) self-rectification
+    let d = &a.data;
+    let s = StereoSample {
+        left: io::read_image(d.join("motorcycle_left.png")).with_context(|| format!("reading {}", d.display()))?,
+        right: io::read_image(d.join("motorcycle_right.png"))?,
+        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm"))?),
+        disp_right: None,
+        occ_left: None,
+        occ_right: None,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
+    let mut ang = || [rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4)];
+    let (el, er) = (ang(), ang());
+    let mut sh = || [rng.gen_range(-60.0..60.0), rng.gen_range(-60.0..60.0)];
+    let (sl, sr) = (sh(), sh());
+    let f = 994.97775;
+    let kl = Intrinsics::new(f, f, 311.193, 254.87675, 741, 500)?;
+    let kr = Intrinsics::new(f, f, 342.27875, 254.87675, 741, 500)?;
+    let aug = augment_stereo(&s, &perturbation(kl, kr, el, er, sl, sr), GtRule::Exact)?;
+    let (pl, pr) = exact_correspondences(aug.disp_left.as_ref().expect("left disparity given"), 3)?;
+    let (sx, sy) = (1280.0 / 741.0, 1024.0 / 500.0);
+    let scale = |v: &[[f64; 2]]| -> Vec<[f64; 2]> { v.iter().map(|p| [p[0] * sx, p[1] * sy]).collect() };
+    let (pl, pr) = (scale(&pl), scale(&pr));
+    let mut rng = ChaCha8Rng::seed_from_u64(a.seed ^ 0xABCD);
+    let (mut ml, mut mr) = (vec![], vec![]);
+    for _ in 0..1500 {
+        let i = rng.gen_range(0..pl.len());
+        ml.push(pl[i]);
+        mr.push(pr[i]);
+    }
+    for _ in 0..500 {
+        ml.push([rng.gen_range(0.0..1280.0), rng.gen_range(0.0..1024.0)]);
+        mr.push([rng.gen_range(0.0..1280.0), rng.gen_range(0.0..1024.0)]);
+    }
+    let size = (1280usize, 1024usize);
+    let opts = SelfRectifyOptions::default();
+    let rect = self_rectify(&ml, &mr, size, &opts)?;
+    let dy_eval = |r: &laparo_stereo::self_rectify::SelfRectification| -> Result<DyStats> {
+        let mut v = Vec::with_capacity(pl.len());
+        for (p, q) in pl.iter().zip(&pr) {
+            let (Some(x), Some(y)) = (r.rectify_left(p[0], p[1]), r.rectify_right(q[0], q[1])) else {
+                bail!("a correspondence maps to infinity")
+            };
+            v.push(y[1] - x[1]);
+        }
+        Ok(DyStats::of(&v))
+    };
+    let (qmin, qmed) = time_min_median(a.runs, || {
+        self_rectify(&ml, &mr, size, &opts).expect("fits");
+    });
+    let mut img = Image::filled(1280, 1024, 3, 0u8);
+    for (i, v) in img.data.iter_mut().enumerate() {
+        *v = ((i * 2654435761) >> 13) as u8;
+    }
+    let (wmin, wmed) = time_min_median(a.runs, || {
+        let r = self_rectify(&ml, &mr, size, &opts).expect("fits");
+        r.rectify_images(&img, &img).expect("same size");
+    });
+    let hopts = SelfRectifyOptions {
+        method: laparo_stereo::self_rectify::RectifyMethod::Hartley,
+        max_median_dy_px: 5.0,
+        ..opts.clone()
+    };
+    let hart = self_rectify(&ml, &mr, size, &hopts)?;
+    let (hqmin, _) = time_min_median(a.runs, || {
+        self_rectify(&ml, &mr, size, &hopts).expect("fits");
+    });
+    out["self_rectify_1280x1024"] = serde_json::json!({
+        "perturbation": {"left_euler_deg": el, "right_euler_deg": er, "left_shift_px": sl, "right_shift_px": sr},
+        "n_matches": ml.len(), "n_exact_eval": pl.len(),
+        "quasi_euclidean": {"n_inliers": rect.n_inliers, "focal_px": rect.focal_px, "dy_raw": dy_eval_raw(&pl, &pr),
+            "dy_rectified": dy_eval(&rect)?, "max_corner_shift_px": rect.max_corner_shift_px,
+            "ms_fit_min": qmin, "ms_fit_median": qmed, "ms_fit_warp_min": wmin, "ms_fit_warp_median": wmed},
+        "hartley": {"n_inliers": hart.n_inliers, "dy_rectified": dy_eval(&hart)?, "max_corner_shift_px": hart.max_corner_shift_px,
+            "ms_fit_min": hqmin},
+    });
+    if let Some(py) = &a.peer_python {
+        let tmp = std::env::temp_dir().join(format!("laparo_geo_peer_{}.json", std::process::id()));
+        let inp = serde_json::json!({"width": 1280, "height": 1024, "fit_left": ml, "fit_right": mr,
+            "eval_left": pl, "eval_right": pr, "threshold_px": opts.ransac.threshold_px, "runs": a.runs, "threads": a.threads});
+        laparo_core::atomic::write_atomic(&tmp, serde_json::to_string(&inp)?.as_bytes())?;
+        let o = std::process::Command::new(py)
+            .arg(&a.peer_script)
+            .arg(&tmp)
+            .output()
+            .with_context(|| format!("running {} {}", py.display(), a.peer_script.display()))?;
+        let _ = std::fs::remove_file(&tmp);
+        if !o.status.success() {
+            bail!("peer script failed: {}", String::from_utf8_lossy(&o.stderr));
+        }
+        let peer: serde_json::Value = serde_json::from_slice(&o.stdout).context("parsing the peer's JSON")?;
+        let ratio = |ours: f64, key: &str| peer[key].as_f64().map(|p| ours / p);
+        out["opencv"] = peer.clone();
+        out["ratio_ours_over_opencv"] = serde_json::json!({
+            "fit_min": ratio(qmin, "ms_fit_min"), "fit_warp_min": ratio(wmin, "ms_fit_warp_min")});
+    }
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
+
+fn dy_eval_raw(pl: &[[f64; 2]], pr: &[[f64; 2]]) -> DyStats {
+    DyStats::of(&pl.iter().zip(pr).map(|(p, q)| q[1] - p[1]).collect::<Vec<_>>())
+}

@@ -1,0 +1,623 @@
+//! Self-rectification of a raw stereo pair without a calibration (issue 14 item 3; thesis §3.3:
+//! raw laparoscope pairs have small rotations and principal-point offsets).
+//!
+//! From matches: a robust fundamental matrix (laparo-features RANSAC), then one of
+//! - [`RectifyMethod::QuasiEuclidean`] (Fusiello & Irsara, MVA 2011): H_L = K R_L K⁻¹,
+//!   H_R = K R_R K_R⁻¹ with K = [f 0 c_x; 0 f c_y; 0 0 1] (c = image centre) and
+//!   K_R = K with c_y + δ (a vertical principal-point offset of the right camera, which
+//!   rotations represent only approximately). Unknowns: left Y, Z angles; right X, Y, Z angles
+//!   (left X = 0 is the gauge: a common rotation about the baseline keeps a pair rectified); δ;
+//!   the focal length f, searched over a grid of fields of view, then refined jointly.
+//!   Minimised by Levenberg–Marquardt: the rectified vertical disparity y(H_L x_L) − y(H_R x_R)
+//!   of the F-inliers (the quantity that must vanish; Fusiello minimises the Sampson error of
+//!   the induced F, which equals it to first order for near-rectified pairs).
+//! - [`RectifyMethod::Hartley`] (Hartley 1999; H&Z §11.12, OpenCV `stereoRectifyUncalibrated`):
+//!   H_R = G R T sends the right epipole to infinity, H_L = H_A H_R M with M from F = [e']× M and
+//!   H_A the x-affine least-squares fit. Projective, no distortion control (kept for comparison).
+//!
+//! Disparities are reported in the **raw left frame** with CATS' convention d = x_L − x_R
+//! ([`SelfRectification::disparity_to_raw_left`]). A failed fit is an error, never a silent
+//! identity.
+use crate::error::StereoError;
+use laparo_core::image::{Image, Mask};
+use laparo_core::remap::{self, Interp, Texel};
+use laparo_core::se3::rotation_zyx;
+use laparo_features::ransac::{find_fundamental, RansacParams};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+fn invalid(what: impl Into<String>, msg: impl Into<String>) -> StereoError {
+    StereoError::Invalid { what: what.into(), msg: msg.into() }
+}
+
+/// Which rectification to compute from F.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RectifyMethod {
+    /// Fusiello-style rotational (quasi-Euclidean) rectification (default).
+    QuasiEuclidean,
+    /// Hartley's projective rectification.
+    Hartley,
+}
+
+/// Options of [`self_rectify`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SelfRectifyOptions {
+    /// RANSAC for F (threshold in px, Sampson distance).
+    pub ransac: RansacParams,
+    /// Fewer F-inliers than this is an error.
+    pub min_inliers: usize,
+    /// Rectification method.
+    pub method: RectifyMethod,
+    /// Horizontal fields of view (degrees) tried as starting focal lengths.
+    pub fov_grid_deg: Vec<f64>,
+    /// Largest acceptable rectifying rotation, degrees (beyond: error, the pair is not near-rectified).
+    pub max_angle_deg: f64,
+    /// Largest acceptable inlier median |dy| after rectification, px (beyond: error).
+    pub max_median_dy_px: f64,
+}
+
+impl Default for SelfRectifyOptions {
+    fn default() -> Self {
+        SelfRectifyOptions {
+            ransac: RansacParams { threshold_px: 1.0, confidence: 0.999, max_iters: 5000, seed: 0 },
+            min_inliers: 20,
+            method: RectifyMethod::QuasiEuclidean,
+            fov_grid_deg: vec![20.0, 40.0, 60.0, 80.0, 100.0, 120.0],
+            max_angle_deg: 15.0,
+            max_median_dy_px: 1.0,
+        }
+    }
+}
+
+/// |dy| statistics of correspondences, px.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DyStats {
+    /// Number of correspondences.
+    pub n: usize,
+    /// Median |dy|.
+    pub median_abs: f64,
+    /// 95th percentile of |dy|.
+    pub p95_abs: f64,
+    /// Largest |dy|.
+    pub max_abs: f64,
+    /// Mean signed dy (y_R − y_L).
+    pub mean: f64,
+}
+
+impl DyStats {
+    /// Statistics of signed vertical offsets (y_R − y_L), px. Empty input: all NaN, n = 0.
+    pub fn of(dy: &[f64]) -> DyStats {
+        if dy.is_empty() {
+            return DyStats { n: 0, median_abs: f64::NAN, p95_abs: f64::NAN, max_abs: f64::NAN, mean: f64::NAN };
+        }
+        let mut a: Vec<f64> = dy.iter().map(|v| v.abs()).collect();
+        a.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            let t = p * (a.len() - 1) as f64;
+            let i = t.floor() as usize;
+            let j = (i + 1).min(a.len() - 1);
+            a[i] + (a[j] - a[i]) * (t - i as f64)
+        };
+        DyStats {
+            n: dy.len(),
+            median_abs: laparo_core::stats::median(&mut a.clone()),
+            p95_abs: q(0.95),
+            max_abs: a[a.len() - 1],
+            mean: dy.iter().sum::<f64>() / dy.len() as f64,
+        }
+    }
+}
+
+/// A self-rectification: homographies raw → rectified for both images, and its diagnostics.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SelfRectification {
+    /// Method used.
+    pub method: RectifyMethod,
+    /// Image size (width, height), px.
+    pub size: (usize, usize),
+    /// Left raw → rectified homography, row-major.
+    pub h_left: [[f64; 3]; 3],
+    /// Right raw → rectified homography, row-major.
+    pub h_right: [[f64; 3]; 3],
+    /// Robust fundamental matrix of the raw pair, x_Rᵀ F x_L = 0, row-major.
+    pub fundamental: [[f64; 3]; 3],
+    /// Quasi-Euclidean only: focal length, px.
+    pub focal_px: Option<f64>,
+    /// Quasi-Euclidean only: Z-Y-X Euler angles [x, y, z] of R_L, degrees (x = 0, gauge).
+    pub left_euler_deg: Option<[f64; 3]>,
+    /// Quasi-Euclidean only: Z-Y-X Euler angles [x, y, z] of R_R, degrees.
+    pub right_euler_deg: Option<[f64; 3]>,
+    /// Quasi-Euclidean only: vertical principal-point offset δ of the right camera, px.
+    pub right_cy_offset_px: Option<f64>,
+    /// Matches given.
+    pub n_matches: usize,
+    /// F-inliers used for the rectification.
+    pub n_inliers: usize,
+    /// Inlier flags (F-RANSAC inliers that also survived the rectification fit).
+    pub inliers: Vec<bool>,
+    /// Inliers' raw vertical offsets y_R − y_L before rectification.
+    pub dy_raw: DyStats,
+    /// Inliers' vertical offsets after rectification.
+    pub dy_rectified: DyStats,
+    /// Largest displacement of an image corner by H_L or H_R, px (distortion indicator).
+    pub max_corner_shift_px: f64,
+}
+
+fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    [[m[(0, 0)], m[(0, 1)], m[(0, 2)]], [m[(1, 0)], m[(1, 1)], m[(1, 2)]], [m[(2, 0)], m[(2, 1)], m[(2, 2)]]]
+}
+fn mat(r: &[[f64; 3]; 3]) -> Matrix3<f64> {
+    Matrix3::new(r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2])
+}
+#[inline]
+fn hp(h: &Matrix3<f64>, x: f64, y: f64) -> Option<[f64; 2]> {
+    let w = h[(2, 0)] * x + h[(2, 1)] * y + h[(2, 2)];
+    if w.abs() < 1e-12 {
+        return None;
+    }
+    Some([(h[(0, 0)] * x + h[(0, 1)] * y + h[(0, 2)]) / w, (h[(1, 0)] * x + h[(1, 1)] * y + h[(1, 2)]) / w])
+}
+
+impl SelfRectification {
+    /// H_L (raw left → rectified).
+    pub fn h_left(&self) -> Matrix3<f64> {
+        mat(&self.h_left)
+    }
+    /// H_R (raw right → rectified).
+    pub fn h_right(&self) -> Matrix3<f64> {
+        mat(&self.h_right)
+    }
+    /// Raw left px → rectified px.
+    pub fn rectify_left(&self, x: f64, y: f64) -> Option<[f64; 2]> {
+        hp(&self.h_left(), x, y)
+    }
+    /// Raw right px → rectified px.
+    pub fn rectify_right(&self, x: f64, y: f64) -> Option<[f64; 2]> {
+        hp(&self.h_right(), x, y)
+    }
+    /// Rectified left px → raw left px.
+    pub fn raw_left(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        hp(&self.h_left().try_inverse()?, u, v)
+    }
+    /// Rectified right px → raw right px.
+    pub fn raw_right(&self, u: f64, v: f64) -> Option<[f64; 2]> {
+        hp(&self.h_right().try_inverse()?, u, v)
+    }
+
+    /// A rectified left pixel (u, v) with rectified disparity d_rect (u_R = u − d_rect) mapped to
+    /// the raw frames: (raw left x, raw left y, raw d = x_L − x_R, raw dy = y_R − y_L), px.
+    pub fn to_raw(&self, u: f64, v: f64, d_rect: f64) -> Option<[f64; 4]> {
+        let l = self.raw_left(u, v)?;
+        let r = self.raw_right(u - d_rect, v)?;
+        Some([l[0], l[1], l[0] - r[0], r[1] - l[1]])
+    }
+
+    /// Map a disparity map computed on the rectified pair (indexed by the rectified left pixel,
+    /// u_R = u − d; non-finite = invalid) to the raw left frame: for every raw left pixel p the
+    /// rectified disparity at H_L p (nearest sample) gives the raw right point; returns
+    /// (raw disparity x_L − x_R, raw vertical offset y_R − y_L), +inf / NaN where invalid.
+    pub fn disparity_to_raw_left(&self, d_rect: &Image<f32>) -> Result<(Image<f32>, Image<f32>), StereoError> {
+        if d_rect.channels != 1 {
+            return Err(invalid("rectified disparity", format!("{} channels (need 1)", d_rect.channels)));
+        }
+        let (w, h) = self.size;
+        let hl = self.h_left();
+        let hri = self.h_right().try_inverse().ok_or_else(|| invalid("h_right", "singular"))?;
+        let mut d = Image::filled(w, h, 1, f32::INFINITY);
+        let mut dy = Image::filled(w, h, 1, f32::NAN);
+        d.data.par_chunks_mut(w).zip(dy.data.par_chunks_mut(w)).enumerate().for_each(|(y, (dr, yr))| {
+            for x in 0..w {
+                let Some(q) = hp(&hl, x as f64, y as f64) else { continue };
+                let Some(v) = remap::sample_nearest(d_rect, q[0], q[1], 0) else { continue };
+                if !v.is_finite() {
+                    continue;
+                }
+                let Some(r) = hp(&hri, q[0] - v as f64, q[1]) else { continue };
+                dr[x] = (x as f64 - r[0]) as f32;
+                yr[x] = (r[1] - y as f64) as f32;
+            }
+        });
+        Ok((d, dy))
+    }
+
+    /// Warp a raw image pair to the rectified frames (bilinear, same size; laparo-core's sampler).
+    pub fn rectify_images<T: Texel + Default>(
+        &self,
+        left: &Image<T>,
+        right: &Image<T>,
+    ) -> Result<((Image<T>, Mask), (Image<T>, Mask)), StereoError> {
+        let (w, h) = self.size;
+        for (name, img) in [("left image", left), ("right image", right)] {
+            if (img.width, img.height) != (w, h) {
+                return Err(StereoError::SizeMismatch(format!(
+                    "{name} is {}x{}, the rectification was fitted for {w}x{h}",
+                    img.width, img.height
+                )));
+            }
+        }
+        let il = self.h_left().try_inverse().ok_or_else(|| invalid("h_left", "singular"))?;
+        let ir = self.h_right().try_inverse().ok_or_else(|| invalid("h_right", "singular"))?;
+        let l = remap::warp_homography(left, &rows(&il), w, h, Interp::Bilinear, T::default())?;
+        let r = remap::warp_homography(right, &rows(&ir), w, h, Interp::Bilinear, T::default())?;
+        Ok((l, r))
+    }
+}
+
+/// Quasi-Euclidean model parameters: [yL, zL, xR, yR, zR] (rad), δ (px), ln(f / f0).
+#[derive(Clone, Copy, Debug)]
+struct Model {
+    p: [f64; 7],
+    f0: f64,
+    c: [f64; 2],
+}
+
+impl Model {
+    fn f(&self) -> f64 {
+        self.f0 * self.p[6].exp()
+    }
+    fn k(&self, dcy: f64) -> Matrix3<f64> {
+        let f = self.f();
+        Matrix3::new(f, 0.0, self.c[0], 0.0, f, self.c[1] + dcy, 0.0, 0.0, 1.0)
+    }
+    fn kinv(&self, dcy: f64) -> Matrix3<f64> {
+        let f = self.f();
+        Matrix3::new(1.0 / f, 0.0, -self.c[0] / f, 0.0, 1.0 / f, -(self.c[1] + dcy) / f, 0.0, 0.0, 1.0)
+    }
+    fn hl(&self) -> Matrix3<f64> {
+        self.k(0.0) * rotation_zyx(0.0, self.p[0], self.p[1]) * self.kinv(0.0)
+    }
+    fn hr(&self) -> Matrix3<f64> {
+        self.k(0.0) * rotation_zyx(self.p[2], self.p[3], self.p[4]) * self.kinv(self.p[5])
+    }
+}
+
+fn residuals(hl: &Matrix3<f64>, hr: &Matrix3<f64>, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], out: &mut [f64]) {
+    for (k, &i) in idx.iter().enumerate() {
+        let a = hp(hl, pl[i][0], pl[i][1]);
+        let b = hp(hr, pr[i][0], pr[i][1]);
+        out[k] = match (a, b) {
+            (Some(a), Some(b)) => a[1] - b[1],
+            _ => 1e6,
+        };
+    }
+}
+
+/// Levenberg–Marquardt on the rectified dy over `idx`; `free` selects the parameters.
+/// f stays within `f_range` (px): a step leaving it counts as a failed step.
+fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize], f_range: (f64, f64)) -> (Model, f64) {
+    let n = idx.len();
+    let mut m = m0;
+    let mut r = vec![0.0; n];
+    residuals(&m.hl(), &m.hr(), pl, pr, idx, &mut r);
+    let mut cost: f64 = r.iter().map(|v| v * v).sum();
+    let mut lambda = 1e-3;
+    let steps = [1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-3, 1e-6];
+    let mut rp = vec![0.0; n];
+    for _ in 0..100 {
+        let mut j = DMatrix::<f64>::zeros(n, free.len());
+        for (c, &k) in free.iter().enumerate() {
+            let mut mp = m;
+            mp.p[k] += steps[k];
+            residuals(&mp.hl(), &mp.hr(), pl, pr, idx, &mut rp);
+            for i in 0..n {
+                j[(i, c)] = (rp[i] - r[i]) / steps[k];
+            }
+        }
+        let jt = j.transpose();
+        let jtj = &jt * &j;
+        let g = &jt * DVector::from_column_slice(&r);
+        let mut improved = false;
+        for _ in 0..10 {
+            let mut a = jtj.clone();
+            for d in 0..free.len() {
+                a[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
+            }
+            let Some(delta) = a.cholesky().map(|ch| ch.solve(&(-&g))) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut mt = m;
+            for (c, &k) in free.iter().enumerate() {
+                mt.p[k] += delta[c];
+            }
+            if !(f_range.0..=f_range.1).contains(&mt.f()) {
+                lambda *= 10.0;
+                continue;
+            }
+            residuals(&mt.hl(), &mt.hr(), pl, pr, idx, &mut rp);
+            let ct: f64 = rp.iter().map(|v| v * v).sum();
+            if ct < cost {
+                let rel = (cost - ct) / cost.max(1e-300);
+                m = mt;
+                std::mem::swap(&mut r, &mut rp);
+                cost = ct;
+                lambda = (lambda * 0.3).max(1e-12);
+                improved = rel > 1e-12;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    (m, cost)
+}
+
+fn check_matches(pl: &[[f64; 2]], pr: &[[f64; 2]], size: (usize, usize)) -> Result<(), StereoError> {
+    if pl.len() != pr.len() {
+        return Err(StereoError::SizeMismatch(format!("{} left points vs {} right points", pl.len(), pr.len())));
+    }
+    if size.0 < 2 || size.1 < 2 {
+        return Err(invalid("image size", format!("{}x{} (need at least 2x2)", size.0, size.1)));
+    }
+    Ok(())
+}
+
+/// Self-rectify a raw pair from matched points (left `[x, y]` ↔ right `[x, y]`, px) of images of
+/// `size` = (width, height). Errors (naming the input): too few matches or F-inliers, a
+/// degenerate F, a rectification needing rotations beyond `max_angle_deg`, or a residual median
+/// |dy| above `max_median_dy_px`.
+pub fn self_rectify(
+    pl: &[[f64; 2]],
+    pr: &[[f64; 2]],
+    size: (usize, usize),
+    opts: &SelfRectifyOptions,
+) -> Result<SelfRectification, StereoError> {
+    check_matches(pl, pr, size)?;
+    if pl.len() < opts.min_inliers.max(8) {
+        return Err(invalid(
+            "self-rectification matches",
+            format!("too few matches: {} (need at least {})", pl.len(), opts.min_inliers.max(8)),
+        ));
+    }
+    let fit =
+        find_fundamental(pl, pr, &opts.ransac).map_err(|e| invalid("self-rectification matches", e.to_string()))?;
+    if fit.n_inliers < opts.min_inliers {
+        return Err(invalid(
+            "self-rectification matches",
+            format!("only {} F-inliers of {} matches (need {})", fit.n_inliers, pl.len(), opts.min_inliers),
+        ));
+    }
+    let idx: Vec<usize> = (0..pl.len()).filter(|&i| fit.inliers[i]).collect();
+    let dy_raw: Vec<f64> = idx.iter().map(|&i| pr[i][1] - pl[i][1]).collect();
+    let (w, h) = (size.0 as f64, size.1 as f64);
+    let corners = [[0.0, 0.0], [w - 1.0, 0.0], [0.0, h - 1.0], [w - 1.0, h - 1.0]];
+    let (hl, hr, extra, kept) = match opts.method {
+        RectifyMethod::QuasiEuclidean => {
+            let c = [(w - 1.0) / 2.0, (h - 1.0) / 2.0];
+            for &fov in &opts.fov_grid_deg {
+                if !(fov > 1.0 && fov < 179.0) {
+                    return Err(invalid("fov_grid_deg", format!("{fov} (need 1 < fov < 179)")));
+                }
+            }
+            // focal search on a subsample (≤ 400 inliers, evenly spaced), in parallel; the best
+            // start by (cost, grid index) is then refined on all inliers (thread-count independent)
+            let sub: Vec<usize> = idx.iter().copied().step_by(idx.len().div_ceil(400).max(1)).collect();
+            let (f_lo, f_hi) = (0.5 * w / 70f64.to_radians().tan(), 0.5 * w / 5f64.to_radians().tan());
+            let cands: Vec<(Model, f64, bool)> = opts
+                .fov_grid_deg
+                .par_iter()
+                .map(|&fov| {
+                    let f0 = 0.5 * w / (0.5 * fov.to_radians()).tan();
+                    let m0 = Model { p: [0.0; 7], f0, c };
+                    // f is weakly observable for near-rectified pairs: the joint refinement keeps
+                    // it within the plausible focal range (field of view 10°..140°)
+                    let (m1, _) = lm(m0, pl, pr, &sub, &[0, 1, 2, 3, 4, 5], (f_lo, f_hi));
+                    let (m2, c2) = lm(m1, pl, pr, &sub, &[0, 1, 2, 3, 4, 5, 6], (f_lo, f_hi));
+                    (m2, c2, true)
+                })
+                .collect();
+            let mut best: Option<(Model, f64, bool)> = None;
+            for cnd in cands {
+                if best.as_ref().map_or(true, |b| cnd.1 < b.1) {
+                    best = Some(cnd);
+                }
+            }
+            let Some((m, _, _)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
+            // final fit on all inliers at the chosen focal length
+            let all: &[usize] = &[0, 1, 2, 3, 4, 5];
+            let best = Some(lm(m, pl, pr, &idx, all, (f_lo, f_hi)));
+            let Some((mut m, _)) = best else { return Err(invalid("fov_grid_deg", "empty")) };
+            // drop F-inliers the rectification does not explain (> 3 × threshold) and refit once
+            let mut r = vec![0.0; idx.len()];
+            residuals(&m.hl(), &m.hr(), pl, pr, &idx, &mut r);
+            let t = 3.0 * opts.ransac.threshold_px;
+            let kept: Vec<usize> = idx.iter().zip(&r).filter(|(_, v)| v.abs() < t).map(|(&i, _)| i).collect();
+            if kept.len() < opts.min_inliers {
+                return Err(invalid(
+                    "self-rectification matches",
+                    format!("the rotational model explains only {} of {} F-inliers", kept.len(), idx.len()),
+                ));
+            }
+            if kept.len() < idx.len() {
+                m = lm(m, pl, pr, &kept, all, (f_lo, f_hi)).0;
+            }
+            let deg = |v: f64| v.to_degrees();
+            let big = m.p[..5].iter().map(|v| deg(v.abs())).fold(0.0, f64::max);
+            if big > opts.max_angle_deg {
+                return Err(invalid(
+                    "self-rectification",
+                    format!(
+                        "needs a rotation of {big:.2}° (> max_angle_deg {}): not a near-rectified pair",
+                        opts.max_angle_deg
+                    ),
+                ));
+            }
+            let extra = (
+                Some(m.f()),
+                Some([0.0, deg(m.p[0]), deg(m.p[1])]),
+                Some([deg(m.p[2]), deg(m.p[3]), deg(m.p[4])]),
+                Some(m.p[5]),
+            );
+            (m.hl(), m.hr(), extra, kept)
+        }
+        RectifyMethod::Hartley => {
+            let (hl, hr) = hartley(&fit.model, pl, pr, &idx, size)?;
+            (hl, hr, (None, None, None, None), idx.clone())
+        }
+    };
+    let mut dy = vec![0.0; kept.len()];
+    residuals(&hl, &hr, pl, pr, &kept, &mut dy);
+    dy.iter_mut().for_each(|v| *v = -*v); // y_R − y_L
+    let dy_rectified = DyStats::of(&dy);
+    if !(dy_rectified.median_abs <= opts.max_median_dy_px) {
+        return Err(invalid(
+            "self-rectification",
+            format!(
+                "residual median |dy| {:.3} px exceeds max_median_dy_px {} ({} inliers)",
+                dy_rectified.median_abs,
+                opts.max_median_dy_px,
+                kept.len()
+            ),
+        ));
+    }
+    let mut shift: f64 = 0.0;
+    for hh in [&hl, &hr] {
+        for c in corners {
+            let q = hp(hh, c[0], c[1]).ok_or_else(|| invalid("self-rectification", "a corner maps to infinity"))?;
+            shift = shift.max((q[0] - c[0]).hypot(q[1] - c[1]));
+        }
+    }
+    let mut inliers = vec![false; pl.len()];
+    for &i in &kept {
+        inliers[i] = true;
+    }
+    Ok(SelfRectification {
+        method: opts.method,
+        size,
+        h_left: rows(&hl),
+        h_right: rows(&hr),
+        fundamental: rows(&fit.model),
+        focal_px: extra.0,
+        left_euler_deg: extra.1,
+        right_euler_deg: extra.2,
+        right_cy_offset_px: extra.3,
+        n_matches: pl.len(),
+        n_inliers: kept.len(),
+        inliers,
+        dy_raw: DyStats::of(&dy_raw),
+        dy_rectified,
+        max_corner_shift_px: shift,
+    })
+}
+
+/// Hartley's rectification (H&Z §11.12.2) from F (x_Rᵀ F x_L = 0) and inliers.
+fn hartley(
+    f: &Matrix3<f64>,
+    pl: &[[f64; 2]],
+    pr: &[[f64; 2]],
+    idx: &[usize],
+    size: (usize, usize),
+) -> Result<(Matrix3<f64>, Matrix3<f64>), StereoError> {
+    let svd = f.svd(true, true);
+    let u = svd.u.ok_or_else(|| invalid("fundamental matrix", "SVD failed"))?;
+    let mut k = 0;
+    for i in 1..3 {
+        if svd.singular_values[i] < svd.singular_values[k] {
+            k = i;
+        }
+    }
+    let e: Vector3<f64> = u.column(k).into(); // right epipole: eᵀ F = 0
+    let (cx, cy) = ((size.0 as f64 - 1.0) / 2.0, (size.1 as f64 - 1.0) / 2.0);
+    let t = Matrix3::new(1.0, 0.0, -cx, 0.0, 1.0, -cy, 0.0, 0.0, 1.0);
+    let et = t * e;
+    // rotate the epipole onto the x axis with the smaller of the two possible angles
+    let mut ang = et[1].atan2(et[0]);
+    if ang > std::f64::consts::FRAC_PI_2 {
+        ang -= std::f64::consts::PI;
+    } else if ang < -std::f64::consts::FRAC_PI_2 {
+        ang += std::f64::consts::PI;
+    }
+    let (s, c) = ang.sin_cos();
+    let r = Matrix3::new(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
+    let er = r * et; // (ex, ~0, ez)
+    if er[0].abs() < 1e-12 * er.norm() {
+        return Err(invalid("fundamental matrix", "epipole at the image centre: Hartley rectification undefined"));
+    }
+    let g = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, -er[2] / er[0], 0.0, 1.0);
+    let hr = t.try_inverse().unwrap_or(Matrix3::identity()) * g * r * t;
+    // M with F ∝ [e]× M: M = [e]× F + e vᵀ
+    let ex = e.cross_matrix();
+    let mm = ex * f + e * Vector3::new(1.0, 1.0, 1.0).transpose();
+    let h0 = hr * mm;
+    // H_A = [a b c; 0 1 0; 0 0 1] minimising Σ (a x̂ + b ŷ + c − x̂')²
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = Vector3::zeros();
+    let mut dy0 = 0.0;
+    for &i in idx {
+        let (Some(a), Some(b)) = (hp(&h0, pl[i][0], pl[i][1]), hp(&hr, pr[i][0], pr[i][1])) else { continue };
+        let row = Vector3::new(a[0], a[1], 1.0);
+        ata += row * row.transpose();
+        atb += row * b[0];
+        dy0 += (a[1] - b[1]).abs();
+    }
+    let _ = dy0;
+    let sol = ata.lu().solve(&atb).ok_or_else(|| invalid("self-rectification matches", "Hartley x-fit is singular"))?;
+    let ha = Matrix3::new(sol[0], sol[1], sol[2], 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+    // translate back so the image centre stays near the centre (same shift for both views)
+    let hl = ha * h0;
+    Ok((hl, hr))
+}
+
+/// Exact correspondences of an augmented (CATS, exact rule) left disparity: every `step`-th
+/// valid left pixel (x, y) ↔ (x − d, y + vertical residual). For evaluating self-rectification.
+pub fn exact_correspondences(
+    disp: &crate::augment::AugmentedDisparity,
+    step: usize,
+) -> Result<(Vec<[f64; 2]>, Vec<[f64; 2]>), StereoError> {
+    let res = disp
+        .vertical_residual
+        .as_ref()
+        .ok_or_else(|| invalid("augmented disparity", "no vertical residual (use the exact GT rule)"))?;
+    if step == 0 {
+        return Err(invalid("step", "0 (need at least 1)"));
+    }
+    let d = &disp.disparity;
+    let (mut pl, mut pr) = (vec![], vec![]);
+    for y in (0..d.height).step_by(step) {
+        for x in (0..d.width).step_by(step) {
+            let (v, r) = (d.get(x, y, 0), res.get(x, y, 0));
+            if disp.valid.get(x, y, 0) && v.is_finite() && r.is_finite() {
+                pl.push([x as f64, y as f64]);
+                pr.push([x as f64 - v as f64, y as f64 + r as f64]);
+            }
+        }
+    }
+    Ok((pl, pr))
+}
+
+/// A CATS-style perturbation of a rectified pair for tests and benchmarks: per camera a rotation
+/// (Z-Y-X Euler angles, degrees) and a principal-point shift (t_x, t_y), px (K_rel = [1 0 t_x;
+/// 0 1 t_y; 0 0 1]).
+pub fn perturbation(
+    kl: laparo_core::Intrinsics,
+    kr: laparo_core::Intrinsics,
+    euler_left_deg: [f64; 3],
+    euler_right_deg: [f64; 3],
+    shift_left_px: [f64; 2],
+    shift_right_px: [f64; 2],
+) -> crate::augment::StereoAugmentation {
+    use crate::augment::CameraAugmentation;
+    use laparo_core::Distortion;
+    let kr_of = |s: [f64; 2]| Matrix3::new(1.0, 0.0, s[0], 0.0, 1.0, s[1], 0.0, 0.0, 1.0);
+    crate::augment::StereoAugmentation {
+        left: CameraAugmentation::from_euler_deg(
+            kl,
+            Distortion::default(),
+            euler_left_deg,
+            kr_of(shift_left_px),
+            Distortion::default(),
+        ),
+        right: CameraAugmentation::from_euler_deg(
+            kr,
+            Distortion::default(),
+            euler_right_deg,
+            kr_of(shift_right_px),
+            Distortion::default(),
+        ),
+        dx_right_px: shift_left_px[0] - shift_right_px[0],
+    }
+}
