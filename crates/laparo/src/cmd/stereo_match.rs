@@ -28,6 +28,12 @@ pub struct MatchArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub calib: CalibArgs,
+    /// Self-rectify the raw pair without a calibration (SIFT matches, robust F, quasi-Euclidean
+    /// rectification of laparo_stereo::self_rectify), match in the rectified frame and map the
+    /// disparity back to the raw left frame (d = x_L − x_R). --range is the raw range; the
+    /// rectified search range is shifted by the inliers' median change of disparity.
+    #[arg(long, conflicts_with = "calib")]
+    pub self_rectify: bool,
     /// `default` (4 paths) or `accurate` (8 paths).
     #[arg(long, default_value = "default")]
     pub mode: String,
@@ -144,6 +150,63 @@ pub fn to_raw_frame(rect: &Rectification, disp: &Image<f32>, w: usize, h: usize)
     (d, dy)
 }
 
+/// `--self-rectify`: SIFT + matching (laparo-features), self-rectification, SGM on the
+/// rectified pair, disparity / dy / confidence mapped back to the raw left frame.
+fn self_rectified_match(a: &MatchArgs, left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> anyhow::Result<(SgmOutput, serde_json::Value)> {
+    use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
+    use laparo_stereo::self_rectify::{self_rectify, SelfRectifyOptions};
+    let (w, h) = left.size();
+    let sift = DetectorConfig::by_name("sift")?;
+    let fl = detect_and_describe(left, &sift, None).with_context(|| format!("SIFT on {}", a.left.display()))?;
+    let fr = detect_and_describe(right, &sift, None).with_context(|| format!("SIFT on {}", a.right.display()))?;
+    let m = match_features(&fl, &fr, &MatchConfig::default())?;
+    let (pl, pr): (Vec<[f64; 2]>, Vec<[f64; 2]>) = m
+        .iter()
+        .map(|m| {
+            let (x, y) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
+            ([x.x, x.y], [y.x, y.y])
+        })
+        .unzip();
+    let sr = self_rectify(&pl, &pr, (w, h), &SelfRectifyOptions::default())
+        .with_context(|| format!("self-rectification of {} / {}", a.left.display(), a.right.display()))?;
+    // Rectified range: the raw range shifted by the inliers' median change of disparity.
+    let mut shift: Vec<f64> = pl
+        .iter()
+        .zip(&pr)
+        .zip(&sr.inliers)
+        .filter(|(_, i)| **i)
+        .filter_map(|((l, r), _)| {
+            let (lr, rr) = (sr.rectify_left(l[0], l[1])?, sr.rectify_right(r[0], r[1])?);
+            Some((lr[0] - rr[0]) - (l[0] - r[0]))
+        })
+        .collect();
+    let off = if shift.is_empty() { 0.0 } else { laparo_core::stats::median(&mut shift) };
+    let (lo, hi) = ((p.d_min as f64 + off).floor() as i32 - 2, (p.d_max as f64 + off).ceil() as i32 + 2);
+    let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
+    laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
+    laparo_core::io::write_png(a.out.join("right_rectified.png"), &r)?;
+    let o = match_pair(&l, &r, &SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
+    write_pfm(&a.out.join("disparity_rectified.pfm"), &o.disparity)?;
+    let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
+    let hl = sr.h_left();
+    let mut conf = Image::filled(w, h, 1, 0f32);
+    for y in 0..h {
+        for x in 0..w {
+            if d.get(x, y, 0).is_finite() {
+                let q = hl * nalgebra::Vector3::new(x as f64, y as f64, 1.0);
+                if let Some(c) = o.confidence.sample_nearest(q.x / q.z, q.y / q.z, 0) {
+                    conf.set(x, y, 0, c);
+                }
+            }
+        }
+    }
+    let n_valid = d.data.iter().filter(|v| v.is_finite()).count();
+    let info = serde_json::json!({"rectification": sr, "n_matches": pl.len(), "rectified_range_px": [lo, hi], "median_disparity_shift_px": off});
+    laparo_core::atomic::write_atomic(&a.out.join("self_rectification.json"), (serde_json::to_string_pretty(&info)? + "\n").as_bytes())?;
+    let stats = laparo_stereo::sgm::SgmStats { n_valid, ..o.stats.clone() };
+    Ok((SgmOutput { disparity: d, confidence: conf, dy: Some(dy), stats }, info))
+}
+
 pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
     let (lo, hi) = parse_range(&a.range)?;
     let p = params(&a, lo, hi)?;
@@ -165,7 +228,13 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
     let (w, h) = left.size();
     let calib = a.calib.read_for_images(w, h)?;
     let t0 = std::time::Instant::now();
+    let mut self_rect = serde_json::Value::Null;
     let (out, geometry, rect): (SgmOutput, Option<DisparityGeometry>, Option<Rectification>) = match &calib {
+        None if a.self_rectify => {
+            let (o, info) = self_rectified_match(&a, &left, &right, &p)?;
+            self_rect = info;
+            (o, None, None)
+        }
         Some(c) => {
             let label = a.calib.calib.clone().unwrap_or_default();
             for warn in super::stereo::check_calibration_fits(c, w, h, &label)? {
@@ -202,7 +271,7 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
     )?;
     if let Some(dy) = &out.dy {
         write_pfm(&o.join("dy.pfm"), dy)?;
-        let k = a.vertical_tol as f64;
+        let k = (a.vertical_tol as f64).max(1.0);
         save_colour(&o.join("dy.png"), &f32_to_f64(dy), Colormap::Viridis, "vertical offset [px]", Some((-k, k)))?;
     }
     if a.fill_holes {
@@ -246,6 +315,9 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
         "disparity_p1_p50_p99_px": [pct(&mut dv, 0.01), pct(&mut dv, 0.5), pct(&mut dv, 0.99)],
         "frame": if rect.is_some() { "rectified (calibrated); disparity_raw.pfm is the raw left frame" } else { "raw left frame" },
         "depth": depth_stats, "raw_frame": raw,
+        "self_rectification": self_rect.get("rectification").map(|r| serde_json::json!({
+            "n_matches": self_rect["n_matches"], "n_inliers": r["n_inliers"], "dy_raw": r["dy_raw"],
+            "dy_rectified": r["dy_rectified"], "rectified_range_px": self_rect["rectified_range_px"]})),
     });
     laparo_core::atomic::write_atomic(
         &o.join("stats.json"),
