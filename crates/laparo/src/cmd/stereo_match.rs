@@ -152,7 +152,12 @@ pub fn to_raw_frame(rect: &Rectification, disp: &Image<f32>, w: usize, h: usize)
 
 /// `--self-rectify`: SIFT + matching (laparo-features), self-rectification, SGM on the
 /// rectified pair, disparity / dy / confidence mapped back to the raw left frame.
-fn self_rectified_match(a: &MatchArgs, left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> anyhow::Result<(SgmOutput, serde_json::Value)> {
+fn self_rectified_match(
+    a: &MatchArgs,
+    left: &Image<u8>,
+    right: &Image<u8>,
+    p: &SgmParams,
+) -> anyhow::Result<(SgmOutput, serde_json::Value)> {
     use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
     use laparo_stereo::self_rectify::{self_rectify, SelfRectifyOptions};
     let (w, h) = left.size();
@@ -202,7 +207,10 @@ fn self_rectified_match(a: &MatchArgs, left: &Image<u8>, right: &Image<u8>, p: &
     }
     let n_valid = d.data.iter().filter(|v| v.is_finite()).count();
     let info = serde_json::json!({"rectification": sr, "n_matches": pl.len(), "rectified_range_px": [lo, hi], "median_disparity_shift_px": off});
-    laparo_core::atomic::write_atomic(&a.out.join("self_rectification.json"), (serde_json::to_string_pretty(&info)? + "\n").as_bytes())?;
+    laparo_core::atomic::write_atomic(
+        &a.out.join("self_rectification.json"),
+        (serde_json::to_string_pretty(&info)? + "\n").as_bytes(),
+    )?;
     let stats = laparo_stereo::sgm::SgmStats { n_valid, ..o.stats.clone() };
     Ok((SgmOutput { disparity: d, confidence: conf, dy: Some(dy), stats }, info))
 }
