@@ -540,7 +540,7 @@ fn sgm_subsection(dir: &Path) -> Result<Option<(String, serde_json::Value)>> {
          pairs), matched over [−48, 32) with the default mode (census 9×7, 4 paths, uniqueness, left–right check, speckle \
          filter) in {ms:.0} ms: {:.1} % of the GT pixels valid, EPE {epe:.3} px and Bad-3 {bad3:.2} % with invalid pixels \
          filled by the row background. No border strips are invalidated.</p>\n\
-         <figure><img src=\"stereo/sgm_middlebury.png\"><figcaption>SGM disparity (invalid: white) | GT | error after \
+         <figure><img src=\"stereo/sgm_middlebury.png\"><figcaption>SGM disparity (invalid: dark grey) | GT | error after \
          filling.</figcaption></figure>\n",
         100.0 * neg as f64 / n as f64,
         100.0 * dens
