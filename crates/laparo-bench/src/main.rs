@@ -18,6 +18,7 @@ mod geo;
 mod mpm;
 mod register;
 mod stereo;
+mod stereo_match;
 mod timing;
 
 #[derive(Parser)]
@@ -41,6 +42,8 @@ enum Command {
     Mpm(mpm::BenchArgs),
     /// RODS-MPM registration on the thesis 3D configuration (optionally vs DiffTaichi, same session).
     Register(register::BenchArgs),
+    /// SGM matching (laparo_stereo::sgm) against OpenCV StereoSGBM (../shared/bench/sgbm_ref.py), interleaved.
+    StereoMatch(stereo_match::BenchArgs),
     /// SIFT/ORB detect+describe and matching vs OpenCV (../shared/bench/features_ref.py).
     Features(features::BenchArgs),
     /// RANSAC H/F and self-rectification timings (optionally against OpenCV stereoRectifyUncalibrated).
@@ -56,6 +59,7 @@ fn main() {
         Command::Cpc(a) => cpc::run(a),
         Command::Mpm(a) => mpm::run(a),
         Command::Register(a) => register::run(a),
+        Command::StereoMatch(a) => stereo_match::run(a),
         Command::Features(a) => features::run(a),
         Command::Geo(a) => geo::run(a),
     };

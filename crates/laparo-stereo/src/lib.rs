@@ -28,6 +28,9 @@ pub mod rectify;
 // Self-rectification without a calibration (issue 14 item 3).
 pub mod self_rectify;
 
+// Semi-global matching with signed ranges and vertical tolerance (issue 14).
+pub mod sgm;
+
 // CATS camera augmentation (eqs. 3.5-3.9), its configuration and dataset layouts.
 pub mod augment;
 pub mod cats_params;

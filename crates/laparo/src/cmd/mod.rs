@@ -9,3 +9,4 @@ pub mod features;
 pub mod mpm;
 pub mod register;
 pub mod stereo;
+pub mod stereo_match;

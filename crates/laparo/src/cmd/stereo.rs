@@ -20,10 +20,16 @@ pub enum StereoCmd {
     Rectify(RectifyArgs),
     /// Evaluate a predicted disparity map: EPE, Bad-1/2/3 and, with a calibration, depth MAE,
     /// RMSE, Abs Rel and δ_0.25 (Tables 3.7–3.8). Writes JSON, markdown and colour-mapped maps.
+    /// Every finite GT disparity is valid, negative ones included (public SCARED evaluators keep
+    /// only GT > 0 and so drop most pixels of raw, uncalibrated pairs).
     Eval(EvalArgs),
     /// Convert a left disparity map to depth (mm) with d = f b / z + (c_x^L − c_x^R) (§3.3.8),
     /// optionally to a point cloud (PLY).
     Disp2depth(Disp2DepthArgs),
+    /// Semi-global matching of a raw or calibrated pair with a signed range [A, B) and an
+    /// optional vertical tolerance: disparity (PFM, +inf invalid), confidence, depth (mm),
+    /// colour maps with colour bars and stats.json (thesis §3.3).
+    Match(super::stereo_match::MatchArgs),
 }
 
 /// Calibration arguments shared by the subcommands.
@@ -49,7 +55,7 @@ impl CalibArgs {
 
     /// [`read`](Self::read), taking the size of the images being processed (`w`, `h`) for a
     /// calibration file that states none (SCARED's), unless --width/--height are given.
-    fn read_for_images(&self, w: usize, h: usize) -> anyhow::Result<Option<StereoCalibration>> {
+    pub(crate) fn read_for_images(&self, w: usize, h: usize) -> anyhow::Result<Option<StereoCalibration>> {
         let sized = CalibArgs { width: self.width.or(Some(w)), height: self.height.or(Some(h)), ..self.clone() };
         sized.read()
     }
@@ -149,6 +155,7 @@ pub fn run(c: StereoCmd) -> anyhow::Result<()> {
         StereoCmd::Rectify(a) => run_rectify(a),
         StereoCmd::Eval(a) => run_eval(a),
         StereoCmd::Disp2depth(a) => run_disp2depth(a),
+        StereoCmd::Match(a) => super::stereo_match::run_match(a),
     }
 }
 
