@@ -163,6 +163,8 @@ pub fn cpc_warp_frame<'py>(
             conformal: ConformalParams { theta_rad: theta_deg.to_radians(), ..ConformalParams::default() },
             lambda,
             equiareal: if equiareal { Some(Default::default()) } else { None },
+            // the CLI's default magnification limit (rim spikes masked out, issue 11)
+            ..CpcParams::default()
         };
         let r = par(py, || cpc_warp(&img, &depth, &k, &roi, &params)).map_err(lib_err)?;
         let out = PyDict::new(py);

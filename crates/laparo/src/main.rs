@@ -37,7 +37,7 @@ enum Command {
     #[command(subcommand)]
     Mpm(cmd::mpm::MpmCmd),
     /// RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
-    Register(cmd::register::RegisterArgs),
+    Register(Box<cmd::register::RegisterArgs>),
     /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
     #[command(subcommand)]
     Features(cmd::features::FeaturesCmd),
@@ -59,7 +59,7 @@ fn main() {
         Command::Stereo(c) => cmd::stereo::run(c),
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
-        Command::Register(a) => cmd::register::run(a),
+        Command::Register(a) => cmd::register::run(*a),
         Command::Features(c) => cmd::features::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(

@@ -201,7 +201,7 @@ pub fn read_homography(p: &Path) -> Result<[[f64; 3]; 3]> {
 fn match_cmd(a: &MatchArgs) -> Result<()> {
     refuse_overwrite(&a.out, &[&a.image1, &a.image2], true).context("--out")?;
     let (det, mcfg) = match_config(&a.opts)?;
-    if !(a.eps_px > 0.0) {
+    if a.eps_px.is_nan() || a.eps_px <= 0.0 {
         bail!("--eps-px must be > 0 (got {})", a.eps_px);
     }
     let h = a.homography.as_deref().map(read_homography).transpose()?;
