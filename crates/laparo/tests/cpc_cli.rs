@@ -134,8 +134,15 @@ fn cpc_scene_warp_lambda_end_to_end() {
     assert!(ok, "lambda: {err}");
     assert!(stdout.contains("ℓ ="));
     let csv = std::fs::read_to_string(out3.join("lambda_sweep.csv")).unwrap();
-    assert!(csv.starts_with("lambda,delta_area,fit,angle_error_deg,n_flipped"));
+    assert!(csv.starts_with("lambda,delta_area,delta_area_norm,fit,angle_error_deg,n_flipped"));
     assert!(csv.lines().count() > 10);
+    // δ_area is normalised by its value at the largest λ of the sweep, so that f(1) = 1 (eq. 4.16).
+    let rows: Vec<Vec<f64>> =
+        csv.lines().skip(1).map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect()).collect();
+    let last = rows.iter().max_by(|a, b| a[0].total_cmp(&b[0])).unwrap().clone();
+    for r in &rows {
+        assert!((r[2] - r[1] / last[1]).abs() < 1e-12, "row {r:?}: norm {} vs {}", r[2], r[1] / last[1]);
+    }
 
     // Bad inputs: clear errors, non-zero exit.
     let (ok, _, err) = common(&["--lambda", "1.0"], &tmp.path().join("bad1"));
