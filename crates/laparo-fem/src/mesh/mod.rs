@@ -1,0 +1,1 @@
+//! Tetrahedralisation of closed surfaces, mesh quality and incisions (filled by the meshing work).

@@ -1,0 +1,1 @@
+//! Quadratic-tetrahedron quasi-static FEM (filled by the solver work).
