@@ -37,11 +37,11 @@ pub enum Roi {
 }
 
 impl Roi {
-    fn inside(&self, p: &Vector<3>) -> bool {
+    pub(crate) fn inside(&self, p: &Vector<3>) -> bool {
         self.depth(p) >= 0.0
     }
     /// Distance inside the ROI boundary (negative outside).
-    fn depth(&self, p: &Vector<3>) -> f64 {
+    pub(crate) fn depth(&self, p: &Vector<3>) -> f64 {
         match self {
             Roi::Ball { center, radius_mm } => radius_mm - (p - Vector::<3>::from(*center)).norm(),
             Roi::Box { lo, hi } => (0..3).map(|d| (p[d] - lo[d]).min(hi[d] - p[d])).fold(f64::INFINITY, f64::min),

@@ -5,6 +5,7 @@
 //! The ground truth (a cut tetrahedral mesh deformed by a quasi-static FEM) comes from `laparo-fem`, never
 //! from `laparo-mpm`; this module only scores positions against it.
 pub mod protocol;
+pub mod rods;
 pub mod store;
 pub mod table;
 pub mod tre;

@@ -1,0 +1,298 @@
+//! RODS-MPM on a cut tetrahedral mesh for the benchmark: particles on a lattice inside the mesh (each
+//! carrying the incision side of its tetrahedron), landmarks on their own side, registration through
+//! `laparo-mpm` (§5.3, eqs. 5.8–5.10), and the node positions read back from the registered particles —
+//! by the barycentric lattice transfer of §5.4.3 away from the incision, and by a local affine fit to the
+//! particles of the node's own side for the duplicated crack nodes (the two lips of a crack coincide at
+//! rest, so a side-blind interpolation would give both lips the same displacement).
+use crate::distance::{build_tree, Polyline};
+use crate::error::{RegisterError, Result};
+use crate::loss::{GroupTarget, LandmarkGroup, RegistrationLoss};
+use crate::optimize::{register, IterationRecord, OptimizerConfig};
+use crate::organ::{organ_from_points, OrganConfig};
+use crate::transfer::Transfer;
+use kiddo::SquaredEuclidean;
+use nalgebra::{Matrix4, Vector3, Vector4};
+use std::collections::HashMap;
+use std::sync::Arc;
+
+/// One landmark group: source material points with their incision side (0 = none, 1, 2) and the target
+/// polyline of that group (mm).
+#[derive(Clone, Debug)]
+pub struct SideGroup {
+    /// Name (e.g. `lip A`).
+    pub name: String,
+    /// Source landmarks at rest (mm) and the side each lies on.
+    pub sources: Vec<(Vector3<f64>, u8)>,
+    /// Target polyline vertices (mm).
+    pub target: Vec<Vector3<f64>>,
+}
+
+/// A registration problem on a (cut) tetrahedral mesh.
+#[derive(Clone, Debug)]
+pub struct RodsProblem<'a> {
+    /// Rest node positions (mm).
+    pub nodes: &'a [Vector3<f64>],
+    /// Tetrahedra.
+    pub tets: &'a [[usize; 4]],
+    /// Incision side of every node: 0 away from the crack, 1 or 2 for the copies of a duplicated crack node.
+    pub node_side: &'a [u8],
+    /// Landmark groups.
+    pub groups: Vec<SideGroup>,
+    /// Organ set-up (spacing, ROI, material, horizon).
+    pub organ: OrganConfig,
+    /// Optimiser.
+    pub optimizer: OptimizerConfig,
+}
+
+/// The registered node positions and how the run went.
+#[derive(Clone, Debug)]
+pub struct RodsOutput {
+    /// Registered node positions (mm); nodes outside the region of interest keep their rest position.
+    pub nodes: Vec<Vector3<f64>>,
+    /// Particles simulated.
+    pub particles: usize,
+    /// Mean landmark distance before and after (eq. 5.10, mm).
+    pub landmark_distance_mm: [f64; 2],
+    /// Iterations run.
+    pub iterations: usize,
+    /// Findings (horizon, extrapolated nodes, optimiser stop reason).
+    pub notes: Vec<String>,
+}
+
+/// Lattice points (spacing `s`, origin `origin`) inside the tetrahedra, each with the index of the first
+/// tetrahedron (in mesh order) that contains it: deterministic.
+pub fn sample_lattice(
+    nodes: &[Vector3<f64>],
+    tets: &[[usize; 4]],
+    origin: &Vector3<f64>,
+    s: f64,
+) -> Vec<(Vector3<f64>, usize)> {
+    let mut seen: HashMap<[i64; 3], usize> = HashMap::new();
+    let mut out = Vec::new();
+    for (t, tet) in tets.iter().enumerate() {
+        let p = tet.map(|i| nodes[i]);
+        let m = nalgebra::Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+        let Some(mi) = m.try_inverse() else { continue };
+        let lo = p.iter().fold(p[0], |a, b| a.inf(b));
+        let hi = p.iter().fold(p[0], |a, b| a.sup(b));
+        let a = ((lo - origin) / s).map(|x| x.ceil() as i64);
+        let b = ((hi - origin) / s).map(|x| x.floor() as i64);
+        for i in a[0]..=b[0] {
+            for j in a[1]..=b[1] {
+                for k in a[2]..=b[2] {
+                    let key = [i, j, k];
+                    if seen.contains_key(&key) {
+                        continue;
+                    }
+                    let x = origin + Vector3::new(i as f64, j as f64, k as f64) * s;
+                    let l = mi * (x - p[0]);
+                    let eps = -1e-9;
+                    if l[0] >= eps && l[1] >= eps && l[2] >= eps && l.sum() <= 1.0 - eps {
+                        seen.insert(key, out.len());
+                        out.push((x, t));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Side of each tetrahedron: the side of its duplicated crack nodes (0 when it has none).
+pub fn tet_sides(tets: &[[usize; 4]], node_side: &[u8]) -> Vec<u8> {
+    tets.iter().map(|t| t.iter().map(|&i| node_side[i]).max().unwrap_or(0)).collect()
+}
+
+/// Register `problem` with RODS-MPM; `progress` sees every accepted iteration.
+pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord)) -> Result<RodsOutput> {
+    let n = problem.nodes.len();
+    if problem.node_side.len() != n {
+        return Err(RegisterError::bad("node sides", format!("{} sides for {n} nodes", problem.node_side.len())));
+    }
+    if problem.tets.is_empty() || n == 0 {
+        return Err(RegisterError::bad("mesh", "no tetrahedron"));
+    }
+    let s = problem.organ.spacing_mm;
+    let origin = problem.nodes.iter().fold(problem.nodes[0], |a, b| a.inf(b));
+    let tside = tet_sides(problem.tets, problem.node_side);
+    let mut samples = sample_lattice(problem.nodes, problem.tets, &origin, s);
+    if let Some(roi) = &problem.organ.roi {
+        samples.retain(|(x, _)| roi.inside(x));
+    }
+    if samples.len() < 8 {
+        return Err(RegisterError::param("spacing_mm", s, format!("only {} particles inside the mesh", samples.len())));
+    }
+    let points: Vec<Vector3<f64>> = samples.iter().map(|(x, _)| *x).collect();
+    let side: Vec<u8> = samples.iter().map(|&(_, t)| tside[t]).collect();
+    let organ = organ_from_points(points.clone(), &problem.organ, "benchmark mesh")?;
+    debug_assert_eq!(organ.scene.n_particles(), points.len());
+    let mut notes = organ.warnings.clone();
+    // landmark particles: nearest particle of the landmark's own side (side 0 landmarks: any particle)
+    let trees: Vec<Option<(crate::distance::Tree<3>, Vec<usize>)>> = (0..3u8)
+        .map(|sd| {
+            let idx: Vec<usize> = (0..points.len()).filter(|&p| sd == 0 || side[p] == sd).collect();
+            if idx.is_empty() {
+                None
+            } else {
+                let pts: Vec<Vector3<f64>> = idx.iter().map(|&p| points[p]).collect();
+                Some((build_tree(&pts), idx))
+            }
+        })
+        .collect();
+    let off = organ.offset;
+    let mut groups = Vec::new();
+    for g in &problem.groups {
+        if g.target.is_empty() {
+            return Err(RegisterError::bad(format!("group `{}`", g.name), "empty target polyline"));
+        }
+        let mut particles = Vec::with_capacity(g.sources.len());
+        for (k, (x, sd)) in g.sources.iter().enumerate() {
+            let sd = (*sd).min(2) as usize;
+            let (tree, idx) = trees[sd].as_ref().or(trees[0].as_ref()).ok_or_else(|| {
+                RegisterError::bad(format!("group `{}` landmark {k}", g.name), "no particle on its side")
+            })?;
+            let nn = tree.nearest_one::<SquaredEuclidean>(&[x[0], x[1], x[2]]);
+            particles.push(idx[nn.item as usize]);
+        }
+        let target: Vec<Vector3<f64>> = g.target.iter().map(|p| p + off).collect();
+        groups.push(LandmarkGroup {
+            name: g.name.clone(),
+            particles,
+            target: GroupTarget::Shared(Arc::new(Polyline::open(target))),
+            weight: 1.0,
+        });
+    }
+    let loss = RegistrationLoss::new(groups);
+    let horizon = organ.horizon(&loss.landmark_particles());
+    if horizon.unreachable_fraction > 0.0 {
+        notes.push(format!(
+            "{:.1} % of the particles are beyond the P-wave reach ({:.1} mm) of every landmark",
+            100.0 * horizon.unreachable_fraction,
+            horizon.p_reach_mm
+        ));
+    }
+    let before = loss.mean_distance(&organ.scene.positions);
+    let mut obs = |r: &IterationRecord, _: &[Vector3<f64>]| {
+        progress(r);
+        true
+    };
+    let reg = register(&organ.scene, &loss, &problem.optimizer, None, &mut obs)?;
+    let after = loss.mean_distance(&reg.final_state.x);
+    notes.push(format!("optimiser: {}", reg.stop_reason));
+    let deformed: Vec<Vector3<f64>> = reg.final_state.x.iter().map(|p| p - off).collect();
+    let nodes = transfer_nodes(problem, &points, &side, &deformed, &mut notes)?;
+    Ok(RodsOutput {
+        nodes,
+        particles: points.len(),
+        landmark_distance_mm: [before, after],
+        iterations: reg.history.last().map(|r| r.iteration).unwrap_or(0),
+        notes,
+    })
+}
+
+/// Node positions from the registered particles (see the module docs).
+fn transfer_nodes(
+    problem: &RodsProblem,
+    rest: &[Vector3<f64>],
+    side: &[u8],
+    deformed: &[Vector3<f64>],
+    notes: &mut Vec<String>,
+) -> Result<Vec<Vector3<f64>>> {
+    let s = problem.organ.spacing_mm;
+    let transfer = Transfer::new(rest, s)?;
+    let tree = build_tree(rest);
+    let mut extrapolated = 0usize;
+    let mut out = Vec::with_capacity(problem.nodes.len());
+    for (i, x) in problem.nodes.iter().enumerate() {
+        if let Some(roi) = &problem.organ.roi {
+            if !roi.inside(x) {
+                out.push(*x);
+                continue;
+            }
+        }
+        let sd = problem.node_side[i];
+        if sd != 0 {
+            let near = tree.within::<SquaredEuclidean>(&[x[0], x[1], x[2]], (2.5 * s).powi(2));
+            let own: Vec<usize> = near.iter().map(|n| n.item as usize).filter(|&p| side[p] == sd).collect();
+            if let Some(p) = affine_fit(x, &own, rest, deformed) {
+                out.push(p);
+                continue;
+            }
+        }
+        let t = transfer.apply(x, deformed)?;
+        extrapolated += t.extrapolated as usize;
+        out.push(t.position);
+    }
+    if extrapolated > 0 {
+        notes.push(format!("{extrapolated} nodes extrapolated from the nearest complete lattice cell"));
+    }
+    Ok(out)
+}
+
+/// Least-squares affine map of the particles `idx` (rest → deformed) evaluated at `x`; None with fewer than
+/// 4 particles or a degenerate (coplanar) set.
+fn affine_fit(
+    x: &Vector3<f64>,
+    idx: &[usize],
+    rest: &[Vector3<f64>],
+    deformed: &[Vector3<f64>],
+) -> Option<Vector3<f64>> {
+    if idx.len() < 4 {
+        return None;
+    }
+    let mut ata = Matrix4::<f64>::zeros();
+    let mut atb = [Vector4::<f64>::zeros(); 3];
+    for &p in idx {
+        let r = rest[p] - x;
+        let a = Vector4::new(1.0, r[0], r[1], r[2]);
+        ata += a * a.transpose();
+        for d in 0..3 {
+            atb[d] += a * deformed[p][d];
+        }
+    }
+    // reject near-coplanar sets: the centred scatter must not be (nearly) rank-deficient
+    let c = idx.iter().map(|&p| rest[p]).sum::<Vector3<f64>>() / idx.len() as f64;
+    let scatter = idx.iter().map(|&p| (rest[p] - c) * (rest[p] - c).transpose()).sum::<nalgebra::Matrix3<f64>>();
+    let eig = scatter.symmetric_eigenvalues();
+    if !(eig.min() > 1e-6 * eig.max()) {
+        return None;
+    }
+    let inv = ata.try_inverse()?;
+    Some(Vector3::new((inv * atb[0])[0], (inv * atb[1])[0], (inv * atb[2])[0]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lattice_sampling_of_a_unit_cube_by_hand() {
+        let v: Vec<Vector3<f64>> =
+            (0..8).map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)).collect();
+        let tets = [[0, 1, 2, 4], [1, 3, 2, 7], [1, 4, 5, 7], [2, 6, 4, 7], [1, 2, 4, 7]];
+        let origin = Vector3::zeros();
+        let pts = sample_lattice(&v, &tets, &origin, 0.25);
+        // a closed unit cube at spacing 0.25 holds 5³ lattice points, each sampled once
+        assert_eq!(pts.len(), 125);
+        let mut keys: Vec<[i64; 3]> = pts.iter().map(|(x, _)| x.map(|v| (v / 0.25).round() as i64).into()).collect();
+        keys.sort();
+        keys.dedup();
+        assert_eq!(keys.len(), 125);
+    }
+
+    #[test]
+    fn affine_fit_reproduces_an_affine_motion() {
+        let rest: Vec<Vector3<f64>> =
+            (0..20).map(|i| Vector3::new((i % 3) as f64, ((i / 3) % 3) as f64, (i / 9) as f64)).collect();
+        let a = nalgebra::Matrix3::new(1.1, 0.1, 0.0, -0.05, 0.9, 0.2, 0.0, 0.03, 1.2);
+        let t = Vector3::new(3.0, -1.0, 2.0);
+        let def: Vec<Vector3<f64>> = rest.iter().map(|p| a * p + t).collect();
+        let idx: Vec<usize> = (0..20).collect();
+        let x = Vector3::new(0.5, 0.7, 1.3);
+        let y = affine_fit(&x, &idx, &rest, &def).unwrap();
+        assert!((y - (a * x + t)).norm() < 1e-10);
+        // coplanar particles are refused
+        let flat: Vec<usize> = (0..9).collect();
+        assert!(affine_fit(&x, &flat, &rest, &def).is_none());
+    }
+}
