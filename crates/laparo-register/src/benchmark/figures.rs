@@ -1,0 +1,312 @@
+//! Benchmark pictures: TRE colour maps on the organ surface (Fig. 5.7) with a colour bar, the error against
+//! the distance to the nearest incision landmark (Fig. 5.8), and a VTK file with per-node error for ParaView.
+use super::table::Cell;
+use super::tre::DISTANCE_BIN_EDGES_MM;
+use crate::error::{RegisterError, Result};
+use laparo_core::colormap::Colormap;
+use laparo_core::image::Image;
+use nalgebra::Vector3;
+use std::path::Path;
+
+/// Orthographic, z-buffered rendering of the triangles `faces` of `vertices` seen along `view` (from the
+/// camera towards the scene; `up` gives the image's up direction), coloured by the per-vertex `values`
+/// mapped to [lo, hi] with `cmap`, Lambert-shaded, on a white background; `size` px square.
+pub fn render_scalar_surface(
+    vertices: &[Vector3<f64>],
+    faces: &[[usize; 3]],
+    values: &[f64],
+    lo: f64,
+    hi: f64,
+    cmap: Colormap,
+    view: Vector3<f64>,
+    up: Vector3<f64>,
+    size: usize,
+) -> Image<u8> {
+    let f = view.normalize();
+    let r = f.cross(&up).normalize();
+    let u = r.cross(&f);
+    let proj: Vec<Vector3<f64>> = vertices.iter().map(|p| Vector3::new(p.dot(&r), p.dot(&u), p.dot(&f))).collect();
+    let mut img = Image::filled(size, size, 3, 255u8);
+    if proj.is_empty() || size < 4 {
+        return img;
+    }
+    let lo_xy = proj.iter().fold(proj[0], |a, b| a.inf(b));
+    let hi_xy = proj.iter().fold(proj[0], |a, b| a.sup(b));
+    let ext = (hi_xy[0] - lo_xy[0]).max(hi_xy[1] - lo_xy[1]).max(1e-12);
+    let scale = 0.92 * size as f64 / ext;
+    let cx = 0.5 * (lo_xy[0] + hi_xy[0]);
+    let cy = 0.5 * (lo_xy[1] + hi_xy[1]);
+    let to_px = |p: &Vector3<f64>| {
+        Vector3::new((p[0] - cx) * scale + 0.5 * size as f64, 0.5 * size as f64 - (p[1] - cy) * scale, p[2])
+    };
+    let px: Vec<Vector3<f64>> = proj.iter().map(to_px).collect();
+    let mut zbuf = vec![f64::INFINITY; size * size];
+    let span = (hi - lo).max(1e-12);
+    for tri in faces {
+        let [a, b, c] = tri.map(|i| px[i]);
+        let n = (vertices[tri[1]] - vertices[tri[0]]).cross(&(vertices[tri[2]] - vertices[tri[0]]));
+        let shade = if n.norm() > 0.0 { 0.35 + 0.65 * (n.normalize().dot(&f)).abs() } else { 0.35 };
+        let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        let x0 = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
+        let x1 = (a[0].max(b[0]).max(c[0]).ceil() as usize).min(size - 1);
+        let y0 = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
+        let y1 = (a[1].max(b[1]).max(c[1]).ceil() as usize).min(size - 1);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (qx, qy) = (x as f64 + 0.5, y as f64 + 0.5);
+                let w0 = ((b[0] - qx) * (c[1] - qy) - (b[1] - qy) * (c[0] - qx)) / area;
+                let w1 = ((c[0] - qx) * (a[1] - qy) - (c[1] - qy) * (a[0] - qx)) / area;
+                let w2 = 1.0 - w0 - w1;
+                if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                    continue;
+                }
+                let z = w0 * a[2] + w1 * b[2] + w2 * c[2];
+                let k = y * size + x;
+                if z >= zbuf[k] {
+                    continue;
+                }
+                zbuf[k] = z;
+                let v = w0 * values[tri[0]] + w1 * values[tri[1]] + w2 * values[tri[2]];
+                let rgb = cmap.rgb(((v - lo) / span).clamp(0.0, 1.0));
+                let p = img.pixel_mut(x, y);
+                for ch in 0..3 {
+                    p[ch] = (rgb[ch] as f64 * shade).round() as u8;
+                }
+            }
+        }
+    }
+    img
+}
+
+/// A TRE map: two opposite views of the surface side by side, coloured by error (mm) on [0, `hi`], with a
+/// colour bar and `title` drawn above. Written to `path` (PNG, atomically).
+pub fn write_tre_map(
+    path: &Path,
+    vertices: &[Vector3<f64>],
+    faces: &[[usize; 3]],
+    errors_mm: &[f64],
+    hi_mm: f64,
+    view: Vector3<f64>,
+    up: Vector3<f64>,
+    title: &str,
+) -> Result<()> {
+    let size = 420;
+    let a = render_scalar_surface(vertices, faces, errors_mm, 0.0, hi_mm, Colormap::Magma, view, up, size);
+    let b = render_scalar_surface(vertices, faces, errors_mm, 0.0, hi_mm, Colormap::Magma, -view, up, size);
+    let mut both = Image::filled(2 * size, size + 30, 3, 255u8);
+    for y in 0..size {
+        for x in 0..size {
+            both.pixel_mut(x, y + 30).copy_from_slice(a.pixel(x, y));
+            both.pixel_mut(x + size, y + 30).copy_from_slice(b.pixel(x, y));
+        }
+    }
+    let titled = laparo_core::plot::render_rgb(both.width as u32, both.height as u32, |area| {
+        use plotters::prelude::*;
+        area.draw(
+            &plotters::element::BitMapElement::with_owned_buffer(
+                (0, 0),
+                (both.width as u32, both.height as u32),
+                both.data.clone(),
+            )
+            .ok_or("bitmap")?,
+        )
+        .map_err(|e| e.to_string())?;
+        area.draw(&Text::new(title.to_string(), (10, 6), ("DejaVu Sans", 18).into_font()))
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
+    .map_err(|e| RegisterError::bad(path.display().to_string(), e))?;
+    let out = laparo_core::plot::with_colorbar(&titled, 0.0, hi_mm, Colormap::Magma, "TRE [mm]");
+    Ok(laparo_core::io::write_png(path, &out)?)
+}
+
+/// Fig. 5.8: mean TRE per distance bin, one line per method, for the cells of one scenario and column.
+pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<()> {
+    use plotters::prelude::*;
+    let nb = DISTANCE_BIN_EDGES_MM.len() - 1;
+    let labels: Vec<String> = (0..nb)
+        .map(|k| {
+            let (a, b) = (DISTANCE_BIN_EDGES_MM[k], DISTANCE_BIN_EDGES_MM[k + 1]);
+            if b.is_finite() {
+                format!("{a:.0}–{b:.0}")
+            } else {
+                format!("> {a:.0}")
+            }
+        })
+        .collect();
+    let ymax = cells
+        .iter()
+        .flat_map(|c| c.bin_means_mm.iter().copied())
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(1e-3)
+        * 1.15;
+    let colors = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(214, 39, 40),
+        RGBColor(90, 90, 90),
+    ];
+    laparo_core::plot::draw_png(path, 760, 460, |area| {
+        let mut chart = ChartBuilder::on(&area)
+            .caption(title, ("DejaVu Sans", 18))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(56)
+            .build_cartesian_2d(-0.5f64..(nb as f64 - 0.5), 0.0..ymax)
+            .map_err(|e| e.to_string())?;
+        let lab = labels.clone();
+        chart
+            .configure_mesh()
+            .x_labels(nb)
+            .x_label_formatter(&move |x| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 && (k as usize) < lab.len() {
+                    lab[k as usize].clone()
+                } else {
+                    String::new()
+                }
+            })
+            .x_desc("distance to the nearest incision landmark [mm]")
+            .y_desc("mean TRE [mm]")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, c) in cells.iter().enumerate() {
+            let col = colors[i % colors.len()];
+            let pts: Vec<(f64, f64)> =
+                c.bin_means_mm.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(k, &v)| (k as f64, v)).collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))
+                .map_err(|e| e.to_string())?
+                .label(c.method.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(2)));
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled()))).map_err(|e| e.to_string())?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
+    .map_err(|e| RegisterError::bad(path.display().to_string(), e.to_string()))
+}
+
+/// Legacy VTK unstructured grid of tetrahedra with per-node scalar fields (`name`, values) and vector
+/// fields, for ParaView. Written atomically.
+pub fn write_vtk_fields(
+    path: &Path,
+    vertices: &[Vector3<f64>],
+    tets: &[[usize; 4]],
+    scalars: &[(&str, &[f64])],
+    vectors: &[(&str, &[Vector3<f64>])],
+) -> Result<()> {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "# vtk DataFile Version 3.0\nlaparo incision benchmark\nASCII\nDATASET UNSTRUCTURED_GRID");
+    let _ = writeln!(s, "POINTS {} double", vertices.len());
+    for v in vertices {
+        let _ = writeln!(s, "{} {} {}", v[0], v[1], v[2]);
+    }
+    let _ = writeln!(s, "CELLS {} {}", tets.len(), 5 * tets.len());
+    for t in tets {
+        let _ = writeln!(s, "4 {} {} {} {}", t[0], t[1], t[2], t[3]);
+    }
+    let _ = writeln!(s, "CELL_TYPES {}", tets.len());
+    for _ in tets {
+        s.push_str("10\n");
+    }
+    let _ = writeln!(s, "POINT_DATA {}", vertices.len());
+    for (name, v) in scalars {
+        if v.len() != vertices.len() {
+            return Err(RegisterError::bad(
+                path.display().to_string(),
+                format!("field `{name}` has {} values for {} nodes", v.len(), vertices.len()),
+            ));
+        }
+        let _ = writeln!(s, "SCALARS {name} double 1\nLOOKUP_TABLE default");
+        for x in v.iter() {
+            let _ = writeln!(s, "{x}");
+        }
+    }
+    for (name, v) in vectors {
+        if v.len() != vertices.len() {
+            return Err(RegisterError::bad(
+                path.display().to_string(),
+                format!("field `{name}` has {} values for {} nodes", v.len(), vertices.len()),
+            ));
+        }
+        let _ = writeln!(s, "VECTORS {name} double");
+        for x in v.iter() {
+            let _ = writeln!(s, "{} {} {}", x[0], x[1], x[2]);
+        }
+    }
+    Ok(laparo_core::atomic::write_atomic(path, s.as_bytes())?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rendering_colours_by_value_and_hides_the_back() {
+        // two parallel squares facing the viewer; the nearer one (value 1) must hide the farther (value 0)
+        let v = vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(1.0, 1.0, 0.0),
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::new(0.0, 0.0, -1.0),
+            Vector3::new(1.0, 0.0, -1.0),
+            Vector3::new(1.0, 1.0, -1.0),
+            Vector3::new(0.0, 1.0, -1.0),
+        ];
+        let f = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+        let vals = [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
+        // camera looks along -z from +z: the square at z = 0 is nearer
+        let img = render_scalar_surface(
+            &v,
+            &f,
+            &vals,
+            0.0,
+            1.0,
+            Colormap::Gray,
+            Vector3::new(0.0, 0.0, -1.0),
+            Vector3::y(),
+            64,
+        );
+        let c = img.pixel(32, 32);
+        assert_eq!(c[0], 255, "the near face (value 1 = white in Gray, facing the view: shade 1)");
+        // from the other side the far square (value 0) is in front
+        let img = render_scalar_surface(
+            &v,
+            &f,
+            &vals,
+            0.0,
+            1.0,
+            Colormap::Gray,
+            Vector3::new(0.0, 0.0, 1.0),
+            Vector3::y(),
+            64,
+        );
+        assert_eq!(img.pixel(32, 32)[0], 0);
+    }
+
+    #[test]
+    fn vtk_fields_round_trip_through_the_core_reader() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.vtk");
+        let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()];
+        write_vtk_fields(&p, &v, &[[0, 1, 2, 3]], &[("tre_mm", &[0.0, 1.0, 2.0, 3.0])], &[("u", &v)]).unwrap();
+        let m = laparo_core::mesh::read_vtk(&p).unwrap();
+        assert_eq!(m.vertices, v);
+        assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
+        assert!(write_vtk_fields(&p, &v, &[[0, 1, 2, 3]], &[("bad", &[0.0])], &[]).is_err());
+    }
+}
