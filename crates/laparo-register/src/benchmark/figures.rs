@@ -8,22 +8,29 @@ use laparo_core::image::Image;
 use nalgebra::Vector3;
 use std::path::Path;
 
-/// Orthographic, z-buffered rendering of the triangles `faces` of `vertices` seen along `view` (from the
-/// camera towards the scene; `up` gives the image's up direction), coloured by the per-vertex `values`
-/// mapped to [lo, hi] with `cmap`, Lambert-shaded, on a white background; `size` px square.
+/// An orthographic view of a surface.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceView {
+    /// Viewing direction, from the camera towards the scene.
+    pub direction: Vector3<f64>,
+    /// The image's up direction.
+    pub up: Vector3<f64>,
+    /// Image side (px, square).
+    pub size_px: usize,
+}
+
+/// Orthographic, z-buffered rendering of the triangles `faces` of `vertices` seen as `view` says, coloured
+/// by the per-vertex `values` mapped from [lo, hi] with `cmap`, Lambert-shaded, on a white background.
 pub fn render_scalar_surface(
     vertices: &[Vector3<f64>],
     faces: &[[usize; 3]],
     values: &[f64],
-    lo: f64,
-    hi: f64,
-    cmap: Colormap,
-    view: Vector3<f64>,
-    up: Vector3<f64>,
-    size: usize,
+    (lo, hi, cmap): (f64, f64, Colormap),
+    view: &SurfaceView,
 ) -> Image<u8> {
-    let f = view.normalize();
-    let r = f.cross(&up).normalize();
+    let size = view.size_px;
+    let f = view.direction.normalize();
+    let r = f.cross(&view.up).normalize();
     let u = r.cross(&f);
     let proj: Vec<Vector3<f64>> = vertices.iter().map(|p| Vector3::new(p.dot(&r), p.dot(&u), p.dot(&f))).collect();
     let mut img = Image::filled(size, size, 3, 255u8);
@@ -81,21 +88,22 @@ pub fn render_scalar_surface(
     img
 }
 
-/// A TRE map: two opposite views of the surface side by side, coloured by error (mm) on [0, `hi`], with a
-/// colour bar and `title` drawn above. Written to `path` (PNG, atomically).
+/// A TRE map: `view` and its opposite side by side, coloured by error (mm) on [0, `hi_mm`], with a colour bar
+/// and `title` drawn above. Written to `path` (PNG, atomically).
 pub fn write_tre_map(
     path: &Path,
     vertices: &[Vector3<f64>],
     faces: &[[usize; 3]],
     errors_mm: &[f64],
     hi_mm: f64,
-    view: Vector3<f64>,
-    up: Vector3<f64>,
+    view: &SurfaceView,
     title: &str,
 ) -> Result<()> {
-    let size = 420;
-    let a = render_scalar_surface(vertices, faces, errors_mm, 0.0, hi_mm, Colormap::Magma, view, up, size);
-    let b = render_scalar_surface(vertices, faces, errors_mm, 0.0, hi_mm, Colormap::Magma, -view, up, size);
+    let size = view.size_px;
+    let scale = (0.0, hi_mm, Colormap::Magma);
+    let a = render_scalar_surface(vertices, faces, errors_mm, scale, view);
+    let back = SurfaceView { direction: -view.direction, ..*view };
+    let b = render_scalar_surface(vertices, faces, errors_mm, scale, &back);
     let mut both = Image::filled(2 * size, size + 30, 3, 255u8);
     for y in 0..size {
         for x in 0..size {
@@ -253,6 +261,10 @@ pub fn write_vtk_fields(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn view(z: f64) -> SurfaceView {
+        SurfaceView { direction: Vector3::new(0.0, 0.0, z), up: Vector3::y(), size_px: 64 }
+    }
 
     #[test]
     fn rendering_colours_by_value_and_hides_the_back() {
