@@ -282,31 +282,11 @@ mod tests {
         let f = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let vals = [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
         // camera looks along -z from +z: the square at z = 0 is nearer
-        let img = render_scalar_surface(
-            &v,
-            &f,
-            &vals,
-            0.0,
-            1.0,
-            Colormap::Gray,
-            Vector3::new(0.0, 0.0, -1.0),
-            Vector3::y(),
-            64,
-        );
+        let img = render_scalar_surface(&v, &f, &vals, (0.0, 1.0, Colormap::Gray), &view(-1.0));
         let c = img.pixel(32, 32);
         assert_eq!(c[0], 255, "the near face (value 1 = white in Gray, facing the view: shade 1)");
         // from the other side the far square (value 0) is in front
-        let img = render_scalar_surface(
-            &v,
-            &f,
-            &vals,
-            0.0,
-            1.0,
-            Colormap::Gray,
-            Vector3::new(0.0, 0.0, 1.0),
-            Vector3::y(),
-            64,
-        );
+        let img = render_scalar_surface(&v, &f, &vals, (0.0, 1.0, Colormap::Gray), &view(1.0));
         assert_eq!(img.pixel(32, 32)[0], 0);
     }
 
