@@ -296,3 +296,49 @@ mod tests {
         assert!(affine_fit(&x, &flat, &rest, &def).is_none());
     }
 }
+
+/// RODS-MPM as a benchmark [`Method`](super::case::Method): each lip's landmarks form one group scored
+/// against that lip's target polyline; the case's region of interest overrides `organ.roi`.
+#[derive(Clone, Debug)]
+pub struct RodsMethod {
+    /// Organ set-up (spacing, material, horizon).
+    pub organ: OrganConfig,
+    /// Optimiser.
+    pub optimizer: OptimizerConfig,
+}
+
+impl super::case::Method for RodsMethod {
+    fn name(&self) -> String {
+        "RODS-MPM".into()
+    }
+    fn register(
+        &self,
+        case: &super::case::BenchmarkCase,
+        landmarks: &[super::case::LandmarkSet],
+    ) -> Result<super::case::MethodOutput> {
+        let groups = landmarks
+            .iter()
+            .map(|l| SideGroup {
+                name: l.name.clone(),
+                sources: l.sources.iter().map(|s| (*s, l.side)).collect(),
+                target: l.targets.clone(),
+            })
+            .collect();
+        let mut organ = self.organ.clone();
+        if case.roi.is_some() {
+            organ.roi = case.roi;
+        }
+        let problem = RodsProblem {
+            nodes: &case.rest,
+            tets: &case.tets,
+            node_side: &case.node_side,
+            groups,
+            organ,
+            optimizer: self.optimizer.clone(),
+        };
+        let out = run_rods(&problem, &mut |_| {})?;
+        let mut notes = out.notes;
+        notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
+        Ok(super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes })
+    }
+}

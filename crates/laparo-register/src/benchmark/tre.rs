@@ -79,10 +79,26 @@ pub fn distance_to_nearest(points: &[Vector3<f64>], landmarks: &[Vector3<f64>]) 
 pub struct BinStats {
     /// Lower edge (mm, inclusive).
     pub lo_mm: f64,
-    /// Upper edge (mm, exclusive; infinite for the last bin).
+    /// Upper edge (mm, exclusive; infinite for the last bin, `null` in JSON).
+    #[serde(with = "inf_as_null")]
     pub hi_mm: f64,
     /// Statistics of the errors in the bin.
     pub stats: Stats,
+}
+
+/// JSON has no infinity: an infinite edge is written as `null` and read back as +∞.
+mod inf_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            s.serialize_f64(*v)
+        } else {
+            s.serialize_none()
+        }
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+    }
 }
 
 /// Errors grouped by the distance bins `edges` (ascending, mm): bin k holds edges[k] ≤ d < edges[k+1].

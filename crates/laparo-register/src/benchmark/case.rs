@@ -1,0 +1,349 @@
+//! A benchmark case (one scenario on one mesh): the cut rest mesh, its FEM ground-truth deformation and the
+//! incision lips; landmarks sampled on the lips; the [`Method`] interface every registration method
+//! implements; scoring of one run; and the resumable protocol loop over methods × columns × seeds.
+use super::protocol::{noisy_targets, Column};
+use super::store::{ResultStore, RunKey, RunResult};
+use super::tre::{binned, distance_to_nearest, node_errors, Stats, DISTANCE_BIN_EDGES_MM};
+use crate::error::{RegisterError, Result};
+use crate::organ::Roi;
+use nalgebra::Vector3;
+
+/// One scenario on one mesh, with its ground truth (mm).
+#[derive(Clone, Debug)]
+pub struct BenchmarkCase {
+    /// Scenario name (`non-anatomical`, `anatomical`).
+    pub scenario: String,
+    /// Rest node positions of the cut mesh (the source: cut but undeformed).
+    pub rest: Vec<Vector3<f64>>,
+    /// Tetrahedra of the cut mesh (crack nodes duplicated).
+    pub tets: Vec<[usize; 4]>,
+    /// Boundary triangles of the cut mesh (outer surface and crack faces), for surface TRE and pictures.
+    pub surface: Vec<[usize; 3]>,
+    /// 0 away from the crack, 1 or 2 for the copies of a duplicated crack node.
+    pub node_side: Vec<u8>,
+    /// Ground-truth deformed node positions (FEM).
+    pub ground_truth: Vec<Vector3<f64>>,
+    /// Ordered node ids along each lip's mouth (where the crack meets the outer surface), side 1 then side 2.
+    pub lips: [Vec<usize>; 2],
+    /// Nodes held fixed by the ground truth (they are known to the methods as fixed too).
+    pub fixed: Vec<usize>,
+    /// Region of interest RODS-MPM simulates (None = the whole organ).
+    pub roi: Option<Roi>,
+}
+
+/// A material point: a convex combination of nodes (weights sum to 1).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialPoint(pub Vec<(usize, f64)>);
+
+impl MaterialPoint {
+    /// Its position in configuration `x`.
+    pub fn at(&self, x: &[Vector3<f64>]) -> Vector3<f64> {
+        self.0.iter().map(|&(i, w)| x[i] * w).sum()
+    }
+}
+
+/// The landmarks of one lip: material points, their rest (source) positions and the observed target
+/// positions (ground truth at the same material points, plus noise).
+#[derive(Clone, Debug)]
+pub struct LandmarkSet {
+    /// `lip 1`, `lip 2`.
+    pub name: String,
+    /// Incision side (1 or 2).
+    pub side: u8,
+    /// The material points.
+    pub points: Vec<MaterialPoint>,
+    /// Source positions (rest, mm).
+    pub sources: Vec<Vector3<f64>>,
+    /// Target positions (mm): the target polyline's vertices, in order along the lip.
+    pub targets: Vec<Vector3<f64>>,
+}
+
+/// What a method returns.
+#[derive(Clone, Debug)]
+pub struct MethodOutput {
+    /// Registered node positions (mm), one per node of the case.
+    pub nodes: Vec<Vector3<f64>>,
+    /// Mean landmark distance to the targets after registration (mm, eq. 5.10).
+    pub landmark_distance_mm: f64,
+    /// Findings worth reporting.
+    pub notes: Vec<String>,
+}
+
+/// A registration method under test.
+pub trait Method {
+    /// Name in the tables (`ARAP`, `DRBC`, `Francois`, `LDDMM`, `RODS-MPM`).
+    fn name(&self) -> String;
+    /// Register the case's rest mesh to the landmark targets.
+    fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput>;
+}
+
+impl BenchmarkCase {
+    /// Check sizes and finiteness; a clear error naming the field.
+    pub fn validate(&self) -> Result<()> {
+        let n = self.rest.len();
+        let bad = |f: &str, r: String| Err(RegisterError::bad(format!("benchmark case `{}`: {f}", self.scenario), r));
+        if n == 0 || self.tets.is_empty() {
+            return bad("mesh", "empty".into());
+        }
+        if self.ground_truth.len() != n || self.node_side.len() != n {
+            return bad(
+                "ground truth / sides",
+                format!("{} / {} values for {n} nodes", self.ground_truth.len(), self.node_side.len()),
+            );
+        }
+        if self.rest.iter().chain(&self.ground_truth).any(|p| !p.iter().all(|v| v.is_finite())) {
+            return bad("positions", "non-finite value".into());
+        }
+        if self.tets.iter().flatten().chain(self.surface.iter().flatten()).chain(self.fixed.iter()).any(|&i| i >= n) {
+            return bad("connectivity", format!("a node index >= {n}"));
+        }
+        for (k, lip) in self.lips.iter().enumerate() {
+            if lip.len() < 2 || lip.iter().any(|&i| i >= n) {
+                return bad(&format!("lip {}", k + 1), format!("{} nodes (need ≥ 2 valid ids)", lip.len()));
+            }
+        }
+        Ok(())
+    }
+
+    /// Nodes on the boundary surface, sorted.
+    pub fn surface_nodes(&self) -> Vec<usize> {
+        let mut v: Vec<usize> = self.surface.iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
+    /// Largest ground-truth displacement (mm).
+    pub fn max_displacement_mm(&self) -> f64 {
+        self.rest.iter().zip(&self.ground_truth).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
+    }
+
+    /// `n_total` landmarks, half on each lip, equally spaced by rest arc length along the lip (ends included),
+    /// with noiseless targets at the same material points in the ground truth.
+    pub fn lip_landmarks(&self, n_total: usize) -> Result<Vec<LandmarkSet>> {
+        if n_total < 4 || n_total % 2 != 0 {
+            return Err(RegisterError::param("landmarks", n_total as f64, "must be even and ≥ 4 (half per lip)"));
+        }
+        let per = n_total / 2;
+        let mut out = Vec::new();
+        for (k, lip) in self.lips.iter().enumerate() {
+            let mut cum = vec![0.0];
+            for w in lip.windows(2) {
+                cum.push(cum.last().copied().unwrap_or(0.0) + (self.rest[w[1]] - self.rest[w[0]]).norm());
+            }
+            let total = *cum.last().unwrap_or(&0.0);
+            if !(total > 0.0) {
+                return Err(RegisterError::bad(format!("lip {}", k + 1), "has zero length"));
+            }
+            let mut points = Vec::with_capacity(per);
+            for j in 0..per {
+                let s = total * j as f64 / (per - 1) as f64;
+                let seg = cum.partition_point(|&c| c <= s).clamp(1, lip.len() - 1) - 1;
+                let len = cum[seg + 1] - cum[seg];
+                let t = if len > 0.0 { ((s - cum[seg]) / len).clamp(0.0, 1.0) } else { 0.0 };
+                points.push(MaterialPoint(vec![(lip[seg], 1.0 - t), (lip[seg + 1], t)]));
+            }
+            let sources = points.iter().map(|p| p.at(&self.rest)).collect();
+            let targets = points.iter().map(|p| p.at(&self.ground_truth)).collect();
+            out.push(LandmarkSet { name: format!("lip {}", k + 1), side: k as u8 + 1, points, sources, targets });
+        }
+        Ok(out)
+    }
+}
+
+/// Landmarks of `column` for `seed`: `column.landmarks` lip landmarks with N(0, σ²I) noise on the targets.
+pub fn column_landmarks(case: &BenchmarkCase, column: &Column, seed: u64) -> Result<Vec<LandmarkSet>> {
+    let mut lm = case.lip_landmarks(column.landmarks)?;
+    let t: Vec<Vec<Vector3<f64>>> = lm.iter().map(|l| l.targets.clone()).collect();
+    for (l, noisy) in lm.iter_mut().zip(noisy_targets(&t, column.noise_sigma_mm, seed)) {
+        l.targets = noisy;
+    }
+    Ok(lm)
+}
+
+/// Score registered node positions against the ground truth.
+pub fn score(
+    case: &BenchmarkCase,
+    landmarks: &[LandmarkSet],
+    out: &MethodOutput,
+    key: RunKey,
+    seconds: f64,
+) -> Result<RunResult> {
+    let e = node_errors(&out.nodes, &case.ground_truth)?;
+    let src: Vec<Vector3<f64>> = landmarks.iter().flat_map(|l| l.sources.iter().copied()).collect();
+    let d = distance_to_nearest(&case.rest, &src)?;
+    let surf: Vec<f64> = case.surface_nodes().iter().map(|&i| e[i]).collect();
+    Ok(RunResult {
+        key,
+        tre_volume: Stats::of(&e),
+        tre_surface: Stats::of(&surf),
+        bins: binned(&e, &d, &DISTANCE_BIN_EDGES_MM),
+        max_gt_displacement_mm: case.max_displacement_mm(),
+        landmark_distance_mm: out.landmark_distance_mm,
+        seconds,
+        notes: out.notes.clone(),
+    })
+}
+
+/// Progress of [`run_protocol`]: (done, total, the run just finished or skipped, whether it was resumed).
+pub type Progress<'a> = dyn FnMut(usize, usize, &RunKey, bool) + 'a;
+
+/// Run every (case, method, column, seed) not yet in `store`, saving each result as soon as it is scored;
+/// returns all results in loop order. A method's error is recorded in its result's notes with NaN TRE? No:
+/// an error stops the run with its key named (a benchmark silently missing cells is worse).
+pub fn run_protocol(
+    cases: &[BenchmarkCase],
+    methods: &[&dyn Method],
+    columns: &[Column],
+    n_seeds: usize,
+    store: &ResultStore,
+    progress: &mut Progress,
+) -> Result<Vec<RunResult>> {
+    let mut jobs = Vec::new();
+    for case in cases {
+        case.validate()?;
+        for c in columns {
+            for seed in c.seeds(n_seeds) {
+                for m in methods {
+                    jobs.push((case, *m, *c, seed));
+                }
+            }
+        }
+    }
+    let total = jobs.len();
+    let mut results = Vec::with_capacity(total);
+    for (done, (case, m, column, seed)) in jobs.into_iter().enumerate() {
+        let key = RunKey { scenario: case.scenario.clone(), method: m.name(), column, seed };
+        if let Some(r) = store.load(&key)? {
+            progress(done + 1, total, &key, true);
+            results.push(r);
+            continue;
+        }
+        let lm = column_landmarks(case, &column, seed)?;
+        let t0 = std::time::Instant::now();
+        let out = m.register(case, &lm).map_err(|e| {
+            RegisterError::bad(
+                format!("{} / {} / {} seed {}", key.scenario, key.method, column.key(), seed),
+                e.to_string(),
+            )
+        })?;
+        let r = score(case, &lm, &out, key.clone(), t0.elapsed().as_secs_f64())?;
+        store.save(&r)?;
+        progress(done + 1, total, &key, false);
+        results.push(r);
+    }
+    Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A slab of two tetrahedra per side whose crack nodes are duplicated; the ground truth opens the crack.
+    pub(crate) fn toy_case() -> BenchmarkCase {
+        // nodes 0..4 base (shared), 4/5 = the crack node pair at x=0 (sides 1 and 2), 6 apex
+        let rest = vec![
+            Vector3::new(-10.0, 0.0, 0.0),
+            Vector3::new(10.0, 0.0, 0.0),
+            Vector3::new(0.0, 10.0, 0.0),
+            Vector3::new(0.0, -10.0, 0.0),
+            Vector3::new(0.0, 0.0, 10.0),
+            Vector3::new(0.0, 0.0, 10.0),
+            Vector3::new(0.0, 0.0, -10.0),
+        ];
+        let tets = vec![[0, 2, 3, 4], [1, 3, 2, 5], [0, 3, 2, 6], [1, 2, 3, 6]];
+        let mut gt = rest.clone();
+        gt[4] += Vector3::new(-3.0, 0.0, 0.0);
+        gt[5] += Vector3::new(4.0, 0.0, 0.0);
+        BenchmarkCase {
+            scenario: "toy".into(),
+            surface: vec![[0, 2, 4], [1, 5, 2]],
+            node_side: vec![0, 0, 0, 0, 1, 2, 0],
+            ground_truth: gt,
+            lips: [vec![2, 4, 3], vec![2, 5, 3]],
+            fixed: vec![6],
+            roi: None,
+            rest,
+            tets,
+        }
+    }
+
+    struct Identity;
+    impl Method for Identity {
+        fn name(&self) -> String {
+            "identity".into()
+        }
+        fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
+            Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: 0.0, notes: vec![] })
+        }
+    }
+    struct Oracle;
+    impl Method for Oracle {
+        fn name(&self) -> String {
+            "oracle".into()
+        }
+        fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
+            Ok(MethodOutput { nodes: case.ground_truth.clone(), landmark_distance_mm: 0.0, notes: vec![] })
+        }
+    }
+
+    #[test]
+    fn landmarks_by_arc_length_by_hand() {
+        let c = toy_case();
+        c.validate().unwrap();
+        let lm = c.lip_landmarks(6).unwrap();
+        assert_eq!(lm.len(), 2);
+        // lip 1: (0,10,0) → (0,0,10) → (0,-10,0); 3 points: both ends and the middle node
+        assert!((lm[0].sources[1] - Vector3::new(0.0, 0.0, 10.0)).norm() < 1e-12);
+        assert!((lm[0].targets[1] - Vector3::new(-3.0, 0.0, 10.0)).norm() < 1e-12);
+        assert!((lm[1].targets[1] - Vector3::new(4.0, 0.0, 10.0)).norm() < 1e-12);
+        assert!((lm[0].sources[0] - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-12);
+        assert!(c.lip_landmarks(5).is_err());
+        let lm = c.lip_landmarks(8).unwrap(); // 4 per lip: at 1/3 of the arc, a point between nodes 2 and 4
+        let expect = Vector3::new(0.0, 10.0, 0.0) * (1.0 / 3.0) + Vector3::new(0.0, 0.0, 10.0) * (2.0 / 3.0);
+        assert!((lm[0].sources[1] - expect).norm() < 1e-12);
+    }
+
+    #[test]
+    fn identity_scores_the_ground_truth_displacement_and_the_oracle_zero() {
+        let c = toy_case();
+        let dir = tempfile::tempdir().unwrap();
+        let store = ResultStore::new(dir.path());
+        let cols = [Column { landmarks: 4, noise_sigma_mm: 0.0 }, Column { landmarks: 4, noise_sigma_mm: 1.0 }];
+        let mut seen = Vec::new();
+        let r = run_protocol(&[c.clone()], &[&Identity, &Oracle], &cols, 2, &store, &mut |d, t, k, resumed| {
+            seen.push((d, t, k.method.clone(), resumed))
+        })
+        .unwrap();
+        assert_eq!(r.len(), 2 + 2 * 2);
+        let id = &r[0];
+        assert_eq!(id.key.method, "identity");
+        // node errors: 3 and 4 at the crack pair, 0 elsewhere (7 nodes)
+        assert!((id.tre_volume.mean - 1.0).abs() < 1e-12);
+        assert_eq!(id.tre_volume.max, 4.0);
+        assert_eq!(id.max_gt_displacement_mm, 4.0);
+        assert_eq!(r[1].tre_volume.max, 0.0);
+        // 2 landmarks per lip sit at the lip ends (nodes 2, 3: distance 0, error 0); the crack pair is
+        // √200 ≈ 14.1 mm from them, in the 10–20 mm bin with the base nodes 0, 1, 6
+        assert_eq!((id.bins[0].stats.n, id.bins[0].stats.max), (2, 0.0));
+        assert_eq!((id.bins[2].stats.n, id.bins[2].stats.max), (5, 4.0));
+        // resumed on a second call
+        let mut resumed = 0;
+        run_protocol(&[c], &[&Identity, &Oracle], &cols, 2, &store, &mut |_, _, _, r| resumed += r as usize).unwrap();
+        assert_eq!(resumed, 6);
+        assert!(seen.iter().all(|s| !s.3) && seen.len() == 6 && seen[5].0 == 6);
+    }
+
+    #[test]
+    fn noisy_columns_perturb_targets_only() {
+        let c = toy_case();
+        let a = column_landmarks(&c, &Column { landmarks: 6, noise_sigma_mm: 2.0 }, 1).unwrap();
+        let b = column_landmarks(&c, &Column { landmarks: 6, noise_sigma_mm: 0.0 }, 1).unwrap();
+        assert_eq!(a[0].sources, b[0].sources);
+        assert_ne!(a[0].targets, b[0].targets);
+        assert_eq!(
+            a[0].targets,
+            column_landmarks(&c, &Column { landmarks: 6, noise_sigma_mm: 2.0 }, 1).unwrap()[0].targets
+        );
+    }
+}
