@@ -121,7 +121,7 @@ impl BenchmarkCase {
     /// `n_total` landmarks, half on each lip, equally spaced by rest arc length along the lip (ends included),
     /// with noiseless targets at the same material points in the ground truth.
     pub fn lip_landmarks(&self, n_total: usize) -> Result<Vec<LandmarkSet>> {
-        if n_total < 4 || n_total % 2 != 0 {
+        if n_total < 4 || !n_total.is_multiple_of(2) {
             return Err(RegisterError::param("landmarks", n_total as f64, "must be even and ≥ 4 (half per lip)"));
         }
         let per = n_total / 2;
@@ -311,10 +311,11 @@ mod tests {
         let store = ResultStore::new(dir.path());
         let cols = [Column { landmarks: 4, noise_sigma_mm: 0.0 }, Column { landmarks: 4, noise_sigma_mm: 1.0 }];
         let mut seen = Vec::new();
-        let r = run_protocol(&[c.clone()], &[&Identity, &Oracle], &cols, 2, &store, &mut |d, t, k, resumed| {
-            seen.push((d, t, k.method.clone(), resumed))
-        })
-        .unwrap();
+        let r =
+            run_protocol(std::slice::from_ref(&c), &[&Identity, &Oracle], &cols, 2, &store, &mut |d, t, k, resumed| {
+                seen.push((d, t, k.method.clone(), resumed))
+            })
+            .unwrap();
         assert_eq!(r.len(), 2 + 2 * 2);
         let id = &r[0];
         assert_eq!(id.key.method, "identity");
