@@ -23,6 +23,8 @@ pub struct BenchmarkCase {
     pub node_side: Vec<u8>,
     /// Ground-truth deformed node positions (FEM).
     pub ground_truth: Vec<Vector3<f64>>,
+    /// Per node, the node of the uncut mesh it comes from (the two copies of a crack node share one).
+    pub original_node: Vec<usize>,
     /// Ordered node ids along each lip's mouth (where the crack meets the outer surface), side 1 then side 2.
     pub lips: [Vec<usize>; 2],
     /// Nodes held fixed by the ground truth (they are known to the methods as fixed too).
@@ -103,6 +105,23 @@ impl BenchmarkCase {
             }
         }
         Ok(())
+    }
+
+    /// The uncut mesh the methods that do not know the incision start from: one node per original node (at
+    /// the rest position of its first copy), the tetrahedra re-indexed; and the map cut node → uncut node.
+    pub fn uncut(&self) -> (Vec<Vector3<f64>>, Vec<[usize; 4]>, Vec<usize>) {
+        let mut index = std::collections::HashMap::new();
+        let mut nodes = Vec::new();
+        let map: Vec<usize> = (0..self.rest.len())
+            .map(|i| {
+                *index.entry(self.original_node[i]).or_insert_with(|| {
+                    nodes.push(self.rest[i]);
+                    nodes.len() - 1
+                })
+            })
+            .collect();
+        let tets = self.tets.iter().map(|t| t.map(|i| map[i])).collect();
+        (nodes, tets, map)
     }
 
     /// Nodes on the boundary surface, sorted.
@@ -259,6 +278,7 @@ mod tests {
             scenario: "toy".into(),
             surface: vec![[0, 2, 4], [1, 5, 2]],
             node_side: vec![0, 0, 0, 0, 1, 2, 0],
+            original_node: vec![0, 1, 2, 3, 4, 4, 5],
             ground_truth: gt,
             lips: [vec![2, 4, 3], vec![2, 5, 3]],
             fixed: vec![6],
@@ -333,6 +353,15 @@ mod tests {
         run_protocol(&[c], &[&Identity, &Oracle], &cols, 2, &store, &mut |_, _, _, r| resumed += r as usize).unwrap();
         assert_eq!(resumed, 6);
         assert!(seen.iter().all(|s| !s.3) && seen.len() == 6 && seen[5].0 == 6);
+    }
+
+    #[test]
+    fn the_uncut_mesh_merges_crack_copies() {
+        let c = toy_case();
+        let (n, t, map) = c.uncut();
+        assert_eq!(n.len(), 6);
+        assert_eq!(map, vec![0, 1, 2, 3, 4, 4, 5]);
+        assert_eq!(t[1], [1, 3, 2, 4]);
     }
 
     #[test]
