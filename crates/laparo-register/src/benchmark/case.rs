@@ -204,12 +204,26 @@ pub fn score(
     })
 }
 
-/// Progress of [`run_protocol`]: (done, total, the run just finished or skipped, whether it was resumed).
-pub type Progress<'a> = dyn FnMut(usize, usize, &RunKey, bool) + 'a;
+/// One finished (or resumed) run, as [`run_protocol`] reports it.
+pub struct RunEvent<'a> {
+    /// Runs done so far (this one included).
+    pub done: usize,
+    /// Runs in all.
+    pub total: usize,
+    /// The case of the run.
+    pub case: &'a BenchmarkCase,
+    /// The run's result.
+    pub result: &'a RunResult,
+    /// The registered node positions (None when the result was resumed from the store).
+    pub registered: Option<&'a [Vector3<f64>]>,
+}
+
+/// Progress callback of [`run_protocol`].
+pub type Progress<'a> = dyn FnMut(&RunEvent) + 'a;
 
 /// Run every (case, method, column, seed) not yet in `store`, saving each result as soon as it is scored;
-/// returns all results in loop order. A method's error is recorded in its result's notes with NaN TRE? No:
-/// an error stops the run with its key named (a benchmark silently missing cells is worse).
+/// returns all results in loop order. A method's error stops the protocol with the run named (a table
+/// silently missing cells is worse); the runs before it stay stored.
 pub fn run_protocol(
     cases: &[BenchmarkCase],
     methods: &[&dyn Method],
@@ -234,7 +248,7 @@ pub fn run_protocol(
     for (done, (case, m, column, seed)) in jobs.into_iter().enumerate() {
         let key = RunKey { scenario: case.scenario.clone(), method: m.name(), column, seed };
         if let Some(r) = store.load(&key)? {
-            progress(done + 1, total, &key, true);
+            progress(&RunEvent { done: done + 1, total, case, result: &r, registered: None });
             results.push(r);
             continue;
         }
@@ -248,7 +262,7 @@ pub fn run_protocol(
         })?;
         let r = score(case, &lm, &out, key.clone(), t0.elapsed().as_secs_f64())?;
         store.save(&r)?;
-        progress(done + 1, total, &key, false);
+        progress(&RunEvent { done: done + 1, total, case, result: &r, registered: Some(&out.nodes) });
         results.push(r);
     }
     Ok(results)
@@ -331,11 +345,10 @@ mod tests {
         let store = ResultStore::new(dir.path());
         let cols = [Column { landmarks: 4, noise_sigma_mm: 0.0 }, Column { landmarks: 4, noise_sigma_mm: 1.0 }];
         let mut seen = Vec::new();
-        let r =
-            run_protocol(std::slice::from_ref(&c), &[&Identity, &Oracle], &cols, 2, &store, &mut |d, t, k, resumed| {
-                seen.push((d, t, k.method.clone(), resumed))
-            })
-            .unwrap();
+        let r = run_protocol(std::slice::from_ref(&c), &[&Identity, &Oracle], &cols, 2, &store, &mut |e| {
+            seen.push((e.done, e.total, e.result.key.method.clone(), e.registered.is_none()))
+        })
+        .unwrap();
         assert_eq!(r.len(), 2 + 2 * 2);
         let id = &r[0];
         assert_eq!(id.key.method, "identity");
@@ -350,7 +363,10 @@ mod tests {
         assert_eq!((id.bins[2].stats.n, id.bins[2].stats.max), (5, 4.0));
         // resumed on a second call
         let mut resumed = 0;
-        run_protocol(&[c], &[&Identity, &Oracle], &cols, 2, &store, &mut |_, _, _, r| resumed += r as usize).unwrap();
+        run_protocol(&[c], &[&Identity, &Oracle], &cols, 2, &store, &mut |e| {
+            resumed += e.registered.is_none() as usize
+        })
+        .unwrap();
         assert_eq!(resumed, 6);
         assert!(seen.iter().all(|s| !s.3) && seen.len() == 6 && seen[5].0 == 6);
     }
