@@ -1,0 +1,258 @@
+//! Build a benchmark case from a closed organ surface (thesis §5.4.2): tetrahedralise it, cut it (one of the
+//! two scenarios of `laparo-fem`), open the incision with equal and opposite pressures on the two crack
+//! faces in a quasi-static TET10 Neo-Hookean FEM (the ground truth, never `laparo-mpm`), the pressure
+//! calibrated so that the largest lip gap reaches the scenario's target, and choose the region of
+//! interest RODS-MPM simulates so that the ground-truth displacement on its boundary stays small.
+use super::case::BenchmarkCase;
+use crate::error::{RegisterError, Result};
+use crate::organ::Roi;
+use laparo_fem::material::NeoHookean;
+use laparo_fem::mesh::incision::CutMesh;
+use laparo_fem::mesh::scenario::Scenario;
+use laparo_fem::solid::{solve, FaceTraction, Loads, Quadrature, SolidProblem, Solution, SolverSettings, Tet10Mesh};
+use nalgebra::Vector3;
+
+/// How to make the ground truth.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GroundTruthConfig {
+    /// Young's modulus (kPa), thesis 4.1.
+    pub youngs_modulus_kpa: f64,
+    /// Poisson's ratio, thesis 0.49.
+    pub poisson_ratio: f64,
+    /// Largest lip gap to reach (mm): the calibration stops inside [lo, hi].
+    pub target_gap_mm: [f64; 2],
+    /// First pressure tried (kPa).
+    pub initial_pressure_kpa: f64,
+    /// Most FEM solves of the calibration.
+    pub max_solves: usize,
+    /// Load increments per solve.
+    pub steps: usize,
+    /// Newton tolerance, relative to the applied load.
+    pub rel_tol: f64,
+}
+
+impl GroundTruthConfig {
+    /// register.md §4: the gap reaches 10–15 mm (non-anatomical) or 20–30 mm (anatomical).
+    pub fn for_scenario(name: &str) -> Self {
+        let target_gap_mm = if name == "anatomical" { [20.0, 30.0] } else { [10.0, 15.0] };
+        GroundTruthConfig {
+            youngs_modulus_kpa: 4.1,
+            poisson_ratio: 0.49,
+            target_gap_mm,
+            initial_pressure_kpa: 0.05,
+            max_solves: 6,
+            steps: 20,
+            rel_tol: 1e-8,
+        }
+    }
+}
+
+/// What the calibration did.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct GroundTruthReport {
+    /// Pressure on each crack face (kPa) of the accepted solve.
+    pub pressure_kpa: f64,
+    /// Largest distance between the two copies of a crack node (mm).
+    pub max_gap_mm: f64,
+    /// (pressure kPa, gap mm) of every solve, in order.
+    pub calibration: Vec<[f64; 2]>,
+    /// Smallest det F over the quadrature points.
+    pub min_j: f64,
+    /// Largest node displacement (mm).
+    pub max_displacement_mm: f64,
+    /// Largest displacement of a node farther than 60 mm from every crack node (mm).
+    pub far_displacement_mm: f64,
+    /// Free DOFs of the TET10 problem.
+    pub free_dofs: usize,
+    /// Newton iterations of the accepted solve.
+    pub newton_iterations: usize,
+    /// Largest final relative residual of the accepted solve.
+    pub max_relative_residual: f64,
+    /// Wall time of all solves (s).
+    pub seconds: f64,
+}
+
+/// Largest distance between the deformed copies of each duplicated crack node (mm).
+pub fn max_gap_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> f64 {
+    let mut first: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+    let mut gap = 0.0f64;
+    for (i, &o) in cut.original_node.iter().enumerate() {
+        match first.get(&o) {
+            Some(&j) => gap = gap.max((deformed[i] - deformed[j]).norm()),
+            None => {
+                first.insert(o, i);
+            }
+        }
+    }
+    gap
+}
+
+/// Pressure `p` (kPa) on every crack face, pushing each lip away from the other: traction −p n with n the
+/// face's outward normal (from its own side into the gap). Equal and opposite on the two lips.
+fn crack_pressure(cut: &CutMesh, p: f64) -> Vec<FaceTraction> {
+    let x = &cut.mesh.vertices;
+    cut.crack_faces
+        .iter()
+        .flatten()
+        .map(|f| {
+            let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).normalize();
+            FaceTraction { face: *f, traction_kpa: -n * p }
+        })
+        .collect()
+}
+
+fn solve_at(scn: &Scenario, material: NeoHookean, p: f64, cfg: &GroundTruthConfig) -> Result<Solution> {
+    let fem = |e: laparo_fem::FemError| RegisterError::bad(format!("FEM ground truth ({})", scn.name), e.to_string());
+    let mesh = Tet10Mesh::from_linear(&scn.cut.mesh).map_err(fem)?;
+    let dirichlet = SolidProblem::fixed_vertices(&mesh, &scn.fixed_nodes).map_err(fem)?;
+    let loads = Loads { face_tractions: crack_pressure(&scn.cut, p), ..Default::default() };
+    let problem = SolidProblem::new(mesh, material, &dirichlet, &loads, Quadrature::Degree2).map_err(fem)?;
+    let settings = SolverSettings { steps: cfg.steps, rel_tol: cfg.rel_tol, ..Default::default() };
+    solve(&problem, &settings).map_err(fem)
+}
+
+/// The ground truth of `scn`: node displacements of the cut mesh (mm) and the calibration report.
+/// `progress` sees (solve index, pressure kPa, gap mm) after each solve.
+pub fn fem_ground_truth(
+    scn: &Scenario,
+    cfg: &GroundTruthConfig,
+    progress: &mut dyn FnMut(usize, f64, f64),
+) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
+    let material = NeoHookean::from_young_poisson(cfg.youngs_modulus_kpa, cfg.poisson_ratio)
+        .map_err(|e| RegisterError::bad("ground-truth material", e.to_string()))?;
+    let [lo, hi] = cfg.target_gap_mm;
+    if !(lo > 0.0 && hi > lo) {
+        return Err(RegisterError::param("target_gap_mm", lo, "need 0 < lo < hi"));
+    }
+    let target = 0.5 * (lo + hi);
+    let t0 = std::time::Instant::now();
+    let x0 = &scn.cut.mesh.vertices;
+    let mut tried: Vec<[f64; 2]> = Vec::new();
+    let mut p = cfg.initial_pressure_kpa;
+    let mut best: Option<(Solution, f64, f64)> = None;
+    for k in 0..cfg.max_solves.max(1) {
+        let sol = match solve_at(scn, material, p, cfg) {
+            Ok(s) => s,
+            Err(e) if k > 0 => {
+                // too much pressure (inversion): step back halfway towards the last good pressure
+                let good = tried.last().map(|t| t[0]).unwrap_or(0.0);
+                tried.push([p, f64::NAN]);
+                p = 0.5 * (p + good);
+                let _ = e;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        let def: Vec<Vector3<f64>> = x0.iter().zip(sol.vertex_displacements()).map(|(a, u)| a + u).collect();
+        let gap = max_gap_mm(&scn.cut, &def);
+        tried.push([p, gap]);
+        progress(k, p, gap);
+        let done = gap >= lo && gap <= hi;
+        best = Some((sol, p, gap));
+        if done {
+            break;
+        }
+        // secant on the last two good solves (gap ∝ p at first), else proportional scaling
+        let good: Vec<[f64; 2]> = tried.iter().copied().filter(|t| t[1].is_finite()).collect();
+        p = if good.len() >= 2 {
+            let [p1, g1] = good[good.len() - 2];
+            let [p2, g2] = good[good.len() - 1];
+            if (g2 - g1).abs() > 1e-9 {
+                (p2 + (target - g2) * (p2 - p1) / (g2 - g1)).clamp(0.25 * p2, 4.0 * p2)
+            } else {
+                p2 * target / g2.max(1e-9)
+            }
+        } else {
+            p * (target / gap.max(1e-6)).clamp(0.1, 20.0)
+        };
+    }
+    let (sol, p, gap) = best.ok_or_else(|| RegisterError::bad(format!("FEM ground truth ({})", scn.name), "no solve succeeded"))?;
+    if !(gap >= lo && gap <= hi) {
+        return Err(RegisterError::bad(
+            format!("FEM ground truth ({})", scn.name),
+            format!("the lip gap reached {gap:.2} mm, not [{lo}, {hi}] mm, after {} solves (pressures {:?})", tried.len(), tried),
+        ));
+    }
+    let u = sol.vertex_displacements().to_vec();
+    // far field: nodes farther than 60 mm from every crack node
+    let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x0[i]).collect();
+    let d = super::tre::distance_to_nearest(x0, &crack)?;
+    let far = u.iter().zip(&d).filter(|(_, &d)| d > 60.0).map(|(u, _)| u.norm()).fold(0.0, f64::max);
+    let report = GroundTruthReport {
+        pressure_kpa: p,
+        max_gap_mm: gap,
+        calibration: tried,
+        min_j: sol.min_j,
+        max_displacement_mm: sol.max_displacement_mm,
+        far_displacement_mm: far,
+        free_dofs: sol.free_dofs,
+        newton_iterations: sol.timings.newton_iterations,
+        max_relative_residual: sol
+            .steps
+            .iter()
+            .filter_map(|s| s.residual_history.last().map(|r| r / s.tolerance * cfg.rel_tol))
+            .fold(0.0, f64::max),
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    Ok((u, report))
+}
+
+/// Incision side of every node of `cut`: 1 / 2 for nodes on the crack faces of side A / B only, 0 else
+/// (crack-front nodes are on both and stay 0).
+pub fn node_sides(cut: &CutMesh) -> Vec<u8> {
+    let mut s = vec![0u8; cut.mesh.vertices.len()];
+    for (k, faces) in cut.crack_faces.iter().enumerate() {
+        for &i in faces.iter().flatten() {
+            s[i] |= 1 << k;
+        }
+    }
+    s.iter().map(|&b| if b == 1 { 1 } else if b == 2 { 2 } else { 0 }).collect()
+}
+
+/// Smallest region of interest (a ball around the crack's centroid, radius from `r0_mm` in 10 mm steps
+/// up to `r_max_mm`) whose boundary shell (the nodes within `shell_mm` inside it) has a ground-truth
+/// displacement below `max_boundary_mm`; None when even `r_max_mm` fails (simulate the whole organ).
+pub fn choose_roi(
+    rest: &[Vector3<f64>],
+    displacement: &[Vector3<f64>],
+    centre: Vector3<f64>,
+    r0_mm: f64,
+    r_max_mm: f64,
+    shell_mm: f64,
+    max_boundary_mm: f64,
+) -> Option<(Roi, f64)> {
+    let mut r = r0_mm;
+    while r <= r_max_mm + 1e-9 {
+        let worst = rest
+            .iter()
+            .zip(displacement)
+            .filter(|(x, _)| {
+                let d = (*x - centre).norm();
+                d <= r && d > r - shell_mm
+            })
+            .map(|(_, u)| u.norm())
+            .fold(0.0, f64::max);
+        if worst < max_boundary_mm {
+            return Some((Roi::Ball { center: [centre[0], centre[1], centre[2]], radius_mm: r }, worst));
+        }
+        r += 10.0;
+    }
+    None
+}
+
+/// A [`BenchmarkCase`] from a scenario and its ground-truth displacements.
+pub fn case_from(scn: &Scenario, displacement: &[Vector3<f64>], roi: Option<Roi>) -> BenchmarkCase {
+    let x = &scn.cut.mesh.vertices;
+    BenchmarkCase {
+        scenario: scn.name.clone(),
+        rest: x.clone(),
+        tets: scn.cut.mesh.tets.clone(),
+        surface: scn.cut.mesh.boundary().faces,
+        node_side: node_sides(&scn.cut),
+        ground_truth: x.iter().zip(displacement).map(|(a, u)| a + u).collect(),
+        original_node: scn.cut.original_node.clone(),
+        lips: scn.cut.lips.clone(),
+        fixed: scn.fixed_nodes.clone(),
+        roi,
+    }
+}

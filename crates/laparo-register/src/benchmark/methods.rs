@@ -1,0 +1,153 @@
+//! The mesh-based baselines as benchmark [`Method`]s. ARAP, DRBC and LDDMM do not know the incision: they
+//! deform the **uncut** mesh (the two copies of each crack node merged), as a surgeon's preoperative model
+//! would be, and every cut node takes the position of its uncut node. François et al. [2021] cut the source
+//! mesh along the surface swept from the source lip polylines to an assumed depth (the true depth is not
+//! known intraoperatively) and run DRBC on that cut mesh. All methods get the same landmarks, the same
+//! eq. 5.10 distances (each lip against its own target polyline) and the same fixed posterior nodes as the
+//! ground truth.
+use super::case::{BenchmarkCase, LandmarkSet, Method, MethodOutput};
+use crate::baselines::{arap, drbc, lddmm, ArapConfig, BaselineProblem, DrbcConfig, LddmmConfig, MaterialPoint, MeshLandmarkGroup};
+use crate::distance::Polyline;
+use crate::error::{RegisterError, Result};
+use crate::loss::GroupTarget;
+use laparo_core::mesh::TetMesh;
+use laparo_fem::mesh::incision::{cut, Blade};
+use nalgebra::Vector3;
+use std::sync::Arc;
+
+/// Which baseline.
+#[derive(Clone, Debug)]
+pub enum Baseline {
+    /// Volumetric ARAP.
+    Arap(ArapConfig),
+    /// DRBC: landmarks + Neo-Hookean regularisation.
+    Drbc(DrbcConfig),
+    /// Landmark LDDMM (geodesic shooting, Gaussian kernel).
+    Lddmm(LddmmConfig),
+    /// François et al.: cut along the source lips to `assumed_depth_mm`, then DRBC.
+    Francois {
+        /// DRBC settings.
+        drbc: DrbcConfig,
+        /// Depth of the assumed cut (mm) below the lip polyline.
+        assumed_depth_mm: f64,
+    },
+}
+
+/// A baseline with a display name (e.g. `LDDMM` or `LDDMM σ 30` in a width sweep).
+#[derive(Clone, Debug)]
+pub struct BaselineMethod {
+    /// Name in the tables.
+    pub name: String,
+    /// The method and its settings.
+    pub baseline: Baseline,
+}
+
+fn groups_for(landmarks: &[LandmarkSet], node_map: &dyn Fn(usize, u8) -> usize) -> Vec<MeshLandmarkGroup> {
+    landmarks
+        .iter()
+        .map(|l| MeshLandmarkGroup {
+            name: l.name.clone(),
+            points: l
+                .points
+                .iter()
+                .map(|p| MaterialPoint::combination(&p.0.iter().map(|&(i, w)| (node_map(i, l.side), w)).collect::<Vec<_>>()))
+                .collect(),
+            target: GroupTarget::Shared(Arc::new(Polyline::open(l.targets.clone()))),
+            weight: 1.0,
+        })
+        .collect()
+}
+
+fn run(b: &Baseline, problem: &BaselineProblem) -> Result<crate::baselines::BaselineResult> {
+    match b {
+        Baseline::Arap(c) => arap(problem, c),
+        Baseline::Drbc(c) | Baseline::Francois { drbc: c, .. } => drbc(problem, c),
+        Baseline::Lddmm(c) => lddmm(problem, c),
+    }
+}
+
+/// For every node of the case's cut mesh, a (tetrahedron, corner) that holds it: meshes derived from the same
+/// uncut tetrahedra in the same order hold "the same" node copy at the same corner.
+fn corners(case: &BenchmarkCase) -> Vec<(usize, usize)> {
+    let mut c = vec![(usize::MAX, 0); case.rest.len()];
+    for (t, tet) in case.tets.iter().enumerate() {
+        for (k, &i) in tet.iter().enumerate() {
+            if c[i].0 == usize::MAX {
+                c[i] = (t, k);
+            }
+        }
+    }
+    c
+}
+
+/// Unit outward normals of the uncut surface at `points` (area-weighted normals of faces within 10 mm).
+fn outward_normals(mesh: &TetMesh, points: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    let b = mesh.boundary();
+    points
+        .iter()
+        .map(|p| {
+            let mut n = Vector3::zeros();
+            for f in &b.faces {
+                let q = f.map(|k| b.vertices[k]);
+                if ((q[0] + q[1] + q[2]) / 3.0 - p).norm() < 10.0 {
+                    n += (q[1] - q[0]).cross(&(q[2] - q[0]));
+                }
+            }
+            if n.norm() > 0.0 {
+                n.normalize()
+            } else {
+                Vector3::z()
+            }
+        })
+        .collect()
+}
+
+impl Method for BaselineMethod {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput> {
+        let (nodes, tets, map) = case.uncut();
+        let uncut = TetMesh { vertices: nodes, tets };
+        let mut notes = Vec::new();
+        let (mesh, to_case): (TetMesh, Vec<usize>) = match &self.baseline {
+            Baseline::Francois { assumed_depth_mm, .. } => {
+                // the blade: the lip-1 source polyline, swept inward along −n to the assumed depth
+                let mouth: Vec<Vector3<f64>> = landmarks.first().map(|l| l.sources.clone()).unwrap_or_default();
+                let normals = outward_normals(&uncut, &mouth);
+                let blade = Blade {
+                    mouth: mouth.clone(),
+                    directions: normals.iter().map(|n| -n).collect(),
+                    depths: vec![*assumed_depth_mm; mouth.len()],
+                    overshoot_mm: 5.0,
+                };
+                let f = cut(&uncut, &blade).map_err(|e| RegisterError::bad("François et al.: cutting the source mesh", e.to_string()))?;
+                // case node i sits at corner (t, k): François' copy is f.mesh.tets[t][k]
+                let to_case = corners(case).iter().map(|&(t, k)| f.mesh.tets[t][k]).collect();
+                notes.push(format!("assumed cut: {} crack faces per lip, depth {assumed_depth_mm} mm", f.crack_faces[0].len()));
+                (f.mesh, to_case)
+            }
+            _ => (uncut, map.clone()),
+        };
+        // landmark material points: case node → method node (its own side's copy where the method has one)
+        let node_map = |i: usize, _side: u8| to_case[i];
+        let mut problem = BaselineProblem::new(mesh, groups_for(landmarks, &node_map));
+        let fixed: Vec<usize> = {
+            let mut f: Vec<usize> = case.fixed.iter().map(|&i| to_case[i]).collect();
+            f.sort_unstable();
+            f.dedup();
+            f
+        };
+        problem.fix_at_rest(&fixed);
+        let r = run(&self.baseline, &problem)?;
+        if !r.report.converged {
+            notes.push(format!("{} stopped after {} iterations without meeting its tolerance", self.name, r.report.iterations));
+        }
+        Ok(MethodOutput {
+            nodes: to_case.iter().map(|&j| r.positions[j]).collect(),
+            landmark_distance_mm: r.report.mean_distance_mm,
+            notes,
+        })
+    }
+}

@@ -1,0 +1,306 @@
+//! `laparo register benchmark`: the in-silico incision benchmark (thesis §5.4.2, Table 5.1, Figs. 5.7–5.9)
+//! on a real liver: tetrahedralise, cut (two scenarios), FEM ground truth (TET10 Neo-Hookean, calibrated
+//! pressure on the crack faces), then ARAP, DRBC, François et al., LDDMM and RODS-MPM on the same landmarks,
+//! scored by TRE at every node. Resumable per (method, column, seed); deterministic.
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use laparo_fem::mesh::{anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame, TetraParams};
+use laparo_register::baselines::{ArapConfig, DrbcConfig, LddmmConfig};
+use laparo_register::benchmark::build::{case_from, choose_roi, fem_ground_truth, GroundTruthConfig, GroundTruthReport};
+use laparo_register::benchmark::figures::{write_distance_plot, write_tre_map, write_vtk_fields, SurfaceView};
+use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
+use laparo_register::benchmark::{aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, ResultStore, RodsMethod};
+use laparo_register::optimize::OptimizerConfig;
+use laparo_register::organ::OrganConfig;
+use nalgebra::Vector3;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `laparo register benchmark`.
+#[derive(Args)]
+pub struct BenchmarkArgs {
+    /// Scenario: non-anatomical, anatomical or all.
+    #[arg(long, default_value = "all")]
+    pub scenario: String,
+    /// Output folder (resumes what is already there).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Closed liver surface (OBJ/PLY/STL, mm); default: the P2ILF patient liver under ../shared/data.
+    #[arg(long)]
+    pub liver: Option<PathBuf>,
+    /// The tier the test suite affords: coarse mesh, one seed, short RODS-MPM runs.
+    #[arg(long)]
+    pub quick: bool,
+    /// Tetrahedron edge (mm); default 6 (quick 14).
+    #[arg(long)]
+    pub edge_mm: Option<f64>,
+    /// Noise seeds per noisy column; default 5 (quick 1).
+    #[arg(long)]
+    pub seeds: Option<usize>,
+    /// Methods, comma separated, among arap, drbc, francois, lddmm, rods.
+    #[arg(long, default_value = "arap,drbc,francois,lddmm,rods")]
+    pub methods: String,
+    /// RODS-MPM particle spacing (mm); default 3 (quick 6).
+    #[arg(long)]
+    pub spacing_mm: Option<f64>,
+    /// RODS-MPM optimiser iterations; default 60 (quick 8).
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// RODS-MPM horizon T (steps); default 200 (quick 60).
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// François et al.: assumed cut depth (mm) under the source lip polyline.
+    #[arg(long, default_value_t = 20.0)]
+    pub francois_depth_mm: f64,
+    /// LDDMM kernel width σ_K (mm).
+    #[arg(long, default_value_t = 20.0)]
+    pub lddmm_sigma_mm: f64,
+    /// Also run the sensitivity sweeps (Fig. 5.9: E, ν, spacing, grid, horizon; LDDMM width) at 50 landmarks.
+    #[arg(long)]
+    pub sweeps: bool,
+    /// FEM load increments per solve; default 20 (quick 8).
+    #[arg(long)]
+    pub fem_steps: Option<usize>,
+}
+
+fn default_liver() -> Option<PathBuf> {
+    let p = PathBuf::from("../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    p.exists().then_some(p)
+}
+
+fn write_json(path: &Path, v: &impl serde::Serialize) -> Result<()> {
+    laparo_core::atomic::write_atomic(path, (serde_json::to_string_pretty(v)? + "\n").as_bytes())?;
+    Ok(())
+}
+
+/// Ground truth from `dir/ground_truth.json` when it exists for the same mesh, else solved and saved.
+fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
+    let path = dir.join("ground_truth.json");
+    let n = scn.cut.mesh.vertices.len();
+    if path.exists() {
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
+        let flat: Vec<f64> = v["displacement_mm"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+        if flat.len() == 3 * n {
+            let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
+            let report: GroundTruthReport = serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
+            return Ok((u, report));
+        }
+        eprintln!("{}: for another mesh ({} values, {} nodes now): solving again", path.display(), flat.len(), 3 * n);
+    }
+    let pb = ProgressBar::new_spinner();
+    pb.set_message(format!("{}: FEM ground truth (TET10 Neo-Hookean), calibrating the crack pressure", scn.name));
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    let (u, report) = fem_ground_truth(scn, cfg, &mut |k, p, g| {
+        pb.set_message(format!("{}: FEM solve {} at {p:.4} kPa → lip gap {g:.2} mm", scn.name, k + 1));
+    })?;
+    pb.finish_and_clear();
+    let flat: Vec<f64> = u.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
+    write_json(&path, &serde_json::json!({"report": report, "displacement_mm": flat}))?;
+    Ok((u, report))
+}
+
+fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
+    let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
+    let organ = OrganConfig { spacing_mm: spacing, steps: a.steps.unwrap_or(if quick { 60 } else { 200 }), ..Default::default() };
+    let optimizer = OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
+    let mut out: Vec<Box<dyn Method>> = Vec::new();
+    for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
+        let b = |name: &str, baseline| Box::new(BaselineMethod { name: name.into(), baseline }) as Box<dyn Method>;
+        out.push(match m.as_str() {
+            "arap" => b("ARAP", Baseline::Arap(ArapConfig::default())),
+            "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
+            "francois" => b("François et al.", Baseline::Francois { drbc: DrbcConfig::default(), assumed_depth_mm: a.francois_depth_mm }),
+            "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
+            "rods" | "rods-mpm" => Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() }),
+            o => bail!("--methods: unknown method {o:?} (expected arap, drbc, francois, lddmm, rods)"),
+        });
+    }
+    if out.is_empty() {
+        bail!("--methods: empty");
+    }
+    Ok(out)
+}
+
+/// Sensitivity sweeps (Fig. 5.9) as extra named methods.
+fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Vec<Box<dyn Method>> {
+    let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
+    let steps = a.steps.unwrap_or(if quick { 60 } else { 200 });
+    let optimizer = OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
+    let base = OrganConfig { spacing_mm: spacing, steps, ..Default::default() };
+    let mut out: Vec<Box<dyn Method>> = Vec::new();
+    let mut rods = |name: String, organ: OrganConfig| {
+        out.push(Box::new(NamedRods { name, inner: RodsMethod { organ, optimizer: optimizer.clone() } }) as Box<dyn Method>)
+    };
+    for f in [0.25, 0.5, 2.0, 3.0, 10.0] {
+        rods(format!("RODS-MPM E×{f}"), OrganConfig { youngs_modulus_kpa: 4.1 * f, ..base.clone() });
+    }
+    for nu in [0.3, 0.4, 0.45] {
+        rods(format!("RODS-MPM ν {nu}"), OrganConfig { poisson_ratio: nu, ..base.clone() });
+    }
+    for s in [1.5 * spacing, 0.75 * spacing] {
+        rods(format!("RODS-MPM spacing {s:.2} mm"), OrganConfig { spacing_mm: s, ..base.clone() });
+    }
+    for g in [1.5, 3.0] {
+        rods(format!("RODS-MPM Δx {:.1} mm", g * spacing), OrganConfig { dx_mm: Some(g * spacing), ..base.clone() });
+    }
+    for t in [steps / 2, 2 * steps] {
+        rods(format!("RODS-MPM T {t}"), OrganConfig { steps: t, ..base.clone() });
+    }
+    for s in [10.0, 30.0, 40.0] {
+        out.push(Box::new(BaselineMethod {
+            name: format!("LDDMM σ {s}"),
+            baseline: Baseline::Lddmm(LddmmConfig { sigma_mm: s, ..Default::default() }),
+        }));
+    }
+    out
+}
+
+/// RODS-MPM under another name (sweeps).
+struct NamedRods {
+    name: String,
+    inner: RodsMethod,
+}
+
+impl Method for NamedRods {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+    fn register(
+        &self,
+        case: &laparo_register::benchmark::BenchmarkCase,
+        lm: &[laparo_register::benchmark::LandmarkSet],
+    ) -> laparo_register::Result<laparo_register::benchmark::MethodOutput> {
+        self.inner.register(case, lm)
+    }
+}
+
+pub fn run(a: BenchmarkArgs) -> Result<()> {
+    let quick = a.quick;
+    let liver = match a.liver.clone().or_else(default_liver) {
+        Some(p) => p,
+        None => bail!("--liver: no liver surface given and ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj is absent"),
+    };
+    let scenarios: Vec<&str> = match a.scenario.as_str() {
+        "all" => vec!["non-anatomical", "anatomical"],
+        "non-anatomical" => vec!["non-anatomical"],
+        "anatomical" => vec!["anatomical"],
+        o => bail!("--scenario {o:?}: expected non-anatomical, anatomical or all"),
+    };
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let t_all = std::time::Instant::now();
+    // 1. volume mesh
+    let edge = a.edge_mm.unwrap_or(if quick { 14.0 } else { 6.0 });
+    let surface = laparo_core::mesh::read_mesh(&liver)?;
+    let t0 = std::time::Instant::now();
+    let (mesh, quality) =
+        tetrahedralize_surface(surface, &liver.display().to_string(), &TetraParams { edge_mm: edge, ..Default::default() })?;
+    let mesh_s = t0.elapsed().as_secs_f64();
+    write_json(&a.out.join("mesh_quality.json"), &quality)?;
+    laparo_core::mesh::write_vtk(a.out.join("mesh.vtk"), &mesh)?;
+    println!(
+        "mesh: {} nodes, {} tets, min dihedral {:.1}°, edge {edge} mm ({mesh_s:.1} s)",
+        quality.nodes, quality.tets, quality.min_dihedral_deg
+    );
+    let frame = ScenarioFrame::default();
+    let mut cases = Vec::new();
+    let mut gt_reports = Vec::new();
+    for name in &scenarios {
+        let dir = a.out.join(name);
+        std::fs::create_dir_all(&dir)?;
+        let scn = if *name == "anatomical" {
+            anatomical(&mesh, &frame, &AnatomicalParams::default())?
+        } else {
+            non_anatomical(&mesh, &frame, &NonAnatomicalParams::default())?
+        };
+        let mut gcfg = GroundTruthConfig::for_scenario(name);
+        if let Some(s) = a.fem_steps {
+            gcfg.steps = s;
+        } else if quick {
+            gcfg.steps = 8;
+        }
+        let t0 = std::time::Instant::now();
+        let (u, rep) = ground_truth(&dir, &scn, &gcfg)?;
+        let x = &scn.cut.mesh.vertices;
+        let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
+        let centre = crack.iter().sum::<Vector3<f64>>() / crack.len().max(1) as f64;
+        let roi = choose_roi(x, &u, centre, 50.0, 120.0, 6.0, 0.5);
+        println!(
+            "{name}: {} cut nodes, lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm, min J {:.3} ({:.1} s); ROI {}",
+            x.len(),
+            rep.max_gap_mm,
+            rep.pressure_kpa,
+            rep.max_displacement_mm,
+            rep.far_displacement_mm,
+            rep.min_j,
+            t0.elapsed().as_secs_f64(),
+            match &roi {
+                Some((laparo_register::organ::Roi::Ball { radius_mm, .. }, w)) => format!("ball {radius_mm} mm (boundary |u| ≤ {w:.3} mm)"),
+                _ => "whole organ (no ball up to 120 mm keeps the boundary displacement < 0.5 mm)".into(),
+            }
+        );
+        let case = case_from(&scn, &u, roi.map(|r| r.0));
+        // the ground truth on the surface, for people to look at
+        let mag: Vec<f64> = u.iter().map(|v| v.norm()).collect();
+        let view = SurfaceView { direction: -Vector3::from(frame.anterior), up: Vector3::z(), size_px: 420 };
+        write_tre_map(&dir.join("ground_truth.png"), &case.ground_truth, &case.surface, &mag, rep.max_displacement_mm.max(1e-6), &view, &format!("{name}: FEM ground truth |u| [mm]"))?;
+        write_vtk_fields(&dir.join("ground_truth.vtk"), &case.rest, &case.tets, &[("u_norm_mm", &mag)], &[("displacement_mm", &u)])?;
+        gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0)}));
+        cases.push(case);
+    }
+    write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
+    // 2. the protocol
+    let store = ResultStore::new(a.out.join("runs"));
+    let n_seeds = a.seeds.unwrap_or(if quick { 1 } else { 5 });
+    let ms = methods(&a, quick)?;
+    let refs: Vec<&dyn Method> = ms.iter().map(|m| m.as_ref()).collect();
+    let columns = table51_columns();
+    let pb = ProgressBar::new(0);
+    pb.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {msg}  [{elapsed_precise}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    let map_column = Column { landmarks: 50, noise_sigma_mm: 0.0 };
+    let mut map_err: Option<anyhow::Error> = None;
+    let mut on_event = |e: &laparo_register::benchmark::RunEvent| {
+        pb.set_length(e.total as u64);
+        pb.set_position(e.done as u64);
+        let k = &e.result.key;
+        pb.set_message(format!("{} {} {} seed {}: TRE {:.2} mm{}", k.scenario, k.method, k.column.label(), k.seed, e.result.tre_volume.mean, if e.registered.is_none() { " (resumed)" } else { "" }));
+        if let (Some(nodes), true) = (e.registered, k.column == map_column && k.seed == 0) {
+            let err: Vec<f64> = nodes.iter().zip(&e.case.ground_truth).map(|(a, b)| (a - b).norm()).collect();
+            let dir = a.out.join(&k.scenario).join("maps");
+            let stem = k.method.replace([' ', '/'], "_");
+            let view = SurfaceView { direction: -Vector3::from(frame.anterior), up: Vector3::z(), size_px: 420 };
+            let res = std::fs::create_dir_all(&dir)
+                .map_err(anyhow::Error::from)
+                .and_then(|_| Ok(write_tre_map(&dir.join(format!("{stem}.png")), nodes, &e.case.surface, &err, 10.0, &view, &format!("{} {}: TRE [mm], 50 landmarks", k.scenario, k.method))?))
+                .and_then(|_| Ok(write_vtk_fields(&dir.join(format!("{stem}.vtk")), nodes, &e.case.tets, &[("tre_mm", &err)], &[])?));
+            if let Err(x) = res {
+                map_err.get_or_insert(x);
+            }
+        }
+    };
+    let mut results = run_protocol(&cases, &refs, &columns, n_seeds, &store, &mut on_event)?;
+    if a.sweeps {
+        let sw = sweep_methods(&a, quick);
+        let srefs: Vec<&dyn Method> = sw.iter().map(|m| m.as_ref()).collect();
+        results.extend(run_protocol(&cases, &srefs, &[map_column], 1, &store, &mut on_event)?);
+    }
+    pb.finish_and_clear();
+    if let Some(e) = map_err {
+        return Err(e.context("writing a TRE map"));
+    }
+    // 3. tables and figures
+    let cells = aggregate(&results);
+    let md = table_markdown(&cells);
+    laparo_core::atomic::write_atomic(&a.out.join("table51.md"), md.as_bytes())?;
+    laparo_core::atomic::write_atomic(&a.out.join("table51.csv"), table_csv(&cells).as_bytes())?;
+    laparo_core::atomic::write_atomic(&a.out.join("table51.json"), table_json(&cells).as_bytes())?;
+    for name in &scenarios {
+        let main: Vec<&laparo_register::benchmark::Cell> = cells
+            .iter()
+            .filter(|c| c.scenario == *name && c.column == map_column && refs.iter().any(|m| m.name() == c.method))
+            .collect();
+        write_distance_plot(&a.out.join(name).join("fig58_tre_vs_distance.png"), &main, &format!("{name}: TRE vs distance to the incision (50 landmarks)"))?;
+    }
+    print!("{md}");
+    println!("wrote {} ({:.1} min, peak {:.0} MiB)", a.out.display(), t_all.elapsed().as_secs_f64() / 60.0, laparo_register::pipeline::peak_memory_mib().unwrap_or(f64::NAN));
+    Ok(())
+}
