@@ -30,11 +30,23 @@ fn partial_cut_lips_are_disconnected_except_at_the_front() {
     let m = box_mesh();
     let b = blade(5.0, 15.0, 10.0);
     let c = cut(&m, &b).unwrap();
-    // volumes and positions unchanged by the crack
-    assert!((c.mesh.volume() - m.volume()).abs() < 1e-9 * m.volume());
+    // volume unchanged up to the tangential moves of mouth nodes on the top face
+    assert!((c.mesh.volume() - m.volume()).abs() < 1e-3 * m.volume());
     assert_eq!(c.mesh.tets.len(), m.tets.len());
+    // only crack nodes move (onto the blade plane x = 20.3, by less than a cell)
+    let moved: BTreeSet<usize> = (0..c.mesh.vertices.len())
+        .filter(|&k| c.mesh.vertices[k] != m.vertices[c.original_node[k]])
+        .map(|k| c.original_node[k])
+        .collect();
+    assert!(!moved.is_empty());
+    let crack_orig: BTreeSet<usize> = c.crack_faces.iter().flatten().flatten().map(|&k| c.original_node[k]).collect();
+    assert!(moved.is_subset(&crack_orig));
     for (k, &o) in c.original_node.iter().enumerate() {
-        assert_eq!(c.mesh.vertices[k], m.vertices[o]);
+        let d = c.mesh.vertices[k] - m.vertices[o];
+        assert!(d.norm() < H, "node {k} moved by {d:?}");
+        if d.norm() > 0.0 {
+            assert!((c.mesh.vertices[k].x - 20.3).abs() < (m.vertices[o].x - 20.3).abs(), "moves towards the blade");
+        }
     }
     assert!(c.mesh.vertices.len() > m.vertices.len(), "crack nodes were duplicated");
     // one crack face per side per cut pair; the crack covers ≈ 10 × 10 mm²
@@ -93,8 +105,11 @@ fn partial_cut_lips_are_disconnected_except_at_the_front() {
     // Lips: on the top face near x = 20.3, from y ≈ 5 to 15, same direction as the blade.
     for s in 0..2 {
         let l = c.lip_positions(s, &c.mesh.vertices);
-        assert!(l.iter().all(|p| (p.z - 20.0).abs() < 1e-9 && (p.x - 20.3).abs() < H), "lip {s}: {l:?}");
-        assert!((c.lip_length(s) - 10.0).abs() < 2.0 * H, "lip {s} length {}", c.lip_length(s));
+        // on the top face up to the boundary snapping tolerance, on the blade plane mostly
+        assert!(l.iter().all(|p| (p.z - 20.0).abs() < 0.5 * H && (p.x - 20.3).abs() < H), "lip {s}: {l:?}");
+        // the lip follows lattice faces: a staircase up to √2 longer than the 10 mm mouth
+        let len = c.lip_length(s);
+        assert!(len > 10.0 - H && len < 10.0 * 1.5 + H, "lip {s} length {len}");
         assert!(l[0].y < l[l.len() - 1].y, "lip {s} runs along the blade");
     }
 }

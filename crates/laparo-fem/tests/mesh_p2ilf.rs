@@ -3,7 +3,7 @@
 use laparo_core::mesh::read_obj;
 use laparo_fem::mesh::{
     anatomical, anterior_from_vertices, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams,
-    ScenarioFrame, Surface, TetraParams, P2ILF_ANTERIOR, P2ILF_LIGAMENT_VERTICES,
+    ScenarioFrame, Surface, TetraParams, P2ILF_ANTERIOR, P2ILF_CONTOUR_VERTICES,
 };
 use nalgebra::Vector3;
 use std::path::PathBuf;
@@ -44,7 +44,7 @@ fn p2ilf_liver_tetrahedralisation() {
 fn p2ilf_anterior_axis_is_the_ligament_direction() {
     let Some(p) = liver_path() else { return };
     let s = read_obj(&p).unwrap();
-    let a = anterior_from_vertices(&s, &P2ILF_LIGAMENT_VERTICES).unwrap();
+    let a = anterior_from_vertices(&s, &P2ILF_CONTOUR_VERTICES).unwrap();
     let c = Vector3::from(P2ILF_ANTERIOR);
     assert!((a - c).norm() < 1e-3, "computed {a:?} vs constant {c:?}");
 }
@@ -57,17 +57,31 @@ fn p2ilf_benchmark_incisions() {
     let (m, _) = tetrahedralize_surface(s, "liver", &TetraParams { edge_mm: 6.0, ..TetraParams::default() }).unwrap();
     let frame = ScenarioFrame::default();
     let na = NonAnatomicalParams::default();
+    let t0 = Instant::now();
     let sc = non_anatomical(&m, &frame, &na).unwrap();
+    eprintln!(
+        "non-anatomical: {:.2} s, crack faces {}, front {}, lips {:.1}/{:.1} mm, margin {:?}, fixed {}",
+        t0.elapsed().as_secs_f64(),
+        sc.cut.crack_faces[0].len(),
+        sc.cut.front_nodes.len(),
+        sc.cut.lip_length(0),
+        sc.cut.lip_length(1),
+        sc.min_margin_mm,
+        sc.fixed_nodes.len()
+    );
     let t = sc.tumour.unwrap();
     // tumour inside the liver, fully (its centre deeper than its radius)
     assert!(surface.contains(&t.centre));
     assert!(surface.closest_point(&t.centre).1 > t.radius_mm);
     // 1 cm margin: the blade stays ≥ margin (up to a tolerance) from the tumour surface
     let margin = sc.min_margin_mm.unwrap();
-    assert!(margin > na.margin_mm - 0.5 && margin < na.margin_mm + 5.0, "margin {margin}");
+    assert!(margin > na.margin_mm - 0.5 && margin < na.margin_mm + 6.0, "margin {margin}");
+    let mouth = |b: &laparo_fem::mesh::Blade| b.mouth.windows(2).map(|w| (w[1] - w[0]).norm()).sum::<f64>();
+    assert!((mouth(&sc.blade) - na.length_mm).abs() < 0.02 * na.length_mm, "mouth {}", mouth(&sc.blade));
     for side in 0..2 {
+        // the lips follow tet faces: a staircase longer than the blade's mouth
         let l = sc.cut.lip_length(side);
-        assert!((l - na.length_mm).abs() < 0.35 * na.length_mm, "non-anatomical lip {side}: {l} mm");
+        assert!(l > 0.9 * na.length_mm && l < 1.6 * na.length_mm, "non-anatomical lip {side}: {l} mm");
     }
     let n_surface = {
         let b = sc.cut.mesh.boundary();
@@ -82,9 +96,20 @@ fn p2ilf_benchmark_incisions() {
     // fixed nodes are posterior: below the entry point along the anterior axis
     assert!(sc.fixed_nodes.iter().all(|&k| sc.cut.mesh.vertices[k].dot(&a) < sc.entry_point.dot(&a)));
     let sc2 = anatomical(&m, &frame, &AnatomicalParams::default()).unwrap();
+    eprintln!(
+        "anatomical: crack faces {}, front {}, lips {:.1}/{:.1} mm, depths {:.1}..{:.1} mm",
+        sc2.cut.crack_faces[0].len(),
+        sc2.cut.front_nodes.len(),
+        sc2.cut.lip_length(0),
+        sc2.cut.lip_length(1),
+        sc2.blade.depths.iter().copied().fold(f64::INFINITY, f64::min),
+        sc2.blade.depths.iter().copied().fold(0.0, f64::max)
+    );
+    assert!((mouth(&sc2.blade) - 100.0).abs() < 2.0, "mouth {}", mouth(&sc2.blade));
     for side in 0..2 {
         let l = sc2.cut.lip_length(side);
-        assert!((l - 100.0).abs() < 35.0, "anatomical lip {side}: {l} mm");
+        // shorter where the organ is thinner than a few cells (the crack needs ≥ 1 tet layer)
+        assert!(l > 70.0 && l < 160.0, "anatomical lip {side}: {l} mm");
     }
     assert!(sc2.cut.crack_faces[0].len() > sc.cut.crack_faces[0].len(), "the anatomical cut is larger");
     for n in [20, 50, 250] {

@@ -2,7 +2,7 @@
 //! tetrahedral mesh along existing faces by duplicating nodes (thesis §5.4.2: the cut that the
 //! equal and opposite lip forces then open). Lip curves and landmarks are stored as node
 //! references so that the same material points can be evaluated in any deformed configuration.
-use super::geom::{closest_point_on_triangle, ray_triangle, tet_signed_volume};
+use super::geom::{closest_point_on_triangle, ray_triangle, tet_min_dihedral_deg, tet_signed_volume};
 use super::tetra::node_tets;
 use crate::error::{FemError, Result};
 use laparo_core::mesh::{TetMesh, TriMesh};
@@ -14,6 +14,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 type V3 = Vector3<f64>;
+
+/// Smallest dihedral angle (deg) that snapping crack nodes onto the blade may leave in a tet.
+pub const CRACK_SNAP_MIN_DIHEDRAL_DEG: f64 = 10.0;
 
 /// A blade: the ruled surface between `mouth[i] − overshoot_mm · directions[i]` and
 /// `mouth[i] + depths[i] · directions[i]`, i.e. the polyline `mouth` (on the organ surface, mm)
@@ -171,7 +174,9 @@ fn face_pairs(mesh: &TetMesh) -> Vec<(usize, usize, usize, usize)> {
 
 /// Crack `mesh` (positively oriented tets, mm) along `blade`: an interior face is a crack face
 /// when the segment between its two tets' centroids crosses the blade and the two centroids lie
-/// on opposite sides of it (side of the closest blade point). Crack nodes whose tet fan falls
+/// on opposite sides of it (side of the closest blade point). Crack nodes are then moved onto the
+/// blade where that keeps every incident tet's min dihedral ≥ [`CRACK_SNAP_MIN_DIHEDRAL_DEG`]
+/// (the only positions that change). Crack nodes whose tet fan falls
 /// into several components across the crack are duplicated, one copy per component; crack-front
 /// nodes keep one fan and stay shared.
 pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
@@ -237,6 +242,29 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
         crack_pairs.iter().flat_map(|&(t1, f1, _, _)| tet_face(&mesh.tets[t1], f1)).collect();
     let (off, idx) = node_tets(mesh);
     let mut vertices = mesh.vertices.clone();
+    // Snap crack nodes onto the blade (full, 3/4, 1/2 or 1/4 of the move) when every incident tet
+    // keeps a min dihedral ≥ CRACK_SNAP_MIN_DIHEDRAL_DEG: the crack then follows the blade instead
+    // of zigzagging along lattice faces.
+    for _ in 0..3 {
+        for &v in &crack_nodes {
+            let x = vertices[v];
+            let target = tris
+                .iter()
+                .map(|t| closest_point_on_triangle(&x, &t[0], &t[1], &t[2]))
+                .min_by(|a, b| (a - x).norm_squared().total_cmp(&(b - x).norm_squared()))
+                .unwrap_or(x);
+            for frac in [1.0, 0.75, 0.5, 0.25] {
+                vertices[v] = x + (target - x) * frac;
+                let ok = idx[off[v]..off[v + 1]]
+                    .iter()
+                    .all(|&t| tet_min_dihedral_deg(&mesh.tets[t].map(|k| vertices[k])) >= CRACK_SNAP_MIN_DIHEDRAL_DEG);
+                if ok {
+                    break;
+                }
+                vertices[v] = x;
+            }
+        }
+    }
     let mut original_node: Vec<usize> = (0..mesh.vertices.len()).collect();
     let mut replace: Vec<(usize, usize, usize)> = Vec::new(); // (tet, old node, new node)
     for &v in &crack_nodes {
@@ -268,7 +296,7 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
                 continue; // the component of the first tet keeps the node
             }
             let id = *new_id.entry(r).or_insert_with(|| {
-                vertices.push(mesh.vertices[v]);
+                vertices.push(vertices[v]);
                 original_node.push(v);
                 vertices.len() - 1
             });

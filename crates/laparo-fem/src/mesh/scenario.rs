@@ -4,8 +4,9 @@
 //!
 //! Orientation. "Anterior" is a unit axis `a` given by the caller ([`ScenarioFrame::anterior`]). For
 //! the P2ILF liver it is [`P2ILF_ANTERIOR`]: the direction from the volume centroid to the centroid
-//! of the falciform-ligament contour vertices of `patient2_1_3D-contours.json` (the ligament lies on
-//! the anterior surface), see [`anterior_from_vertices`]. The **entry point** `P` is where the line
+//! of all 19 vertices of the three contours of `patient2_1_3D-contours.json` (two ridge contours =
+//! the anterior inferior margin, one falciform-ligament contour on the anterior surface), see
+//! [`anterior_from_vertices`]; it is ≈ −y (−0.92), as in an LPS scanner frame. The **entry point** `P` is where the line
 //! through the volume centroid along `a` leaves the organ on the anterior side; the **fixed region**
 //! is the `fixed_fraction` (15 %) of outer-surface nodes with the smallest coordinate along `a`
 //! (the posterior face, around the IVC).
@@ -20,12 +21,15 @@ use std::collections::BTreeSet;
 type V3 = Vector3<f64>;
 
 /// Anterior axis of the P2ILF `patient2_1_3d-liver-model.obj` (unit, model frame), from
-/// [`anterior_from_vertices`] with the falciform-ligament contour vertices
-/// [`P2ILF_LIGAMENT_VERTICES`] (checked against the data by a test).
-pub const P2ILF_ANTERIOR: [f64; 3] = [0.0, 0.0, 1.0];
+/// [`anterior_from_vertices`] with the contour vertices [`P2ILF_CONTOUR_VERTICES`] (checked
+/// against the data by a test).
+pub const P2ILF_ANTERIOR: [f64; 3] = [0.3177509466289188, -0.9224989691278731, 0.21915744996334782];
 
-/// Vertex ids (0-based) of the falciform-ligament contour in `patient2_1_3D-contours.json`.
-pub const P2ILF_LIGAMENT_VERTICES: [usize; 6] = [2709, 2744, 2774, 2866, 2885, 2922];
+/// Vertex ids (0-based) of the three contours (ridge, ridge, falciform ligament) of
+/// `patient2_1_3D-contours.json`.
+pub const P2ILF_CONTOUR_VERTICES: [usize; 19] = [
+    1227, 1544, 1626, 1635, 2012, 1942, 2013, 2132, 2151, 2164, 2254, 2438, 2514, 2709, 2744, 2774, 2866, 2885, 2922,
+];
 
 /// Unit axis from the volume centroid of the closed surface `surface` to the mean of `ids`.
 pub fn anterior_from_vertices(surface: &TriMesh, ids: &[usize]) -> Result<V3> {
@@ -180,6 +184,11 @@ fn entry(surf: &TriMesh, a: &V3, far: f64) -> Result<(V3, V3)> {
     let c = volume_centroid(surf);
     let p = surface_along(surf, &c, a, far)
         .ok_or_else(|| FemError::bad("scenario", "the line through the centroid along the anterior axis misses the mesh"))?;
+    Ok((p, smooth_normal(surf, &p, a)))
+}
+
+/// Outward normal at `p`: area-weighted mean normal of the faces within 15 mm (`a` if none).
+fn smooth_normal(surf: &TriMesh, p: &V3, a: &V3) -> V3 {
     let mut n = V3::zeros();
     for f in &surf.faces {
         let q = f.map(|k| surf.vertices[k]);
@@ -188,7 +197,65 @@ fn entry(surf: &TriMesh, a: &V3, far: f64) -> Result<(V3, V3)> {
         }
     }
     let n = if n.norm() > 0.0 { n.normalize() } else { *a };
-    Ok((p, if n.dot(a) < 0.0 { -n } else { n }))
+    if n.dot(a) < 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
+/// The half-extent in (0, `max`] whose traced polyline is `length` long (bisection; the traced
+/// length grows with the extent), or the longest that stays on the organ.
+fn fit_length(length: f64, max: f64, trace: impl Fn(f64) -> Result<Vec<V3>>) -> Result<f64> {
+    let (mut lo, mut hi) = (0.0, max);
+    if let Ok(t) = trace(hi) {
+        if polyline_length(&t) < length {
+            return Ok(hi);
+        }
+    }
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        // A trace leaving the organ counts as too long.
+        match trace(mid) {
+            Ok(t) if polyline_length(&t) < length => lo = mid,
+            _ => hi = mid,
+        }
+    }
+    trace(lo)?;
+    Ok(lo)
+}
+
+/// Entry point for the tumour: among outer-surface nodes whose vertex normal has n·a ≥ 0.8
+/// (anterior-facing), those whose point `depth` under them along −n (n: 15 mm mean normal) has the node itself as its
+/// closest surface point (within 0.5 mm: the tumour axis is not cut short by another part of the
+/// surface); of these the one closest to the line through the volume centroid along `a`.
+fn tumour_entry(surf: &TriMesh, a: &V3, depth: f64) -> Result<(V3, V3)> {
+    let c = volume_centroid(surf);
+    let normals = surf.vertex_normals();
+    let used: BTreeSet<usize> = surf.faces.iter().flatten().copied().collect();
+    let tris: Vec<[V3; 3]> = surf.faces.iter().map(|f| f.map(|k| surf.vertices[k])).collect();
+    let mut cands: Vec<(f64, usize)> = used
+        .iter()
+        .filter(|&&k| normals[k].norm() > 0.5 && normals[k].dot(a) >= 0.8)
+        .map(|&k| {
+            let d = surf.vertices[k] - c;
+            ((d - a * a.dot(&d)).norm(), k)
+        })
+        .collect();
+    cands.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    for &(_, k) in &cands {
+        let p = surf.vertices[k];
+        let n = smooth_normal(surf, &p, a);
+        let t = p - n * depth;
+        let dmin = tris
+            .iter()
+            .map(|q| (super::geom::closest_point_on_triangle(&t, &q[0], &q[1], &q[2]) - t).norm())
+            .fold(f64::INFINITY, f64::min);
+        if dmin >= depth - 0.5 {
+            return Ok((p, n));
+        }
+    }
+    Err(FemError::bad("non-anatomical scenario", format!("no anterior surface point has {depth} mm of tissue under it")))
 }
 
 fn polyline_length(p: &[V3]) -> f64 {
@@ -248,7 +315,7 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
     }
     let surf = outer(mesh);
     let far = 2.0 * bbox_diag(mesh);
-    let (entry_point, n) = entry(&surf, &a, far)?;
+    let (entry_point, n) = tumour_entry(&surf, &a, p.tumour_depth_mm)?;
     let centre = entry_point - n * p.tumour_depth_mm;
     let e = (0..3).map(|k| V3::ith(k, 1.0)).min_by(|x, y| x.dot(&n).abs().total_cmp(&y.dot(&n).abs())).unwrap_or(V3::x());
     let u = (e - n * n.dot(&e)).normalize();
@@ -266,11 +333,7 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
             })
             .collect()
     };
-    let mut half = (p.length_mm / (2.0 * r_top)).min(std::f64::consts::PI * 0.95);
-    for _ in 0..4 {
-        let len = polyline_length(&trace(half)?);
-        half = (half * p.length_mm / len).min(std::f64::consts::PI * 0.95);
-    }
+    let half = fit_length(p.length_mm, std::f64::consts::PI * 0.95, |h| trace(h))?;
     let mouth = trace(half)?;
     let mut directions = Vec::new();
     let mut depths = Vec::new();
@@ -354,11 +417,7 @@ pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -
             })
             .collect()
     };
-    let mut half = p.length_mm / 2.0;
-    for _ in 0..4 {
-        let len = polyline_length(&trace(half)?);
-        half *= p.length_mm / len;
-    }
+    let half = fit_length(p.length_mm, p.length_mm, |h| trace(h))?;
     let mouth = trace(half)?;
     let mut depths = Vec::new();
     for (i, q) in mouth.iter().enumerate() {
