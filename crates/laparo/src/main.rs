@@ -38,6 +38,9 @@ enum Command {
     Mpm(cmd::mpm::MpmCmd),
     /// RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
     Register(Box<cmd::register::RegisterArgs>),
+    /// Volume meshing and incisions for the in-silico incision benchmark (thesis §5.4.2).
+    #[command(subcommand)]
+    Mesh(cmd::mesh::MeshCmd),
     /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
     #[command(subcommand)]
     Features(cmd::features::FeaturesCmd),
@@ -60,6 +63,7 @@ fn main() {
         Command::Cpc(c) => cmd::cpc::run(c),
         Command::Mpm(c) => cmd::mpm::run(c),
         Command::Register(a) => cmd::register::run(*a),
+        Command::Mesh(c) => cmd::mesh::run(c),
         Command::Features(c) => cmd::features::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(

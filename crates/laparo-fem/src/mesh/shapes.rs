@@ -1,0 +1,114 @@
+//! Closed test surfaces with closed-form volumes: an axis-aligned box and an icosphere.
+use laparo_core::mesh::TriMesh;
+use nalgebra::Vector3;
+use std::collections::HashMap;
+
+/// The box `[lo, hi]` as 12 outward triangles (volume Π(hi − lo)).
+pub fn box_surface(lo: &Vector3<f64>, hi: &Vector3<f64>) -> TriMesh {
+    let v: Vec<Vector3<f64>> = (0..8)
+        .map(|i| {
+            Vector3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if (i >> 1) & 1 == 0 { lo.y } else { hi.y },
+                if (i >> 2) & 1 == 0 { lo.z } else { hi.z },
+            )
+        })
+        .collect();
+    let f = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    TriMesh { vertices: v, faces: f }
+}
+
+/// An icosphere of radius `radius` centred at `centre`: the icosahedron subdivided `levels` times,
+/// vertices pushed to the sphere; outward triangles.
+pub fn icosphere(centre: &Vector3<f64>, radius: f64, levels: usize) -> TriMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<Vector3<f64>> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vector3::new(x, y, z).normalize())
+    .collect();
+    let mut f: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
+        let mut m = |a: usize, b: usize, v: &mut Vec<Vector3<f64>>| -> usize {
+            let key = (a.min(b), a.max(b));
+            *mid.entry(key).or_insert_with(|| {
+                v.push(((v[a] + v[b]) / 2.0).normalize());
+                v.len() - 1
+            })
+        };
+        let mut g = Vec::with_capacity(f.len() * 4);
+        for [a, b, c] in f {
+            let ab = m(a, b, &mut v);
+            let bc = m(b, c, &mut v);
+            let ca = m(c, a, &mut v);
+            g.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = g;
+    }
+    TriMesh { vertices: v.into_iter().map(|p| centre + p * radius).collect(), faces: f }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shapes_are_closed_outward_with_expected_volume() {
+        let b = box_surface(&Vector3::new(-1.0, 0.0, 2.0), &Vector3::new(2.0, 1.0, 4.0));
+        assert!(b.is_closed() && b.is_consistently_oriented());
+        assert!((b.signed_volume() - 6.0).abs() < 1e-12);
+        let s = icosphere(&Vector3::new(1.0, 2.0, 3.0), 10.0, 3);
+        assert!(s.is_closed() && s.is_consistently_oriented());
+        let v = s.signed_volume();
+        // Inscribed polyhedron: below the ball volume, within 2 % at 1280 faces.
+        let ball = 4.0 / 3.0 * std::f64::consts::PI * 1000.0;
+        assert!(v > 0.97 * ball && v < ball, "{v} vs {ball}");
+    }
+}

@@ -1,0 +1,187 @@
+//! `laparo mesh tetra` and `laparo mesh incision` end to end (a sphere surface written here; the
+//! P2ILF liver when the real data is present), and clear errors for bad input.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn laparo() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_laparo"))
+}
+
+/// An icosphere (radius `r` mm, 3 subdivisions) as OBJ text.
+fn sphere_obj(r: f64) -> String {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<[f64; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let norm = |p: [f64; 3]| {
+        let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        [p[0] / n, p[1] / n, p[2] / n]
+    };
+    for p in v.iter_mut() {
+        *p = norm(*p);
+    }
+    let mut f: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..3 {
+        let mut mid = std::collections::HashMap::new();
+        let mut g = Vec::new();
+        for [a, b, c] in f {
+            let mut m = |x: usize, y: usize| -> usize {
+                *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
+                    let p = norm([(v[x][0] + v[y][0]) / 2.0, (v[x][1] + v[y][1]) / 2.0, (v[x][2] + v[y][2]) / 2.0]);
+                    v.push(p);
+                    v.len() - 1
+                })
+            };
+            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+            g.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = g;
+    }
+    let mut s = String::new();
+    for p in &v {
+        s += &format!("v {} {} {}\n", p[0] * r, p[1] * r, p[2] * r);
+    }
+    for t in &f {
+        s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    s
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let o = laparo().args(args).output().unwrap();
+    assert!(o.status.success(), "{:?}: {}", args, String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn tetra_then_incision_on_a_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("ball.obj");
+    std::fs::write(&obj, sphere_obj(40.0)).unwrap();
+    let vtk = dir.path().join("ball.vtk");
+    let rep = dir.path().join("q.json");
+    let s = |p: &PathBuf| p.display().to_string();
+    let out = run_ok(
+        &["mesh", "tetra", "--surface", &s(&obj), "--edge-mm", "5", "--out", &s(&vtk), "--report", &s(&rep)]
+    );
+    assert!(out.contains("tets"), "{out}");
+    let q: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&rep).unwrap()).unwrap();
+    assert_eq!(q["inverted"], 0);
+    let ball = 4.0 / 3.0 * std::f64::consts::PI * 40f64.powi(3);
+    let v = q["volume_mm3"].as_f64().unwrap();
+    assert!((v - ball).abs() < 0.03 * ball, "{v} vs {ball}");
+    let mesh = laparo_core::mesh::read_vtk(&vtk).unwrap();
+    assert_eq!(mesh.tets.len() as u64, q["tets"].as_u64().unwrap());
+    // incision along an anterior axis +z
+    let cut_dir = dir.path().join("cut");
+    let out = run_ok(
+        &["mesh", "incision", "--mesh", &s(&vtk), "--scenario", "anatomical", "--anterior", "0,0,1", "--out", &s(&cut_dir)]
+    );
+    assert!(out.contains("anatomical"), "{out}");
+    for f in ["cut.vtk", "lips.json", "landmarks.json", "tumour.json", "fixed_nodes.json", "scenario.json", "cut.png"] {
+        assert!(cut_dir.join(f).exists(), "{f}");
+    }
+    let cut = laparo_core::mesh::read_vtk(cut_dir.join("cut.vtk")).unwrap();
+    assert_eq!(cut.tets.len(), mesh.tets.len());
+    assert!(cut.vertices.len() > mesh.vertices.len());
+    let lm: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(cut_dir.join("landmarks.json")).unwrap()).unwrap();
+    for n in [20, 50, 250] {
+        assert_eq!(lm[n.to_string()]["items"].as_array().unwrap().len(), n);
+    }
+    let fixed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cut_dir.join("fixed_nodes.json")).unwrap()).unwrap();
+    // fixed region: the posterior (−z) cap
+    for k in fixed["fixed_nodes"].as_array().unwrap() {
+        assert!(cut.vertices[k.as_u64().unwrap() as usize].z < -20.0);
+    }
+    // the lips of a planar cut through the north pole: a 100 mm arc on the sphere of radius 40
+    let lips: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(cut_dir.join("lips.json")).unwrap()).unwrap();
+    let l = lips["side_a"]["length_mm"].as_f64().unwrap();
+    assert!((l - 100.0).abs() < 25.0, "lip length {l}");
+}
+
+#[test]
+fn bad_inputs_fail_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let open = dir.path().join("open.obj");
+    std::fs::write(&open, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n").unwrap();
+    let o = laparo()
+        .args(["mesh", "tetra", "--surface"])
+        .arg(&open)
+        .arg("--out")
+        .arg(dir.path().join("o.vtk"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("open.obj") && e.contains("not closed: 3 boundary edges"), "{e}");
+    let o = laparo()
+        .args(["mesh", "incision", "--mesh"])
+        .arg(dir.path().join("missing.vtk"))
+        .args(["--scenario", "anatomical", "--out"])
+        .arg(dir.path().join("x"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("missing.vtk"));
+}
+
+#[test]
+fn p2ilf_liver_both_scenarios() {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    if !p.exists() {
+        eprintln!("skipping: {} not found (real data absent)", p.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let vtk = dir.path().join("liver.vtk");
+    let s = |p: &Path| p.display().to_string();
+    let out = run_ok(&["mesh", "tetra", "--surface", &s(&p), "--edge-mm", "6", "--out", &s(&vtk)]);
+    eprintln!("{out}");
+    for sc in ["non-anatomical", "anatomical"] {
+        let d = dir.path().join(sc);
+        let out = run_ok(&["mesh", "incision", "--mesh", &s(&vtk), "--scenario", sc, "--out", &s(&d)]);
+        eprintln!("{out}");
+        let t: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("tumour.json")).unwrap()).unwrap();
+        assert_eq!(t.is_null(), sc == "anatomical");
+        if let Ok(keep) = std::env::var("LAPARO_MESH_KEEP") {
+            let k = PathBuf::from(keep).join(sc);
+            std::fs::create_dir_all(&k).unwrap();
+            for f in ["cut.png", "scenario.json", "lips.json"] {
+                std::fs::copy(d.join(f), k.join(f)).unwrap();
+            }
+        }
+    }
+}
