@@ -82,6 +82,7 @@ fn patch_test_affine_deformation_is_reproduced() {
             }
         }
         assert!(interior > 50, "{interior} interior nodes");
+        eprintln!("patch test {q:?}: {interior} interior nodes, max error {worst:e} mm");
         assert!(worst < 1e-10, "{q:?}: interior nodes off the affine field by {worst:e} mm");
         let jh = g.determinant();
         assert!((s.min_j - jh).abs() < 1e-9, "min J {} vs det G {jh}", s.min_j);
@@ -130,6 +131,7 @@ fn manufactured_solution_converges_at_rate_three() {
         errs.push(p.l2_error(&s.displacement, |x| manufactured(x, l).0));
     }
     let rates: Vec<f64> = errs.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
+    eprintln!("manufactured solution: L2 errors {errs:?}, rates {rates:?}");
     assert!(rates[1] > 2.7 && rates[1] < 3.5, "L2 errors {errs:?}, rates {rates:?}");
     assert!(rates[0] > 2.3, "L2 errors {errs:?}, rates {rates:?}");
 }
@@ -158,6 +160,7 @@ fn tangent_is_the_derivative_of_the_residual() {
                 worst = worst.max(((fp[i] - fm[i]) / (2.0 * h) - k[(i, j)]).abs());
             }
         }
+        eprintln!("tangent {q:?}: max |K − FD| {worst:e}, max |K| {kmax:e}");
         assert!(worst < 1e-6 * kmax, "{q:?}: max |K − FD| {worst:e} vs max |K| {kmax:e}");
         // And the internal force is the derivative of the strain energy.
         let fint = p.assemble(&u, false).unwrap().internal_force;
@@ -249,7 +252,8 @@ fn bad_inputs_are_clear_errors() {
         },
     );
     let e = solve(&p, &SolverSettings { steps: 2, max_cuts: 4, ..Default::default() }).unwrap_err().to_string();
-    assert!(e.contains("at step 1") && (e.contains("invert") || e.contains("converge")), "{e}");
+    eprintln!("inverting load: {e}");
+    assert!(e.contains("tractions invert elements at step 1"), "{e}");
     let e = solve(&p, &SolverSettings { steps: 0, ..Default::default() }).unwrap_err().to_string();
     assert!(e.contains("steps"), "{e}");
 }

@@ -180,7 +180,7 @@ impl FreeSystem {
                 }
             }
             let t0 = Instant::now();
-            let mat = SparseColMatRef::new(self.symbolic.as_ref(), vals);
+            let mat = SparseColMatRef::new(self.symbolic.as_ref(), &*vals);
             let llt = Llt::try_new_with_symbolic(self.llt_symbolic.clone(), mat, Side::Upper);
             timings.factorization_s += t0.elapsed().as_secs_f64();
             if let Ok(llt) = llt {
@@ -237,12 +237,12 @@ pub fn solve(p: &SolidProblem, settings: &SolverSettings) -> Result<Solution> {
                 }
                 dt = (dt * 2.0).min(dt0);
             }
-            Err((fail, _)) => {
+            Err(fail) => {
                 cuts += 1;
                 if cuts > settings.max_cuts || dt < dt0 / 1024.0 {
                     return Err(FemError::Solver(match fail {
                         StepFail::Inverted => format!(
-                            "tractions invert elements at step {step_idx} (load factor {t_new:.4}): J ≤ 0 persists after {} step cuts",
+                            "tractions invert elements at step {step_idx} (load factor {t_new:.4}): J ≤ 0 at quadrature points persists after {} step cuts",
                             cuts - 1
                         ),
                         StepFail::NoConvergence => format!(
@@ -292,7 +292,7 @@ fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-type StepOut = std::result::Result<(Vec<f64>, StepReport), (StepFail, ())>;
+type StepOut = std::result::Result<(Vec<f64>, StepReport), StepFail>;
 
 fn newton_step(
     p: &SolidProblem,
@@ -323,7 +323,7 @@ fn newton_step(
         let ta = Instant::now();
         let a = p.assemble(u0, true);
         timings.assembly_s += ta.elapsed().as_secs_f64();
-        let Some(a) = a else { return Err((StepFail::Inverted, ())) };
+        let Some(a) = a else { return Err(StepFail::Inverted) };
         let blocks = a.blocks.as_ref().expect("tangent asked");
         let mut rhs = vec![0.0; sys.n];
         for b in 0..nn {
@@ -345,7 +345,7 @@ fn newton_step(
         }
         let mut vals = sys.values(blocks);
         if sys.solve(&mut vals, &mut rhs, timings).is_err() {
-            return Err((StepFail::NoConvergence, ()));
+            return Err(StepFail::NoConvergence);
         }
         for (i, &f) in sys.free_of_node.iter().enumerate() {
             for c in 0..3 {
@@ -357,12 +357,15 @@ fn newton_step(
             }
         }
     }
+    // Line-search trials rejected because an element inverted (J ≤ 0): a failed increment that met
+    // some is reported as inversion.
+    let mut inverted_trials = 0usize;
     for it in 0..=settings.max_newton {
         let ta = Instant::now();
         let a = p.assemble(&u, true);
         timings.assembly_s += ta.elapsed().as_secs_f64();
-        let Some(a) = a else { return Err((StepFail::Inverted, ())) };
-        let (mut r, react) = free_residual(p, sys, &a.internal_force, t1);
+        let Some(a) = a else { return Err(StepFail::Inverted) };
+        let (r, react) = free_residual(p, sys, &a.internal_force, t1);
         let rn = norm(&r);
         rep.residual_history.push(rn);
         let tol = settings.rel_tol * load_norm.max(react);
@@ -379,17 +382,12 @@ fn newton_step(
         let pi0 = a.strain_energy - t1 * wext;
         let mut vals = sys.values(a.blocks.as_ref().expect("tangent asked"));
         // d = −K⁻¹ r
-        for x in r.iter_mut() {
-            *x = -*x;
-        }
-        let grad_dot_d_neg: f64; // r·d (negative for a descent direction)
-        let (r_orig, _) = free_residual(p, sys, &a.internal_force, t1);
-        match sys.solve(&mut vals, &mut r, timings) {
+        let mut d: Vec<f64> = r.iter().map(|x| -x).collect();
+        match sys.solve(&mut vals, &mut d, timings) {
             Ok(shifted) => rep.shifted_iterations += usize::from(shifted),
-            Err(_) => return Err((StepFail::NoConvergence, ())),
+            Err(_) => return Err(StepFail::NoConvergence),
         }
-        let d = r;
-        grad_dot_d_neg = r_orig.iter().zip(&d).map(|(a, b)| a * b).sum();
+        let slope: f64 = r.iter().zip(&d).map(|(a, b)| a * b).sum(); // ∇Π·d < 0 for a descent direction
         // Backtracking line search on Π (Armijo); near convergence Π stalls at round-off, so a
         // decrease of the residual norm is accepted too.
         let mut alpha = 1.0;
@@ -407,9 +405,12 @@ fn newton_step(
             let ta = Instant::now();
             let pi = p.potential_energy(&trial, t1);
             timings.assembly_s += ta.elapsed().as_secs_f64();
+            if pi.is_none() {
+                inverted_trials += 1;
+            }
             if let Some(pi) = pi {
                 any_valid = true;
-                if pi <= pi0 + 1e-4 * alpha * grad_dot_d_neg {
+                if pi <= pi0 + 1e-4 * alpha * slope {
                     accepted = true;
                     break;
                 }
@@ -429,11 +430,11 @@ fn newton_step(
             alpha *= 0.5;
         }
         if !accepted {
-            return Err((if any_valid { StepFail::NoConvergence } else { StepFail::Inverted }, ()));
+            return Err(if any_valid && inverted_trials == 0 { StepFail::NoConvergence } else { StepFail::Inverted });
         }
         rep.line_search_alphas.push(alpha);
         u = trial;
         rep.iterations = it + 1;
     }
-    Err((StepFail::NoConvergence, ()))
+    Err(if inverted_trials == 0 { StepFail::NoConvergence } else { StepFail::Inverted })
 }
