@@ -44,6 +44,9 @@ enum Command {
     /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
     #[command(subcommand)]
     Features(cmd::features::FeaturesCmd),
+    /// FEM ground truth of the in-silico incision benchmark: Neo-Hookean TET10 (thesis §5.4.2).
+    #[command(subcommand)]
+    Fem(cmd::fem::FemCmd),
     /// Run every module on built-in data and write an HTML report.
     Demo(demo::DemoArgs),
     /// Benchmarks moved to the separate `laparo-bench` binary (this only says how to run it).
@@ -65,6 +68,7 @@ fn main() {
         Command::Register(a) => cmd::register::run(*a),
         Command::Mesh(c) => cmd::mesh::run(c),
         Command::Features(c) => cmd::features::run(c),
+        Command::Fem(c) => cmd::fem::run(c),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(
             "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \

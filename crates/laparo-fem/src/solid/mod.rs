@@ -1,1 +1,16 @@
-//! Quadratic-tetrahedron quasi-static FEM (filled by the solver work).
+//! Quadratic-tetrahedron (TET10) quasi-static FEM: the ground truth of the in-silico incision
+//! benchmark (thesis §5.4.2). Nearly incompressible Neo-Hookean law of eq. 5.3
+//! ([`crate::material::NeoHookean`]), dead tractions / nodal / body forces and prescribed
+//! displacements ramped over load increments, Newton with a backtracking line search on the total
+//! potential energy, sparse Cholesky (faer, AMD fill-reducing ordering) of the tangent.
+//!
+//! Units: mm, kPa, mN (energy in mN·mm = µJ).
+mod newton;
+mod problem;
+mod quadrature;
+mod tet10;
+
+pub use newton::{solve, Solution, SolverSettings, StepReport, Timings};
+pub use problem::{Assembled, BodyForce, Dirichlet, FaceTraction, Loads, NodalForce, SolidProblem};
+pub use quadrature::{tet10_shape, tet10_shape_grad, QuadPoint, Quadrature, TET10_EDGES};
+pub use tet10::Tet10Mesh;

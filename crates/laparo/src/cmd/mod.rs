@@ -6,6 +6,7 @@ pub mod cpc_eval;
 pub mod depth;
 pub mod depth_tools;
 pub mod features;
+pub mod fem;
 pub mod mesh;
 pub mod mpm;
 pub mod register;

@@ -1,0 +1,440 @@
+//! Load stepping with Newton's method and a backtracking line search on the total potential
+//! energy; sparse Cholesky (faer, AMD ordering) of the free-DOF tangent, shifted when indefinite.
+use super::problem::SolidProblem;
+use crate::error::{FemError, Result};
+use faer::prelude::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::{MatMut, Side};
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Settings of [`solve`].
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct SolverSettings {
+    /// Number of equal load increments (20–50 for the benchmark).
+    pub steps: usize,
+    /// Convergence: ‖residual‖ ≤ `rel_tol` × ‖applied load‖ (external forces and reactions).
+    pub rel_tol: f64,
+    /// Newton iterations per increment before the increment is halved.
+    pub max_newton: usize,
+    /// How many times an increment may be halved (inversion or no convergence) before giving up.
+    pub max_cuts: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self { steps: 20, rel_tol: 1e-8, max_newton: 25, max_cuts: 8 }
+    }
+}
+
+/// What happened in one (sub)increment.
+#[derive(Clone, Debug, Serialize)]
+pub struct StepReport {
+    /// 1-based increment index (sub-increments after a cut share the index of the step they belong to).
+    pub step: usize,
+    /// Load factor reached.
+    pub load_factor: f64,
+    /// Newton iterations.
+    pub iterations: usize,
+    /// ‖free residual‖ (mN) before each iteration and at convergence.
+    pub residual_history: Vec<f64>,
+    /// Convergence threshold used (mN).
+    pub tolerance: f64,
+    /// Line-search step lengths taken.
+    pub line_search_alphas: Vec<f64>,
+    /// Iterations whose tangent was not positive definite (solved with a diagonal shift).
+    pub shifted_iterations: usize,
+    /// Minimum det F over all quadrature points at the converged state.
+    pub min_j: f64,
+}
+
+/// Timing of the run (s).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Timings {
+    /// Whole solve.
+    pub total_s: f64,
+    /// Element evaluation and assembly (all iterations and line searches).
+    pub assembly_s: f64,
+    /// Symbolic analysis (AMD ordering, elimination tree), once.
+    pub symbolic_s: f64,
+    /// Numeric Cholesky factorisations.
+    pub factorization_s: f64,
+    /// Triangular solves.
+    pub solve_s: f64,
+    /// Newton iterations in total.
+    pub newton_iterations: usize,
+}
+
+/// Result of [`solve`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Solution {
+    /// Displacement of every TET10 node (mm); the first `n_vertices` are the linear vertices.
+    #[serde(skip)]
+    pub displacement: Vec<Vector3<f64>>,
+    /// Number of linear vertices.
+    pub n_vertices: usize,
+    /// Number of free DOFs.
+    pub free_dofs: usize,
+    /// Nonzeros of the (upper) free tangent.
+    pub tangent_nnz: usize,
+    /// Per-increment reports.
+    pub steps: Vec<StepReport>,
+    /// Minimum det F over all quadrature points at the final state.
+    pub min_j: f64,
+    /// Max displacement norm over the nodes (mm).
+    pub max_displacement_mm: f64,
+    /// Timings.
+    pub timings: Timings,
+}
+
+impl Solution {
+    /// Displacements of the linear-mesh vertices (mm).
+    pub fn vertex_displacements(&self) -> &[Vector3<f64>] {
+        &self.displacement[..self.n_vertices]
+    }
+}
+
+/// Free-DOF sparse structure (upper triangle, CSC) and the map from node blocks.
+struct FreeSystem {
+    n: usize,
+    free_of_node: Vec<usize>,
+    symbolic: SymbolicSparseColMat<usize>,
+    /// For each CSC value: index into the flat block array.
+    src: Vec<usize>,
+    /// CSC value index of each diagonal entry.
+    diag: Vec<usize>,
+    llt_symbolic: SymbolicLlt<usize>,
+}
+
+impl FreeSystem {
+    fn new(p: &SolidProblem) -> Result<Self> {
+        let nn = p.mesh.n_nodes();
+        let mut free_of_node = vec![usize::MAX; nn];
+        let mut nf = 0;
+        for (i, f) in free_of_node.iter_mut().enumerate() {
+            if !p.is_prescribed(i) {
+                *f = nf;
+                nf += 1;
+            }
+        }
+        let n = 3 * nf;
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::new();
+        let mut src = Vec::new();
+        let mut diag = Vec::with_capacity(n);
+        col_ptr.push(0usize);
+        for b in 0..nn {
+            let fb = free_of_node[b];
+            if fb == usize::MAX {
+                continue;
+            }
+            for k in 0..3 {
+                let col = 3 * fb + k;
+                for pidx in p.row_ptr[b]..p.row_ptr[b + 1] {
+                    let a = p.cols[pidx];
+                    let fa = free_of_node[a];
+                    if fa == usize::MAX || fa > fb {
+                        continue;
+                    }
+                    for i in 0..3 {
+                        let row = 3 * fa + i;
+                        if row > col {
+                            continue;
+                        }
+                        if row == col {
+                            diag.push(row_idx.len());
+                        }
+                        row_idx.push(row);
+                        // K[(a,i),(b,k)] = K[(b,k),(a,i)] = block(b,a)[k][i]
+                        src.push(9 * pidx + 3 * k + i);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        if n == 0 {
+            return Err(FemError::bad("fixed nodes", "every node is prescribed: nothing to solve"));
+        }
+        let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+        let llt_symbolic = SymbolicLlt::try_new(symbolic.as_ref(), Side::Upper)
+            .map_err(|e| FemError::Solver(format!("symbolic Cholesky of the {n}-DOF tangent: {e:?}")))?;
+        Ok(Self { n, free_of_node, symbolic, src, diag, llt_symbolic })
+    }
+
+    fn values(&self, blocks: &[f64]) -> Vec<f64> {
+        self.src.iter().map(|&s| blocks[s]).collect()
+    }
+
+    /// Solve K x = rhs; a diagonal shift grows until the Cholesky succeeds when K is not positive definite.
+    fn solve(&self, vals: &mut [f64], rhs: &mut [f64], timings: &mut Timings) -> Result<bool> {
+        let mut shift = 0.0;
+        let dmax = self.diag.iter().map(|&d| vals[d].abs()).fold(0.0, f64::max).max(1e-300);
+        let base: Vec<f64> = self.diag.iter().map(|&d| vals[d]).collect();
+        for attempt in 0..40 {
+            if attempt > 0 {
+                shift = if shift == 0.0 { 1e-8 * dmax } else { shift * 10.0 };
+                for (&d, &b) in self.diag.iter().zip(&base) {
+                    vals[d] = b + shift;
+                }
+            }
+            let t0 = Instant::now();
+            let mat = SparseColMatRef::new(self.symbolic.as_ref(), &*vals);
+            let llt = Llt::try_new_with_symbolic(self.llt_symbolic.clone(), mat, Side::Upper);
+            timings.factorization_s += t0.elapsed().as_secs_f64();
+            if let Ok(llt) = llt {
+                let t1 = Instant::now();
+                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+                timings.solve_s += t1.elapsed().as_secs_f64();
+                return Ok(attempt > 0);
+            }
+            if shift > 1e3 * dmax {
+                break;
+            }
+        }
+        Err(FemError::Solver("the tangent stays singular even with a large diagonal shift".into()))
+    }
+}
+
+enum StepFail {
+    Inverted,
+    NoConvergence,
+}
+
+/// Solve the quasi-static problem by `settings.steps` load increments (tractions, forces, body
+/// force and prescribed displacements all ramped by the load factor t = k / steps).
+pub fn solve(p: &SolidProblem, settings: &SolverSettings) -> Result<Solution> {
+    if settings.steps == 0 {
+        return Err(FemError::param("steps", 0.0, "must be ≥ 1"));
+    }
+    if !(settings.rel_tol > 0.0 && settings.rel_tol < 1.0) {
+        return Err(FemError::param("rel_tol", settings.rel_tol, "must lie in (0, 1)"));
+    }
+    let t_start = Instant::now();
+    let mut timings = Timings::default();
+    let t0 = Instant::now();
+    let sys = FreeSystem::new(p)?;
+    timings.symbolic_s = t0.elapsed().as_secs_f64();
+    let nn = p.mesh.n_nodes();
+    let mut u = vec![0.0; 3 * nn];
+    let mut steps = Vec::new();
+    let dt0 = 1.0 / settings.steps as f64;
+    let mut t = 0.0;
+    let mut dt = dt0;
+    let mut cuts = 0;
+    let mut step_idx = 1;
+    while t < 1.0 - 1e-12 {
+        let t_new = if t + dt > 1.0 - 1e-12 { 1.0 } else { t + dt };
+        match newton_step(p, &sys, &u, t, t_new, settings, &mut timings) {
+            Ok((u_new, mut rep)) => {
+                u = u_new;
+                t = t_new;
+                rep.step = step_idx;
+                steps.push(rep);
+                if (t / dt0 - (t / dt0).round()).abs() < 1e-9 {
+                    step_idx = (t / dt0).round() as usize + 1;
+                }
+                dt = (dt * 2.0).min(dt0);
+            }
+            Err(fail) => {
+                cuts += 1;
+                if cuts > settings.max_cuts || dt < dt0 / 1024.0 {
+                    return Err(FemError::Solver(match fail {
+                        StepFail::Inverted => format!(
+                            "tractions invert elements at step {step_idx} (load factor {t_new:.4}): J ≤ 0 at quadrature points persists after {} step cuts",
+                            cuts - 1
+                        ),
+                        StepFail::NoConvergence => format!(
+                            "Newton does not converge at step {step_idx} (load factor {t_new:.4}) after {} step cuts",
+                            cuts - 1
+                        ),
+                    }));
+                }
+                dt *= 0.5;
+            }
+        }
+    }
+    let displacement: Vec<Vector3<f64>> = (0..nn).map(|i| Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2])).collect();
+    let min_j = steps.last().map_or(1.0, |s| s.min_j);
+    timings.total_s = t_start.elapsed().as_secs_f64();
+    timings.newton_iterations = steps.iter().map(|s| s.iterations).sum();
+    Ok(Solution {
+        max_displacement_mm: displacement.iter().map(|d| d.norm()).fold(0.0, f64::max),
+        displacement,
+        n_vertices: p.mesh.n_vertices,
+        free_dofs: sys.n,
+        tangent_nnz: sys.src.len(),
+        steps,
+        min_j,
+        timings,
+    })
+}
+
+fn free_residual(p: &SolidProblem, sys: &FreeSystem, fint: &[f64], t: f64) -> (Vec<f64>, f64) {
+    let mut r = vec![0.0; sys.n];
+    let mut react = 0.0;
+    let fe = p.external_force();
+    for (i, &f) in sys.free_of_node.iter().enumerate() {
+        for c in 0..3 {
+            let v = fint[3 * i + c] - t * fe[3 * i + c];
+            if f == usize::MAX {
+                react += v * v;
+            } else {
+                r[3 * f + c] = v;
+            }
+        }
+    }
+    (r, react.sqrt())
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+type StepOut = std::result::Result<(Vec<f64>, StepReport), StepFail>;
+
+fn newton_step(
+    p: &SolidProblem,
+    sys: &FreeSystem,
+    u0: &[f64],
+    t0: f64,
+    t1: f64,
+    settings: &SolverSettings,
+    timings: &mut Timings,
+) -> StepOut {
+    let nn = p.mesh.n_nodes();
+    let mut u = u0.to_vec();
+    let fe = p.external_force();
+    let load_norm = t1 * norm(fe);
+    let mut rep = StepReport {
+        step: 0,
+        load_factor: t1,
+        iterations: 0,
+        residual_history: Vec::new(),
+        tolerance: 0.0,
+        line_search_alphas: Vec::new(),
+        shifted_iterations: 0,
+        min_j: f64::NAN,
+    };
+    // Predictor for the prescribed-displacement increment: K_ff δ = −K_fp Δu_p (linearised at u0).
+    let has_dirichlet_increment = (0..nn).any(|i| p.prescribed_value(i).is_some_and(|v| v.norm() > 0.0));
+    if has_dirichlet_increment {
+        let ta = Instant::now();
+        let a = p.assemble(u0, true);
+        timings.assembly_s += ta.elapsed().as_secs_f64();
+        let Some(a) = a else { return Err(StepFail::Inverted) };
+        let blocks = a.blocks.as_ref().expect("tangent asked");
+        let mut rhs = vec![0.0; sys.n];
+        for b in 0..nn {
+            let fb = sys.free_of_node[b];
+            if fb == usize::MAX {
+                continue;
+            }
+            for pidx in p.row_ptr[b]..p.row_ptr[b + 1] {
+                let a_node = p.cols[pidx];
+                if let Some(v) = p.prescribed_value(a_node) {
+                    let du = v * (t1 - t0);
+                    for k in 0..3 {
+                        for i in 0..3 {
+                            rhs[3 * fb + k] -= blocks[9 * pidx + 3 * k + i] * du[i];
+                        }
+                    }
+                }
+            }
+        }
+        let mut vals = sys.values(blocks);
+        if sys.solve(&mut vals, &mut rhs, timings).is_err() {
+            return Err(StepFail::NoConvergence);
+        }
+        for (i, &f) in sys.free_of_node.iter().enumerate() {
+            for c in 0..3 {
+                if f == usize::MAX {
+                    u[3 * i + c] = t1 * p.prescribed_value(i).expect("prescribed")[c];
+                } else {
+                    u[3 * i + c] += rhs[3 * f + c];
+                }
+            }
+        }
+    }
+    // Line-search trials rejected because an element inverted (J ≤ 0): a failed increment that met
+    // some is reported as inversion.
+    let mut inverted_trials = 0usize;
+    for it in 0..=settings.max_newton {
+        let ta = Instant::now();
+        let a = p.assemble(&u, true);
+        timings.assembly_s += ta.elapsed().as_secs_f64();
+        let Some(a) = a else { return Err(StepFail::Inverted) };
+        let (r, react) = free_residual(p, sys, &a.internal_force, t1);
+        let rn = norm(&r);
+        rep.residual_history.push(rn);
+        let tol = settings.rel_tol * load_norm.max(react);
+        rep.tolerance = tol;
+        if rn <= tol || rn == 0.0 {
+            rep.iterations = it;
+            rep.min_j = a.min_j;
+            return Ok((u, rep));
+        }
+        if it == settings.max_newton {
+            break;
+        }
+        let wext: f64 = fe.iter().zip(&u).map(|(f, x)| f * x).sum();
+        let pi0 = a.strain_energy - t1 * wext;
+        let mut vals = sys.values(a.blocks.as_ref().expect("tangent asked"));
+        // d = −K⁻¹ r
+        let mut d: Vec<f64> = r.iter().map(|x| -x).collect();
+        match sys.solve(&mut vals, &mut d, timings) {
+            Ok(shifted) => rep.shifted_iterations += usize::from(shifted),
+            Err(_) => return Err(StepFail::NoConvergence),
+        }
+        let slope: f64 = r.iter().zip(&d).map(|(a, b)| a * b).sum(); // ∇Π·d < 0 for a descent direction
+        // Backtracking line search on Π (Armijo); near convergence Π stalls at round-off, so a
+        // decrease of the residual norm is accepted too.
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        let mut any_valid = false;
+        let mut trial = u.clone();
+        for _ in 0..30 {
+            for (i, &f) in sys.free_of_node.iter().enumerate() {
+                if f != usize::MAX {
+                    for c in 0..3 {
+                        trial[3 * i + c] = u[3 * i + c] + alpha * d[3 * f + c];
+                    }
+                }
+            }
+            let ta = Instant::now();
+            let pi = p.potential_energy(&trial, t1);
+            timings.assembly_s += ta.elapsed().as_secs_f64();
+            if pi.is_none() {
+                inverted_trials += 1;
+            }
+            if let Some(pi) = pi {
+                any_valid = true;
+                if pi <= pi0 + 1e-4 * alpha * slope {
+                    accepted = true;
+                    break;
+                }
+                if (pi - pi0).abs() <= 1e-10 * pi0.abs().max(1e-300) {
+                    let ta = Instant::now();
+                    let at = p.assemble(&trial, false);
+                    timings.assembly_s += ta.elapsed().as_secs_f64();
+                    if let Some(at) = at {
+                        let (rt, _) = free_residual(p, sys, &at.internal_force, t1);
+                        if norm(&rt) < rn {
+                            accepted = true;
+                            break;
+                        }
+                    }
+                }
+            }
+            alpha *= 0.5;
+        }
+        if !accepted {
+            return Err(if any_valid && inverted_trials == 0 { StepFail::NoConvergence } else { StepFail::Inverted });
+        }
+        rep.line_search_alphas.push(alpha);
+        u = trial;
+        rep.iterations = it + 1;
+    }
+    Err(if inverted_trials == 0 { StepFail::NoConvergence } else { StepFail::Inverted })
+}

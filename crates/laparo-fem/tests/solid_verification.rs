@@ -1,0 +1,259 @@
+//! Verification of the TET10 Neo-Hookean solver: patch test, manufactured solution (P2 rate),
+//! tangent = finite-difference derivative of the residual, zero load, bad input.
+use laparo_core::mesh::TetMesh;
+use laparo_fem::solid::{
+    solve, Dirichlet, FaceTraction, Loads, NodalForce, Quadrature, SolidProblem, SolverSettings, Tet10Mesh,
+};
+use laparo_fem::{FemError, NeoHookean};
+use nalgebra::{Matrix3, Vector3};
+use rand::{Rng, SeedableRng};
+use std::sync::Arc;
+
+/// Box [0, l]³ split in n³ cubes of 6 Kuhn tetrahedra; interior vertices jittered by `jitter` × h.
+fn box_mesh(n: usize, l: f64, jitter: f64, seed: u64) -> TetMesh {
+    let h = l / n as f64;
+    let id = |i: usize, j: usize, k: usize| (i * (n + 1) + j) * (n + 1) + k;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut vertices = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            for k in 0..=n {
+                let mut x = Vector3::new(i as f64, j as f64, k as f64) * h;
+                let interior = [i, j, k].iter().all(|&c| c > 0 && c < n);
+                if interior && jitter > 0.0 {
+                    x += Vector3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))
+                        * (jitter * h);
+                }
+                vertices.push(x);
+            }
+        }
+    }
+    let perms = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    let mut tets = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                for p in perms {
+                    let mut c = [i, j, k];
+                    let mut t = [id(c[0], c[1], c[2]), 0, 0, 0];
+                    for (s, &ax) in p.iter().enumerate() {
+                        c[ax] += 1;
+                        t[s + 1] = id(c[0], c[1], c[2]);
+                    }
+                    tets.push(t);
+                }
+            }
+        }
+    }
+    TetMesh::new(vertices, tets).unwrap()
+}
+
+/// All TET10 nodes on the boundary surface of the linear mesh.
+fn boundary_nodes(lin: &TetMesh, m: &Tet10Mesh) -> Vec<usize> {
+    let mut out: Vec<usize> = lin.boundary().faces.iter().flat_map(|f| m.face_nodes(*f).unwrap()).collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+fn to_vec3(u: &[f64]) -> Vec<Vector3<f64>> {
+    u.chunks(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect()
+}
+
+#[test]
+fn patch_test_affine_deformation_is_reproduced() {
+    let lin = box_mesh(3, 10.0, 0.25, 7);
+    let m = Tet10Mesh::from_linear(&lin).unwrap();
+    let g = Matrix3::new(1.12, 0.05, -0.02, 0.03, 0.93, 0.04, -0.01, -0.06, 1.07);
+    let c = Vector3::new(0.3, -0.2, 0.1);
+    let exact = |x: &Vector3<f64>| (g - Matrix3::identity()) * x + c;
+    let bnd = boundary_nodes(&lin, &m);
+    let dir: Vec<Dirichlet> = bnd.iter().map(|&i| Dirichlet { node: i, value_mm: exact(&m.nodes[i]) }).collect();
+    let nodes = m.nodes.clone();
+    for q in [Quadrature::Degree2, Quadrature::Degree5] {
+        let p = SolidProblem::new(m.clone(), NeoHookean::liver(), &dir, &Loads::default(), q).unwrap();
+        let s = solve(&p, &SolverSettings { steps: 2, rel_tol: 1e-13, ..Default::default() }).unwrap();
+        let mut worst: f64 = 0.0;
+        let mut interior = 0;
+        for (i, x) in nodes.iter().enumerate() {
+            if !p.is_prescribed(i) {
+                interior += 1;
+                worst = worst.max((s.displacement[i] - exact(x)).norm());
+            }
+        }
+        assert!(interior > 50, "{interior} interior nodes");
+        eprintln!("patch test {q:?}: {interior} interior nodes, max error {worst:e} mm");
+        assert!(worst < 1e-10, "{q:?}: interior nodes off the affine field by {worst:e} mm");
+        let jh = g.determinant();
+        assert!((s.min_j - jh).abs() < 1e-9, "min J {} vs det G {jh}", s.min_j);
+    }
+}
+
+/// u*(X) on the box [0, L]³ and its gradient.
+fn manufactured(x: &Vector3<f64>, l: f64) -> (Vector3<f64>, Matrix3<f64>) {
+    let a = 0.05 * l;
+    let k = std::f64::consts::PI / l;
+    let (sx, cx) = (k * x.x).sin_cos();
+    let (sy, cy) = (k * x.y).sin_cos();
+    let (sz, cz) = (k * x.z).sin_cos();
+    let u = Vector3::new(a * sy * cz, a * sz * cx, a * sx * cy);
+    let du = Matrix3::new(0.0, a * k * cy * cz, -a * k * sy * sz, -a * k * sz * sx, 0.0, a * k * cz * cx, a * k * cx * cy, -a * k * sx * sy, 0.0);
+    (u, du)
+}
+
+#[test]
+fn manufactured_solution_converges_at_rate_three() {
+    let l = 10.0;
+    let mat = NeoHookean::from_young_poisson(4.1, 0.45).unwrap();
+    // b = −Div P(F*(X)) by 4th-order central differences of P along each axis.
+    let body = move |x: &Vector3<f64>| -> Vector3<f64> {
+        let h = 1e-3 * l;
+        let p_at = |y: Vector3<f64>| mat.pk1(&(Matrix3::identity() + manufactured(&y, l).1)).unwrap();
+        let mut div = Vector3::zeros();
+        for j in 0..3 {
+            let e = Vector3::ith(j, h);
+            let d = (p_at(x - 2.0 * e) - 8.0 * p_at(x - e) + 8.0 * p_at(x + e) - p_at(x + 2.0 * e)) / (12.0 * h);
+            div += d.column(j);
+        }
+        -div
+    };
+    let mut errs = Vec::new();
+    for n in [2, 4, 8] {
+        let lin = box_mesh(n, l, 0.0, 1);
+        let m = Tet10Mesh::from_linear(&lin).unwrap();
+        let dir: Vec<Dirichlet> = boundary_nodes(&lin, &m)
+            .into_iter()
+            .map(|i| Dirichlet { node: i, value_mm: manufactured(&m.nodes[i], l).0 })
+            .collect();
+        let loads = Loads { body_force: Some(Arc::new(body)), ..Default::default() };
+        let p = SolidProblem::new(m, mat, &dir, &loads, Quadrature::Degree5).unwrap();
+        let s = solve(&p, &SolverSettings { steps: 2, rel_tol: 1e-10, ..Default::default() }).unwrap();
+        errs.push(p.l2_error(&s.displacement, |x| manufactured(x, l).0));
+    }
+    let rates: Vec<f64> = errs.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
+    eprintln!("manufactured solution: L2 errors {errs:?}, rates {rates:?}");
+    assert!(rates[1] > 2.7 && rates[1] < 3.5, "L2 errors {errs:?}, rates {rates:?}");
+    assert!(rates[0] > 2.3, "L2 errors {errs:?}, rates {rates:?}");
+}
+
+#[test]
+fn tangent_is_the_derivative_of_the_residual() {
+    let lin = box_mesh(2, 10.0, 0.2, 3);
+    let m = Tet10Mesh::from_linear(&lin).unwrap();
+    let fixed = SolidProblem::fixed_vertices(&m, &[0, 1, 2, 3]).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    for q in [Quadrature::Degree2, Quadrature::Degree5] {
+        let p = SolidProblem::new(m.clone(), NeoHookean::liver(), &fixed, &Loads::default(), q).unwrap();
+        let u: Vec<f64> = (0..3 * m.n_nodes()).map(|_| rng.gen_range(-0.3..0.3)).collect();
+        let k = p.tangent_dense(&u).unwrap();
+        let kmax = k.amax();
+        assert!((&k - k.transpose()).amax() < 1e-10 * kmax, "tangent not symmetric");
+        let h = 1e-6;
+        let mut worst: f64 = 0.0;
+        for j in 0..u.len() {
+            let (mut up, mut um) = (u.clone(), u.clone());
+            up[j] += h;
+            um[j] -= h;
+            let fp = p.assemble(&up, false).unwrap().internal_force;
+            let fm = p.assemble(&um, false).unwrap().internal_force;
+            for i in 0..u.len() {
+                worst = worst.max(((fp[i] - fm[i]) / (2.0 * h) - k[(i, j)]).abs());
+            }
+        }
+        eprintln!("tangent {q:?}: max |K − FD| {worst:e}, max |K| {kmax:e}");
+        assert!(worst < 1e-6 * kmax, "{q:?}: max |K − FD| {worst:e} vs max |K| {kmax:e}");
+        // And the internal force is the derivative of the strain energy.
+        let fint = p.assemble(&u, false).unwrap().internal_force;
+        for j in (0..u.len()).step_by(7) {
+            let (mut up, mut um) = (u.clone(), u.clone());
+            up[j] += h;
+            um[j] -= h;
+            let fd = (p.strain_energy(&up).unwrap() - p.strain_energy(&um).unwrap()) / (2.0 * h);
+            assert!((fd - fint[j]).abs() < 1e-6 * (1.0 + fint[j].abs()), "dof {j}: {fd} vs {}", fint[j]);
+        }
+    }
+}
+
+fn bottom_fixed_problem(n: usize, loads: &Loads) -> SolidProblem {
+    let lin = box_mesh(n, 10.0, 0.0, 0);
+    let m = Tet10Mesh::from_linear(&lin).unwrap();
+    let bottom: Vec<usize> = (0..m.n_vertices).filter(|&i| m.nodes[i].z < 1e-9).collect();
+    let fixed = SolidProblem::fixed_vertices(&m, &bottom).unwrap();
+    SolidProblem::new(m, NeoHookean::liver(), &fixed, loads, Quadrature::Degree2).unwrap()
+}
+
+fn top_faces(n: usize) -> Vec<[usize; 3]> {
+    let lin = box_mesh(n, 10.0, 0.0, 0);
+    lin.boundary().faces.into_iter().filter(|f| f.iter().all(|&v| (lin.vertices[v].z - 10.0).abs() < 1e-9)).collect()
+}
+
+#[test]
+fn zero_load_gives_zero_displacement() {
+    let p = bottom_fixed_problem(2, &Loads::default());
+    let s = solve(&p, &SolverSettings::default()).unwrap();
+    assert!(s.displacement.iter().all(|d| d.norm() == 0.0));
+    assert!(s.steps.iter().all(|r| r.iterations == 0));
+    assert_eq!(s.min_j, 1.0);
+}
+
+#[test]
+fn uniform_traction_total_force_and_newton_convergence() {
+    // Uniform shear traction τ on the top face: Σ f_ext = τ A, the reactions balance it, and
+    // Newton converges quadratically (last residual ratios small).
+    let tau = Vector3::new(0.2, 0.0, -0.1);
+    let faces = top_faces(2);
+    let loads = Loads {
+        face_tractions: faces.iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
+        ..Default::default()
+    };
+    let p = bottom_fixed_problem(2, &loads);
+    let fe = p.external_force();
+    let total: Vector3<f64> = fe.chunks(3).map(|c| Vector3::new(c[0], c[1], c[2])).sum();
+    assert!((total - tau * 100.0).norm() < 1e-12, "{total}");
+    let s = solve(&p, &SolverSettings { steps: 5, ..Default::default() }).unwrap();
+    assert!(s.max_displacement_mm > 0.1 && s.min_j > 0.5 && s.min_j < 1.0, "{} {}", s.max_displacement_mm, s.min_j);
+    let a = p.assemble(&s.displacement.iter().flat_map(|d| d.iter().copied()).collect::<Vec<_>>(), false).unwrap();
+    let react: Vector3<f64> =
+        (0..p.mesh.n_nodes()).filter(|&i| p.is_prescribed(i)).map(|i| Vector3::from_column_slice(&a.internal_force[3 * i..3 * i + 3])).sum();
+    assert!((react + tau * 100.0).norm() < 1e-6, "reaction {react}");
+    for st in &s.steps {
+        let h = &st.residual_history;
+        assert!(*h.last().unwrap() <= st.tolerance && st.iterations <= 8, "{st:?}");
+    }
+    // Equal and opposite shear on top: displacement of the top is along +x overall.
+    let top_mean: f64 = (0..p.mesh.n_vertices).filter(|&i| p.mesh.nodes[i].z > 9.99).map(|i| s.displacement[i].x).sum::<f64>();
+    assert!(top_mean > 0.0);
+    let _ = to_vec3(&[0.0; 3]);
+}
+
+#[test]
+fn bad_inputs_are_clear_errors() {
+    let lin = box_mesh(1, 10.0, 0.0, 0);
+    let m = Tet10Mesh::from_linear(&lin).unwrap();
+    let err = |r: Result<SolidProblem, FemError>| r.err().expect("must fail").to_string();
+    let e = err(SolidProblem::new(m.clone(), NeoHookean::liver(), &[], &Loads::default(), Quadrature::Degree2));
+    assert!(e.contains("rigid"), "{e}");
+    let two = SolidProblem::fixed_vertices(&m, &[0, 7]).unwrap();
+    let e = err(SolidProblem::new(m.clone(), NeoHookean::liver(), &two, &Loads::default(), Quadrature::Degree2));
+    assert!(e.contains("rigid") && e.contains("non-collinear"), "{e}");
+    let e = SolidProblem::fixed_vertices(&m, &[99]).unwrap_err().to_string();
+    assert!(e.contains("vertex 99"), "{e}");
+    let fixed = SolidProblem::fixed_vertices(&m, &[0, 1, 2, 3]).unwrap();
+    let loads = Loads { face_tractions: vec![FaceTraction { face: [0, 5, 6], traction_kpa: Vector3::x() }], ..Default::default() };
+    let e = err(SolidProblem::new(m.clone(), NeoHookean::liver(), &fixed, &loads, Quadrature::Degree2));
+    assert!(e.contains("face_tractions[0]"), "{e}");
+    // A huge point force pulls one vertex through the mesh.
+    let n = 2;
+    let p = bottom_fixed_problem(
+        n,
+        &Loads {
+            nodal_forces: vec![NodalForce { node: (n + 1) * (n + 1) * (n + 1) - 1, force_mn: Vector3::new(0.0, 0.0, -1e5) }],
+            ..Default::default()
+        },
+    );
+    let e = solve(&p, &SolverSettings { steps: 2, max_cuts: 4, ..Default::default() }).unwrap_err().to_string();
+    eprintln!("inverting load: {e}");
+    assert!(e.contains("tractions invert elements at step 1"), "{e}");
+    let e = solve(&p, &SolverSettings { steps: 0, ..Default::default() }).unwrap_err().to_string();
+    assert!(e.contains("steps"), "{e}");
+}
