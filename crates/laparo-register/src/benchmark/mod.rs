@@ -5,6 +5,7 @@
 //!
 //! The ground truth (a cut tetrahedral mesh deformed by a quasi-static FEM) comes from `laparo-fem`, never
 //! from `laparo-mpm`; this module only scores positions against it.
+pub mod build;
 pub mod case;
 pub mod figures;
 pub mod protocol;
