@@ -116,10 +116,24 @@ fn timing(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
             r.report.initial_mean_distance_mm, r.report.mean_distance_mm, maxd
         );
     };
-    show(&arap(&p, &ArapConfig::default())?);
-    show(&arap(&p, &ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })?);
-    show(&drbc(&p, &DrbcConfig::default())?);
-    show(&lddmm(&p, &LddmmConfig::default())?);
+    let only: String = arg(args, "--only", String::new());
+    let verbose = args.iter().any(|a| a == "--verbose");
+    let show = |r: &BaselineResult| {
+        show(r);
+        if verbose {
+            println!("  history (mm): {:?}", r.report.history_mm.iter().map(|d| (d * 1e4).round() / 1e4).collect::<Vec<_>>());
+        }
+    };
+    if only.is_empty() || only == "arap" {
+        show(&arap(&p, &ArapConfig::default())?);
+        show(&arap(&p, &ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })?);
+    }
+    if only.is_empty() || only == "drbc" {
+        show(&drbc(&p, &DrbcConfig::default())?);
+    }
+    if only.is_empty() || only == "lddmm" {
+        show(&lddmm(&p, &LddmmConfig::default())?);
+    }
     Ok(())
 }
 

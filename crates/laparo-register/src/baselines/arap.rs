@@ -63,8 +63,8 @@ impl Default for ArapConfig {
             energy: ArapEnergy::Spokes,
             weights: ArapWeights::Cotangent,
             landmark_weight: None,
-            iterations: 200,
-            tolerance_mm: 1e-4,
+            iterations: 100,
+            tolerance_mm: 1e-3,
         }
     }
 }

@@ -5,10 +5,12 @@
 //!
 //! with linear tets, ψ_NH the compressible Neo-Hookean law of eq. 5.3 (`laparo_fem::NeoHookean`, kPa),
 //! V_e the rest volume (mm³) and dist the eq. 5.10 distance (closest point recomputed at every
-//! evaluation; its gradient 2 (x_k − c_k) is exact almost everywhere). Newton's method: the Hessian
-//! uses the per-element tangent ∂P/∂F projected to its positive part (eigenvalues clamped at 0) and
-//! the Gauss–Newton landmark block 2 ω BᵀB, factorised with faer's sparse Cholesky (symbolic analysis
-//! once); backtracking Armijo line search that rejects any step with an element J ≤ 0.
+//! evaluation; its gradient 2 (x_k − c_k) is exact almost everywhere). Newton's method on the exact
+//! Hessian (element tangents ∂P/∂F, and 2 (I − ∂c/∂x) for each landmark, i.e. 2 (I − t tᵀ) on a
+//! segment), factorised with faer's sparse Cholesky (symbolic analysis once); where that Hessian is not
+//! positive definite, the element tangents are projected to their positive part (eigenvalues clamped
+//! at 0) plus a growing diagonal shift if needed. Backtracking Armijo line search that rejects any
+//! trial with an element J ≤ 0 (inversion-safe).
 use super::sparse::{solve_columns, SpdPattern};
 use super::{deformation_gradient, shape_gradients, BaselineProblem, BaselineReport, BaselineResult};
 use crate::{RegisterError, Result};
@@ -45,7 +47,7 @@ impl Default for DrbcConfig {
             lambda: None,
             iterations: 50,
             gradient_tolerance: 1e-8,
-            step_tolerance_mm: 1e-6,
+            step_tolerance_mm: 1e-4,
             max_halvings: 40,
         }
     }
@@ -108,8 +110,9 @@ impl Drbc<'_> {
         Some((val, grad))
     }
 
-    /// Projected element Hessians λ V Bᵀ A₊ B (12×12, node-major dofs).
-    fn element_hessians(&self, x: &[Vector3<f64>]) -> Option<Vec<M12>> {
+    /// Element Hessians λ V Bᵀ A B (12×12, node-major dofs), with the tangent A projected to its
+    /// positive part A₊ when `project` (only where A is not positive definite).
+    fn element_hessians(&self, x: &[Vector3<f64>], project: bool) -> Option<Vec<M12>> {
         self.p
             .mesh
             .tets
@@ -118,9 +121,14 @@ impl Drbc<'_> {
             .map(|(t, (g, v))| {
                 let f = deformation_gradient(t, g, x);
                 let a = self.mat.tangent(&f)?;
-                let eig = nalgebra::SymmetricEigen::new((a + a.transpose()) * 0.5);
-                let lam = eig.eigenvalues.map(|l| l.max(0.0));
-                let ap = eig.eigenvectors * SMatrix::<f64, 9, 9>::from_diagonal(&lam) * eig.eigenvectors.transpose();
+                let a = (a + a.transpose()) * 0.5;
+                let ap = if !project || a.cholesky().is_some() {
+                    a
+                } else {
+                    let eig = nalgebra::SymmetricEigen::new(a);
+                    let lam = eig.eigenvalues.map(|l| l.max(0.0));
+                    eig.eigenvectors * SMatrix::<f64, 9, 9>::from_diagonal(&lam) * eig.eigenvectors.transpose()
+                };
                 // B[(3i+j), (3a+k)] = δ_ik g_a[j]
                 let mut b = SMatrix::<f64, 9, 12>::zeros();
                 for na in 0..4 {
@@ -134,6 +142,55 @@ impl Drbc<'_> {
             })
             .collect()
     }
+}
+
+/// Values of the lower-triangular Hessian in the order of the pattern built by [`drbc`]: element
+/// blocks, landmark blocks (exact dist² Hessians), then `ndof` diagonal slots (the shift, zero here).
+fn assemble(
+    problem: &BaselineProblem,
+    free: &[Option<usize>],
+    x: &[Vector3<f64>],
+    he: &[M12],
+    ndof: usize,
+) -> Vec<f64> {
+    let mut values = Vec::new();
+    for (t, h) in problem.mesh.tets.iter().zip(he) {
+        for a in 0..4 {
+            for b in 0..4 {
+                if let (Some(fa), Some(fb)) = (free[t[a]], free[t[b]]) {
+                    for i in 0..3 {
+                        for k in 0..3 {
+                            if 3 * fa + i >= 3 * fb + k {
+                                values.push(h[(3 * a + i, 3 * b + k)]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let h_fd = 1e-7 * problem.diameter();
+    for g in &problem.groups {
+        let hs: Vec<nalgebra::Matrix3<f64>> =
+            g.points.par_iter().map(|mp| g.distance_hessian(&mp.position(x), h_fd)).collect();
+        for (mp, hk) in g.points.iter().zip(hs) {
+            for &(a, wa) in &mp.nodes {
+                for &(b, wb) in &mp.nodes {
+                    if let (Some(fa), Some(fb)) = (free[a], free[b]) {
+                        for i in 0..3 {
+                            for k in 0..3 {
+                                if 3 * fa + i >= 3 * fb + k {
+                                    values.push(g.weight * wa * wb * hk[(i, k)]);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    values.resize(values.len() + ndof, 0.0);
+    values
 }
 
 /// Φ(x) and its gradient ∂Φ/∂x (mm², mm) of DRBC at node positions `x`; `Ok(None)` when an element is
@@ -196,8 +253,10 @@ pub fn drbc(problem: &BaselineProblem, cfg: &DrbcConfig) -> Result<BaselineResul
                 for &(b, _) in &mp.nodes {
                     if let (Some(fa), Some(fb)) = (free[a], free[b]) {
                         for i in 0..3 {
-                            if 3 * fa + i >= 3 * fb + i {
-                                pattern.push((3 * fa + i, 3 * fb + i));
+                            for k in 0..3 {
+                                if 3 * fa + i >= 3 * fb + k {
+                                    pattern.push((3 * fa + i, 3 * fb + k));
+                                }
                             }
                         }
                     }
@@ -220,58 +279,42 @@ pub fn drbc(problem: &BaselineProblem, cfg: &DrbcConfig) -> Result<BaselineResul
             converged = true;
             break;
         }
-        let he = d.element_hessians(&x).ok_or_else(|| RegisterError::bad("DRBC", "inverted element"))?;
-        let mut values = Vec::with_capacity(pattern.len());
-        for (t, h) in problem.mesh.tets.iter().zip(&he) {
-            for a in 0..4 {
-                for b in 0..4 {
-                    if let (Some(fa), Some(fb)) = (free[t[a]], free[t[b]]) {
-                        for i in 0..3 {
-                            for k in 0..3 {
-                                if 3 * fa + i >= 3 * fb + k {
-                                    values.push(h[(3 * a + i, 3 * b + k)]);
-                                }
-                            }
+        // exact Hessian first (quadratic convergence near the solution); where it is not positive
+        // definite, the projected one (elements' tangents clamped to ≥ 0), then a growing diagonal shift
+        let mut llt = None;
+        let mut err = None;
+        for project in [false, true] {
+            let he = d.element_hessians(&x, project).ok_or_else(|| RegisterError::bad("DRBC", "inverted element"))?;
+            let values = assemble(problem, &free, &x, &he, ndof);
+            let nd = values.len() - ndof;
+            let mean_diag = pattern.iter().zip(&values).filter(|(rc, _)| rc.0 == rc.1).map(|(_, v)| v).sum::<f64>()
+                / ndof as f64;
+            let mut values = values;
+            let mut shift = 1e-8 * mean_diag.abs().max(1e-300);
+            loop {
+                for r in 0..ndof {
+                    values[nd + r] = shift;
+                }
+                match sp.factor(&values) {
+                    Ok(l) => {
+                        llt = Some(l);
+                        break;
+                    }
+                    Err(e) => {
+                        err = Some(e);
+                        if !project || shift > 1e6 * mean_diag.abs() {
+                            break;
                         }
+                        shift *= 100.0;
                     }
                 }
             }
-        }
-        for g in &problem.groups {
-            for mp in &g.points {
-                for &(a, wa) in &mp.nodes {
-                    for &(b, wb) in &mp.nodes {
-                        if let (Some(fa), Some(fb)) = (free[a], free[b]) {
-                            for i in 0..3 {
-                                if 3 * fa + i >= 3 * fb + i {
-                                    values.push(2.0 * g.weight * wa * wb);
-                                }
-                            }
-                        }
-                    }
-                }
+            if llt.is_some() {
+                break;
             }
         }
-        let nd = values.len();
-        values.resize(nd + ndof, 0.0);
-        // diagonal magnitude for the shift
-        let mut diag = vec![0.0; ndof];
-        for (&(r, c), &v) in pattern.iter().zip(&values) {
-            if r == c {
-                diag[r] += v;
-            }
-        }
-        let mean_diag = diag.iter().sum::<f64>() / ndof as f64;
-        let mut shift = 1e-8 * mean_diag.max(1e-300);
-        let llt = loop {
-            for r in 0..ndof {
-                values[nd + r] = shift;
-            }
-            match sp.factor(&values) {
-                Ok(l) => break l,
-                Err(e) if shift > 1e6 * mean_diag => return Err(e),
-                Err(_) => shift *= 100.0,
-            }
+        let Some(llt) = llt else {
+            return Err(err.unwrap_or_else(|| RegisterError::bad("DRBC", "Hessian factorisation failed")));
         };
         let mut rhs = vec![0.0; ndof];
         for i in 0..x.len() {

@@ -67,6 +67,27 @@ impl MeshLandmarkGroup {
             GroupTarget::Shared(s) => s.closest(x).0,
         }
     }
+
+    /// Hessian of dist²(x) = |x − c(x)|² of a landmark of this group at `x`: 2 (I − ∂c/∂x), with ∂c/∂x from central
+    /// differences of the closest point (step `h_mm`; exact inside a segment or a triangle, where c is
+    /// affine in x: 2 (I − t tᵀ) on a polyline, 2 n nᵀ on a surface), symmetrised and clamped to ≥ 0.
+    pub(crate) fn distance_hessian(&self, x: &Vector3<f64>, h_mm: f64) -> Matrix3<f64> {
+        match &self.target {
+            GroupTarget::Paired(_) => Matrix3::identity() * 2.0,
+            GroupTarget::Shared(s) => {
+                let mut j = Matrix3::zeros();
+                for d in 0..3 {
+                    let mut e = Vector3::zeros();
+                    e[d] = h_mm;
+                    j.set_column(d, &((s.closest(&(x + e)).0 - s.closest(&(x - e)).0) / (2.0 * h_mm)));
+                }
+                let m = (Matrix3::identity() - (j + j.transpose()) * 0.5) * 2.0;
+                let eig = m.symmetric_eigen();
+                let l = eig.eigenvalues.map(|v| v.max(0.0));
+                eig.eigenvectors * Matrix3::from_diagonal(&l) * eig.eigenvectors.transpose()
+            }
+        }
+    }
 }
 
 /// What every baseline solves.
