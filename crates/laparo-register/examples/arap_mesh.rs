@@ -62,7 +62,12 @@ fn compare(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
         "laparo_seconds": best,
     });
     laparo_core::atomic::write_atomic(std::path::Path::new(out), serde_json::to_string(&json)?.as_bytes())?;
-    println!("{} nodes, {} tets, {} fixed; laparo ARAP ({energy:?}, {iterations} it): {best:.4} s", n, mesh.tets.len(), p.fixed.len());
+    println!(
+        "{} nodes, {} tets, {} fixed; laparo ARAP ({energy:?}, {iterations} it): {best:.4} s",
+        n,
+        mesh.tets.len(),
+        p.fixed.len()
+    );
     Ok(())
 }
 
@@ -107,7 +112,13 @@ fn timing(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
     let mut p = BaselineProblem::new(mesh.clone(), groups);
     let bottom: Vec<usize> = (0..mesh.vertices.len()).filter(|&i| mesh.vertices[i].z == 0.0).collect();
     p.fix_at_rest(&bottom);
-    println!("box {c}^3 cells: {} nodes, {} tets, {} landmarks, {} fixed", mesh.vertices.len(), mesh.tets.len(), p.landmark_count(), p.fixed.len());
+    println!(
+        "box {c}^3 cells: {} nodes, {} tets, {} landmarks, {} fixed",
+        mesh.vertices.len(),
+        mesh.tets.len(),
+        p.landmark_count(),
+        p.fixed.len()
+    );
     let show = |r: &BaselineResult| {
         let maxd = r.positions.iter().zip(&mesh.vertices).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
         println!(
@@ -121,7 +132,10 @@ fn timing(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
     let show = |r: &BaselineResult| {
         show(r);
         if verbose {
-            println!("  history (mm): {:?}", r.report.history_mm.iter().map(|d| (d * 1e4).round() / 1e4).collect::<Vec<_>>());
+            println!(
+                "  history (mm): {:?}",
+                r.report.history_mm.iter().map(|d| (d * 1e4).round() / 1e4).collect::<Vec<_>>()
+            );
         }
     };
     if only.is_empty() || only == "arap" {

@@ -7,7 +7,10 @@ use nalgebra::{Rotation3, Vector3};
 use std::sync::Arc;
 
 fn rigid() -> (Rotation3<f64>, Vector3<f64>) {
-    (Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), 0.45), Vector3::new(3.0, -2.0, 5.0))
+    (
+        Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), 0.45),
+        Vector3::new(3.0, -2.0, 5.0),
+    )
 }
 
 fn problem(paired: bool) -> BaselineProblem {
@@ -63,7 +66,11 @@ fn rigid_motion_is_recovered_by_every_variant() {
             let cfg = ArapConfig { energy, weights, iterations: 3000, tolerance_mm: 1e-11, ..Default::default() };
             let r = arap(&p, &cfg).unwrap();
             let tre = max_tre(&p, &r.positions);
-            assert!(tre < 1e-6, "{energy:?} {weights:?} paired={paired}: max TRE {tre} mm after {} it", r.report.iterations);
+            assert!(
+                tre < 1e-6,
+                "{energy:?} {weights:?} paired={paired}: max TRE {tre} mm after {} it",
+                r.report.iterations
+            );
             assert!(r.report.converged && r.report.mean_distance_mm < 1e-6);
             assert!(r.report.initial_mean_distance_mm > 1.0);
         }

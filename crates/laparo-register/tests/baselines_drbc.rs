@@ -27,7 +27,7 @@ fn min_j(p: &BaselineProblem, x: &[Vector3<f64>]) -> f64 {
 #[test]
 fn zero_landmark_displacement_gives_the_identity() {
     let m = mesh();
-    let pts = vec![
+    let pts = [
         MaterialPoint::node(3),
         MaterialPoint::combination(&[(10, 0.5), (11, 0.5)]),
         MaterialPoint::combination(&[(20, 0.2), (26, 0.3), (50, 0.5)]),
@@ -88,7 +88,11 @@ fn pulled_problem(pull: Vector3<f64>) -> (BaselineProblem, usize) {
 #[test]
 fn gradient_matches_finite_differences() {
     let (p, _) = pulled_problem(Vector3::new(2.0, 1.0, 3.0));
-    let cfg = DrbcConfig { material: NeoHookean::from_young_poisson(4.1, 0.45).unwrap(), lambda: Some(0.3), ..Default::default() };
+    let cfg = DrbcConfig {
+        material: NeoHookean::from_young_poisson(4.1, 0.45).unwrap(),
+        lambda: Some(0.3),
+        ..Default::default()
+    };
     // a deformed state: smooth displacement field
     let x: Vec<Vector3<f64>> = p
         .mesh

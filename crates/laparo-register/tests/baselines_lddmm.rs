@@ -32,19 +32,20 @@ fn problem(with_curve: bool) -> BaselineProblem {
 #[test]
 fn noiseless_point_targets_are_reached() {
     let p = problem(false);
-    let cfg = LddmmConfig { sigma_mm: 12.0, gamma: 1e-9, iterations: 2000, gradient_tolerance: 1e-10, ..Default::default() };
+    let cfg =
+        LddmmConfig { sigma_mm: 12.0, gamma: 1e-9, iterations: 2000, gradient_tolerance: 1e-10, ..Default::default() };
     let r = lddmm(&p, &cfg).unwrap();
     let GroupTarget::Paired(tg) = &p.groups[0].target else { unreachable!() };
-    let worst = p.groups[0]
-        .points
-        .iter()
-        .zip(tg)
-        .map(|(mp, y)| (mp.position(&r.positions) - y).norm())
-        .fold(0.0, f64::max);
+    let worst =
+        p.groups[0].points.iter().zip(tg).map(|(mp, y)| (mp.position(&r.positions) - y).norm()).fold(0.0, f64::max);
     assert!(worst < 0.01, "worst landmark {worst} mm, {:?}", r.report);
     // the flow moves the whole mesh smoothly: every node moved, none by more than twice the largest
     // landmark displacement
-    let dmax = tg.iter().zip(&p.groups[0].points).map(|(y, mp)| (y - mp.position(&p.mesh.vertices)).norm()).fold(0.0, f64::max);
+    let dmax = tg
+        .iter()
+        .zip(&p.groups[0].points)
+        .map(|(y, mp)| (y - mp.position(&p.mesh.vertices)).norm())
+        .fold(0.0, f64::max);
     for (a, b) in r.positions.iter().zip(&p.mesh.vertices) {
         assert!((a - b).norm() < 2.0 * dmax);
     }
@@ -55,8 +56,9 @@ fn gradient_matches_finite_differences() {
     let p = problem(true);
     let cfg = LddmmConfig { sigma_mm: 9.0, gamma: 0.3, steps: 7, ..Default::default() };
     let n = p.landmark_count();
-    let p0: Vec<Vector3<f64>> =
-        (0..n).map(|i| Vector3::new((i as f64 * 1.3).sin() * 3.0, (i as f64 * 0.7).cos() * 2.0, 1.0 - 0.3 * i as f64)).collect();
+    let p0: Vec<Vector3<f64>> = (0..n)
+        .map(|i| Vector3::new((i as f64 * 1.3).sin() * 3.0, (i as f64 * 0.7).cos() * 2.0, 1.0 - 0.3 * i as f64))
+        .collect();
     let (f0, g) = lddmm_objective(&p, &cfg, &p0).unwrap();
     assert!(f0 > 0.0);
     let h = 1e-6;

@@ -96,7 +96,7 @@ fn cot_edges(p: &BaselineProblem, grads: &[([Vector3<f64>; 4], f64)], uniform: b
             }
         }
     }
-    e.sort_by(|x, y| (x.0, x.1).cmp(&(y.0, y.1)));
+    e.sort_by_key(|x| (x.0, x.1));
     let mut out: Vec<(usize, usize, f64)> = Vec::new();
     for (i, j, w) in e {
         match out.last_mut() {

@@ -287,8 +287,8 @@ pub fn drbc(problem: &BaselineProblem, cfg: &DrbcConfig) -> Result<BaselineResul
             let he = d.element_hessians(&x, project).ok_or_else(|| RegisterError::bad("DRBC", "inverted element"))?;
             let values = assemble(problem, &free, &x, &he, ndof);
             let nd = values.len() - ndof;
-            let mean_diag = pattern.iter().zip(&values).filter(|(rc, _)| rc.0 == rc.1).map(|(_, v)| v).sum::<f64>()
-                / ndof as f64;
+            let mean_diag =
+                pattern.iter().zip(&values).filter(|(rc, _)| rc.0 == rc.1).map(|(_, v)| v).sum::<f64>() / ndof as f64;
             let mut values = values;
             let mut shift = 1e-8 * mean_diag.abs().max(1e-300);
             loop {

@@ -45,8 +45,11 @@ fn kern(a: &Vector3<f64>, b: &Vector3<f64>, s2: f64) -> f64 {
     (-(a - b).norm_squared() / s2).exp()
 }
 
+/// Positions (or momenta) at every time step s = 0..=steps.
+type Trajectory = Vec<Vec<Vector3<f64>>>;
+
 /// Trajectories q_s, p_s, s = 0..=steps.
-fn shoot(q0: &[Vector3<f64>], p0: &[Vector3<f64>], s2: f64, steps: usize) -> (Vec<Vec<Vector3<f64>>>, Vec<Vec<Vector3<f64>>>) {
+fn shoot(q0: &[Vector3<f64>], p0: &[Vector3<f64>], s2: f64, steps: usize) -> (Trajectory, Trajectory) {
     let dt = 1.0 / steps as f64;
     let c = 2.0 / s2;
     let mut qs = vec![q0.to_vec()];
@@ -209,7 +212,12 @@ pub fn lddmm(problem: &BaselineProblem, cfg: &LddmmConfig) -> Result<BaselineRes
         |v| {
             let (qs, _) = shoot(&l.q0, &unflatten(v), l.s2, cfg.steps);
             let qt = &qs[cfg.steps];
-            let d: f64 = l.index.iter().enumerate().map(|(m, &(g, k))| (qt[m] - problem.groups[g].closest(k, &qt[m])).norm()).sum();
+            let d: f64 = l
+                .index
+                .iter()
+                .enumerate()
+                .map(|(m, &(g, k))| (qt[m] - problem.groups[g].closest(k, &qt[m])).norm())
+                .sum();
             history.push(d / n as f64);
         },
     );
@@ -237,8 +245,5 @@ pub fn lddmm_width_sweep(
     sigmas_mm: &[f64],
     cfg: &LddmmConfig,
 ) -> Result<Vec<(f64, BaselineResult)>> {
-    sigmas_mm
-        .iter()
-        .map(|&s| Ok((s, lddmm(problem, &LddmmConfig { sigma_mm: s, ..cfg.clone() })?)))
-        .collect()
+    sigmas_mm.iter().map(|&s| Ok((s, lddmm(problem, &LddmmConfig { sigma_mm: s, ..cfg.clone() })?))).collect()
 }
