@@ -6,7 +6,8 @@
 //! the mesh to OUT.json for `scripts/arap_vs_libigl.py`, which runs libigl's `igl.arap` on the same
 //! problem and compares.
 //!
-//! `cargo run --release -p laparo-register --example arap_mesh -- timing [--cells N]`: wall time of the
+//! `cargo run --release -p laparo-register --example arap_mesh -- timing [--cells N] [--only arap|drbc|lddmm]
+//!  [--arap-iterations N] [--verbose]`: wall time of the
 //! three baselines on an N³-cell box (default 16: 4,913 nodes, 24,576 tets, 6 mm cells) with 50
 //! landmarks in two "lip" groups pulled apart, scored against polylines, bottom face fixed.
 use laparo_register::baselines::*;
@@ -139,8 +140,9 @@ fn timing(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
         }
     };
     if only.is_empty() || only == "arap" {
-        show(&arap(&p, &ArapConfig::default())?);
-        show(&arap(&p, &ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })?);
+        let iterations: usize = arg(args, "--arap-iterations", ArapConfig::default().iterations);
+        show(&arap(&p, &ArapConfig { iterations, ..Default::default() })?);
+        show(&arap(&p, &ArapConfig { energy: ArapEnergy::Elements, iterations, ..Default::default() })?);
     }
     if only.is_empty() || only == "drbc" {
         show(&drbc(&p, &DrbcConfig::default())?);

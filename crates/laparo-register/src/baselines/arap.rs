@@ -63,7 +63,7 @@ impl Default for ArapConfig {
             energy: ArapEnergy::Spokes,
             weights: ArapWeights::Cotangent,
             landmark_weight: None,
-            iterations: 100,
+            iterations: 200,
             tolerance_mm: 1e-3,
         }
     }
