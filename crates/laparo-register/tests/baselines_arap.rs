@@ -131,4 +131,8 @@ fn bad_input_is_named() {
     let p = problem(true);
     let e = arap(&p, &ArapConfig { landmark_weight: Some(-1.0), ..Default::default() }).unwrap_err().to_string();
     assert!(e.contains("landmark_weight"), "{e}");
+    let mut p = problem(true);
+    p.fix_at_rest(&[3, 5000]);
+    let e = arap(&p, &ArapConfig::default()).unwrap_err().to_string();
+    assert!(e.contains("fixed nodes") && e.contains("node 5000"), "{e}");
 }

@@ -265,6 +265,7 @@ impl ArapSystem {
 /// ARAP registration of `problem` (thesis §5.4.2 baseline; Sorkine & Alexa 2007), starting from the
 /// rest mesh (fixed nodes at their prescribed positions).
 pub fn arap(problem: &BaselineProblem, cfg: &ArapConfig) -> Result<BaselineResult> {
+    problem.validate()?;
     arap_from(problem, cfg, &problem.initial_positions())
 }
 

@@ -135,12 +135,12 @@ impl BaselineProblem {
         BaselineProblem { mesh, groups, fixed: Vec::new() }
     }
 
-    /// Fix `nodes` at their rest positions.
+    /// Fix `nodes` at their rest positions (an out-of-range node is kept with a NaN position, so that
+    /// [`validate`](Self::validate) names it).
     pub fn fix_at_rest(&mut self, nodes: &[usize]) {
         for &i in nodes {
-            if let Some(p) = self.mesh.vertices.get(i) {
-                self.fixed.push((i, *p));
-            }
+            let p = self.mesh.vertices.get(i).copied().unwrap_or_else(|| Vector3::repeat(f64::NAN));
+            self.fixed.push((i, p));
         }
     }
 
@@ -230,7 +230,9 @@ impl BaselineProblem {
     pub fn initial_positions(&self) -> Vec<Vector3<f64>> {
         let mut x = self.mesh.vertices.clone();
         for &(i, p) in &self.fixed {
-            x[i] = p;
+            if let Some(v) = x.get_mut(i) {
+                *v = p;
+            }
         }
         x
     }
