@@ -37,6 +37,7 @@
 // Index loops over several parallel arrays read better than zipped iterators here.
 #![allow(clippy::needless_range_loop)]
 
+pub mod baselines;
 pub mod benchmark;
 pub mod distance;
 mod error;
