@@ -33,16 +33,7 @@ pub struct BenchmarkCase {
     pub roi: Option<Roi>,
 }
 
-/// A material point: a convex combination of nodes (weights sum to 1).
-#[derive(Clone, Debug, PartialEq)]
-pub struct MaterialPoint(pub Vec<(usize, f64)>);
-
-impl MaterialPoint {
-    /// Its position in configuration `x`.
-    pub fn at(&self, x: &[Vector3<f64>]) -> Vector3<f64> {
-        self.0.iter().map(|&(i, w)| x[i] * w).sum()
-    }
-}
+pub use crate::baselines::MaterialPoint;
 
 /// The landmarks of one lip: material points, their rest (source) positions and the observed target
 /// positions (ground truth at the same material points, plus noise).
@@ -160,10 +151,10 @@ impl BenchmarkCase {
                 let seg = cum.partition_point(|&c| c <= s).clamp(1, lip.len() - 1) - 1;
                 let len = cum[seg + 1] - cum[seg];
                 let t = if len > 0.0 { ((s - cum[seg]) / len).clamp(0.0, 1.0) } else { 0.0 };
-                points.push(MaterialPoint(vec![(lip[seg], 1.0 - t), (lip[seg + 1], t)]));
+                points.push(MaterialPoint::combination(&[(lip[seg], 1.0 - t), (lip[seg + 1], t)]));
             }
-            let sources = points.iter().map(|p| p.at(&self.rest)).collect();
-            let targets = points.iter().map(|p| p.at(&self.ground_truth)).collect();
+            let sources = points.iter().map(|p| p.position(&self.rest)).collect();
+            let targets = points.iter().map(|p| p.position(&self.ground_truth)).collect();
             out.push(LandmarkSet { name: format!("lip {}", k + 1), side: k as u8 + 1, points, sources, targets });
         }
         Ok(out)

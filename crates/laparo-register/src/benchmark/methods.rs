@@ -50,7 +50,7 @@ fn groups_for(landmarks: &[LandmarkSet], node_map: &dyn Fn(usize, u8) -> usize) 
             points: l
                 .points
                 .iter()
-                .map(|p| MaterialPoint::combination(&p.0.iter().map(|&(i, w)| (node_map(i, l.side), w)).collect::<Vec<_>>()))
+                .map(|p| MaterialPoint::combination(&p.nodes.iter().map(|&(i, w)| (node_map(i, l.side), w)).collect::<Vec<_>>()))
                 .collect(),
             target: GroupTarget::Shared(Arc::new(Polyline::open(l.targets.clone()))),
             weight: 1.0,

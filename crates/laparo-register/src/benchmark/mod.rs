@@ -8,6 +8,7 @@
 pub mod build;
 pub mod case;
 pub mod figures;
+pub mod methods;
 pub mod protocol;
 pub mod rods;
 pub mod store;

@@ -10,5 +10,6 @@ pub mod fem;
 pub mod mesh;
 pub mod mpm;
 pub mod register;
+pub mod register_benchmark;
 pub mod stereo;
 pub mod stereo_match;

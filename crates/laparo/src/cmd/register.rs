@@ -27,6 +27,9 @@ pub enum RegisterSub {
     Rigid(RigidArgs),
     /// Write landmarks + targets from P2ILF 3D contours displaced by a smooth field (benchmarks).
     SynthTargets(SynthArgs),
+    /// The in-silico incision benchmark (§5.4.2, Table 5.1, Figs. 5.7–5.9): FEM ground truth on a real liver,
+    /// ARAP, DRBC, François et al., LDDMM and RODS-MPM scored by TRE at every node.
+    Benchmark(Box<crate::cmd::register_benchmark::BenchmarkArgs>),
     /// Fig. 5.5 in 2D: the four cases (stretch, curve, rupture, rupture + stretch) as PNGs + metrics.
     Fig55 {
         /// Output folder.
@@ -234,6 +237,7 @@ pub fn run(a: RegisterArgs) -> Result<()> {
     match a.sub {
         Some(RegisterSub::Rigid(r)) => rigid(r),
         Some(RegisterSub::SynthTargets(s)) => synth(s),
+        Some(RegisterSub::Benchmark(b)) => crate::cmd::register_benchmark::run(*b),
         Some(RegisterSub::Fig55 { out, iterations, optimizer }) => {
             let kind = optimizer_kind(&optimizer)?;
             let base =
