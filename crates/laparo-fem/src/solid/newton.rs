@@ -388,8 +388,8 @@ fn newton_step(
             Err(_) => return Err(StepFail::NoConvergence),
         }
         let slope: f64 = r.iter().zip(&d).map(|(a, b)| a * b).sum(); // ∇Π·d < 0 for a descent direction
-        // Backtracking line search on Π (Armijo); near convergence Π stalls at round-off, so a
-        // decrease of the residual norm is accepted too.
+                                                                     // Backtracking line search on Π (Armijo); near convergence Π stalls at round-off, so a
+                                                                     // decrease of the residual norm is accepted too.
         let mut alpha = 1.0;
         let mut accepted = false;
         let mut any_valid = false;
