@@ -13,7 +13,11 @@ fn quantile(v: &[f64], q: f64) -> f64 {
     s.sort_by(f64::total_cmp);
     let pos = q * (s.len() - 1) as f64;
     let (i, f) = (pos.floor() as usize, pos - pos.floor());
-    if i + 1 < s.len() { s[i] * (1.0 - f) + s[i + 1] * f } else { s[i] }
+    if i + 1 < s.len() {
+        s[i] * (1.0 - f) + s[i + 1] * f
+    } else {
+        s[i]
+    }
 }
 
 #[test]
@@ -63,8 +67,10 @@ fn sofa_liver_matches_scikit_fem_and_is_thread_count_independent() {
     // Equilibrium: reactions at the clamped nodes balance the 20 mN load.
     let u: Vec<f64> = s2.displacement.iter().flat_map(|d| d.iter().copied()).collect();
     let fint = p.assemble(&u, false).unwrap().internal_force;
-    let react: Vector3<f64> =
-        (0..p.mesh.n_nodes()).filter(|&i| p.is_prescribed(i)).map(|i| Vector3::from_column_slice(&fint[3 * i..3 * i + 3])).sum();
+    let react: Vector3<f64> = (0..p.mesh.n_nodes())
+        .filter(|&i| p.is_prescribed(i))
+        .map(|i| Vector3::from_column_slice(&fint[3 * i..3 * i + 3]))
+        .sum();
     assert!((react + traction * area).norm() < 1e-6 * 20.0, "reaction {react}");
     let s1 = run(1);
     assert!(s1.displacement == s2.displacement, "results depend on the thread count");
