@@ -137,7 +137,11 @@ mod tests {
                 for i in 0..3 {
                     for j in 0..3 {
                         let an = a[(3 * i + j, 3 * k + l)];
-                        assert!((d[(i, j)] - an).abs() < 1e-5 * (1.0 + an.abs()), "A[{i}{j}{k}{l}] {} vs {an}", d[(i, j)]);
+                        assert!(
+                            (d[(i, j)] - an).abs() < 1e-5 * (1.0 + an.abs()),
+                            "A[{i}{j}{k}{l}] {} vs {an}",
+                            d[(i, j)]
+                        );
                     }
                 }
             }

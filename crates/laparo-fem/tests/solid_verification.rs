@@ -97,7 +97,17 @@ fn manufactured(x: &Vector3<f64>, l: f64) -> (Vector3<f64>, Matrix3<f64>) {
     let (sy, cy) = (k * x.y).sin_cos();
     let (sz, cz) = (k * x.z).sin_cos();
     let u = Vector3::new(a * sy * cz, a * sz * cx, a * sx * cy);
-    let du = Matrix3::new(0.0, a * k * cy * cz, -a * k * sy * sz, -a * k * sz * sx, 0.0, a * k * cz * cx, a * k * cx * cy, -a * k * sx * sy, 0.0);
+    let du = Matrix3::new(
+        0.0,
+        a * k * cy * cz,
+        -a * k * sy * sz,
+        -a * k * sz * sx,
+        0.0,
+        a * k * cz * cx,
+        a * k * cx * cy,
+        -a * k * sx * sy,
+        0.0,
+    );
     (u, du)
 }
 
@@ -213,15 +223,18 @@ fn uniform_traction_total_force_and_newton_convergence() {
     let s = solve(&p, &SolverSettings { steps: 5, ..Default::default() }).unwrap();
     assert!(s.max_displacement_mm > 0.1 && s.min_j > 0.5 && s.min_j < 1.0, "{} {}", s.max_displacement_mm, s.min_j);
     let a = p.assemble(&s.displacement.iter().flat_map(|d| d.iter().copied()).collect::<Vec<_>>(), false).unwrap();
-    let react: Vector3<f64> =
-        (0..p.mesh.n_nodes()).filter(|&i| p.is_prescribed(i)).map(|i| Vector3::from_column_slice(&a.internal_force[3 * i..3 * i + 3])).sum();
+    let react: Vector3<f64> = (0..p.mesh.n_nodes())
+        .filter(|&i| p.is_prescribed(i))
+        .map(|i| Vector3::from_column_slice(&a.internal_force[3 * i..3 * i + 3]))
+        .sum();
     assert!((react + tau * 100.0).norm() < 1e-6, "reaction {react}");
     for st in &s.steps {
         let h = &st.residual_history;
         assert!(*h.last().unwrap() <= st.tolerance && st.iterations <= 8, "{st:?}");
     }
     // Equal and opposite shear on top: displacement of the top is along +x overall.
-    let top_mean: f64 = (0..p.mesh.n_vertices).filter(|&i| p.mesh.nodes[i].z > 9.99).map(|i| s.displacement[i].x).sum::<f64>();
+    let top_mean: f64 =
+        (0..p.mesh.n_vertices).filter(|&i| p.mesh.nodes[i].z > 9.99).map(|i| s.displacement[i].x).sum::<f64>();
     assert!(top_mean > 0.0);
     let _ = to_vec3(&[0.0; 3]);
 }
@@ -239,7 +252,10 @@ fn bad_inputs_are_clear_errors() {
     let e = SolidProblem::fixed_vertices(&m, &[99]).unwrap_err().to_string();
     assert!(e.contains("vertex 99"), "{e}");
     let fixed = SolidProblem::fixed_vertices(&m, &[0, 1, 2, 3]).unwrap();
-    let loads = Loads { face_tractions: vec![FaceTraction { face: [0, 5, 6], traction_kpa: Vector3::x() }], ..Default::default() };
+    let loads = Loads {
+        face_tractions: vec![FaceTraction { face: [0, 5, 6], traction_kpa: Vector3::x() }],
+        ..Default::default()
+    };
     let e = err(SolidProblem::new(m.clone(), NeoHookean::liver(), &fixed, &loads, Quadrature::Degree2));
     assert!(e.contains("face_tractions[0]"), "{e}");
     // A huge point force pulls one vertex through the mesh.
@@ -247,7 +263,10 @@ fn bad_inputs_are_clear_errors() {
     let p = bottom_fixed_problem(
         n,
         &Loads {
-            nodal_forces: vec![NodalForce { node: (n + 1) * (n + 1) * (n + 1) - 1, force_mn: Vector3::new(0.0, 0.0, -1e5) }],
+            nodal_forces: vec![NodalForce {
+                node: (n + 1) * (n + 1) * (n + 1) - 1,
+                force_mn: Vector3::new(0.0, 0.0, -1e5),
+            }],
             ..Default::default()
         },
     );

@@ -388,8 +388,8 @@ fn newton_step(
             Err(_) => return Err(StepFail::NoConvergence),
         }
         let slope: f64 = r.iter().zip(&d).map(|(a, b)| a * b).sum(); // ∇Π·d < 0 for a descent direction
-        // Backtracking line search on Π (Armijo); near convergence Π stalls at round-off, so a
-        // decrease of the residual norm is accepted too.
+                                                                     // Backtracking line search on Π (Armijo); near convergence Π stalls at round-off, so a
+                                                                     // decrease of the residual norm is accepted too.
         let mut alpha = 1.0;
         let mut accepted = false;
         let mut any_valid = false;
@@ -437,4 +437,58 @@ fn newton_step(
         rep.iterations = it + 1;
     }
     Err(if inverted_trials == 0 { StepFail::NoConvergence } else { StepFail::Inverted })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solid::{Loads, Quadrature, Tet10Mesh};
+    use crate::NeoHookean;
+    use laparo_core::mesh::TetMesh;
+
+    fn one_tet() -> SolidProblem {
+        let v = vec![
+            Vector3::zeros(),
+            Vector3::new(10.0, 0.0, 0.0),
+            Vector3::new(0.0, 10.0, 0.0),
+            Vector3::new(1.0, 2.0, 10.0),
+        ];
+        let m = Tet10Mesh::from_linear(&TetMesh::new(v, vec![[0, 1, 2, 3]]).unwrap()).unwrap();
+        let fixed = SolidProblem::fixed_vertices(&m, &[0, 1, 2]).unwrap();
+        SolidProblem::new(m, NeoHookean::liver(), &fixed, &Loads::default(), Quadrature::Degree2).unwrap()
+    }
+
+    #[test]
+    fn cholesky_solves_the_free_system_and_shifts_an_indefinite_one() {
+        let p = one_tet();
+        let sys = FreeSystem::new(&p).unwrap();
+        assert_eq!(sys.n, 12, "vertex 3 and three mid-edge nodes are free");
+        let u = vec![0.0; 3 * p.mesh.n_nodes()];
+        let kd = p.tangent_dense(&u).unwrap();
+        let a = p.assemble(&u, true).unwrap();
+        let vals = sys.values(a.blocks.as_ref().unwrap());
+        let rhs: Vec<f64> = (0..sys.n).map(|i| (i as f64 * 0.7).sin()).collect();
+        let mut x = rhs.clone();
+        let mut t = Timings::default();
+        assert!(!sys.solve(&mut vals.clone(), &mut x, &mut t).unwrap(), "SPD: no shift");
+        // K_ff x = rhs with the dense tangent restricted to the free DOFs.
+        let free: Vec<usize> = (0..p.mesh.n_nodes())
+            .filter(|&i| !p.is_prescribed(i))
+            .flat_map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        for (r, &gi) in free.iter().enumerate() {
+            let kx: f64 = free.iter().enumerate().map(|(c, &gj)| kd[(gi, gj)] * x[c]).sum();
+            assert!((kx - rhs[r]).abs() < 1e-9 * (1.0 + rhs[r].abs()), "row {r}: {kx} vs {}", rhs[r]);
+        }
+        // Negative definite K − 2 max|K_ii| I: the shift makes it positive definite, giving a
+        // direction along the right-hand side.
+        let dmax = sys.diag.iter().map(|&d| vals[d].abs()).fold(0.0, f64::max);
+        let mut neg = vals.clone();
+        for &d in &sys.diag {
+            neg[d] -= 2.0 * dmax;
+        }
+        let mut y = rhs.clone();
+        assert!(sys.solve(&mut neg, &mut y, &mut t).unwrap(), "indefinite: shifted");
+        assert!(rhs.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>() > 0.0);
+    }
 }

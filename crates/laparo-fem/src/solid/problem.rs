@@ -126,12 +126,16 @@ impl SolidProblem {
         let mut f_ext = vec![0.0; 3 * n];
         for (k, ft) in loads.face_tractions.iter().enumerate() {
             if ft.face.iter().any(|&v| v >= mesh.n_vertices) {
-                return Err(FemError::bad("loads", format!("face_tractions[{k}]: vertex id out of range in {:?}", ft.face)));
+                return Err(FemError::bad(
+                    "loads",
+                    format!("face_tractions[{k}]: vertex id out of range in {:?}", ft.face),
+                ));
             }
             if !ft.traction_kpa.iter().all(|v| v.is_finite()) {
                 return Err(FemError::bad("loads", format!("face_tractions[{k}]: non-finite traction")));
             }
-            let nodes = mesh.face_nodes(ft.face).map_err(|e| FemError::bad("loads", format!("face_tractions[{k}]: {e}")))?;
+            let nodes =
+                mesh.face_nodes(ft.face).map_err(|e| FemError::bad("loads", format!("face_tractions[{k}]: {e}")))?;
             let x = |i: usize| mesh.nodes[ft.face[i]];
             let area = 0.5 * (x(1) - x(0)).cross(&(x(2) - x(0))).norm();
             // ∫ N dA on a flat 6-node triangle: 0 at the vertices, A/3 at the mid-edge nodes.
@@ -143,7 +147,10 @@ impl SolidProblem {
         }
         for (k, nf) in loads.nodal_forces.iter().enumerate() {
             if nf.node >= n || !nf.force_mn.iter().all(|v| v.is_finite()) {
-                return Err(FemError::bad("loads", format!("nodal_forces[{k}]: node {} out of range or non-finite force", nf.node)));
+                return Err(FemError::bad(
+                    "loads",
+                    format!("nodal_forces[{k}]: node {} out of range or non-finite force", nf.node),
+                ));
             }
             for c in 0..3 {
                 f_ext[3 * nf.node + c] += nf.force_mn[c];
@@ -224,7 +231,10 @@ impl SolidProblem {
         let mut fixed = vec![false; mesh.n_vertices];
         for &v in vertices {
             if v >= mesh.n_vertices {
-                return Err(FemError::bad("fixed nodes", format!("vertex {v} out of range (mesh has {} vertices)", mesh.n_vertices)));
+                return Err(FemError::bad(
+                    "fixed nodes",
+                    format!("vertex {v} out of range (mesh has {} vertices)", mesh.n_vertices),
+                ));
             }
             fixed[v] = true;
         }
@@ -274,7 +284,7 @@ impl SolidProblem {
             let g: SMatrix<f64, 10, 3> = gref * jinv; // ∇_X N_a (row a)
             let f: Matrix3<f64> = Matrix3::identity() + ue * g;
             let jdet = f.determinant();
-            if !(jdet > 0.0) {
+            if jdet.is_nan() || jdet <= 0.0 {
                 return None;
             }
             out.min_j = out.min_j.min(jdet);
@@ -455,18 +465,18 @@ fn check_rigid_modes(mesh: &Tet10Mesh, prescribed: &[Option<Vector3<f64>>]) -> R
     for el in &mesh.elements {
         groups.entry(find(&mut parent, el[0])).or_default();
     }
-    for i in 0..n {
-        if prescribed[i].is_some() {
+    for (i, pr) in prescribed.iter().enumerate() {
+        if pr.is_some() {
             let r = find(&mut parent, i);
             if let Some(g) = groups.get_mut(&r) {
                 g.push(i);
             }
         }
     }
-    let (lo, hi) = mesh.nodes.iter().fold(
-        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
-        |(lo, hi), x| (lo.inf(x), hi.sup(x)),
-    );
+    let (lo, hi) =
+        mesh.nodes.iter().fold((Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)), |(lo, hi), x| {
+            (lo.inf(x), hi.sup(x))
+        });
     let diam = (hi - lo).norm().max(1e-300);
     for (root, fixed) in &groups {
         let ok = fixed.first().is_some_and(|&p0| {

@@ -25,7 +25,11 @@ pub struct Tet10Mesh {
 }
 
 fn key(a: usize, b: usize) -> (usize, usize) {
-    if a < b { (a, b) } else { (b, a) }
+    if a < b {
+        (a, b)
+    } else {
+        (b, a)
+    }
 }
 
 impl Tet10Mesh {
@@ -40,17 +44,13 @@ impl Tet10Mesh {
         let mut edge_nodes = HashMap::new();
         let mut elements = Vec::with_capacity(mesh.tets.len());
         let (mut jac_inv, mut jac_det) = (Vec::new(), Vec::new());
-        let scale = mesh
-            .bounding_box()
-            .map(|(lo, hi)| (hi - lo).norm())
-            .filter(|d| *d > 0.0)
-            .unwrap_or(1.0);
+        let scale = mesh.bounding_box().map(|(lo, hi)| (hi - lo).norm()).filter(|d| *d > 0.0).unwrap_or(1.0);
         for (ti, t) in mesh.tets.iter().enumerate() {
             let mut v = *t;
             let x = |i: usize| mesh.vertices[i];
             let mut j = Matrix3::from_columns(&[x(v[1]) - x(v[0]), x(v[2]) - x(v[0]), x(v[3]) - x(v[0])]);
             let mut det = j.determinant();
-            if !(det.abs() > 1e-12 * scale.powi(3)) {
+            if det.is_nan() || det.abs() <= 1e-12 * scale.powi(3) {
                 return Err(FemError::bad(
                     "tet mesh",
                     format!("tetrahedron {ti} {t:?} is degenerate (volume {:.3e} mm³)", det / 6.0),
@@ -72,7 +72,9 @@ impl Tet10Mesh {
                 el[4 + e] = id;
             }
             elements.push(el);
-            jac_inv.push(j.try_inverse().ok_or_else(|| FemError::bad("tet mesh", format!("tetrahedron {ti} is singular")))?);
+            jac_inv.push(
+                j.try_inverse().ok_or_else(|| FemError::bad("tet mesh", format!("tetrahedron {ti} is singular")))?,
+            );
             jac_det.push(det);
         }
         Ok(Self { nodes, n_vertices, elements, edge_nodes, jac_inv, jac_det })
@@ -94,7 +96,10 @@ impl Tet10Mesh {
         let mut out = [face[0], face[1], face[2], 0, 0, 0];
         for (k, (a, b)) in [(0, 1), (1, 2), (2, 0)].into_iter().enumerate() {
             out[3 + k] = self.edge_node(face[a], face[b]).ok_or_else(|| {
-                FemError::bad("face", format!("{face:?}: edge ({}, {}) is not an edge of the tet mesh", face[a], face[b]))
+                FemError::bad(
+                    "face",
+                    format!("{face:?}: edge ({}, {}) is not an edge of the tet mesh", face[a], face[b]),
+                )
             })?;
         }
         Ok(out)

@@ -129,11 +129,16 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
     let loads_json: LoadsJson = read_json(&a.loads, "--loads")?;
     let material = NeoHookean::from_young_poisson(a.young_kpa, a.poisson).context("--young-kpa / --poisson")?;
     let mesh = Tet10Mesh::from_linear(&lin).with_context(|| format!("--mesh {}", a.mesh.display()))?;
-    let dirichlet = SolidProblem::fixed_vertices(&mesh, &fixed.vertices).with_context(|| format!("--fixed {}", a.fixed.display()))?;
+    let dirichlet = SolidProblem::fixed_vertices(&mesh, &fixed.vertices)
+        .with_context(|| format!("--fixed {}", a.fixed.display()))?;
     let mut loads = Loads::default();
     for (k, t) in loads_json.face_tractions.iter().enumerate() {
         if let Some(&v) = t.face.iter().find(|&&v| v >= lin.vertices.len()) {
-            bail!("--loads {}: face_tractions[{k}]: vertex {v} out of range ({} vertices)", a.loads.display(), lin.vertices.len());
+            bail!(
+                "--loads {}: face_tractions[{k}]: vertex {v} out of range ({} vertices)",
+                a.loads.display(),
+                lin.vertices.len()
+            );
         }
         let traction = match (t.traction_kpa, t.normal_traction_kpa) {
             (Some(v), None) => Vector3::from(v),
@@ -154,7 +159,12 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
     }
     for (k, f) in loads_json.nodal_forces.iter().enumerate() {
         if f.vertex >= lin.vertices.len() {
-            bail!("--loads {}: nodal_forces[{k}]: vertex {} out of range ({} vertices)", a.loads.display(), f.vertex, lin.vertices.len());
+            bail!(
+                "--loads {}: nodal_forces[{k}]: vertex {} out of range ({} vertices)",
+                a.loads.display(),
+                f.vertex,
+                lin.vertices.len()
+            );
         }
         loads.nodal_forces.push(NodalForce { node: f.vertex, force_mn: Vector3::from(f.force_mn) });
     }
@@ -210,7 +220,8 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
 
 /// Legacy ASCII VTK of the linear tets with point data `displacement` (mm).
 fn write_vtk_displacement(path: &Path, mesh: &TetMesh, u: &[Vector3<f64>]) -> Result<()> {
-    let mut s = String::from("# vtk DataFile Version 3.0\nlaparo fem displacement (mm)\nASCII\nDATASET UNSTRUCTURED_GRID\n");
+    let mut s =
+        String::from("# vtk DataFile Version 3.0\nlaparo fem displacement (mm)\nASCII\nDATASET UNSTRUCTURED_GRID\n");
     let _ = writeln!(s, "POINTS {} double", mesh.vertices.len());
     for v in &mesh.vertices {
         let _ = writeln!(s, "{:e} {:e} {:e}", v.x, v.y, v.z);
