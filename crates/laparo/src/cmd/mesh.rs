@@ -258,8 +258,8 @@ impl Panel {
             p.dot(&self.f),
         )
     }
-    /// Rasterise triangles with a z-buffer; returns per-pixel colour (None = empty).
-    fn raster(&self, tris: &[([V3; 3], [f64; 3])]) -> Vec<Option<[f64; 3]>> {
+    /// Rasterise triangles with a z-buffer; returns per-pixel colour (None = empty) and depth.
+    fn raster(&self, tris: &[([V3; 3], [f64; 3])]) -> (Vec<Option<[f64; 3]>>, Vec<f64>) {
         let mut z = vec![f64::INFINITY; self.w * self.h];
         let mut col = vec![None; self.w * self.h];
         for (p, c) in tris {
@@ -293,7 +293,15 @@ impl Panel {
                 }
             }
         }
-        col
+        (col, z)
+    }
+    /// True when `p` is not hidden by the surface depth buffer `z` (2 mm tolerance).
+    fn visible(&self, p: &V3, z: &[f64]) -> bool {
+        let (x, y, d) = self.project(p);
+        if x < 0.0 || y < 0.0 || x as usize >= self.w || y as usize >= self.h {
+            return false;
+        }
+        d <= z[y as usize * self.w + x as usize] + 2.0
     }
     fn dot(&mut self, p: &V3, rad: i64, c: [u8; 3]) {
         let (x, y, _) = self.project(p);
@@ -359,8 +367,8 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
     let lms = cut.landmarks(50).ok();
     for (vi, (view, up)) in views.iter().enumerate() {
         let mut p = Panel::new(w, h, *view, *up, x);
-        let s = p.raster(&outer);
-        let c = p.raster(&cracks);
+        let (s, zs) = p.raster(&outer);
+        let (c, _) = p.raster(&cracks);
         for k in 0..w * h {
             let px = match (s[k], c[k]) {
                 (ss, Some(cc)) => {
@@ -376,7 +384,9 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
             }
         }
         for &n in &sc.fixed_nodes {
-            p.dot(&x[n], 1, [120, 60, 160]);
+            if p.visible(&x[n], &zs) {
+                p.dot(&x[n], 1, [120, 60, 160]);
+            }
         }
         if let Some(t) = sc.tumour {
             let m = 96;
