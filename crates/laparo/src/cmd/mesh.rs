@@ -3,8 +3,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
 use laparo_core::mesh::{read_mesh, read_msh, read_vtk, write_msh, write_vtk, TetMesh};
 use laparo_fem::mesh::{
-    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
-    ScenarioFrame, TetraParams,
+    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame,
+    TetraParams,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -269,8 +269,14 @@ impl Panel {
             }
             let shade = 0.35 + 0.65 * n.normalize().dot(&self.f).abs();
             let q = p.map(|x| self.project(&x));
-            let (xa, xb) = (q.iter().map(|v| v.0).fold(f64::INFINITY, f64::min), q.iter().map(|v| v.0).fold(f64::NEG_INFINITY, f64::max));
-            let (ya, yb) = (q.iter().map(|v| v.1).fold(f64::INFINITY, f64::min), q.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max));
+            let (xa, xb) = (
+                q.iter().map(|v| v.0).fold(f64::INFINITY, f64::min),
+                q.iter().map(|v| v.0).fold(f64::NEG_INFINITY, f64::max),
+            );
+            let (ya, yb) = (
+                q.iter().map(|v| v.1).fold(f64::INFINITY, f64::min),
+                q.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max),
+            );
             let d = (q[1].0 - q[0].0) * (q[2].1 - q[0].1) - (q[2].0 - q[0].0) * (q[1].1 - q[0].1);
             if d.abs() < 1e-12 {
                 continue;
@@ -352,7 +358,11 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
         .map(|f| (f.map(|k| x[k]), [0.85, 0.82, 0.78]))
         .collect();
     let cracks: Vec<([V3; 3], [f64; 3])> = (0..2)
-        .flat_map(|s| cut.crack_faces[s].iter().map(move |f| (f.map(|k| x[k]), if s == 0 { [0.9, 0.2, 0.15] } else { [0.15, 0.3, 0.9] })))
+        .flat_map(|s| {
+            cut.crack_faces[s]
+                .iter()
+                .map(move |f| (f.map(|k| x[k]), if s == 0 { [0.9, 0.2, 0.15] } else { [0.15, 0.3, 0.9] }))
+        })
         .collect();
     let a = sc.anterior;
     let chord = {
@@ -391,7 +401,8 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
         if let Some(t) = sc.tumour {
             let m = 96;
             for i in 0..m {
-                let (t0, t1) = (i as f64 / m as f64 * std::f64::consts::TAU, (i + 1) as f64 / m as f64 * std::f64::consts::TAU);
+                let (t0, t1) =
+                    (i as f64 / m as f64 * std::f64::consts::TAU, (i + 1) as f64 / m as f64 * std::f64::consts::TAU);
                 let q0 = t.centre + (p.r * t0.cos() + p.u * t0.sin()) * t.radius_mm;
                 let q1 = t.centre + (p.r * t1.cos() + p.u * t1.sin()) * t.radius_mm;
                 p.line(&q0, &q1, 1, [20, 150, 40]);
