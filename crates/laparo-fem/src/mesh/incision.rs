@@ -292,7 +292,7 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
             }
         }
         let mut new_id: BTreeMap<usize, usize> = BTreeMap::new();
-        for i in 0..fan.len() {
+        for (i, &ti) in fan.iter().enumerate() {
             let r = find(&mut parent, i);
             if r == 0 {
                 continue; // the component of the first tet keeps the node
@@ -302,7 +302,7 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
                 original_node.push(v);
                 vertices.len() - 1
             });
-            replace.push((fan[i], v, id));
+            replace.push((ti, v, id));
         }
     }
     let mut tets = mesh.tets.clone();
@@ -419,7 +419,7 @@ impl CutMesh {
     /// `n_total` landmarks, `n_total / 2` per lip, at arc lengths (k + ½) L / (n_total / 2) along
     /// each lip in the rest configuration.
     pub fn landmarks(&self, n_total: usize) -> Result<Landmarks> {
-        if n_total < 2 || n_total % 2 != 0 {
+        if n_total < 2 || !n_total.is_multiple_of(2) {
             return Err(FemError::param("landmarks", n_total as f64, "must be an even count ≥ 2"));
         }
         let per = n_total / 2;

@@ -209,7 +209,7 @@ fn smooth_normal(surf: &TriMesh, p: &V3, a: &V3) -> V3 {
 
 /// The half-extent in (0, `max`] whose traced polyline is `length` long (bisection; the traced
 /// length grows with the extent), or the longest that stays on the organ.
-fn fit_length(length: f64, max: f64, trace: impl Fn(f64) -> Result<Vec<V3>>) -> Result<f64> {
+fn fit_length(length: f64, max: f64, trace: &dyn Fn(f64) -> Result<Vec<V3>>) -> Result<f64> {
     let (mut lo, mut hi) = (0.0, max);
     if let Ok(t) = trace(hi) {
         if polyline_length(&t) < length {
@@ -343,7 +343,7 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
             })
             .collect()
     };
-    let half = fit_length(p.length_mm, std::f64::consts::PI * 0.95, |h| trace(h))?;
+    let half = fit_length(p.length_mm, std::f64::consts::PI * 0.95, &trace)?;
     let mouth = trace(half)?;
     let mut directions = Vec::new();
     let mut depths = Vec::new();
@@ -430,7 +430,7 @@ pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -
             })
             .collect()
     };
-    let half = fit_length(p.length_mm, p.length_mm, |h| trace(h))?;
+    let half = fit_length(p.length_mm, p.length_mm, &trace)?;
     let mouth = trace(half)?;
     let mut depths = Vec::new();
     for (i, q) in mouth.iter().enumerate() {
