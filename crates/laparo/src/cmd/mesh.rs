@@ -388,8 +388,8 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
                 (ss, None) => ss,
             };
             if let Some(v) = px {
-                for ch in 0..3 {
-                    p.rgb[k * 3 + ch] = (v[ch] * 255.0).clamp(0.0, 255.0) as u8;
+                for (ch, val) in v.iter().enumerate() {
+                    p.rgb[k * 3 + ch] = (val * 255.0).clamp(0.0, 255.0) as u8;
                 }
             }
         }
