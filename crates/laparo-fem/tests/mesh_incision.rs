@@ -54,7 +54,9 @@ fn partial_cut_lips_are_disconnected_except_at_the_front() {
     let area = |s: usize| -> f64 {
         c.crack_faces[s]
             .iter()
-            .map(|f| (c.mesh.vertices[f[1]] - c.mesh.vertices[f[0]]).cross(&(c.mesh.vertices[f[2]] - c.mesh.vertices[f[0]])))
+            .map(|f| {
+                (c.mesh.vertices[f[1]] - c.mesh.vertices[f[0]]).cross(&(c.mesh.vertices[f[2]] - c.mesh.vertices[f[0]]))
+            })
             .sum::<V3>()
             .norm()
             / 2.0
@@ -63,7 +65,9 @@ fn partial_cut_lips_are_disconnected_except_at_the_front() {
     let normal = (b.mouth[1] - b.mouth[0]).cross(&b.directions[0]).normalize(); // +x·… side A normal
     let va: V3 = c.crack_faces[0]
         .iter()
-        .map(|f| (c.mesh.vertices[f[1]] - c.mesh.vertices[f[0]]).cross(&(c.mesh.vertices[f[2]] - c.mesh.vertices[f[0]])))
+        .map(|f| {
+            (c.mesh.vertices[f[1]] - c.mesh.vertices[f[0]]).cross(&(c.mesh.vertices[f[2]] - c.mesh.vertices[f[0]]))
+        })
         .sum::<V3>()
         / 2.0;
     assert!(va.dot(&normal) < 0.0, "side A crack faces point towards side B");
@@ -80,7 +84,11 @@ fn partial_cut_lips_are_disconnected_except_at_the_front() {
             _ => continue,
         };
         for k in tet {
-            assert!(!other.contains(k) || front.contains(k), "tet {t} (side {}) touches the other lip at {k}", c.tet_side[t]);
+            assert!(
+                !other.contains(k) || front.contains(k),
+                "tet {t} (side {}) touches the other lip at {k}",
+                c.tet_side[t]
+            );
         }
     }
     // Front nodes lie near the blade's free edges (bottom z = 10, ends y = 5, 15), not at its middle.

@@ -10,7 +10,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 fn liver_path() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
     if p.exists() {
         Some(p)
     } else {

@@ -93,9 +93,8 @@ fn tetra_then_incision_on_a_sphere() {
     let vtk = dir.path().join("ball.vtk");
     let rep = dir.path().join("q.json");
     let s = |p: &PathBuf| p.display().to_string();
-    let out = run_ok(
-        &["mesh", "tetra", "--surface", &s(&obj), "--edge-mm", "5", "--out", &s(&vtk), "--report", &s(&rep)]
-    );
+    let out =
+        run_ok(&["mesh", "tetra", "--surface", &s(&obj), "--edge-mm", "5", "--out", &s(&vtk), "--report", &s(&rep)]);
     assert!(out.contains("tets"), "{out}");
     let q: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&rep).unwrap()).unwrap();
     assert_eq!(q["inverted"], 0);
@@ -106,9 +105,18 @@ fn tetra_then_incision_on_a_sphere() {
     assert_eq!(mesh.tets.len() as u64, q["tets"].as_u64().unwrap());
     // incision along an anterior axis +z
     let cut_dir = dir.path().join("cut");
-    let out = run_ok(
-        &["mesh", "incision", "--mesh", &s(&vtk), "--scenario", "anatomical", "--anterior", "0,0,1", "--out", &s(&cut_dir)]
-    );
+    let out = run_ok(&[
+        "mesh",
+        "incision",
+        "--mesh",
+        &s(&vtk),
+        "--scenario",
+        "anatomical",
+        "--anterior",
+        "0,0,1",
+        "--out",
+        &s(&cut_dir),
+    ]);
     assert!(out.contains("anatomical"), "{out}");
     for f in ["cut.vtk", "lips.json", "landmarks.json", "tumour.json", "fixed_nodes.json", "scenario.json", "cut.png"] {
         assert!(cut_dir.join(f).exists(), "{f}");
@@ -116,7 +124,8 @@ fn tetra_then_incision_on_a_sphere() {
     let cut = laparo_core::mesh::read_vtk(cut_dir.join("cut.vtk")).unwrap();
     assert_eq!(cut.tets.len(), mesh.tets.len());
     assert!(cut.vertices.len() > mesh.vertices.len());
-    let lm: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(cut_dir.join("landmarks.json")).unwrap()).unwrap();
+    let lm: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cut_dir.join("landmarks.json")).unwrap()).unwrap();
     for n in [20, 50, 250] {
         assert_eq!(lm[n.to_string()]["items"].as_array().unwrap().len(), n);
     }
@@ -127,7 +136,8 @@ fn tetra_then_incision_on_a_sphere() {
         assert!(cut.vertices[k.as_u64().unwrap() as usize].z < -20.0);
     }
     // the lips of a planar cut through the north pole: a 100 mm arc on the sphere of radius 40
-    let lips: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(cut_dir.join("lips.json")).unwrap()).unwrap();
+    let lips: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cut_dir.join("lips.json")).unwrap()).unwrap();
     let l = lips["side_a"]["length_mm"].as_f64().unwrap();
     assert!((l - 100.0).abs() < 25.0, "lip length {l}");
 }
@@ -160,7 +170,8 @@ fn bad_inputs_fail_clearly() {
 
 #[test]
 fn p2ilf_liver_both_scenarios() {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
     if !p.exists() {
         eprintln!("skipping: {} not found (real data absent)", p.display());
         return;
@@ -174,7 +185,8 @@ fn p2ilf_liver_both_scenarios() {
         let d = dir.path().join(sc);
         let out = run_ok(&["mesh", "incision", "--mesh", &s(&vtk), "--scenario", sc, "--out", &s(&d)]);
         eprintln!("{out}");
-        let t: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("tumour.json")).unwrap()).unwrap();
+        let t: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("tumour.json")).unwrap()).unwrap();
         assert_eq!(t.is_null(), sc == "anatomical");
         if let Ok(keep) = std::env::var("LAPARO_MESH_KEEP") {
             let k = PathBuf::from(keep).join(sc);

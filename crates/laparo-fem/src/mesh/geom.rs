@@ -232,7 +232,15 @@ impl Surface {
         let mut best = (V3::zeros(), f64::INFINITY);
         let nmax = *self.n.iter().max().unwrap_or(&1) as i64;
         let outside: i64 = (0..3)
-            .map(|d| if c[d] < 0 { -c[d] } else if c[d] >= self.n[d] as i64 { c[d] - self.n[d] as i64 + 1 } else { 0 })
+            .map(|d| {
+                if c[d] < 0 {
+                    -c[d]
+                } else if c[d] >= self.n[d] as i64 {
+                    c[d] - self.n[d] as i64 + 1
+                } else {
+                    0
+                }
+            })
             .max()
             .unwrap_or(0);
         let mut r = outside;
@@ -336,12 +344,7 @@ mod tests {
 
     #[test]
     fn regular_tet_dihedral_is_arccos_one_third() {
-        let p = [
-            V3::new(1.0, 1.0, 1.0),
-            V3::new(1.0, -1.0, -1.0),
-            V3::new(-1.0, 1.0, -1.0),
-            V3::new(-1.0, -1.0, 1.0),
-        ];
+        let p = [V3::new(1.0, 1.0, 1.0), V3::new(1.0, -1.0, -1.0), V3::new(-1.0, 1.0, -1.0), V3::new(-1.0, -1.0, 1.0)];
         let want = (1.0f64 / 3.0).acos().to_degrees();
         for a in dihedral_angles_deg(&p) {
             assert!((a - want).abs() < 1e-9, "{a} vs {want}");

@@ -213,7 +213,9 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
                 return false;
             }
             let dir = c2 - c1;
-            let hit = tris.iter().any(|p| ray_triangle(&c1, &dir, &p[0], &p[1], &p[2]).is_some_and(|t| (0.0..=1.0).contains(&t)));
+            let hit = tris
+                .iter()
+                .any(|p| ray_triangle(&c1, &dir, &p[0], &p[1], &p[2]).is_some_and(|t| (0.0..=1.0).contains(&t)));
             hit && side_of(&c1) != side_of(&c2)
         })
         .collect();
@@ -290,7 +292,7 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
             }
         }
         let mut new_id: BTreeMap<usize, usize> = BTreeMap::new();
-        for i in 0..fan.len() {
+        for (i, &ti) in fan.iter().enumerate() {
             let r = find(&mut parent, i);
             if r == 0 {
                 continue; // the component of the first tet keeps the node
@@ -300,7 +302,7 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
                 original_node.push(v);
                 vertices.len() - 1
             });
-            replace.push((fan[i], v, id));
+            replace.push((ti, v, id));
         }
     }
     let mut tets = mesh.tets.clone();
@@ -358,7 +360,14 @@ pub fn cut(mesh: &TetMesh, blade: &Blade) -> Result<CutMesh> {
         lips[s] = chain;
     }
     let a_nodes: BTreeSet<usize> = crack_faces[0].iter().flatten().copied().collect();
-    let front_nodes: Vec<usize> = crack_faces[1].iter().flatten().copied().filter(|k| a_nodes.contains(k)).collect::<BTreeSet<_>>().into_iter().collect();
+    let front_nodes: Vec<usize> = crack_faces[1]
+        .iter()
+        .flatten()
+        .copied()
+        .filter(|k| a_nodes.contains(k))
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
     Ok(CutMesh { mesh: cut_mesh, tet_side, crack_faces, original_node, lips, front_nodes, blade: bs })
 }
 
@@ -410,7 +419,7 @@ impl CutMesh {
     /// `n_total` landmarks, `n_total / 2` per lip, at arc lengths (k + ½) L / (n_total / 2) along
     /// each lip in the rest configuration.
     pub fn landmarks(&self, n_total: usize) -> Result<Landmarks> {
-        if n_total < 2 || n_total % 2 != 0 {
+        if n_total < 2 || !n_total.is_multiple_of(2) {
             return Err(FemError::param("landmarks", n_total as f64, "must be an even count ≥ 2"));
         }
         let per = n_total / 2;
@@ -454,7 +463,9 @@ impl CutMesh {
     /// [`CutMesh::tet_side`]) and point data `original_node`, atomically.
     pub fn write_vtk(&self, path: &Path) -> Result<()> {
         let m = &self.mesh;
-        let mut s = String::from("# vtk DataFile Version 3.0\nlaparo cut tetrahedral mesh (mm)\nASCII\nDATASET UNSTRUCTURED_GRID\n");
+        let mut s = String::from(
+            "# vtk DataFile Version 3.0\nlaparo cut tetrahedral mesh (mm)\nASCII\nDATASET UNSTRUCTURED_GRID\n",
+        );
         let _ = writeln!(s, "POINTS {} double", m.vertices.len());
         for v in &m.vertices {
             let _ = writeln!(s, "{:?} {:?} {:?}", v.x, v.y, v.z);

@@ -27,14 +27,16 @@ pub const P2ILF_ANTERIOR: [f64; 3] = [0.3177509466289188, -0.9224989691278731, 0
 
 /// Vertex ids (0-based) of the three contours (ridge, ridge, falciform ligament) of
 /// `patient2_1_3D-contours.json`.
-pub const P2ILF_CONTOUR_VERTICES: [usize; 19] = [
-    1227, 1544, 1626, 1635, 2012, 1942, 2013, 2132, 2151, 2164, 2254, 2438, 2514, 2709, 2744, 2774, 2866, 2885, 2922,
-];
+pub const P2ILF_CONTOUR_VERTICES: [usize; 19] =
+    [1227, 1544, 1626, 1635, 2012, 1942, 2013, 2132, 2151, 2164, 2254, 2438, 2514, 2709, 2744, 2774, 2866, 2885, 2922];
 
 /// Unit axis from the volume centroid of the closed surface `surface` to the mean of `ids`.
 pub fn anterior_from_vertices(surface: &TriMesh, ids: &[usize]) -> Result<V3> {
     if ids.is_empty() || ids.iter().any(|&i| i >= surface.vertices.len()) {
-        return Err(FemError::bad("anterior vertices", format!("empty or out of range for {} vertices", surface.vertices.len())));
+        return Err(FemError::bad(
+            "anterior vertices",
+            format!("empty or out of range for {} vertices", surface.vertices.len()),
+        ));
     }
     let c = volume_centroid(surface);
     let m = ids.iter().map(|&i| surface.vertices[i]).sum::<V3>() / ids.len() as f64;
@@ -182,8 +184,9 @@ fn check_frame(f: &ScenarioFrame) -> Result<V3> {
 /// Entry point P and the outward normal there (mean normal of the surface faces within 15 mm).
 fn entry(surf: &TriMesh, a: &V3, far: f64) -> Result<(V3, V3)> {
     let c = volume_centroid(surf);
-    let p = surface_along(surf, &c, a, far)
-        .ok_or_else(|| FemError::bad("scenario", "the line through the centroid along the anterior axis misses the mesh"))?;
+    let p = surface_along(surf, &c, a, far).ok_or_else(|| {
+        FemError::bad("scenario", "the line through the centroid along the anterior axis misses the mesh")
+    })?;
     Ok((p, smooth_normal(surf, &p, a)))
 }
 
@@ -206,7 +209,7 @@ fn smooth_normal(surf: &TriMesh, p: &V3, a: &V3) -> V3 {
 
 /// The half-extent in (0, `max`] whose traced polyline is `length` long (bisection; the traced
 /// length grows with the extent), or the longest that stays on the organ.
-fn fit_length(length: f64, max: f64, trace: impl Fn(f64) -> Result<Vec<V3>>) -> Result<f64> {
+fn fit_length(length: f64, max: f64, trace: &dyn Fn(f64) -> Result<Vec<V3>>) -> Result<f64> {
     let (mut lo, mut hi) = (0.0, max);
     if let Ok(t) = trace(hi) {
         if polyline_length(&t) < length {
@@ -255,7 +258,10 @@ fn tumour_entry(surf: &TriMesh, a: &V3, depth: f64) -> Result<(V3, V3)> {
             return Ok((p, n));
         }
     }
-    Err(FemError::bad("non-anatomical scenario", format!("no anterior surface point has {depth} mm of tissue under it")))
+    Err(FemError::bad(
+        "non-anatomical scenario",
+        format!("no anterior surface point has {depth} mm of tissue under it"),
+    ))
 }
 
 fn polyline_length(p: &[V3]) -> f64 {
@@ -317,7 +323,8 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
     let far = 2.0 * bbox_diag(mesh);
     let (entry_point, n) = tumour_entry(&surf, &a, p.tumour_depth_mm)?;
     let centre = entry_point - n * p.tumour_depth_mm;
-    let e = (0..3).map(|k| V3::ith(k, 1.0)).min_by(|x, y| x.dot(&n).abs().total_cmp(&y.dot(&n).abs())).unwrap_or(V3::x());
+    let e =
+        (0..3).map(|k| V3::ith(k, 1.0)).min_by(|x, y| x.dot(&n).abs().total_cmp(&y.dot(&n).abs())).unwrap_or(V3::x());
     let u = (e - n * n.dot(&e)).normalize();
     let w = n.cross(&u);
     let r_deep = p.tumour_radius_mm + p.margin_mm;
@@ -328,12 +335,15 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
                 let phi = -half + 2.0 * half * i as f64 / (frame.samples - 1) as f64;
                 let q = entry_point + (u * phi.cos() + w * phi.sin()) * r_top;
                 surface_along(&surf, &q, &n, far).ok_or_else(|| {
-                    FemError::bad("non-anatomical scenario", format!("the mouth circle leaves the organ at angle {phi:.3} rad"))
+                    FemError::bad(
+                        "non-anatomical scenario",
+                        format!("the mouth circle leaves the organ at angle {phi:.3} rad"),
+                    )
                 })
             })
             .collect()
     };
-    let half = fit_length(p.length_mm, std::f64::consts::PI * 0.95, |h| trace(h))?;
+    let half = fit_length(p.length_mm, std::f64::consts::PI * 0.95, &trace)?;
     let mouth = trace(half)?;
     let mut directions = Vec::new();
     let mut depths = Vec::new();
@@ -412,12 +422,15 @@ pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -
             .map(|i| {
                 let s = -half + 2.0 * half * i as f64 / (frame.samples - 1) as f64;
                 surface_along(&surf, &(entry_point + t * s), &a, far).ok_or_else(|| {
-                    FemError::bad("anatomical scenario", format!("the cut line leaves the organ at {s:.1} mm from the entry point"))
+                    FemError::bad(
+                        "anatomical scenario",
+                        format!("the cut line leaves the organ at {s:.1} mm from the entry point"),
+                    )
                 })
             })
             .collect()
     };
-    let half = fit_length(p.length_mm, p.length_mm, |h| trace(h))?;
+    let half = fit_length(p.length_mm, p.length_mm, &trace)?;
     let mouth = trace(half)?;
     let mut depths = Vec::new();
     for (i, q) in mouth.iter().enumerate() {

@@ -95,7 +95,11 @@ pub fn tetrahedralize(surface: &Surface, params: &TetraParams) -> Result<TetMesh
     }
     let diag = (hi - lo).norm();
     if h > diag {
-        return Err(FemError::param("edge_mm", h, format!("larger than the surface's bounding-box diagonal {diag:.3} mm")));
+        return Err(FemError::param(
+            "edge_mm",
+            h,
+            format!("larger than the surface's bounding-box diagonal {diag:.3} mm"),
+        ));
     }
     if diag / h > 1000.0 {
         return Err(FemError::param("edge_mm", h, format!("more than 1000 lattice cells across {diag:.3} mm")));
@@ -162,7 +166,11 @@ pub fn tetrahedralize(surface: &Surface, params: &TetraParams) -> Result<TetMesh
         .collect();
     let mut tets: Vec<[usize; 4]> = kept.into_iter().flatten().collect();
     if tets.is_empty() {
-        return Err(FemError::param("edge_mm", h, "no lattice tetrahedron lies inside the surface: use a smaller edge"));
+        return Err(FemError::param(
+            "edge_mm",
+            h,
+            "no lattice tetrahedron lies inside the surface: use a smaller edge",
+        ));
     }
     // Compact the node numbering (lattice order).
     let mut map = vec![usize::MAX; ncorner + ncell];
@@ -223,7 +231,9 @@ fn snap_boundary(mesh: &mut TetMesh, surface: &Surface, params: &TetraParams) {
             for frac in [1.0, 0.75, 0.5, 0.25] {
                 let trial = x + (targets[k] - x) * frac;
                 mesh.vertices[v] = trial;
-                let ok = idx[off[v]..off[v + 1]].iter().all(|&t| tet_min_dihedral_deg(&corners(mesh, &mesh.tets[t])) >= floor);
+                let ok = idx[off[v]..off[v + 1]]
+                    .iter()
+                    .all(|&t| tet_min_dihedral_deg(&corners(mesh, &mesh.tets[t])) >= floor);
                 if ok {
                     if frac == 1.0 {
                         done[k] = true;

@@ -3,8 +3,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
 use laparo_core::mesh::{read_mesh, read_msh, read_vtk, write_msh, write_vtk, TetMesh};
 use laparo_fem::mesh::{
-    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
-    ScenarioFrame, TetraParams,
+    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame,
+    TetraParams,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -258,8 +258,8 @@ impl Panel {
             p.dot(&self.f),
         )
     }
-    /// Rasterise triangles with a z-buffer; returns per-pixel colour (None = empty).
-    fn raster(&self, tris: &[([V3; 3], [f64; 3])]) -> Vec<Option<[f64; 3]>> {
+    /// Rasterise triangles with a z-buffer; returns per-pixel colour (None = empty) and depth.
+    fn raster(&self, tris: &[([V3; 3], [f64; 3])]) -> (Vec<Option<[f64; 3]>>, Vec<f64>) {
         let mut z = vec![f64::INFINITY; self.w * self.h];
         let mut col = vec![None; self.w * self.h];
         for (p, c) in tris {
@@ -269,8 +269,14 @@ impl Panel {
             }
             let shade = 0.35 + 0.65 * n.normalize().dot(&self.f).abs();
             let q = p.map(|x| self.project(&x));
-            let (xa, xb) = (q.iter().map(|v| v.0).fold(f64::INFINITY, f64::min), q.iter().map(|v| v.0).fold(f64::NEG_INFINITY, f64::max));
-            let (ya, yb) = (q.iter().map(|v| v.1).fold(f64::INFINITY, f64::min), q.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max));
+            let (xa, xb) = (
+                q.iter().map(|v| v.0).fold(f64::INFINITY, f64::min),
+                q.iter().map(|v| v.0).fold(f64::NEG_INFINITY, f64::max),
+            );
+            let (ya, yb) = (
+                q.iter().map(|v| v.1).fold(f64::INFINITY, f64::min),
+                q.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max),
+            );
             let d = (q[1].0 - q[0].0) * (q[2].1 - q[0].1) - (q[2].0 - q[0].0) * (q[1].1 - q[0].1);
             if d.abs() < 1e-12 {
                 continue;
@@ -293,7 +299,15 @@ impl Panel {
                 }
             }
         }
-        col
+        (col, z)
+    }
+    /// True when `p` is not hidden by the surface depth buffer `z` (2 mm tolerance).
+    fn visible(&self, p: &V3, z: &[f64]) -> bool {
+        let (x, y, d) = self.project(p);
+        if x < 0.0 || y < 0.0 || x as usize >= self.w || y as usize >= self.h {
+            return false;
+        }
+        d <= z[y as usize * self.w + x as usize] + 2.0
     }
     fn dot(&mut self, p: &V3, rad: i64, c: [u8; 3]) {
         let (x, y, _) = self.project(p);
@@ -344,7 +358,11 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
         .map(|f| (f.map(|k| x[k]), [0.85, 0.82, 0.78]))
         .collect();
     let cracks: Vec<([V3; 3], [f64; 3])> = (0..2)
-        .flat_map(|s| cut.crack_faces[s].iter().map(move |f| (f.map(|k| x[k]), if s == 0 { [0.9, 0.2, 0.15] } else { [0.15, 0.3, 0.9] })))
+        .flat_map(|s| {
+            cut.crack_faces[s]
+                .iter()
+                .map(move |f| (f.map(|k| x[k]), if s == 0 { [0.9, 0.2, 0.15] } else { [0.15, 0.3, 0.9] }))
+        })
         .collect();
     let a = sc.anterior;
     let chord = {
@@ -359,8 +377,8 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
     let lms = cut.landmarks(50).ok();
     for (vi, (view, up)) in views.iter().enumerate() {
         let mut p = Panel::new(w, h, *view, *up, x);
-        let s = p.raster(&outer);
-        let c = p.raster(&cracks);
+        let (s, zs) = p.raster(&outer);
+        let (c, _) = p.raster(&cracks);
         for k in 0..w * h {
             let px = match (s[k], c[k]) {
                 (ss, Some(cc)) => {
@@ -370,18 +388,21 @@ fn render(sc: &Scenario) -> (usize, usize, Vec<u8>) {
                 (ss, None) => ss,
             };
             if let Some(v) = px {
-                for ch in 0..3 {
-                    p.rgb[k * 3 + ch] = (v[ch] * 255.0).clamp(0.0, 255.0) as u8;
+                for (ch, val) in v.iter().enumerate() {
+                    p.rgb[k * 3 + ch] = (val * 255.0).clamp(0.0, 255.0) as u8;
                 }
             }
         }
         for &n in &sc.fixed_nodes {
-            p.dot(&x[n], 1, [120, 60, 160]);
+            if p.visible(&x[n], &zs) {
+                p.dot(&x[n], 1, [120, 60, 160]);
+            }
         }
         if let Some(t) = sc.tumour {
             let m = 96;
             for i in 0..m {
-                let (t0, t1) = (i as f64 / m as f64 * std::f64::consts::TAU, (i + 1) as f64 / m as f64 * std::f64::consts::TAU);
+                let (t0, t1) =
+                    (i as f64 / m as f64 * std::f64::consts::TAU, (i + 1) as f64 / m as f64 * std::f64::consts::TAU);
                 let q0 = t.centre + (p.r * t0.cos() + p.u * t0.sin()) * t.radius_mm;
                 let q1 = t.centre + (p.r * t1.cos() + p.u * t1.sin()) * t.radius_mm;
                 p.line(&q0, &q1, 1, [20, 150, 40]);
