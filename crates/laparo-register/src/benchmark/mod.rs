@@ -16,7 +16,7 @@ pub mod table;
 pub mod tre;
 
 pub use case::{
-    column_landmarks, run_protocol, score, BenchmarkCase, LandmarkSet, MaterialPoint, Method, MethodOutput,
+    column_landmarks, run_protocol, score, BenchmarkCase, LandmarkSet, MaterialPoint, Method, MethodOutput, RunEvent,
 };
 pub use protocol::{noisy_targets, table51_columns, Column};
 pub use rods::RodsMethod;
