@@ -1,6 +1,8 @@
 //! laparo-py — the Python package `laparo` (PyO3 + maturin, one abi3 wheel): RoDEM depth
 //! evaluation (thesis §3.2), CATS augmentation and stereo geometry (§3.3), Conformal
-//! Perspective Correction (Ch. 4) and differentiable MPM (§5.2) on NumPy arrays.
+//! Perspective Correction (Ch. 4), differentiable MPM (§5.2), feature detection / matching /
+//! robust two-view geometry (§4.2, §4.5), semi-global stereo matching and RODS-MPM
+//! registration (Ch. 5) on NumPy arrays.
 //!
 //! This crate is the compiled extension `laparo._laparo`; the Python modules in
 //! `python/laparo/` wrap it with keyword arguments, docstrings and `.pyi` stubs. Every entry
@@ -14,8 +16,11 @@
 mod arrays;
 mod cpc;
 mod depth;
+mod features;
 mod mpm;
+mod register;
 mod stereo;
+mod stereo_match;
 
 use pyo3::prelude::*;
 
@@ -43,6 +48,17 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stereo::stereo_disparity_to_depth, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_depth_to_disparity, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo_match::stereo_match, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo_match::stereo_self_rectify, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_detect, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_match, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_match_images, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_find_homography, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_find_fundamental, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_find_essential, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_transfer_error, m)?)?;
+    m.add_function(wrap_pyfunction!(register::register_run, m)?)?;
+    m.add_function(wrap_pyfunction!(register::register_arrays, m)?)?;
     m.add_class::<cpc::PyCpcWarp>()?;
     m.add_function(wrap_pyfunction!(cpc::cpc_warp_frame, m)?)?;
     m.add_class::<mpm::PyMpmScene>()?;
