@@ -27,7 +27,7 @@ fn image_u8(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Image<u8>> {
     Image::from_vec(w, h, c, a.data).map_err(|e| bad(arg, e))
 }
 
-fn mask_for(obj: Option<&Bound<'_, PyAny>>, arg: &str, w: usize, h: usize) -> PyResult<Option<laparo_core::Mask>> {
+fn mask_for(obj: Option<&Bound<'_, PyAny>>, arg: &str, w: usize, h: usize) -> PyResult<Option<laparo_core::image::Mask>> {
     let Some(o) = obj else { return Ok(None) };
     let a = bool_array(o, arg)?;
     let (mh, mw) = a.hw(arg)?;

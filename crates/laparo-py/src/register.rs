@@ -367,7 +367,11 @@ pub fn register_arrays<'py>(
         let (o, reg, before, after) = res;
         let off = o.offset;
         let flat = |v: &[Vector<3>], shift: bool| -> Vec<f64> {
-            v.iter().flat_map(|p| if shift { p - off } else { *p }.iter().copied().collect::<Vec<_>>()).collect()
+            v.iter().flat_map(|p| {
+                let q = if shift { p - off } else { *p };
+                [q[0], q[1], q[2]]
+            })
+            .collect()
         };
         let n = o.scene.n_particles();
         let fin = &reg.final_state;

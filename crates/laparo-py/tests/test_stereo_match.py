@@ -82,9 +82,11 @@ def test_match_equals_cli(cli, tmp_path):
 
 
 def rotated_pair(w=256, h=192, d=8.0, angle_deg=0.8):
-    """A textured scene: left = T, right = T seen through a small in-plane rotation about the
-    centre and shifted by d px (a near-rectified raw pair)."""
+    """A non-planar scene seen by a near-rectified raw pair: right pixel (u, v) shows the left
+    point R(u − c) + c + (d(u, v), 0) with a small in-plane rotation R and a smooth, non-affine
+    disparity d = 8 ± 3 px (horizontal epipolar lines in the left image)."""
     big = texture(2 * w, 2 * h, seed=7).astype(np.float64)
+    big = (big + np.roll(big, 1, 0) + np.roll(big, 1, 1)) / 3
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
 
     def sample(x, y):
@@ -98,7 +100,8 @@ def rotated_pair(w=256, h=192, d=8.0, angle_deg=0.8):
     a = np.radians(angle_deg)
     cx, cy = (w - 1) / 2, (h - 1) / 2
     # right pixel (u, v) shows the left scene point at R(u − c) + c + (d, 0)
-    xr = np.cos(a) * (xx - cx) - np.sin(a) * (yy - cy) + cx + d
+    dd = d + 3.0 * np.sin(xx / 23.0) * np.cos(yy / 17.0)
+    xr = np.cos(a) * (xx - cx) - np.sin(a) * (yy - cy) + cx + dd
     yr = np.sin(a) * (xx - cx) + np.cos(a) * (yy - cy) + cy
     right = sample(xr + off[0], yr + off[1])
     return left.clip(0, 255).astype(np.uint8), right.clip(0, 255).astype(np.uint8)
