@@ -25,8 +25,18 @@ def demo_pair(w=320, h=240):
     ti[:2, 2] = -c
     h_true = t @ hm @ ti
 
+    rng = np.random.default_rng(0)
+    grids = [(rng.random((h // c + 3, w // c + 3)), c) for c in (4, 9, 23)]   # random blobs at 3 scales
+
     def tex(x, y):
-        return 128 + 50 * np.sin(0.15 * x) * np.cos(0.11 * y) + 40 * np.sin(0.031 * x * y / 3 + 0.2 * y)
+        """Sum of bilinearly interpolated random grids (a continuous, non-repeating texture)."""
+        out = np.zeros_like(x)
+        for g, c in grids:
+            u, v = np.clip(x / c + 1, 0, g.shape[1] - 2), np.clip(y / c + 1, 0, g.shape[0] - 2)
+            i, j = np.floor(u).astype(int), np.floor(v).astype(int)
+            a, b = u - i, v - j
+            out += (1 - b) * ((1 - a) * g[j, i] + a * g[j, i + 1]) + b * ((1 - a) * g[j + 1, i] + a * g[j + 1, i + 1])
+        return 255 * out / len(grids)
 
     img1 = tex(xx, yy)
     q = np.stack([xx, yy, np.ones_like(xx)], -1) @ np.linalg.inv(h_true).T  # image 2 pixel → image 1
