@@ -27,7 +27,12 @@ fn image_u8(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Image<u8>> {
     Image::from_vec(w, h, c, a.data).map_err(|e| bad(arg, e))
 }
 
-fn mask_for(obj: Option<&Bound<'_, PyAny>>, arg: &str, w: usize, h: usize) -> PyResult<Option<laparo_core::image::Mask>> {
+fn mask_for(
+    obj: Option<&Bound<'_, PyAny>>,
+    arg: &str,
+    w: usize,
+    h: usize,
+) -> PyResult<Option<laparo_core::image::Mask>> {
     let Some(o) = obj else { return Ok(None) };
     let a = bool_array(o, arg)?;
     let (mh, mw) = a.hw(arg)?;
@@ -364,8 +369,10 @@ pub fn features_match_images<'py>(
         let m1 = mask_for(mask1, "mask1", i1.width, i1.height)?;
         let m2 = mask_for(mask2, "mask2", i2.width, i2.height)?;
         let (f1, f2, matches) = par(py, || -> laparo_features::Result<_> {
-            let (f1, f2) =
-                rayon::join(|| detect_and_describe(&i1, &det, m1.as_ref()), || detect_and_describe(&i2, &det, m2.as_ref()));
+            let (f1, f2) = rayon::join(
+                || detect_and_describe(&i1, &det, m1.as_ref()),
+                || detect_and_describe(&i2, &det, m2.as_ref()),
+            );
             let (f1, f2) = (f1?, f2?);
             let m = match_features(&f1, &f2, &mcfg)?;
             Ok((f1, f2, m))

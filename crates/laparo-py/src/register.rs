@@ -31,7 +31,9 @@ fn parse_roi(s: &str) -> PyResult<Roi> {
     }
     match (kind, v.len()) {
         ("ball", 4) if v[3] > 0.0 => Ok(Roi::Ball { center: [v[0], v[1], v[2]], radius_mm: v[3] }),
-        ("box", 6) if (0..3).all(|d| v[d] < v[d + 3]) => Ok(Roi::Box { lo: [v[0], v[1], v[2]], hi: [v[3], v[4], v[5]] }),
+        ("box", 6) if (0..3).all(|d| v[d] < v[d + 3]) => {
+            Ok(Roi::Box { lo: [v[0], v[1], v[2]], hi: [v[3], v[4], v[5]] })
+        }
         _ => Err(err()),
     }
 }
@@ -57,11 +59,13 @@ fn landmarks_from(obj: &Bound<'_, PyAny>) -> PyResult<Vec<SourceGroup>> {
     })?;
     let mut out = Vec::new();
     for (i, item) in list.iter().enumerate() {
-        let t = item.cast::<PyTuple>().map_err(|_| bad("landmarks", format!("[{i}]: expected (name, points, weight)")))?;
+        let t =
+            item.cast::<PyTuple>().map_err(|_| bad("landmarks", format!("[{i}]: expected (name, points, weight)")))?;
         if t.len() != 3 {
             return Err(bad("landmarks", format!("[{i}]: expected (name, points, weight)")));
         }
-        let name: String = t.get_item(0)?.extract().map_err(|_| bad("landmarks", format!("[{i}]: name is not a str")))?;
+        let name: String =
+            t.get_item(0)?.extract().map_err(|_| bad("landmarks", format!("[{i}]: name is not a str")))?;
         let points = points3(&t.get_item(1)?, &format!("landmarks[{name:?}]"))?;
         let weight: f64 = t.get_item(2)?.extract().map_err(|_| bad("landmarks", format!("[{name:?}]: weight")))?;
         if !(weight > 0.0 && weight.is_finite()) {
@@ -90,7 +94,9 @@ fn targets_from(obj: &Bound<'_, PyAny>, groups: &[SourceGroup]) -> PyResult<Vec<
     })?;
     let mut parsed: Vec<(String, TargetSpec)> = Vec::new();
     for (i, item) in list.iter().enumerate() {
-        let t = item.cast::<PyTuple>().map_err(|_| bad("targets", format!("[{i}]: expected (name, kind, points, faces)")))?;
+        let t = item
+            .cast::<PyTuple>()
+            .map_err(|_| bad("targets", format!("[{i}]: expected (name, kind, points, faces)")))?;
         if t.len() != 4 {
             return Err(bad("targets", format!("[{i}]: expected (name, kind, points, faces)")));
         }
@@ -113,15 +119,14 @@ fn targets_from(obj: &Bound<'_, PyAny>, groups: &[SourceGroup]) -> PyResult<Vec<
                 if a.0.len() != 2 || a.0[1] != 3 {
                     return Err(bad("faces", format!("target {name:?}: expected shape (F, 3), got {:?}", a.0)));
                 }
-                let faces: Vec<[usize; 3]> = a
-                    .1
-                    .chunks_exact(3)
-                    .map(|c| {
-                        let ok = c.iter().all(|&v| v >= 0.0 && v.fract() == 0.0 && (v as usize) < pts.len());
-                        ok.then(|| [c[0] as usize, c[1] as usize, c[2] as usize])
-                    })
-                    .collect::<Option<_>>()
-                    .ok_or_else(|| bad("faces", format!("target {name:?}: indices must be in 0..{}", pts.len())))?;
+                let faces: Vec<[usize; 3]> =
+                    a.1.chunks_exact(3)
+                        .map(|c| {
+                            let ok = c.iter().all(|&v| v >= 0.0 && v.fract() == 0.0 && (v as usize) < pts.len());
+                            ok.then(|| [c[0] as usize, c[1] as usize, c[2] as usize])
+                        })
+                        .collect::<Option<_>>()
+                        .ok_or_else(|| bad("faces", format!("target {name:?}: indices must be in 0..{}", pts.len())))?;
                 TargetSpec::Surface(pts, faces)
             }
             k => return Err(bad("targets", format!("group {name:?}: kind {k:?} (points, polyline, cloud, surface)"))),
@@ -367,11 +372,12 @@ pub fn register_arrays<'py>(
         let (o, reg, before, after) = res;
         let off = o.offset;
         let flat = |v: &[Vector<3>], shift: bool| -> Vec<f64> {
-            v.iter().flat_map(|p| {
-                let q = if shift { p - off } else { *p };
-                [q[0], q[1], q[2]]
-            })
-            .collect()
+            v.iter()
+                .flat_map(|p| {
+                    let q = if shift { p - off } else { *p };
+                    [q[0], q[1], q[2]]
+                })
+                .collect()
         };
         let n = o.scene.n_particles();
         let fin = &reg.final_state;
