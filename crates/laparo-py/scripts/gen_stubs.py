@@ -71,6 +71,12 @@ def stub(src: str, name: str) -> str:
             if not _public(t) and t != "__all__":
                 continue
             simple = isinstance(n.value, (ast.Name, ast.Attribute, ast.Subscript, ast.Constant, ast.Tuple, ast.List))
+            typevar = (
+                isinstance(n.value, ast.Call)
+                and isinstance(n.value.func, ast.Name)
+                and n.value.func.id in ("TypeVar", "NewType")
+            )
+            simple = simple or typevar
             out.append(n if simple else ast.AnnAssign(ast.Name(t), ast.Name("Any"), None, 1))
     mod = ast.Module(body=_doc(tree) + out, type_ignores=[])
     text = ast.unparse(ast.fix_missing_locations(mod))
