@@ -2,7 +2,8 @@
 Python package) against the NumPy/OpenCV implementation of the same work
 (`benchmarks/cats_reference.py`: both views warped bilinearly by H = K_rel K R K⁻¹ with inverse
 mapping, validity masks, the left disparity by the exact rule), in the same run, alternating
-rounds, one thread each (`laparo.set_num_threads(1)`, `cv2.setNumThreads(1)`).
+rounds, one thread each (`laparo.set_num_threads(1)`, `cv2.setNumThreads(1)`,
+`OPENBLAS_NUM_THREADS=1`).
 
     python crates/laparo-py/bench/bench_cats.py [--n 6] [--rounds 5] [--rule exact|thesis]
     (needs numpy and opencv-python-headless in the environment of the laparo package)
@@ -14,13 +15,18 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
-import statistics
-import sys
-import time
-from pathlib import Path
 
-import numpy as np
+# One thread for NumPy's BLAS too (the reference's coordinate products), before NumPy loads.
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import platform  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[3]
 sys.path.insert(0, str(REPO / "benchmarks"))
@@ -99,7 +105,7 @@ def main():
     ml, mr = statistics.median(t_l), statistics.median(t_r)
     print(f"CPU: {cpu_model()} ({os.cpu_count()} logical); load average {os.getloadavg()}")
     print(f"laparo {laparo.__version__}, NumPy {np.__version__}, OpenCV {cv2.__version__}, Python {platform.python_version()}")
-    print("1 thread each (laparo.set_num_threads(1), cv2.setNumThreads(1))")
+    print("1 thread each (laparo.set_num_threads(1), cv2.setNumThreads(1), OPENBLAS_NUM_THREADS=1)")
     print(f"samples {w}x{h} RGB + disparity, {a.rule} rule, {len(samples)} samples x {a.rounds} alternating rounds")
     print("laparo       s/sample: " + " ".join(f"{t:.4f}" for t in t_l) + f"  median {ml:.4f}")
     print("NumPy/OpenCV s/sample: " + " ".join(f"{t:.4f}" for t in t_r) + f"  median {mr:.4f}")

@@ -13,6 +13,7 @@
 //! Build: `maturin develop --release -m crates/laparo-py/Cargo.toml` (see README.md).
 #![warn(missing_docs)]
 
+mod alloc;
 mod arrays;
 mod cpc;
 mod depth;
@@ -24,12 +25,17 @@ mod stereo_match;
 
 use pyo3::prelude::*;
 
+/// The extension's allocator: the system's plus a cache of large freed buffers (see `alloc`).
+#[global_allocator]
+static ALLOC: alloc::CachingAlloc = alloc::CachingAlloc::new();
+
 /// The compiled module; see the Python package `laparo` for the documented API.
 #[pymodule]
 fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(arrays::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(arrays::get_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(alloc::set_buffer_cache_mb, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_evaluate_pair, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_evaluate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_perturb, m)?)?;

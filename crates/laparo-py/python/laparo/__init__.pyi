@@ -23,7 +23,11 @@ Parallelism: heavy calls release the GIL and run on laparo's own rayon pool, whi
 re-created in forked processes (DataLoader workers), so forking after using laparo is safe.
 ``set_num_threads(n)`` sets its size (0 = ``RAYON_NUM_THREADS`` or one thread per core); use
 ``set_num_threads(1)`` in a DataLoader's ``worker_init_fn`` to keep one thread per worker.
+
+Memory: the extension keeps up to 256 MiB of freed large buffers (≥ 1 MiB) for reuse by the
+next call on same-sized data (no page faults on warm buffers); ``set_buffer_cache_mb(n)``
+changes the limit (0 = off).
 """
-from ._laparo import __version__, get_num_threads, set_num_threads
+from ._laparo import __version__, get_num_threads, set_buffer_cache_mb, set_num_threads
 from . import depth, cats, stereo, cpc, mpm, shard, features, register
-__all__ = ['__version__', 'depth', 'cats', 'stereo', 'cpc', 'mpm', 'shard', 'features', 'register', 'set_num_threads', 'get_num_threads']
+__all__ = ['__version__', 'depth', 'cats', 'stereo', 'cpc', 'mpm', 'shard', 'features', 'register', 'set_num_threads', 'get_num_threads', 'set_buffer_cache_mb']
