@@ -1,6 +1,8 @@
 //! laparo-py — the Python package `laparo` (PyO3 + maturin, one abi3 wheel): RoDEM depth
 //! evaluation (thesis §3.2), CATS augmentation and stereo geometry (§3.3), Conformal
-//! Perspective Correction (Ch. 4) and differentiable MPM (§5.2) on NumPy arrays.
+//! Perspective Correction (Ch. 4), differentiable MPM (§5.2), feature detection / matching /
+//! robust two-view geometry (§4.2, §4.5), semi-global stereo matching and RODS-MPM
+//! registration (Ch. 5) on NumPy arrays.
 //!
 //! This crate is the compiled extension `laparo._laparo`; the Python modules in
 //! `python/laparo/` wrap it with keyword arguments, docstrings and `.pyi` stubs. Every entry
@@ -11,13 +13,21 @@
 //! Build: `maturin develop --release -m crates/laparo-py/Cargo.toml` (see README.md).
 #![warn(missing_docs)]
 
+mod alloc;
 mod arrays;
 mod cpc;
 mod depth;
+mod features;
 mod mpm;
+mod register;
 mod stereo;
+mod stereo_match;
 
 use pyo3::prelude::*;
+
+/// The extension's allocator: the system's plus a cache of large freed buffers (see `alloc`).
+#[global_allocator]
+static ALLOC: alloc::CachingAlloc = alloc::CachingAlloc::new();
 
 /// The compiled module; see the Python package `laparo` for the documented API.
 #[pymodule]
@@ -25,6 +35,7 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(arrays::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(arrays::get_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(alloc::set_buffer_cache_mb, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_evaluate_pair, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_evaluate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(depth::depth_perturb, m)?)?;
@@ -43,6 +54,17 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stereo::stereo_disparity_to_depth, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_depth_to_disparity, m)?)?;
     m.add_function(wrap_pyfunction!(stereo::stereo_evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo_match::stereo_match, m)?)?;
+    m.add_function(wrap_pyfunction!(stereo_match::stereo_self_rectify, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_detect, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_match, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_match_images, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_find_homography, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_find_fundamental, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_find_essential, m)?)?;
+    m.add_function(wrap_pyfunction!(features::features_transfer_error, m)?)?;
+    m.add_function(wrap_pyfunction!(register::register_run, m)?)?;
+    m.add_function(wrap_pyfunction!(register::register_arrays, m)?)?;
     m.add_class::<cpc::PyCpcWarp>()?;
     m.add_function(wrap_pyfunction!(cpc::cpc_warp_frame, m)?)?;
     m.add_class::<mpm::PyMpmScene>()?;

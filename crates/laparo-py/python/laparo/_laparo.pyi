@@ -1,5 +1,6 @@
 """Type stubs of the compiled extension ``laparo._laparo`` (use the documented wrappers in
-``laparo.depth``, ``laparo.cats``, ``laparo.stereo``, ``laparo.cpc``, ``laparo.mpm``)."""
+``laparo.depth``, ``laparo.cats``, ``laparo.stereo``, ``laparo.cpc``, ``laparo.mpm``,
+``laparo.features``, ``laparo.register``)."""
 from os import PathLike
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
@@ -76,6 +77,61 @@ def stereo_evaluate(
     zero_is_invalid: bool = False,
 ) -> Dict[str, Any]: ...
 
+def stereo_match(
+    left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8], d_min: int, d_max: int, mode: str = "default",
+    vertical_tol: int = 0, p1: Optional[int] = None, p2: Optional[int] = None, uniqueness: Optional[int] = None,
+    lr_max_diff: Optional[int] = None, speckle_window: Optional[int] = None, fill_holes: bool = False,
+    self_rectify: bool = False,
+) -> Dict[str, Any]: ...
+def stereo_self_rectify(
+    left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8], points_left: Optional[np.ndarray] = None,
+    points_right: Optional[np.ndarray] = None, method: str = "quasi-euclidean", threshold_px: float = 1.0,
+    min_inliers: int = 20, seed: int = 0,
+) -> Dict[str, Any]: ...
+
+def features_detect(
+    image: npt.NDArray[np.uint8], detector: Union[None, str, Dict[str, Any]] = None, mask: Optional[np.ndarray] = None
+) -> Dict[str, Any]: ...
+def features_match(
+    descriptors1: np.ndarray, descriptors2: np.ndarray, ratio: str = "lowe:0.8", mutual: bool = True
+) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32]]: ...
+def features_match_images(
+    image1: npt.NDArray[np.uint8], image2: npt.NDArray[np.uint8], detector: Union[None, str, Dict[str, Any]] = None,
+    ratio: str = "lowe:0.8", mutual: bool = True, mask1: Optional[np.ndarray] = None, mask2: Optional[np.ndarray] = None,
+    homography: Optional[np.ndarray] = None, eps_px: float = 3.0,
+) -> Dict[str, Any]: ...
+def features_find_homography(
+    p1: np.ndarray, p2: np.ndarray, threshold_px: float = 1.0, confidence: float = 0.999, max_iters: int = 10000,
+    seed: int = 0,
+) -> Dict[str, Any]: ...
+def features_find_fundamental(
+    p1: np.ndarray, p2: np.ndarray, threshold_px: float = 1.0, confidence: float = 0.999, max_iters: int = 10000,
+    seed: int = 0,
+) -> Dict[str, Any]: ...
+def features_find_essential(
+    p1: np.ndarray, p2: np.ndarray, threshold: float = 1e-3, confidence: float = 0.999, max_iters: int = 10000,
+    seed: int = 0,
+) -> Dict[str, Any]: ...
+def features_transfer_error(homography: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> npt.NDArray[np.float64]: ...
+
+def register_run(
+    organ: _Path, landmarks: Any, targets: Any, out: _Path, spacing_mm: float = 3.0, dx_mm: Optional[float] = None,
+    optimizer: str = "lbfgs", iterations: Optional[int] = None, roi: Optional[str] = None,
+    tumour: Optional[_Path] = None, image: Optional[_Path] = None, camera: Optional[_Path] = None,
+    youngs_modulus_kpa: float = 4.1, poisson_ratio: float = 0.49, density_kg_m3: float = 1000.0, steps: int = 200,
+    dt_s: Optional[float] = None, region_weight: float = 0.0, joint_e: bool = False, smoothing_dx: float = 2.0,
+    max_step_dx: float = 0.5, target_mean_mm: float = 0.0, resume: bool = False, checkpoint_every: int = 5,
+    memory_gb: Optional[float] = None,
+) -> Dict[str, Any]: ...
+def register_arrays(
+    landmarks: Any, targets: Any, organ: Optional[_Path] = None, particles: Optional[np.ndarray] = None,
+    spacing_mm: float = 3.0, dx_mm: Optional[float] = None, optimizer: str = "lbfgs", iterations: Optional[int] = None,
+    roi: Optional[str] = None, youngs_modulus_kpa: float = 4.1, poisson_ratio: float = 0.49,
+    density_kg_m3: float = 1000.0, steps: int = 200, dt_s: Optional[float] = None, region_weight: float = 0.0,
+    joint_e: bool = False, smoothing_dx: float = 2.0, max_step_dx: float = 0.5, target_mean_mm: float = 0.0,
+    memory_gb: Optional[float] = None,
+) -> Dict[str, Any]: ...
+
 class CpcWarp:
     canvas_size: Tuple[int, int]
     canvas_origin: Tuple[float, float]
@@ -120,3 +176,4 @@ def mpm_cfl_dt(youngs_modulus: float, poisson_ratio: float, density: float, dx: 
 
 def set_num_threads(n: int) -> None: ...
 def get_num_threads() -> int: ...
+def set_buffer_cache_mb(mb: int) -> None: ...

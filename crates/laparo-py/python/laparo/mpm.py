@@ -9,7 +9,7 @@ initial particle velocities.
 >>> x_T = laparo.mpm.simulate(scene)["x"]                               # doctest: +SKIP
 
 With PyTorch installed, :func:`simulate_torch` / :class:`MpmFunction` make x_T a differentiable
-function of (v₀, E, ν) for torch optimisers. Registration (RODS-MPM) itself is not bound yet.
+function of (v₀, E, ν) for torch optimisers. Registration (RODS-MPM): :mod:`laparo.register`.
 """
 from __future__ import annotations
 

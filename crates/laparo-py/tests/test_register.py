@@ -1,0 +1,111 @@
+"""laparo.register against the CLI (`laparo register`: particles_registered.ply, report.json) and
+independent checks: the registration reduces the landmark distance, in-memory and file routes
+agree, particles given as arrays reproduce the mesh route, errors name the argument."""
+import json
+
+import numpy as np
+import pytest
+
+import laparo
+from conftest import cli_json  # noqa: F401
+
+R = laparo.register
+OPTS = dict(spacing_mm=4.0, steps=40, iterations=3)
+CLI_OPTS = ["--spacing-mm", "4", "--steps", "40", "--iterations", "3"]
+LANDMARKS = {"tip": [[39.0, 12.0, 8.0], [39.0, 4.0, 8.0]], "edge": [[20.0, 23.0, 8.0]]}
+TARGETS = {"tip": [[42.0, 12.0, 8.0], [42.0, 4.0, 8.0]]}
+
+
+def box_obj(path, lo, hi):
+    v = [[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1], hi[2] if i & 4 else lo[2]] for i in range(8)]
+    s = "".join(f"v {a} {b} {c}\n" for a, b, c in v)
+    for f in [[1, 3, 4, 2], [5, 6, 8, 7], [1, 2, 6, 5], [3, 7, 8, 4], [1, 5, 7, 3], [2, 4, 8, 6]]:
+        s += f"f {f[0]} {f[1]} {f[2]}\nf {f[0]} {f[2]} {f[3]}\n"
+    path.write_text(s)
+
+
+def read_particles_ply(path):
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    return np.frombuffer(data[end:], dtype="<f8").reshape(-1, 7)
+
+
+@pytest.fixture()
+def job(tmp_path):
+    box_obj(tmp_path / "organ.obj", [0.0, 0.0, 0.0], [40.0, 24.0, 16.0])
+    (tmp_path / "L.json").write_text(json.dumps({"groups": [{"name": k, "points": v} for k, v in LANDMARKS.items()]}))
+    (tmp_path / "T.json").write_text(json.dumps({"groups": [
+        {"name": "tip", "type": "points", "points": TARGETS["tip"]},
+        {"name": "edge", "type": "polyline", "points": [[0.0, 25.5, 8.0], [40.0, 25.5, 8.0]]},
+    ]}))
+    return tmp_path
+
+
+def py_targets():
+    return [
+        {"name": "tip", "type": "points", "points": TARGETS["tip"]},
+        {"name": "edge", "type": "polyline", "points": [[0.0, 25.5, 8.0], [40.0, 25.5, 8.0]]},
+    ]
+
+
+def test_register_equals_cli(cli, job):
+    cli("register", "--organ", job / "organ.obj", "--landmarks", job / "L.json", "--target", job / "T.json",
+        "--out", job / "cli", *CLI_OPTS)
+    ref = read_particles_ply(job / "cli" / "particles_registered.ply")
+    rest = read_particles_ply(job / "cli" / "particles_rest.ply")
+    got = R.register(LANDMARKS, py_targets(), organ=job / "organ.obj", **OPTS)
+    np.testing.assert_array_equal(got["positions"], ref[:, :3])
+    np.testing.assert_array_equal(got["final_velocities"], ref[:, 3:6])
+    np.testing.assert_array_equal(got["j"], ref[:, 6])
+    np.testing.assert_array_equal(got["rest_positions"], rest[:, :3])
+    np.testing.assert_array_equal(got["velocities"], rest[:, 3:6])
+    rep = json.loads((job / "cli" / "report.json").read_text())
+    assert list(got["mean_distance_mm"]) == rep["mean_distance_mm"]
+    assert got["stop_reason"] == rep["stop_reason"] and got["dt_s"] == rep["dt_s"] and got["n_grid"] == rep["n_grid"]
+    assert got["residual_after"] == rep["residual_after"]
+    # The file route (the CLI's job from Python) writes the same particles and report.
+    r2 = R.run(job / "organ.obj", job / "L.json", job / "T.json", job / "py", **OPTS)
+    np.testing.assert_array_equal(read_particles_ply(job / "py" / "particles_registered.ply"), ref)
+    timing = {"seconds_per_simulation", "optimisation_seconds", "peak_memory_mib", "organ", "outputs"}
+    assert {k: v for k, v in r2.items() if k not in timing} == {k: v for k, v in rep.items() if k not in timing}
+
+
+def test_registration_moves_landmarks_towards_targets(job):
+    tg = TARGETS | {"edge": [[20.0, 25.5, 8.0]]}
+    got = R.register(LANDMARKS, tg, organ=job / "organ.obj", **OPTS)
+    before, after = got["mean_distance_mm"]
+    # Before: each landmark is carried by its nearest rest particle (lattice at 2, 6, 10, … mm);
+    # the mean of their distances to the targets (eq. 5.10, unsmoothed).
+    rest = got["rest_positions"]
+    d = []
+    for name, pts in LANDMARKS.items():
+        for p, t in zip(np.array(pts), np.array(tg[name])):
+            near = rest[np.argmin(np.linalg.norm(rest - p, axis=1))]
+            d.append(np.linalg.norm(near - t))
+    assert before == pytest.approx(np.mean(d), rel=1e-9)
+    assert after < 0.8 * before
+    n = got["positions"].shape[0]
+    assert n == 10 * 6 * 4 and got["velocities"].shape == (n, 3) and got["j"].shape == (n,)
+    # Particles as arrays: the rest lattice of the mesh route gives the same registration.
+    again = R.register(LANDMARKS, TARGETS | {"edge": [[20.0, 25.5, 8.0]]}, particles=got["rest_positions"], **OPTS)
+    np.testing.assert_allclose(again["positions"], got["positions"], atol=1e-9)
+    assert again["mean_distance_mm"][1] == pytest.approx(after, rel=1e-9)
+
+
+def test_register_errors_name_the_argument(job):
+    with pytest.raises(ValueError, match="optimizer"):
+        R.register(LANDMARKS, TARGETS, organ=job / "organ.obj", optimizer="sgd")
+    with pytest.raises(ValueError, match="roi"):
+        R.register(LANDMARKS, TARGETS, organ=job / "organ.obj", roi="sphere:1,2,3")
+    with pytest.raises(ValueError, match="targets"):
+        R.register(LANDMARKS, {"tip": TARGETS["tip"]}, organ=job / "organ.obj", **OPTS)
+    with pytest.raises(ValueError, match="organ"):
+        R.register(LANDMARKS, TARGETS)
+    with pytest.raises(ValueError, match="particles"):
+        R.register(LANDMARKS, TARGETS, particles=np.full((5, 3), np.nan))
+    with pytest.raises(ValueError, match="landmarks"):
+        R.register({"tip": [[1.0, 2.0]]}, TARGETS, organ=job / "organ.obj")
+    with pytest.raises(ValueError, match="spacing_mm"):
+        R.register(LANDMARKS, py_targets(), organ=job / "organ.obj", spacing_mm=float("nan"))
+    with pytest.raises((OSError, ValueError), match="missing.obj"):
+        R.run(job / "missing.obj", job / "L.json", job / "T.json", job / "o", **OPTS)
