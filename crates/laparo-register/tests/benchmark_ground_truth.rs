@@ -6,7 +6,8 @@ use laparo_register::benchmark::build::{case_from, fem_ground_truth, max_gap_mm,
 use std::path::PathBuf;
 
 fn liver() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
     if p.exists() {
         Some(p)
     } else {
@@ -19,7 +20,8 @@ fn liver() -> Option<PathBuf> {
 fn non_anatomical_ground_truth_on_the_p2ilf_liver() {
     let Some(path) = liver() else { return };
     let surface = laparo_core::mesh::read_mesh(&path).unwrap();
-    let (mesh, q) = tetrahedralize_surface(surface, "p2ilf", &TetraParams { edge_mm: 14.0, ..Default::default() }).unwrap();
+    let (mesh, q) =
+        tetrahedralize_surface(surface, "p2ilf", &TetraParams { edge_mm: 14.0, ..Default::default() }).unwrap();
     assert_eq!(q.inverted, 0);
     let scn = non_anatomical(&mesh, &ScenarioFrame::default(), &NonAnatomicalParams::default()).unwrap();
     let cfg = GroundTruthConfig { steps: 8, ..GroundTruthConfig::for_scenario("non-anatomical") };

@@ -166,11 +166,16 @@ pub fn fem_ground_truth(
             p * (target / gap.max(1e-6)).clamp(0.1, 20.0)
         };
     }
-    let (sol, p, gap) = best.ok_or_else(|| RegisterError::bad(format!("FEM ground truth ({})", scn.name), "no solve succeeded"))?;
+    let (sol, p, gap) =
+        best.ok_or_else(|| RegisterError::bad(format!("FEM ground truth ({})", scn.name), "no solve succeeded"))?;
     if !(gap >= lo && gap <= hi) {
         return Err(RegisterError::bad(
             format!("FEM ground truth ({})", scn.name),
-            format!("the lip gap reached {gap:.2} mm, not [{lo}, {hi}] mm, after {} solves (pressures {:?})", tried.len(), tried),
+            format!(
+                "the lip gap reached {gap:.2} mm, not [{lo}, {hi}] mm, after {} solves (pressures {:?})",
+                tried.len(),
+                tried
+            ),
         ));
     }
     let u = sol.vertex_displacements().to_vec();
@@ -206,7 +211,17 @@ pub fn node_sides(cut: &CutMesh) -> Vec<u8> {
             s[i] |= 1 << k;
         }
     }
-    s.iter().map(|&b| if b == 1 { 1 } else if b == 2 { 2 } else { 0 }).collect()
+    s.iter()
+        .map(|&b| {
+            if b == 1 {
+                1
+            } else if b == 2 {
+                2
+            } else {
+                0
+            }
+        })
+        .collect()
 }
 
 /// Smallest region of interest (a ball around the crack's centroid, radius from `r0_mm` in 10 mm steps

@@ -37,8 +37,11 @@ pub fn render_scalar_surface(
     if proj.is_empty() || size < 4 {
         return img;
     }
-    let lo_xy = proj.iter().fold(proj[0], |a, b| a.inf(b));
-    let hi_xy = proj.iter().fold(proj[0], |a, b| a.sup(b));
+    // frame the drawn faces only (a close-up draws a subset)
+    let used = faces.iter().flatten().map(|&i| proj[i]);
+    let first = faces.first().map(|f| proj[f[0]]).unwrap_or(proj[0]);
+    let lo_xy = used.clone().fold(first, |a, b| a.inf(&b));
+    let hi_xy = used.fold(first, |a, b| a.sup(&b));
     let ext = (hi_xy[0] - lo_xy[0]).max(hi_xy[1] - lo_xy[1]).max(1e-12);
     let scale = 0.92 * size as f64 / ext;
     let cx = 0.5 * (lo_xy[0] + hi_xy[0]);
@@ -88,22 +91,29 @@ pub fn render_scalar_surface(
     img
 }
 
-/// A TRE map: `view` and its opposite side by side, coloured by error (mm) on [0, `hi_mm`], with a colour bar
-/// and `title` drawn above. Written to `path` (PNG, atomically).
+/// An error map: the whole surface seen along `view` and, beside it, a close-up of the faces within
+/// `focus.1` mm of `focus.0` (the incision), coloured by `values_mm` on [0, `hi_mm`] (Turbo), with a colour
+/// bar labelled `label` and `title` drawn above. Written to `path` (PNG, atomically).
+#[allow(clippy::too_many_arguments)]
 pub fn write_tre_map(
     path: &Path,
     vertices: &[Vector3<f64>],
     faces: &[[usize; 3]],
-    errors_mm: &[f64],
+    values_mm: &[f64],
     hi_mm: f64,
     view: &SurfaceView,
-    title: &str,
+    focus: (Vector3<f64>, f64),
+    (title, label): (&str, &str),
 ) -> Result<()> {
     let size = view.size_px;
-    let scale = (0.0, hi_mm, Colormap::Magma);
-    let a = render_scalar_surface(vertices, faces, errors_mm, scale, view);
-    let back = SurfaceView { direction: -view.direction, ..*view };
-    let b = render_scalar_surface(vertices, faces, errors_mm, scale, &back);
+    let scale = (0.0, hi_mm, Colormap::Turbo);
+    let a = render_scalar_surface(vertices, faces, values_mm, scale, view);
+    let near: Vec<[usize; 3]> = faces
+        .iter()
+        .filter(|f| ((vertices[f[0]] + vertices[f[1]] + vertices[f[2]]) / 3.0 - focus.0).norm() < focus.1)
+        .copied()
+        .collect();
+    let b = render_scalar_surface(vertices, if near.is_empty() { faces } else { &near }, values_mm, scale, view);
     let mut both = Image::filled(2 * size, size + 30, 3, 255u8);
     for y in 0..size {
         for x in 0..size {
@@ -127,7 +137,7 @@ pub fn write_tre_map(
         Ok(())
     })
     .map_err(|e| RegisterError::bad(path.display().to_string(), e))?;
-    let out = laparo_core::plot::with_colorbar(&titled, 0.0, hi_mm, Colormap::Magma, "TRE [mm]");
+    let out = laparo_core::plot::with_colorbar(&titled, 0.0, hi_mm, Colormap::Turbo, label);
     Ok(laparo_core::io::write_png(path, &out)?)
 }
 

@@ -6,7 +6,9 @@
 //! eq. 5.10 distances (each lip against its own target polyline) and the same fixed posterior nodes as the
 //! ground truth.
 use super::case::{BenchmarkCase, LandmarkSet, Method, MethodOutput};
-use crate::baselines::{arap, drbc, lddmm, ArapConfig, BaselineProblem, DrbcConfig, LddmmConfig, MaterialPoint, MeshLandmarkGroup};
+use crate::baselines::{
+    arap, drbc, lddmm, ArapConfig, BaselineProblem, DrbcConfig, LddmmConfig, MaterialPoint, MeshLandmarkGroup,
+};
 use crate::distance::Polyline;
 use crate::error::{RegisterError, Result};
 use crate::loss::GroupTarget;
@@ -50,7 +52,11 @@ fn groups_for(landmarks: &[LandmarkSet], node_map: &dyn Fn(usize, u8) -> usize) 
             points: l
                 .points
                 .iter()
-                .map(|p| MaterialPoint::combination(&p.nodes.iter().map(|&(i, w)| (node_map(i, l.side), w)).collect::<Vec<_>>()))
+                .map(|p| {
+                    MaterialPoint::combination(
+                        &p.nodes.iter().map(|&(i, w)| (node_map(i, l.side), w)).collect::<Vec<_>>(),
+                    )
+                })
                 .collect(),
             target: GroupTarget::Shared(Arc::new(Polyline::open(l.targets.clone()))),
             weight: 1.0,
@@ -122,10 +128,14 @@ impl Method for BaselineMethod {
                     depths: vec![*assumed_depth_mm; mouth.len()],
                     overshoot_mm: 5.0,
                 };
-                let f = cut(&uncut, &blade).map_err(|e| RegisterError::bad("François et al.: cutting the source mesh", e.to_string()))?;
+                let f = cut(&uncut, &blade)
+                    .map_err(|e| RegisterError::bad("François et al.: cutting the source mesh", e.to_string()))?;
                 // case node i sits at corner (t, k): François' copy is f.mesh.tets[t][k]
                 let to_case = corners(case).iter().map(|&(t, k)| f.mesh.tets[t][k]).collect();
-                notes.push(format!("assumed cut: {} crack faces per lip, depth {assumed_depth_mm} mm", f.crack_faces[0].len()));
+                notes.push(format!(
+                    "assumed cut: {} crack faces per lip, depth {assumed_depth_mm} mm",
+                    f.crack_faces[0].len()
+                ));
                 (f.mesh, to_case)
             }
             _ => (uncut, map.clone()),
@@ -142,12 +152,36 @@ impl Method for BaselineMethod {
         problem.fix_at_rest(&fixed);
         let r = run(&self.baseline, &problem)?;
         if !r.report.converged {
-            notes.push(format!("{} stopped after {} iterations without meeting its tolerance", self.name, r.report.iterations));
+            notes.push(format!(
+                "{} stopped after {} iterations without meeting its tolerance",
+                self.name, r.report.iterations
+            ));
         }
         Ok(MethodOutput {
             nodes: to_case.iter().map(|&j| r.positions[j]).collect(),
             landmark_distance_mm: r.report.mean_distance_mm,
             notes,
         })
+    }
+}
+
+/// The reference row: no registration (the rest mesh), whose TRE is the ground-truth displacement itself.
+#[derive(Clone, Copy, Debug)]
+pub struct NoRegistration;
+
+impl Method for NoRegistration {
+    fn name(&self) -> String {
+        "none (rest)".into()
+    }
+    fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput> {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for l in landmarks {
+            let poly = Polyline::open(l.targets.clone());
+            for s in &l.sources {
+                sum += (s - crate::distance::ClosestPoint::closest(&poly, s).0).norm();
+                n += 1;
+            }
+        }
+        Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: sum / n.max(1) as f64, notes: vec![] })
     }
 }

@@ -5,12 +5,20 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use laparo_fem::mesh::{anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame, TetraParams};
-use laparo_register::baselines::{ArapConfig, DrbcConfig, LddmmConfig};
-use laparo_register::benchmark::build::{case_from, choose_roi, fem_ground_truth, GroundTruthConfig, GroundTruthReport};
+use laparo_fem::mesh::{
+    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame,
+    TetraParams,
+};
+use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig};
+use laparo_register::benchmark::build::{
+    case_from, choose_roi, fem_ground_truth, GroundTruthConfig, GroundTruthReport,
+};
 use laparo_register::benchmark::figures::{write_distance_plot, write_tre_map, write_vtk_fields, SurfaceView};
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
-use laparo_register::benchmark::{aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, ResultStore, RodsMethod};
+use laparo_register::benchmark::{
+    aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, ResultStore,
+    RodsMethod,
+};
 use laparo_register::optimize::OptimizerConfig;
 use laparo_register::organ::OrganConfig;
 use nalgebra::Vector3;
@@ -31,14 +39,15 @@ pub struct BenchmarkArgs {
     /// The tier the test suite affords: coarse mesh, one seed, short RODS-MPM runs.
     #[arg(long)]
     pub quick: bool,
-    /// Tetrahedron edge (mm); default 6 (quick 14).
+    /// Tetrahedron edge (mm); default 6 (quick 16).
     #[arg(long)]
     pub edge_mm: Option<f64>,
     /// Noise seeds per noisy column; default 5 (quick 1).
     #[arg(long)]
     pub seeds: Option<usize>,
-    /// Methods, comma separated, among arap, drbc, francois, lddmm, rods.
-    #[arg(long, default_value = "arap,drbc,francois,lddmm,rods")]
+    /// Methods, comma separated, among none (the rest mesh: the error of not registering), arap, drbc,
+    /// francois, lddmm, rods.
+    #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods")]
     pub methods: String,
     /// RODS-MPM particle spacing (mm); default 3 (quick 6).
     #[arg(long)]
@@ -78,11 +87,14 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
     let path = dir.join("ground_truth.json");
     let n = scn.cut.mesh.vertices.len();
     if path.exists() {
-        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
-        let flat: Vec<f64> = v["displacement_mm"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
+        let flat: Vec<f64> =
+            v["displacement_mm"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
         if flat.len() == 3 * n {
             let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
-            let report: GroundTruthReport = serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
+            let report: GroundTruthReport =
+                serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
             return Ok((u, report));
         }
         eprintln!("{}: for another mesh ({} values, {} nodes now): solving again", path.display(), flat.len(), 3 * n);
@@ -91,7 +103,7 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
     pb.set_message(format!("{}: FEM ground truth (TET10 Neo-Hookean), calibrating the crack pressure", scn.name));
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
     let (u, report) = fem_ground_truth(scn, cfg, &mut |k, p, g| {
-        pb.set_message(format!("{}: FEM solve {} at {p:.4} kPa → lip gap {g:.2} mm", scn.name, k + 1));
+        pb.suspend(|| eprintln!("{}: FEM solve {} at {p:.4} kPa → lip gap {g:.2} mm", scn.name, k + 1));
     })?;
     pb.finish_and_clear();
     let flat: Vec<f64> = u.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
@@ -101,18 +113,28 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
 
 fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
-    let organ = OrganConfig { spacing_mm: spacing, steps: a.steps.unwrap_or(if quick { 60 } else { 200 }), ..Default::default() };
-    let optimizer = OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
+    let organ = OrganConfig {
+        spacing_mm: spacing,
+        steps: a.steps.unwrap_or(if quick { 60 } else { 200 }),
+        ..Default::default()
+    };
+    let optimizer =
+        OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
     let mut out: Vec<Box<dyn Method>> = Vec::new();
     for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
         let b = |name: &str, baseline| Box::new(BaselineMethod { name: name.into(), baseline }) as Box<dyn Method>;
         out.push(match m.as_str() {
-            "arap" => b("ARAP", Baseline::Arap(ArapConfig::default())),
+            // per-element rotations (libigl's tet default): cotangent spokes are unreliable on obtuse tets
+            "arap" => b("ARAP", Baseline::Arap(ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })),
+            "none" => Box::new(laparo_register::benchmark::methods::NoRegistration),
             "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
-            "francois" => b("François et al.", Baseline::Francois { drbc: DrbcConfig::default(), assumed_depth_mm: a.francois_depth_mm }),
+            "francois" => b(
+                "François et al.",
+                Baseline::Francois { drbc: DrbcConfig::default(), assumed_depth_mm: a.francois_depth_mm },
+            ),
             "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
             "rods" | "rods-mpm" => Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() }),
-            o => bail!("--methods: unknown method {o:?} (expected arap, drbc, francois, lddmm, rods)"),
+            o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods)"),
         });
     }
     if out.is_empty() {
@@ -125,11 +147,14 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
 fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Vec<Box<dyn Method>> {
     let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
     let steps = a.steps.unwrap_or(if quick { 60 } else { 200 });
-    let optimizer = OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
+    let optimizer =
+        OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
     let base = OrganConfig { spacing_mm: spacing, steps, ..Default::default() };
     let mut out: Vec<Box<dyn Method>> = Vec::new();
     let mut rods = |name: String, organ: OrganConfig| {
-        out.push(Box::new(NamedRods { name, inner: RodsMethod { organ, optimizer: optimizer.clone() } }) as Box<dyn Method>)
+        out.push(
+            Box::new(NamedRods { name, inner: RodsMethod { organ, optimizer: optimizer.clone() } }) as Box<dyn Method>
+        )
     };
     for f in [0.25, 0.5, 2.0, 3.0, 10.0] {
         rods(format!("RODS-MPM E×{f}"), OrganConfig { youngs_modulus_kpa: 4.1 * f, ..base.clone() });
@@ -174,11 +199,19 @@ impl Method for NamedRods {
     }
 }
 
+/// Mean rest position of the lip nodes.
+fn incision_centre(c: &laparo_register::benchmark::BenchmarkCase) -> Vector3<f64> {
+    let ids: Vec<usize> = c.lips.iter().flatten().copied().collect();
+    ids.iter().map(|&i| c.rest[i]).sum::<Vector3<f64>>() / ids.len().max(1) as f64
+}
+
 pub fn run(a: BenchmarkArgs) -> Result<()> {
     let quick = a.quick;
     let liver = match a.liver.clone().or_else(default_liver) {
         Some(p) => p,
-        None => bail!("--liver: no liver surface given and ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj is absent"),
+        None => bail!(
+            "--liver: no liver surface given and ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj is absent"
+        ),
     };
     let scenarios: Vec<&str> = match a.scenario.as_str() {
         "all" => vec!["non-anatomical", "anatomical"],
@@ -189,11 +222,14 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let t_all = std::time::Instant::now();
     // 1. volume mesh
-    let edge = a.edge_mm.unwrap_or(if quick { 14.0 } else { 6.0 });
+    let edge = a.edge_mm.unwrap_or(if quick { 16.0 } else { 6.0 });
     let surface = laparo_core::mesh::read_mesh(&liver)?;
     let t0 = std::time::Instant::now();
-    let (mesh, quality) =
-        tetrahedralize_surface(surface, &liver.display().to_string(), &TetraParams { edge_mm: edge, ..Default::default() })?;
+    let (mesh, quality) = tetrahedralize_surface(
+        surface,
+        &liver.display().to_string(),
+        &TetraParams { edge_mm: edge, ..Default::default() },
+    )?;
     let mesh_s = t0.elapsed().as_secs_f64();
     write_json(&a.out.join("mesh_quality.json"), &quality)?;
     laparo_core::mesh::write_vtk(a.out.join("mesh.vtk"), &mesh)?;
@@ -242,8 +278,23 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         // the ground truth on the surface, for people to look at
         let mag: Vec<f64> = u.iter().map(|v| v.norm()).collect();
         let view = SurfaceView { direction: -Vector3::from(frame.anterior), up: Vector3::z(), size_px: 420 };
-        write_tre_map(&dir.join("ground_truth.png"), &case.ground_truth, &case.surface, &mag, rep.max_displacement_mm.max(1e-6), &view, &format!("{name}: FEM ground truth |u| [mm]"))?;
-        write_vtk_fields(&dir.join("ground_truth.vtk"), &case.rest, &case.tets, &[("u_norm_mm", &mag)], &[("displacement_mm", &u)])?;
+        write_tre_map(
+            &dir.join("ground_truth.png"),
+            &case.ground_truth,
+            &case.surface,
+            &mag,
+            rep.max_displacement_mm.max(1e-6),
+            &view,
+            (centre, 60.0),
+            (&format!("{name}: FEM ground truth (deformed), whole liver and the incision"), "|u| [mm]"),
+        )?;
+        write_vtk_fields(
+            &dir.join("ground_truth.vtk"),
+            &case.rest,
+            &case.tets,
+            &[("u_norm_mm", &mag)],
+            &[("displacement_mm", &u)],
+        )?;
         gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0)}));
         cases.push(case);
     }
@@ -255,14 +306,25 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     let refs: Vec<&dyn Method> = ms.iter().map(|m| m.as_ref()).collect();
     let columns = table51_columns();
     let pb = ProgressBar::new(0);
-    pb.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {msg}  [{elapsed_precise}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    pb.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {msg}  [{elapsed_precise}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
     let map_column = Column { landmarks: 50, noise_sigma_mm: 0.0 };
     let mut map_err: Option<anyhow::Error> = None;
     let mut on_event = |e: &laparo_register::benchmark::RunEvent| {
         pb.set_length(e.total as u64);
         pb.set_position(e.done as u64);
         let k = &e.result.key;
-        pb.set_message(format!("{} {} {} seed {}: TRE {:.2} mm{}", k.scenario, k.method, k.column.label(), k.seed, e.result.tre_volume.mean, if e.registered.is_none() { " (resumed)" } else { "" }));
+        pb.set_message(format!(
+            "{} {} {} seed {}: TRE {:.2} mm{}",
+            k.scenario,
+            k.method,
+            k.column.label(),
+            k.seed,
+            e.result.tre_volume.mean,
+            if e.registered.is_none() { " (resumed)" } else { "" }
+        ));
         if let (Some(nodes), true) = (e.registered, k.column == map_column && k.seed == 0) {
             let err: Vec<f64> = nodes.iter().zip(&e.case.ground_truth).map(|(a, b)| (a - b).norm()).collect();
             let dir = a.out.join(&k.scenario).join("maps");
@@ -270,8 +332,30 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             let view = SurfaceView { direction: -Vector3::from(frame.anterior), up: Vector3::z(), size_px: 420 };
             let res = std::fs::create_dir_all(&dir)
                 .map_err(anyhow::Error::from)
-                .and_then(|_| Ok(write_tre_map(&dir.join(format!("{stem}.png")), nodes, &e.case.surface, &err, 10.0, &view, &format!("{} {}: TRE [mm], 50 landmarks", k.scenario, k.method))?))
-                .and_then(|_| Ok(write_vtk_fields(&dir.join(format!("{stem}.vtk")), nodes, &e.case.tets, &[("tre_mm", &err)], &[])?));
+                .and_then(|_| {
+                    Ok(write_tre_map(
+                        &dir.join(format!("{stem}.png")),
+                        nodes,
+                        &e.case.surface,
+                        &err,
+                        10.0,
+                        &view,
+                        (incision_centre(e.case), 60.0),
+                        (
+                            &format!("{} {}: TRE, 50 landmarks, whole liver and the incision", k.scenario, k.method),
+                            "TRE [mm]",
+                        ),
+                    )?)
+                })
+                .and_then(|_| {
+                    Ok(write_vtk_fields(
+                        &dir.join(format!("{stem}.vtk")),
+                        nodes,
+                        &e.case.tets,
+                        &[("tre_mm", &err)],
+                        &[],
+                    )?)
+                });
             if let Err(x) = res {
                 map_err.get_or_insert(x);
             }
@@ -298,9 +382,18 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             .iter()
             .filter(|c| c.scenario == *name && c.column == map_column && refs.iter().any(|m| m.name() == c.method))
             .collect();
-        write_distance_plot(&a.out.join(name).join("fig58_tre_vs_distance.png"), &main, &format!("{name}: TRE vs distance to the incision (50 landmarks)"))?;
+        write_distance_plot(
+            &a.out.join(name).join("fig58_tre_vs_distance.png"),
+            &main,
+            &format!("{name}: TRE vs distance to the incision (50 landmarks)"),
+        )?;
     }
     print!("{md}");
-    println!("wrote {} ({:.1} min, peak {:.0} MiB)", a.out.display(), t_all.elapsed().as_secs_f64() / 60.0, laparo_register::pipeline::peak_memory_mib().unwrap_or(f64::NAN));
+    println!(
+        "wrote {} ({:.1} min, peak {:.0} MiB)",
+        a.out.display(),
+        t_all.elapsed().as_secs_f64() / 60.0,
+        laparo_register::pipeline::peak_memory_mib().unwrap_or(f64::NAN)
+    );
     Ok(())
 }
