@@ -1,0 +1,113 @@
+//! `laparo register benchmark --quick` on the real P2ILF liver (skips when ../shared/data is absent): the
+//! whole chain (mesh, cut, FEM ground truth, every method, Table 5.1, Fig. 5.8, TRE maps), its numbers
+//! checked against the ground truth it wrote, resume, and bad input.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn laparo(args: &[&str], cwd: &Path) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).current_dir(cwd).output().expect("run laparo");
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn liver() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipping: {} is absent", p.display());
+        None
+    }
+}
+
+#[test]
+fn quick_tier_end_to_end_and_resume() {
+    let Some(liver) = liver() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bench");
+    let args = [
+        "register",
+        "benchmark",
+        "--quick",
+        "--scenario",
+        "non-anatomical",
+        "--liver",
+        liver.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let (ok, stdout, err) = laparo(&args, dir.path());
+    assert!(ok, "{err}");
+    for m in ["none (rest)", "ARAP", "DRBC", "François et al.", "LDDMM", "RODS-MPM"] {
+        assert!(stdout.contains(&format!("| {m} |")), "{m} row missing:\n{stdout}");
+    }
+    let gt: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("ground_truth.json")).unwrap()).unwrap();
+    let g = &gt[0]["ground_truth"];
+    let gap = g["max_gap_mm"].as_f64().unwrap();
+    assert!((10.0..=15.0).contains(&gap), "lip gap {gap}");
+    assert!(g["min_j"].as_f64().unwrap() > 0.0);
+    assert!(g["far_displacement_mm"].as_f64().unwrap() < 1.0);
+    assert!(g["max_relative_residual"].as_f64().unwrap() <= 1e-8);
+    // the "none (rest)" row is the ground-truth displacement itself: its TRE max = the largest |u|
+    let cells: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table51.json")).unwrap()).unwrap();
+    let runs = out.join("runs/non-anatomical/none _rest_/lm50_seed0.json");
+    let runs = if runs.exists() { runs } else { out.join("runs/non-anatomical/none__rest_/lm50_seed0.json") };
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&runs).unwrap()).unwrap();
+    let umax = g["max_displacement_mm"].as_f64().unwrap();
+    assert!((r["tre_volume"]["max"].as_f64().unwrap() - umax).abs() < 1e-9 * umax.max(1.0));
+    assert_eq!(cells.as_array().unwrap().len(), 6 * 6, "6 methods × 6 columns");
+    for f in [
+        "table51.md",
+        "table51.csv",
+        "mesh.vtk",
+        "non-anatomical/fig58_tre_vs_distance.png",
+        "non-anatomical/ground_truth.png",
+        "non-anatomical/maps/RODS-MPM.png",
+        "non-anatomical/maps/RODS-MPM.vtk",
+    ] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    // a second run resumes every stored run and reproduces the table byte for byte
+    let before = std::fs::read_to_string(out.join("table51.md")).unwrap();
+    let (ok, _, err) = laparo(&args, dir.path());
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read_to_string(out.join("table51.md")).unwrap(), before);
+}
+
+#[test]
+fn bad_input_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    // an open surface: one triangle
+    let open = dir.path().join("open.obj");
+    std::fs::write(&open, "v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 3\n").unwrap();
+    let out = dir.path().join("o");
+    let (ok, _, err) = laparo(
+        &["register", "benchmark", "--quick", "--liver", open.to_str().unwrap(), "--out", out.to_str().unwrap()],
+        dir.path(),
+    );
+    assert!(!ok && err.contains("open.obj") && err.contains("not closed"), "{err}");
+    let (ok, _, err) =
+        laparo(&["register", "benchmark", "--scenario", "bogus", "--out", out.to_str().unwrap()], dir.path());
+    assert!(!ok && err.contains("--scenario"), "{err}");
+    let (ok, _, err) = laparo(
+        &[
+            "register",
+            "benchmark",
+            "--methods",
+            "arap,magic",
+            "--liver",
+            open.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert!(!ok && err.contains("--methods") && err.contains("magic"), "{err}");
+    assert!(!err.contains("panicked"));
+}
