@@ -202,6 +202,64 @@ pub fn fem_ground_truth(
     Ok((u, report))
 }
 
+/// Remove the pieces of the cut mesh that the blade detached from the organ (connected through no node to
+/// the fixed region): cut-free fragments of tissue, which no boundary condition holds and a resection would
+/// remove. Returns the number of nodes removed. Every index of the scenario is renumbered.
+pub fn drop_detached_fragments(scn: &mut Scenario) -> usize {
+    let cut = &mut scn.cut;
+    let n = cut.mesh.vertices.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    for t in &cut.mesh.tets {
+        for k in 1..4 {
+            let (a, b) = (find(&mut parent, t[0]), find(&mut parent, t[k]));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut fixed_count: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+    for &f in &scn.fixed_nodes {
+        *fixed_count.entry(find(&mut parent, f)).or_default() += 1;
+    }
+    let Some((&keep, _)) = fixed_count.iter().max_by_key(|(root, c)| (**c, std::cmp::Reverse(**root))) else {
+        return 0;
+    };
+    let kept: Vec<bool> = (0..n).map(|i| find(&mut parent, i) == keep).collect();
+    let removed = kept.iter().filter(|k| !**k).count();
+    if removed == 0 {
+        return 0;
+    }
+    let mut new_id = vec![usize::MAX; n];
+    let mut next = 0;
+    for i in 0..n {
+        if kept[i] {
+            new_id[i] = next;
+            next += 1;
+        }
+    }
+    let keep_tet: Vec<bool> = cut.mesh.tets.iter().map(|t| kept[t[0]]).collect();
+    cut.mesh.vertices = (0..n).filter(|&i| kept[i]).map(|i| cut.mesh.vertices[i]).collect();
+    cut.original_node = (0..n).filter(|&i| kept[i]).map(|i| cut.original_node[i]).collect();
+    cut.tet_side = cut.tet_side.iter().zip(&keep_tet).filter(|(_, k)| **k).map(|(s, _)| *s).collect();
+    cut.mesh.tets = cut.mesh.tets.iter().filter(|t| kept[t[0]]).map(|t| t.map(|i| new_id[i])).collect();
+    for faces in cut.crack_faces.iter_mut() {
+        *faces = faces.iter().filter(|f| f.iter().all(|&i| kept[i])).map(|f| f.map(|i| new_id[i])).collect();
+    }
+    for lip in cut.lips.iter_mut() {
+        *lip = lip.iter().filter(|&&i| kept[i]).map(|&i| new_id[i]).collect();
+    }
+    cut.front_nodes = cut.front_nodes.iter().filter(|&&i| kept[i]).map(|&i| new_id[i]).collect();
+    scn.fixed_nodes = scn.fixed_nodes.iter().filter(|&&i| kept[i]).map(|&i| new_id[i]).collect();
+    removed
+}
+
 /// Incision side of every node of `cut`: 1 / 2 for nodes on the crack faces of side A / B only, 0 else
 /// (crack-front nodes are on both and stay 0).
 pub fn node_sides(cut: &CutMesh) -> Vec<u8> {

@@ -251,6 +251,11 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         } else {
             non_anatomical(&mesh, &frame, &NonAnatomicalParams::default())?
         };
+        let mut scn = scn;
+        let dropped = laparo_register::benchmark::build::drop_detached_fragments(&mut scn);
+        if dropped > 0 {
+            eprintln!("{name}: the blade cut a fragment of {dropped} nodes free of the organ: removed (resected)");
+        }
         let mut gcfg = GroundTruthConfig::for_scenario(name);
         if let Some(s) = a.fem_steps {
             gcfg.steps = s;
@@ -298,7 +303,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             &[("u_norm_mm", &mag)],
             &[("displacement_mm", &u)],
         )?;
-        gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0)}));
+        gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped}));
         cases.push(case);
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
