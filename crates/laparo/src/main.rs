@@ -38,6 +38,8 @@ enum Command {
     Mpm(cmd::mpm::MpmCmd),
     /// RODS-MPM deformable registration (thesis Ch. 5) and rigid alignment (App. A).
     Register(Box<cmd::register::RegisterArgs>),
+    /// The guidance pipeline end to end in silico: scenario, stereo, rigid, RODS-MPM, overlay (thesis §5.4.3).
+    Guide(Box<cmd::guide::GuideArgs>),
     /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
     #[command(subcommand)]
     Features(cmd::features::FeaturesCmd),
@@ -61,6 +63,7 @@ fn main() {
         Command::Mpm(c) => cmd::mpm::run(c),
         Command::Register(a) => cmd::register::run(*a),
         Command::Features(c) => cmd::features::run(c),
+        Command::Guide(a) => cmd::guide::run(*a),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(
             "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \

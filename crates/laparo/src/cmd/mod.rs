@@ -6,6 +6,7 @@ pub mod cpc_eval;
 pub mod depth;
 pub mod depth_tools;
 pub mod features;
+pub mod guide;
 pub mod mpm;
 pub mod register;
 pub mod stereo;
