@@ -116,31 +116,21 @@ impl Deformation {
     }
 
     /// The preoperative organ surface: the boundary of the rest mesh with the duplicated nodes merged
-    /// (by position) and the coincident crack-face pairs removed; `.1[i]` = the rest node of vertex i
+    /// (by position), i.e. of the uncut mesh; `.1[i]` = the rest node of vertex i
     /// (one of the copies), `.2[i]` = all copies.
     pub fn preoperative_surface(&self) -> (TriMesh, Vec<usize>, Vec<Vec<usize>>) {
-        let b = self.rest.boundary();
         let key = |p: &Vector3<f64>| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
         let mut rep: HashMap<[u64; 3], usize> = HashMap::new();
         let mut merged = vec![0usize; self.rest.vertices.len()];
         for (i, p) in self.rest.vertices.iter().enumerate() {
             merged[i] = *rep.entry(key(p)).or_insert(i);
         }
-        let mut count: HashMap<[usize; 3], usize> = HashMap::new();
-        let faces: Vec<[usize; 3]> = b.faces.iter().map(|f| [merged[f[0]], merged[f[1]], merged[f[2]]]).collect();
-        for f in &faces {
-            let mut k = *f;
-            k.sort_unstable();
-            *count.entry(k).or_insert(0) += 1;
-        }
-        let kept: Vec<[usize; 3]> = faces
-            .into_iter()
-            .filter(|f| {
-                let mut k = *f;
-                k.sort_unstable();
-                count[&k] == 1
-            })
-            .collect();
+        // the uncut mesh: every tetrahedron on the representatives of its nodes
+        let uncut = TetMesh {
+            vertices: self.rest.vertices.clone(),
+            tets: self.rest.tets.iter().map(|t| [merged[t[0]], merged[t[1]], merged[t[2]], merged[t[3]]]).collect(),
+        };
+        let kept = uncut.boundary().faces;
         // compact
         let mut new_id: HashMap<usize, usize> = HashMap::new();
         let mut node = Vec::new();
@@ -160,6 +150,26 @@ impl Deformation {
         }
         let all = node.iter().map(|v| copies[v].clone()).collect();
         (TriMesh { vertices, faces }, node, all)
+    }
+
+    /// The uncut rest tetrahedral mesh (duplicated nodes merged by position, unused nodes dropped):
+    /// the preoperative volume model.
+    pub fn uncut_tets(&self) -> TetMesh {
+        let key = |p: &Vector3<f64>| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
+        let mut rep: HashMap<[u64; 3], usize> = HashMap::new();
+        let mut new_id = vec![usize::MAX; self.rest.vertices.len()];
+        let mut vertices = Vec::new();
+        for (i, p) in self.rest.vertices.iter().enumerate() {
+            let r = *rep.entry(key(p)).or_insert(i);
+            if r == i {
+                new_id[i] = vertices.len();
+                vertices.push(*p);
+            } else {
+                new_id[i] = new_id[r];
+            }
+        }
+        let tets = self.rest.tets.iter().map(|t| [new_id[t[0]], new_id[t[1]], new_id[t[2]], new_id[t[3]]]).collect();
+        TetMesh { vertices, tets }
     }
 
     /// Deformed boundary surface (present), crack faces included (now exposed).

@@ -104,7 +104,8 @@ impl GuideConfig {
         GuideConfig {
             cloud_step_px: 2,
             lip_offset_px: 1.5,
-            landmark_step_px: 5.0,
+            landmark_step_px: 8.0,
+            max_icp_rmse_mm: 4.0,
             spacing_mm: 4.0,
             roi_radius_mm: 45.0,
             steps: 120,
@@ -721,8 +722,19 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
         tspecs.push(TargetSpec::Cloud(surf_tgt.clone()));
     }
     cloud_ply(&out.join("target_surface.ply"), &surf_tgt)?;
+    // the volume model for the particles; the model surface and the tumour are deformed by the
+    // registration's barycentric transfer (one mesh: surface vertices first, then the tumour)
+    let tets = laparo_core::mesh::read_vtk(sc("model_tets.vtk"))?;
+    let tets_aligned = laparo_core::mesh::TetMesh { vertices: tets.vertices.iter().map(|p| rig.pose.apply(p)).collect(), tets: tets.tets.clone() };
+    laparo_core::mesh::write_vtk(out.join("model_aligned.vtk"), &tets_aligned)?;
+    let nm = aligned.vertices.len();
+    let both = TriMesh {
+        vertices: aligned.vertices.iter().chain(&tum_aligned.vertices).copied().collect(),
+        faces: aligned.faces.iter().copied().chain(tum_aligned.faces.iter().map(|f| [f[0] + nm, f[1] + nm, f[2] + nm])).collect(),
+    };
+    laparo_core::mesh::write_obj(out.join("model_and_tumour_aligned.obj"), &both)?;
     let job = laparo_register::pipeline::Job {
-        organ: out.join("model_aligned.obj"),
+        organ: out.join("model_aligned.vtk"),
         organ_config: laparo_register::organ::OrganConfig {
             spacing_mm: cfg.spacing_mm,
             steps: cfg.steps,
@@ -733,7 +745,7 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
         targets: tspecs,
         region_weight: 0.0,
         optimizer: laparo_register::optimize::OptimizerConfig { iterations: cfg.iterations, ..Default::default() },
-        tumour: Some(out.join("tumour_aligned.obj")),
+        tumour: Some(out.join("model_and_tumour_aligned.obj")),
         overlay: None,
         out: out.join("registration"),
         resume: false,
@@ -757,7 +769,13 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     );
     // ---- stage 6: transfer + evaluation
     let t0 = Instant::now();
-    let reg_model = laparo_core::mesh::read_mesh(out.join("registration/organ_deformed.obj"))?;
+    let reg_both = laparo_core::mesh::read_mesh(out.join("registration/tumour_deformed.obj"))?;
+    if reg_both.vertices.len() != nm + tum_aligned.vertices.len() {
+        return Err(bad("transfer", "registration/tumour_deformed.obj", format!("{} vertices, expected {}", reg_both.vertices.len(), nm + tum_aligned.vertices.len())));
+    }
+    let reg_model = TriMesh { vertices: reg_both.vertices[..nm].to_vec(), faces: aligned.faces.clone() };
+    let tum_reg = TriMesh { vertices: reg_both.vertices[nm..].to_vec(), faces: tum_aligned.faces.clone() };
+    laparo_core::mesh::write_obj(out.join("tumour_registered.obj"), &tum_reg)?;
     // vertices outside the region of interest did not move (its boundary is fixed)
     let reg_vertices: Vec<Vector3<f64>> = aligned
         .vertices
@@ -791,7 +809,6 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     };
     let tre_reg = tre(&reg_vertices);
     let tre_rigid = tre(&aligned.vertices);
-    let tum_reg = laparo_core::mesh::read_mesh(out.join("registration/tumour_deformed.obj"))?;
     let tum_gt = laparo_core::mesh::read_mesh(sc("gt/tumour_present.obj"))?;
     let centroid = |m: &TriMesh| m.vertices.iter().sum::<Vector3<f64>>() / m.vertices.len() as f64;
     let c_err = (centroid(&tum_reg) - centroid(&tum_gt)).norm();
@@ -811,7 +828,7 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
                 "tumour_centroid_error_mm": c_err, "tumour_centroid_error_rigid_only_mm": c_err_rigid,
                 "tumour_outline_error_px_1920": o_err, "tumour_outline_error_rigid_only_px_1920": o_err_rigid,
             }),
-            outputs: vec!["liver_registered.obj".into()],
+            outputs: vec!["liver_registered.obj".into(), "tumour_registered.obj".into()],
         },
         &mut stages,
     );

@@ -10,9 +10,10 @@
 //!   rotation (Z-Y-X Euler angles, CATS eq. 3.7) and a principal-point offset: an uncalibrated pair
 //!   in CATS' sense. Its exact calibration is written too (`calibration.json`, laparo's JSON).
 //! - Texture: the real P2ILF frame projected onto the rest organ from the left camera (each rest
-//!   vertex gets the frame pixel it projects to with the frame's own intrinsics), so the texture
-//!   moves with the tissue in the present pair; exposed crack faces are tinted dark red. A
-//!   background plane 40 mm behind the organ carries the same frame, darkened.
+//!   vertex gets the frame pixel at its projection in the left image, the frame scaled to the image
+//!   size), so the texture moves with the tissue in the present pair; exposed
+//!   crack faces are tinted dark red. A background plane 40 mm behind the organ carries the same
+//!   frame mirrored in both directions and darkened.
 //! - Ground truth: depth (mm) and raw disparity `d = x_L − x_R` (px) of every left pixel, liver
 //!   masks, the organ pose, the deformed organ and tumour, lips in 3D and on the images.
 use crate::deformation::{icosphere, synthetic_incision, Deformation, IncisionSpec};
@@ -45,8 +46,8 @@ pub struct ScenarioConfig {
     pub right_pp_shift_px: [f64; 2],
     /// Viewpoint tilt about the camera x and y axes (degrees).
     pub tilt_deg: [f64; 2],
-    /// Fraction of the image the organ spans.
-    pub fill: f64,
+    /// Distance from the camera to the middle of the incision (mm).
+    pub distance_mm: f64,
     /// Rough initial pose given to the pipeline: rotation (degrees) and translation (mm) away from
     /// the true pose.
     pub initial_error: [f64; 2],
@@ -63,13 +64,13 @@ impl ScenarioConfig {
             right_euler_deg: [0.3, -0.5, 0.4],
             right_pp_shift_px: [12.0, 3.0],
             tilt_deg: [25.0, 10.0],
-            fill: 0.8,
+            distance_mm: 90.0,
             initial_error: [6.0, 8.0],
         }
     }
-    /// The quick scenario (640×360, 6 mm grid) for tests and `laparo demo`.
+    /// The quick scenario (960×540, 6 mm grid) for tests and `laparo demo`.
     pub fn quick() -> Self {
-        ScenarioConfig { width: 640, height: 360, grid_mm: 6.0, ..Self::full() }
+        ScenarioConfig { width: 960, height: 540, grid_mm: 6.0, ..Self::full() }
     }
 }
 
@@ -205,10 +206,10 @@ pub fn default_incision(lo: &Vector3<f64>, hi: &Vector3<f64>) -> IncisionSpec {
         up_axis: up,
         plane_mm: c[normal] - 0.1 * ext[normal],
         span_mm: [c[span] - 0.25 * ext[span], c[span] + 0.2 * ext[span]],
-        depth_mm: 0.18 * ext[up],
+        depth_mm: 0.35 * ext[up],
         opening_mm: 5.0,
         decay_mm: 20.0,
-        tumour_depth_mm: 0.15 * ext[up],
+        tumour_depth_mm: 0.12 * ext[up],
         tumour_offset_mm: 10.0,
         tumour_radius_mm: 8.0,
     }
@@ -315,10 +316,10 @@ pub fn generate(
         clo = clo.inf(p);
         chi = chi.sup(p);
     }
-    let cc = (clo + chi) / 2.0;
-    let dist = (k.fx * (chi[0] - clo[0]) / (cfg.fill * cfg.width as f64))
-        .max(k.fy * (chi[1] - clo[1]) / (cfg.fill * cfg.height as f64))
-        + (chi[2] - clo[2]) / 2.0;
+    // the laparoscope looks at the middle of the incision from `distance_mm`
+    let lip_mid = def.lips[1].iter().map(|&n| def.rest.vertices[n]).sum::<Vector3<f64>>() / def.lips[1].len() as f64;
+    let cc = r * lip_mid;
+    let dist = cfg.distance_mm;
     let t = Vector3::new(-cc[0], -cc[1], dist - cc[2]);
     let gt_pose = Pose::new(&r, &t);
     let vl = View { k, r, t };
@@ -348,24 +349,23 @@ pub fn generate(
     calib.write_json(out.join("calibration.json"))?;
     // texture coordinates: the frame seen from the left camera with the frame's intrinsics
     let (tw, th) = (texture.width as f64, texture.height as f64);
+    // the frame as seen by the left camera: a rest vertex gets the frame pixel at its projection
+    let _ = k_full;
     let uv_of = |p: &Vector3<f64>| -> [f64; 2] {
-        let c = r * p + t;
-        let z = c[2].max(1e-6);
-        [
-            (k_full.fx * c[0] / z + k_full.cx) * tw / 1920.0,
-            (k_full.fy * c[1] / z + k_full.cy) * th / 1080.0,
-        ]
+        let (u, v, _) = vl.project(p).unwrap_or((0.0, 0.0, 1.0));
+        [(u + 0.5) / cfg.width as f64 * tw - 0.5, (v + 0.5) / cfg.height as f64 * th - 0.5]
     };
     let boundary = def.rest.boundary();
     let uv: Vec<[f64; 2]> = def.rest.vertices.iter().map(uv_of).collect();
     let crack = crack_faces(&def.rest.vertices, &boundary.faces);
     let tint: Vec<[f64; 3]> = crack.iter().map(|&c| if c { [0.85, 0.3, 0.3] } else { [1.0, 1.0, 1.0] }).collect();
     // background plane 40 mm behind the farthest organ point, over 140 % of the left view
-    let zb = chi[2] - cc[2] + dist + 40.0;
+    let zb = chi[2] - cc[2] + dist + 40.0; // behind the farthest organ point
     let (w, h) = (cfg.width as f64, cfg.height as f64);
     let corners = [(-0.2 * w, -0.2 * h), (1.2 * w, -0.2 * h), (1.2 * w, 1.2 * h), (-0.2 * w, 1.2 * h)];
     let bg_v: Vec<Vector3<f64>> = corners.iter().map(|&(u, v)| vl.backproject(u, v, zb)).collect();
-    let bg_uv: Vec<[f64; 2]> = corners.iter().map(|&(u, v)| [(u + 0.5) / w * tw - 0.5, (v + 0.5) / h * th - 0.5]).collect();
+    let bg_uv: Vec<[f64; 2]> =
+        corners.iter().map(|&(u, v)| [tw - 1.0 - ((u + 0.5) / w * tw - 0.5), th - 1.0 - ((v + 0.5) / h * th - 0.5)]).collect();
     let bg_f = [[0, 1, 2], [0, 2, 3]];
     let bg_tint = [[0.5, 0.45, 0.45]; 2];
     let bg = Textured { vertices: &bg_v, faces: &bg_f, uv: &bg_uv, tint: &bg_tint, label: 2 };
@@ -385,6 +385,7 @@ pub fn generate(
     // preoperative model and tumour (model frame)
     let (pre, _node, copies) = def.preoperative_surface();
     laparo_core::mesh::write_obj(out.join("model.obj"), &pre)?;
+    laparo_core::mesh::write_vtk(out.join("model_tets.vtk"), &def.uncut_tets())?;
     let sphere = icosphere(2);
     let tum = TriMesh {
         vertices: sphere.vertices.iter().map(|p| def.tumour_centre_mm + p * def.tumour_radius_mm).collect(),
@@ -456,7 +457,7 @@ pub fn generate(
         config: cfg.clone(),
         left: k,
         right: kr,
-        depth_prior_mm: [0.5 * (dist - (chi[2] - clo[2]) / 2.0), zb + 20.0],
+        depth_prior_mm: [0.5 * dist, zb + 20.0],
         gt_pose,
         tumour_centre_model_mm: [def.tumour_centre_mm[0], def.tumour_centre_mm[1], def.tumour_centre_mm[2]],
         tumour_centre_present_mm: [centre_present[0], centre_present[1], centre_present[2]],

@@ -34,7 +34,7 @@ pub struct RunArgs {
     /// Stereo route: calibrated or self-rectified.
     #[arg(long, default_value = "calibrated")]
     pub route: String,
-    /// Settings for the quick (640×360) scenario.
+    /// Settings for the quick (960×540) scenario.
     #[arg(long)]
     pub quick: bool,
     /// Optimiser iterations of the registration.
@@ -103,7 +103,7 @@ pub struct ScenarioArgs {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// 640×360, 6 mm tetrahedra (the demo size).
+    /// 960×540, 6 mm tetrahedra (the demo size).
     #[arg(long)]
     pub quick: bool,
     /// Organ surface (closed, mm); default ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj.
