@@ -154,7 +154,11 @@ pub fn stereo_depth(
 ) -> Result<StereoDepth> {
     let (w, h) = left.size();
     if right.size() != (w, h) || (calib.width, calib.height) != (w, h) {
-        return Err(bad("stereo", input, format!("images {w}x{h} / {}x{}, calibration {}x{}", right.width, right.height, calib.width, calib.height)));
+        return Err(bad(
+            "stereo",
+            input,
+            format!("images {w}x{h} / {}x{}, calibration {}x{}", right.width, right.height, calib.width, calib.height),
+        ));
     }
     let b = calib.t_mm.norm();
     match route {
@@ -192,7 +196,11 @@ pub fn stereo_depth(
                     }
                 }
             }
-            Ok(StereoDepth { depth_mm: depth, range_px: [lo, hi], info: serde_json::json!({"rectification": rect.info()}) })
+            Ok(StereoDepth {
+                depth_mm: depth,
+                range_px: [lo, hi],
+                info: serde_json::json!({"rectification": rect.info()}),
+            })
         }
         Route::SelfRectified => {
             use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
@@ -302,7 +310,13 @@ fn inverse(p: &Pose) -> Similarity {
 }
 
 /// Stage 2: ICP of the cloud (camera frame) onto the model (model frame) from `init`.
-pub fn rigid_alignment(model: &TriMesh, cloud: &[Vector3<f64>], init: &Pose, cfg: &GuideConfig, input: &str) -> Result<RigidResult> {
+pub fn rigid_alignment(
+    model: &TriMesh,
+    cloud: &[Vector3<f64>],
+    init: &Pose,
+    cfg: &GuideConfig,
+    input: &str,
+) -> Result<RigidResult> {
     if cloud.len() < 100 {
         return Err(bad("rigid", "past point cloud", format!("{} points (need ≥ 100)", cloud.len())));
     }
@@ -344,7 +358,11 @@ pub fn check_polyline(p: &[[f64; 2]], w: usize, h: usize, stage: &str, input: &s
     }
     for (i, q) in p.iter().enumerate() {
         if !(q[0] >= 0.0 && q[1] >= 0.0 && q[0] <= w as f64 - 1.0 && q[1] <= h as f64 - 1.0) {
-            return Err(bad(stage, input, format!("point {i} ({:.1}, {:.1}) px is outside the {w}x{h} image", q[0], q[1])));
+            return Err(bad(
+                stage,
+                input,
+                format!("point {i} ({:.1}, {:.1}) px is outside the {w}x{h} image", q[0], q[1]),
+            ));
         }
     }
     Ok(())
@@ -408,24 +426,41 @@ pub fn side_of(p: &[[f64; 2]], q: &[[f64; 2]]) -> f64 {
 }
 
 /// Stage 3: back-project image points onto a mesh in the camera frame (first hit along the ray).
-pub fn back_project_polyline(p: &[[f64; 2]], view: &View, mesh: &TriMesh, stage: &str, input: &str) -> Result<Vec<Vector3<f64>>> {
+pub fn back_project_polyline(
+    p: &[[f64; 2]],
+    view: &View,
+    mesh: &TriMesh,
+    stage: &str,
+    input: &str,
+) -> Result<Vec<Vector3<f64>>> {
     let o = view.backproject(view.k.cx, view.k.cy, 0.0);
     p.par_iter()
         .map(|q| {
             let dir = (view.backproject(q[0], q[1], 1.0) - o).normalize();
             mesh.faces
                 .iter()
-                .filter_map(|f| ray_triangle(&o, &dir, &mesh.vertices[f[0]], &mesh.vertices[f[1]], &mesh.vertices[f[2]]))
+                .filter_map(|f| {
+                    ray_triangle(&o, &dir, &mesh.vertices[f[0]], &mesh.vertices[f[1]], &mesh.vertices[f[2]])
+                })
                 .min_by(f64::total_cmp)
                 .map(|t| o + dir * t)
-                .ok_or_else(|| bad(stage, input, format!("the ray of ({:.1}, {:.1}) px misses the aligned model", q[0], q[1])))
+                .ok_or_else(|| {
+                    bad(stage, input, format!("the ray of ({:.1}, {:.1}) px misses the aligned model", q[0], q[1]))
+                })
         })
         .collect()
 }
 
 /// Stage 4: lift image points to 3D through a depth map (median of the valid depths within
 /// `radius` px).
-pub fn lift_polyline(p: &[[f64; 2]], depth: &Image<f64>, view: &View, radius: i64, stage: &str, input: &str) -> Result<Vec<Vector3<f64>>> {
+pub fn lift_polyline(
+    p: &[[f64; 2]],
+    depth: &Image<f64>,
+    view: &View,
+    radius: i64,
+    stage: &str,
+    input: &str,
+) -> Result<Vec<Vector3<f64>>> {
     p.iter()
         .map(|q| {
             let (x0, y0) = (q[0].round() as i64, q[1].round() as i64);
@@ -455,7 +490,11 @@ pub fn silhouette(view: &View, mesh: &TriMesh) -> Mask {
     let uv = vec![[0.0, 0.0]; mesh.vertices.len()];
     let tint = vec![[1.0; 3]; mesh.faces.len()];
     let tex = Image::filled(1, 1, 3, 0u8);
-    let r = render(view, &[Textured { vertices: &mesh.vertices, faces: &mesh.faces, uv: &uv, tint: &tint, label: 1 }], &tex);
+    let r = render(
+        view,
+        &[Textured { vertices: &mesh.vertices, faces: &mesh.faces, uv: &uv, tint: &tint, label: 1 }],
+        &tex,
+    );
     r.label.map(|v| v == 1)
 }
 
@@ -465,7 +504,14 @@ fn outline(m: &Mask) -> Vec<[f64; 2]> {
     for y in 0..h {
         for x in 0..w {
             if m.get(x, y, 0) {
-                let edge = x == 0 || y == 0 || x + 1 == w || y + 1 == h || !m.get(x - 1, y, 0) || !m.get(x + 1, y, 0) || !m.get(x, y - 1, 0) || !m.get(x, y + 1, 0);
+                let edge = x == 0
+                    || y == 0
+                    || x + 1 == w
+                    || y + 1 == h
+                    || !m.get(x - 1, y, 0)
+                    || !m.get(x + 1, y, 0)
+                    || !m.get(x, y - 1, 0)
+                    || !m.get(x, y + 1, 0);
                 if edge {
                     out.push([x as f64, y as f64]);
                 }
@@ -482,7 +528,12 @@ pub fn outline_distance(a: &Mask, b: &Mask) -> Option<f64> {
         return None;
     }
     let d = |p: &[[f64; 2]], q: &[[f64; 2]]| -> f64 {
-        p.par_iter().map(|x| q.iter().map(|y| (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2)).fold(f64::INFINITY, f64::min).sqrt()).sum::<f64>() / p.len() as f64
+        p.par_iter()
+            .map(|x| {
+                q.iter().map(|y| (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2)).fold(f64::INFINITY, f64::min).sqrt()
+            })
+            .sum::<f64>()
+            / p.len() as f64
     };
     Some(0.5 * (d(&oa, &ob) + d(&ob, &oa)))
 }
@@ -532,7 +583,12 @@ pub struct GuideReport {
 }
 
 /// Run the whole pipeline on `scenario`, writing into `out`; `progress` gets each finished stage.
-pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn FnMut(&StageRecord)) -> Result<GuideReport> {
+pub fn run(
+    scenario: &Path,
+    out: &Path,
+    cfg: &GuideConfig,
+    progress: &mut dyn FnMut(&StageRecord),
+) -> Result<GuideReport> {
     let t_all = Instant::now();
     std::fs::create_dir_all(out).map_err(|e| laparo_core::CoreError::io(out, e))?;
     let sc = |n: &str| scenario.join(n);
@@ -572,18 +628,29 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
             width: w,
             height: h,
             channels: 1,
-            data: (0..w * h).map(|i| if mask.data[i] { (sd.depth_mm.data[i] - gt.data[i]).abs() } else { f64::NAN }).collect(),
+            data: (0..w * h)
+                .map(|i| if mask.data[i] { (sd.depth_mm.data[i] - gt.data[i]).abs() } else { f64::NAN })
+                .collect(),
         };
         let e_img = laparo_core::colormap::colorize(&abs_err, 0.0, 5.0, Colormap::Magma);
         laparo_core::io::write_png(out.join(format!("{name}_depth_error.png")), &e_img)?;
         laparo_core::io::write_float_map(out.join(format!("{name}_depth_mm.npy")), &sd.depth_mm)?;
-        write_atomic(&out.join(format!("{name}_stereo.json")), serde_json::to_string_pretty(&sd.info).unwrap_or_default().as_bytes())?;
+        write_atomic(
+            &out.join(format!("{name}_stereo.json")),
+            serde_json::to_string_pretty(&sd.info).unwrap_or_default().as_bytes(),
+        )?;
         push(
             StageRecord {
                 name: format!("stereo ({name})"),
                 seconds: t0.elapsed().as_secs_f64(),
                 metrics: serde_json::json!({"depth_error": err, "range_px": sd.range_px, "cloud_points": cloud.len()}),
-                outputs: vec![format!("{name}_depth.png"), format!("{name}_depth_error.png"), format!("{name}_cloud.ply"), format!("{name}_depth_mm.npy"), format!("{name}_stereo.json")],
+                outputs: vec![
+                    format!("{name}_depth.png"),
+                    format!("{name}_depth_error.png"),
+                    format!("{name}_cloud.ply"),
+                    format!("{name}_depth_mm.npy"),
+                    format!("{name}_stereo.json"),
+                ],
             },
             &mut stages,
         );
@@ -602,13 +669,20 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     let vert_err: Vec<f64> = model.vertices.iter().map(|p| (rig.pose.apply(p) - gt.apply(p)).norm()).collect();
     let init_err: Vec<f64> = model.vertices.iter().map(|p| (init.apply(p) - gt.apply(p)).norm()).collect();
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let aligned = TriMesh { vertices: model.vertices.iter().map(|p| rig.pose.apply(p)).collect(), faces: model.faces.clone() };
+    let aligned =
+        TriMesh { vertices: model.vertices.iter().map(|p| rig.pose.apply(p)).collect(), faces: model.faces.clone() };
     laparo_core::mesh::write_obj(out.join("model_aligned.obj"), &aligned)?;
     write_atomic(&out.join("rigid.json"), serde_json::to_string_pretty(&rig).unwrap_or_default().as_bytes())?;
     {
         use laparo_register::overlay::{render_overlay, CameraPose, Layer};
         let pose = CameraPose { rotation: Matrix3::identity(), translation: Vector3::zeros() };
-        let o = render_overlay(past_img, &[Layer { vertices: &aligned.vertices, faces: &aligned.faces, color: [90, 200, 255], alpha: 0.35 }], &pose, &calib.left, &Default::default());
+        let o = render_overlay(
+            past_img,
+            &[Layer { vertices: &aligned.vertices, faces: &aligned.faces, color: [90, 200, 255], alpha: 0.35 }],
+            &pose,
+            &calib.left,
+            &Default::default(),
+        );
         laparo_core::io::write_png(out.join("rigid_overlay.png"), &o)?;
     }
     push(
@@ -641,7 +715,15 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     let mut sources = Vec::new();
     for (i, lip) in lips.lips_px.iter().enumerate() {
         let side = side_of(&inc.points_px, lip).signum();
-        let side = if side == 0.0 { if i == 0 { -1.0 } else { 1.0 } } else { side };
+        let side = if side == 0.0 {
+            if i == 0 {
+                -1.0
+            } else {
+                1.0
+            }
+        } else {
+            side
+        };
         let off = offset_polyline(&inc_r, side * cfg.lip_offset_px);
         check_polyline(&off, w, h, "incision", &inc_path.display().to_string())?;
         sources.push(back_project_polyline(&off, &view, &aligned, "landmarks", &inc_path.display().to_string())?);
@@ -681,7 +763,11 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
         .map(|i| {
             gt_lips["lips_mm"][i]
                 .as_array()
-                .map(|a| a.iter().filter_map(|p| Some(Vector3::new(p[0].as_f64()?, p[1].as_f64()?, p[2].as_f64()?))).collect())
+                .map(|a| {
+                    a.iter()
+                        .filter_map(|p| Some(Vector3::new(p[0].as_f64()?, p[1].as_f64()?, p[2].as_f64()?)))
+                        .collect()
+                })
                 .unwrap_or_default()
         })
         .collect();
@@ -707,9 +793,13 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     let roi_r = cfg.roi_radius_mm;
     let in_roi = |p: &Vector3<f64>| (p - centre).norm() < roi_r - 1.5 * cfg.spacing_mm;
     let surf_src: Vec<Vector3<f64>> = past_cloud.iter().filter(|p| in_roi(p)).step_by(4).copied().collect();
-    let surf_tgt: Vec<Vector3<f64>> = present_cloud.iter().filter(|p| (*p - centre).norm() < roi_r + 10.0).copied().collect();
+    let surf_tgt: Vec<Vector3<f64>> =
+        present_cloud.iter().filter(|p| (*p - centre).norm() < roi_r + 10.0).copied().collect();
     let tum_model = laparo_core::mesh::read_mesh(sc("tumour.obj"))?;
-    let tum_aligned = TriMesh { vertices: tum_model.vertices.iter().map(|p| rig.pose.apply(p)).collect(), faces: tum_model.faces.clone() };
+    let tum_aligned = TriMesh {
+        vertices: tum_model.vertices.iter().map(|p| rig.pose.apply(p)).collect(),
+        faces: tum_model.faces.clone(),
+    };
     laparo_core::mesh::write_obj(out.join("tumour_aligned.obj"), &tum_aligned)?;
     use laparo_register::io::{SourceGroup, TargetSpec};
     let mut landmarks = vec![
@@ -718,19 +808,31 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     ];
     let mut tspecs = vec![TargetSpec::Polyline(targets[0].clone()), TargetSpec::Polyline(targets[1].clone())];
     if cfg.surface_weight > 0.0 && !surf_src.is_empty() && !surf_tgt.is_empty() {
-        landmarks.push(SourceGroup { name: "visible surface".into(), points: surf_src.clone(), weight: cfg.surface_weight });
+        landmarks.push(SourceGroup {
+            name: "visible surface".into(),
+            points: surf_src.clone(),
+            weight: cfg.surface_weight,
+        });
         tspecs.push(TargetSpec::Cloud(surf_tgt.clone()));
     }
     cloud_ply(&out.join("target_surface.ply"), &surf_tgt)?;
     // the volume model for the particles; the model surface and the tumour are deformed by the
     // registration's barycentric transfer (one mesh: surface vertices first, then the tumour)
     let tets = laparo_core::mesh::read_vtk(sc("model_tets.vtk"))?;
-    let tets_aligned = laparo_core::mesh::TetMesh { vertices: tets.vertices.iter().map(|p| rig.pose.apply(p)).collect(), tets: tets.tets.clone() };
+    let tets_aligned = laparo_core::mesh::TetMesh {
+        vertices: tets.vertices.iter().map(|p| rig.pose.apply(p)).collect(),
+        tets: tets.tets.clone(),
+    };
     laparo_core::mesh::write_vtk(out.join("model_aligned.vtk"), &tets_aligned)?;
     let nm = aligned.vertices.len();
     let both = TriMesh {
         vertices: aligned.vertices.iter().chain(&tum_aligned.vertices).copied().collect(),
-        faces: aligned.faces.iter().copied().chain(tum_aligned.faces.iter().map(|f| [f[0] + nm, f[1] + nm, f[2] + nm])).collect(),
+        faces: aligned
+            .faces
+            .iter()
+            .copied()
+            .chain(tum_aligned.faces.iter().map(|f| [f[0] + nm, f[1] + nm, f[2] + nm]))
+            .collect(),
     };
     laparo_core::mesh::write_obj(out.join("model_and_tumour_aligned.obj"), &both)?;
     let job = laparo_register::pipeline::Job {
@@ -738,7 +840,10 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
         organ_config: laparo_register::organ::OrganConfig {
             spacing_mm: cfg.spacing_mm,
             steps: cfg.steps,
-            roi: Some(laparo_register::organ::Roi::Ball { center: [centre[0], centre[1], centre[2]], radius_mm: roi_r }),
+            roi: Some(laparo_register::organ::Roi::Ball {
+                center: [centre[0], centre[1], centre[2]],
+                radius_mm: roi_r,
+            }),
             ..Default::default()
         },
         landmarks,
@@ -771,7 +876,11 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
     let t0 = Instant::now();
     let reg_both = laparo_core::mesh::read_mesh(out.join("registration/tumour_deformed.obj"))?;
     if reg_both.vertices.len() != nm + tum_aligned.vertices.len() {
-        return Err(bad("transfer", "registration/tumour_deformed.obj", format!("{} vertices, expected {}", reg_both.vertices.len(), nm + tum_aligned.vertices.len())));
+        return Err(bad(
+            "transfer",
+            "registration/tumour_deformed.obj",
+            format!("{} vertices, expected {}", reg_both.vertices.len(), nm + tum_aligned.vertices.len()),
+        ));
     }
     let reg_model = TriMesh { vertices: reg_both.vertices[..nm].to_vec(), faces: aligned.faces.clone() };
     let tum_reg = TriMesh { vertices: reg_both.vertices[nm..].to_vec(), faces: tum_aligned.faces.clone() };
@@ -790,21 +899,37 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
         .as_array()
         .map(|a| {
             a.iter()
-                .map(|c| c.as_array().map(|c| c.iter().filter_map(|p| Some(Vector3::new(p[0].as_f64()?, p[1].as_f64()?, p[2].as_f64()?))).collect()).unwrap_or_default())
+                .map(|c| {
+                    c.as_array()
+                        .map(|c| {
+                            c.iter()
+                                .filter_map(|p| Some(Vector3::new(p[0].as_f64()?, p[1].as_f64()?, p[2].as_f64()?)))
+                                .collect()
+                        })
+                        .unwrap_or_default()
+                })
                 .collect()
         })
         .unwrap_or_default();
     if gt_pos.len() != model.vertices.len() {
-        return Err(bad("evaluation", "gt/model_present.json", format!("{} entries for {} model vertices", gt_pos.len(), model.vertices.len())));
+        return Err(bad(
+            "evaluation",
+            "gt/model_present.json",
+            format!("{} entries for {} model vertices", gt_pos.len(), model.vertices.len()),
+        ));
     }
     let gt_past: Vec<Vector3<f64>> = model.vertices.iter().map(|p| gt.apply(p)).collect();
     let inc3: Vec<Vector3<f64>> = gt_lip_pts.iter().flatten().copied().collect();
-    let near: Vec<bool> = gt_past.iter().map(|p| inc3.iter().map(|q| (p - q).norm()).fold(f64::INFINITY, f64::min) < cfg.near_mm).collect();
+    let near: Vec<bool> = gt_past
+        .iter()
+        .map(|p| inc3.iter().map(|q| (p - q).norm()).fold(f64::INFINITY, f64::min) < cfg.near_mm)
+        .collect();
     let tre = |pos: &[Vector3<f64>]| -> Vec<f64> {
         pos.iter().zip(&gt_pos).map(|(p, g)| g.iter().map(|q| (p - q).norm()).fold(f64::INFINITY, f64::min)).collect()
     };
     let stats = |e: &[f64]| -> serde_json::Value {
-        let pick = |want: bool| -> Vec<f64> { e.iter().zip(&near).filter(|(_, n)| **n == want).map(|(v, _)| *v).collect() };
+        let pick =
+            |want: bool| -> Vec<f64> { e.iter().zip(&near).filter(|(_, n)| **n == want).map(|(v, _)| *v).collect() };
         serde_json::json!({"mean_mm": mean(e), "near_mm": mean(&pick(true)), "far_mm": mean(&pick(false)), "near_vertices": pick(true).len()})
     };
     let tre_reg = tre(&reg_vertices);
@@ -857,7 +982,12 @@ pub fn run(scenario: &Path, out: &Path, cfg: &GuideConfig, progress: &mut dyn Fn
         laparo_core::io::write_png(out.join("overlay.png"), &o)?;
     }
     push(
-        StageRecord { name: "overlay".into(), seconds: t0.elapsed().as_secs_f64(), metrics: serde_json::json!({}), outputs: vec!["overlay.png".into()] },
+        StageRecord {
+            name: "overlay".into(),
+            seconds: t0.elapsed().as_secs_f64(),
+            metrics: serde_json::json!({}),
+            outputs: vec!["overlay.png".into()],
+        },
         &mut stages,
     );
     let summary = serde_json::json!({

@@ -26,7 +26,9 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
         let bytes = std::fs::read(scenario.join(n)).map_err(|e| laparo_core::CoreError::io(scenario.join(n), e))?;
         write_atomic(&inputs.join(n), &bytes)?;
     }
-    let img = |src: &str, cap: &str| format!("<figure><img src=\"{src}\" alt=\"{cap}\"><figcaption>{cap}</figcaption></figure>");
+    let img = |src: &str, cap: &str| {
+        format!("<figure><img src=\"{src}\" alt=\"{cap}\"><figcaption>{cap}</figcaption></figure>")
+    };
     let mut h = String::new();
     h.push_str("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>laparo guide</title><style>body{font-family:sans-serif;max-width:1400px;margin:auto}figure{display:inline-block;margin:4px;width:32%}img{width:100%}table{border-collapse:collapse}td,th{border:1px solid #aaa;padding:3px 8px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
     h.push_str("<h1>laparo guide — guidance pipeline in silico (thesis §5.4.3, Fig. 5.10)</h1>\n");
@@ -79,10 +81,16 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
             ),
             _ => String::new(),
         };
-        h.push_str(&format!("<tr><td>{}</td><td>{:.2}</td><td style=\"text-align:left\">{}</td></tr>\n", esc(&s.name), s.seconds, e));
+        h.push_str(&format!(
+            "<tr><td>{}</td><td>{:.2}</td><td style=\"text-align:left\">{}</td></tr>\n",
+            esc(&s.name),
+            s.seconds,
+            e
+        ));
     }
     h.push_str("</table>\n");
-    let slowest = r.stages.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds)).map(|s| s.name.clone()).unwrap_or_default();
+    let slowest =
+        r.stages.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds)).map(|s| s.name.clone()).unwrap_or_default();
     h.push_str(&format!("<p>Goals (issue 16): tumour centroid ≤ 3 mm: <b>{}</b>; projected outline ≤ 10 px at 1920×1080: <b>{}</b>. Slowest stage: {}.</p>\n",
         r.summary["goals"]["tumour_centroid_within_3mm"], r.summary["goals"]["outline_within_10px"], esc(&slowest)));
     h.push_str("<h2>1. Stereo pairs (input)</h2>");

@@ -160,7 +160,8 @@ pub struct Lips2 {
 }
 
 fn json_write<T: Serialize>(path: &Path, v: &T) -> Result<()> {
-    let s = serde_json::to_string_pretty(v).map_err(|e| GuideError::stage("io", path.display().to_string(), e.to_string()))?;
+    let s = serde_json::to_string_pretty(v)
+        .map_err(|e| GuideError::stage("io", path.display().to_string(), e.to_string()))?;
     Ok(write_atomic(path, (s + "\n").as_bytes())?)
 }
 
@@ -175,8 +176,7 @@ pub fn json_read<T: for<'de> Deserialize<'de>>(path: &Path, stage: &str) -> Resu
 pub fn crack_faces(rest_vertices: &[Vector3<f64>], faces: &[[usize; 3]]) -> Vec<bool> {
     let key = |p: &Vector3<f64>| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
     let mut rep: HashMap<[u64; 3], usize> = HashMap::new();
-    let merged: Vec<usize> =
-        rest_vertices.iter().enumerate().map(|(i, p)| *rep.entry(key(p)).or_insert(i)).collect();
+    let merged: Vec<usize> = rest_vertices.iter().enumerate().map(|(i, p)| *rep.entry(key(p)).or_insert(i)).collect();
     let keys: Vec<[usize; 3]> = faces
         .iter()
         .map(|f| {
@@ -364,8 +364,10 @@ pub fn generate(
     let (w, h) = (cfg.width as f64, cfg.height as f64);
     let corners = [(-0.2 * w, -0.2 * h), (1.2 * w, -0.2 * h), (1.2 * w, 1.2 * h), (-0.2 * w, 1.2 * h)];
     let bg_v: Vec<Vector3<f64>> = corners.iter().map(|&(u, v)| vl.backproject(u, v, zb)).collect();
-    let bg_uv: Vec<[f64; 2]> =
-        corners.iter().map(|&(u, v)| [tw - 1.0 - ((u + 0.5) / w * tw - 0.5), th - 1.0 - ((v + 0.5) / h * th - 0.5)]).collect();
+    let bg_uv: Vec<[f64; 2]> = corners
+        .iter()
+        .map(|&(u, v)| [tw - 1.0 - ((u + 0.5) / w * tw - 0.5), th - 1.0 - ((v + 0.5) / h * th - 0.5)])
+        .collect();
     let bg_f = [[0, 1, 2], [0, 2, 3]];
     let bg_tint = [[0.5, 0.45, 0.45]; 2];
     let bg = Textured { vertices: &bg_v, faces: &bg_f, uv: &bg_uv, tint: &bg_tint, label: 2 };
@@ -393,7 +395,10 @@ pub fn generate(
     };
     laparo_core::mesh::write_obj(out.join("tumour.obj"), &tum)?;
     // ground truth: tumour and model vertices after the incision (camera frame)
-    let tum_present = TriMesh { vertices: def.map_points(&tum.vertices).iter().map(|p| r * p + t).collect(), faces: tum.faces.clone() };
+    let tum_present = TriMesh {
+        vertices: def.map_points(&tum.vertices).iter().map(|p| r * p + t).collect(),
+        faces: tum.faces.clone(),
+    };
     laparo_core::mesh::write_obj(out.join("gt").join("tumour_present.obj"), &tum_present)?;
     let centre_present = r * def.map_points(&[def.tumour_centre_mm])[0] + t;
     let present_copies: Vec<Vec<[f64; 3]>> = copies
@@ -407,10 +412,13 @@ pub fn generate(
                 .collect()
         })
         .collect();
-    json_write(&out.join("gt").join("model_present.json"), &serde_json::json!({
-        "about": "for every vertex of model.obj: its position(s) after the incision, left camera frame (mm); vertices on the cut have one position per lip",
-        "positions_mm": present_copies,
-    }))?;
+    json_write(
+        &out.join("gt").join("model_present.json"),
+        &serde_json::json!({
+            "about": "for every vertex of model.obj: its position(s) after the incision, left camera frame (mm); vertices on the cut have one position per lip",
+            "positions_mm": present_copies,
+        }),
+    )?;
     let present_surface =
         TriMesh { vertices: def.deformed.iter().map(|p| r * p + t).collect(), faces: boundary.faces.clone() };
     laparo_core::mesh::write_ply(out.join("gt").join("liver_present.ply"), &present_surface)?;
@@ -419,7 +427,10 @@ pub fn generate(
         let (u, v, _) = vl.project(p).unwrap_or((f64::NAN, f64::NAN, 0.0));
         [u, v]
     };
-    let incision = Polyline2 { image: "past_left.png".into(), points_px: def.lips[1].iter().map(|&n| proj(&def.rest.vertices[n])).collect() };
+    let incision = Polyline2 {
+        image: "past_left.png".into(),
+        points_px: def.lips[1].iter().map(|&n| proj(&def.rest.vertices[n])).collect(),
+    };
     json_write(&out.join("incision_past.json"), &incision)?;
     let lips = Lips2 {
         image: "present_left.png".into(),

@@ -36,7 +36,10 @@ pub fn grid_tet_mesh(surface: &TriMesh, h_mm: f64) -> Result<GridTetMesh> {
     let (lo, hi) = surface.bounding_box().ok_or_else(|| bad("empty surface".into()))?;
     let n: Vec<i64> = (0..3).map(|d| ((hi[d] - lo[d]) / h_mm).ceil() as i64 + 1).collect();
     if n.iter().product::<i64>() > 40_000_000 {
-        return Err(bad(format!("grid of {}x{}x{} nodes is too large: increase the cell ({h_mm} mm)", n[0], n[1], n[2])));
+        return Err(bad(format!(
+            "grid of {}x{}x{} nodes is too large: increase the cell ({h_mm} mm)",
+            n[0], n[1], n[2]
+        )));
     }
     let origin = lo - Vector3::repeat(0.5 * h_mm);
     let n: Vec<i64> = n.iter().map(|v| v + 1).collect();
@@ -137,8 +140,10 @@ pub fn grid_tet_mesh(surface: &TriMesh, h_mm: f64) -> Result<GridTetMesh> {
     }
     let ts = TriangleSurface::new(surface.vertices.clone(), surface.faces.clone());
     let grid_pos = mesh.vertices.clone();
-    let snapped: Vec<Vector3<f64>> =
-        (0..grid_pos.len()).into_par_iter().map(|v| if on_b[v] { ts.closest(&grid_pos[v]).0 } else { grid_pos[v] }).collect();
+    let snapped: Vec<Vector3<f64>> = (0..grid_pos.len())
+        .into_par_iter()
+        .map(|v| if on_b[v] { ts.closest(&grid_pos[v]).0 } else { grid_pos[v] })
+        .collect();
     let mut pos = snapped;
     let min_vol = 0.02 * h_mm.powi(3) / 6.0;
     for _ in 0..20 {
@@ -169,9 +174,8 @@ mod tests {
     fn cube_surface_is_filled_with_positive_tets_of_the_right_volume() {
         // a 20 mm cube: the grid cubes inside fill it up to the border layer, then snapping moves
         // the boundary nodes onto the faces, so the volume is close to 8000 mm³
-        let v: Vec<Vector3<f64>> = (0..8)
-            .map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64) * 20.0)
-            .collect();
+        let v: Vec<Vector3<f64>> =
+            (0..8).map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64) * 20.0).collect();
         let f = vec![
             [0, 2, 1],
             [1, 2, 3],

@@ -178,9 +178,16 @@ pub fn run(a: GuideArgs) -> Result<()> {
             laparo_core::io::write_float_map(out.join("depth_mm.npy"), &sd.depth_mm)?;
             let view = View { k: calib.left, r: nalgebra::Matrix3::identity(), t: nalgebra::Vector3::zeros() };
             let cloud = pipeline::point_cloud(&sd.depth_mm, &mask, &view, 2);
-            laparo_core::mesh::write_ply(out.join("cloud.ply"), &laparo_core::mesh::TriMesh { vertices: cloud, faces: vec![] })?;
-            let body = serde_json::json!({"depth_error": err, "seconds": secs, "range_px": sd.range_px, "info": sd.info});
-            laparo_core::atomic::write_atomic(&out.join("errors.json"), serde_json::to_string_pretty(&body)?.as_bytes())?;
+            laparo_core::mesh::write_ply(
+                out.join("cloud.ply"),
+                &laparo_core::mesh::TriMesh { vertices: cloud, faces: vec![] },
+            )?;
+            let body =
+                serde_json::json!({"depth_error": err, "seconds": secs, "range_px": sd.range_px, "info": sd.info});
+            laparo_core::atomic::write_atomic(
+                &out.join("errors.json"),
+                serde_json::to_string_pretty(&body)?.as_bytes(),
+            )?;
             println!("{pair} depth ({route:?}): {err} in {secs:.1} s");
             Ok(())
         }
@@ -188,7 +195,13 @@ pub fn run(a: GuideArgs) -> Result<()> {
             let c = laparo_core::mesh::read_mesh(&cloud)?;
             let m = laparo_core::mesh::read_mesh(&model)?;
             let init: Pose = json_read(&initial_pose, "rigid")?;
-            let r = pipeline::rigid_alignment(&m, &c.vertices, &init, &GuideConfig::full(Route::Calibrated), &initial_pose.display().to_string())?;
+            let r = pipeline::rigid_alignment(
+                &m,
+                &c.vertices,
+                &init,
+                &GuideConfig::full(Route::Calibrated),
+                &initial_pose.display().to_string(),
+            )?;
             laparo_core::atomic::write_atomic(&out, serde_json::to_string_pretty(&r)?.as_bytes())?;
             println!("rigid: ICP RMSE {:.3} mm in {} iterations; wrote {}", r.rmse_mm, r.iterations, out.display());
             Ok(())
