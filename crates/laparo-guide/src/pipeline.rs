@@ -160,6 +160,23 @@ pub fn stereo_depth(
             format!("images {w}x{h} / {}x{}, calibration {}x{}", right.width, right.height, calib.width, calib.height),
         ));
     }
+    // a pair without texture cannot be matched: mean |horizontal grey gradient| below 1 grey level
+    for (img, which) in [(left, "left"), (right, "right")] {
+        let g = laparo_stereo::sgm::to_gray_u8(img);
+        let n = (w.saturating_sub(1) * h).max(1) as f64;
+        let grad: f64 = (0..h)
+            .flat_map(|y| (1..w).map(move |x| (y, x)))
+            .map(|(y, x)| (g[y * w + x] as f64 - g[y * w + x - 1] as f64).abs())
+            .sum::<f64>()
+            / n;
+        if grad < 1.0 {
+            return Err(bad(
+                "stereo",
+                input,
+                format!("the {which} image has too little texture (mean |∂I/∂x| = {grad:.2} grey levels)"),
+            ));
+        }
+    }
     let b = calib.t_mm.norm();
     match route {
         Route::Calibrated => {
