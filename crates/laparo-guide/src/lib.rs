@@ -5,6 +5,8 @@
 //! RODS-MPM → deformed liver and tumour → overlay), with the errors of every stage and an HTML report
 //! ([`report`]).
 #![warn(missing_docs)]
+// `!(x > 0.0)` is the NaN-rejecting check used on inputs.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod deformation;
 mod error;

@@ -569,8 +569,8 @@ fn draw_polyline(img: &mut Image<u8>, p: &[[f64; 2]], c: [u8; 3]) {
             for (dx, dy) in [(0i64, 0i64), (1, 0), (0, 1), (-1, 0), (0, -1)] {
                 let (xi, yi) = (x.round() as i64 + dx, y.round() as i64 + dy);
                 if xi >= 0 && yi >= 0 && (xi as usize) < img.width && (yi as usize) < img.height {
-                    for ch in 0..3 {
-                        img.set(xi as usize, yi as usize, ch, c[ch]);
+                    for (ch, &v) in c.iter().enumerate() {
+                        img.set(xi as usize, yi as usize, ch, v);
                     }
                 }
             }
