@@ -68,7 +68,7 @@ pub struct GuideConfig {
     pub landmark_step_px: f64,
     /// RODS-MPM particle spacing (mm).
     pub spacing_mm: f64,
-    /// Region of interest: ball around the incision (mm).
+    /// Region of interest: ball around the incision (mm), enlarged to hold every incision landmark.
     pub roi_radius_mm: f64,
     /// Horizon T (steps).
     pub steps: usize,
@@ -807,7 +807,9 @@ pub fn run(
     // ---- stage 5: registration
     let t0 = Instant::now();
     let centre = src_all.iter().sum::<Vector3<f64>>() / src_all.len() as f64;
-    let roi_r = cfg.roi_radius_mm;
+    // the region of interest holds every incision landmark with a margin of three particles
+    let reach = src_all.iter().map(|p| (p - centre).norm()).fold(0.0, f64::max);
+    let roi_r = cfg.roi_radius_mm.max(reach + 3.0 * cfg.spacing_mm);
     let in_roi = |p: &Vector3<f64>| (p - centre).norm() < roi_r - 1.5 * cfg.spacing_mm;
     let surf_src: Vec<Vector3<f64>> = past_cloud.iter().filter(|p| in_roi(p)).step_by(4).copied().collect();
     let surf_tgt: Vec<Vector3<f64>> =
