@@ -811,7 +811,22 @@ pub fn run(
     let reach = src_all.iter().map(|p| (p - centre).norm()).fold(0.0, f64::max);
     let roi_r = cfg.roi_radius_mm.max(reach + 3.0 * cfg.spacing_mm);
     let in_roi = |p: &Vector3<f64>| (p - centre).norm() < roi_r - 1.5 * cfg.spacing_mm;
-    let surf_src: Vec<Vector3<f64>> = past_cloud.iter().filter(|p| in_roi(p)).step_by(4).copied().collect();
+    // visible-surface sources: past cloud points in the region, within one particle spacing of the
+    // aligned model (stereo outliers dropped)
+    let model_surface = {
+        use laparo_register::distance::TriangleSurface;
+        TriangleSurface::new(aligned.vertices.clone(), aligned.faces.clone())
+    };
+    let surf_src: Vec<Vector3<f64>> = {
+        use laparo_register::distance::ClosestPoint;
+        past_cloud
+            .iter()
+            .filter(|p| in_roi(p))
+            .step_by(4)
+            .filter(|p| model_surface.distance(p) < cfg.spacing_mm)
+            .copied()
+            .collect()
+    };
     let surf_tgt: Vec<Vector3<f64>> =
         present_cloud.iter().filter(|p| (*p - centre).norm() < roi_r + 10.0).copied().collect();
     let tum_model = laparo_core::mesh::read_mesh(sc("tumour.obj"))?;
