@@ -810,7 +810,6 @@ pub fn run(
     // the region of interest holds every incision landmark with a margin of three particles
     let reach = src_all.iter().map(|p| (p - centre).norm()).fold(0.0, f64::max);
     let roi_r = cfg.roi_radius_mm.max(reach + 3.0 * cfg.spacing_mm);
-    let in_roi = |p: &Vector3<f64>| (p - centre).norm() < roi_r - 1.5 * cfg.spacing_mm;
     // visible-surface sources: past cloud points in the region, within one particle spacing of the
     // aligned model (stereo outliers dropped)
     let model_surface = {
@@ -821,9 +820,9 @@ pub fn run(
         use laparo_register::distance::ClosestPoint;
         past_cloud
             .iter()
-            .filter(|p| in_roi(p))
+            .filter(|p| (*p - centre).norm() < roi_r - 4.0 * cfg.spacing_mm)
             .step_by(4)
-            .filter(|p| model_surface.distance(p) < cfg.spacing_mm)
+            .filter(|p| model_surface.distance(p) < 0.5 * cfg.spacing_mm)
             .copied()
             .collect()
     };
@@ -890,8 +889,20 @@ pub fn run(
         resume: false,
         checkpoint_every: 1000,
     };
-    let rep = laparo_register::pipeline::run_job(&job, &mut |_| {})
-        .map_err(|e| bad("registration", "landmarks + targets", e.to_string()))?;
+    let mut surface_note = serde_json::Value::Null;
+    let rep = match laparo_register::pipeline::run_job(&job, &mut |_| {}) {
+        Ok(r) => r,
+        // a visible-surface point the particles do not reach: register with the lips alone
+        Err(e) if e.to_string().contains("visible surface") => {
+            surface_note = serde_json::json!(format!("visible-surface group dropped: {e}"));
+            let mut j = job.clone();
+            j.landmarks.truncate(2);
+            j.targets.truncate(2);
+            laparo_register::pipeline::run_job(&j, &mut |_| {})
+                .map_err(|e| bad("registration", "landmarks + targets", e.to_string()))?
+        }
+        Err(e) => return Err(bad("registration", "landmarks + targets", e.to_string())),
+    };
     push(
         StageRecord {
             name: "RODS-MPM registration".into(),
@@ -900,7 +911,7 @@ pub fn run(
                 "particles": rep.particles, "fixed_particles": rep.fixed_particles,
                 "mean_landmark_distance_mm": rep.mean_distance_mm, "iterations": rep.iterations,
                 "simulations": rep.simulations, "seconds_per_simulation": rep.seconds_per_simulation,
-                "stop": rep.stop_reason, "warnings": rep.warnings,
+                "stop": rep.stop_reason, "warnings": rep.warnings, "surface_group": surface_note,
             }),
             outputs: rep.outputs.iter().map(|o| format!("registration/{o}")).collect(),
         },
