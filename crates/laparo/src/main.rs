@@ -41,6 +41,8 @@ enum Command {
     /// Volume meshing and incisions for the in-silico incision benchmark (thesis §5.4.2).
     #[command(subcommand)]
     Mesh(cmd::mesh::MeshCmd),
+    /// The guidance pipeline end to end in silico: scenario, stereo, rigid, RODS-MPM, overlay (thesis §5.4.3).
+    Guide(Box<cmd::guide::GuideArgs>),
     /// Keypoints, descriptors, matching and COLMAP export (thesis §4.2, §4.5).
     #[command(subcommand)]
     Features(cmd::features::FeaturesCmd),
@@ -69,6 +71,7 @@ fn main() {
         Command::Mesh(c) => cmd::mesh::run(c),
         Command::Features(c) => cmd::features::run(c),
         Command::Fem(c) => cmd::fem::run(c),
+        Command::Guide(a) => cmd::guide::run(*a),
         Command::Demo(a) => demo::run(a),
         Command::Bench { .. } => Err(anyhow::anyhow!(
             "the benchmarks are not part of `laparo`; run `laparo-bench <depth|cats|stereo|cpc|mpm> ...` \

@@ -8,6 +8,7 @@ pub mod depth_tools;
 pub mod features;
 pub mod fem;
 pub mod mesh;
+pub mod guide;
 pub mod mpm;
 pub mod register;
 pub mod register_benchmark;

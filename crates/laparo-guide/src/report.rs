@@ -1,0 +1,123 @@
+//! The HTML report of a `laparo guide` run: one section per stage (images by relative links), a
+//! table of the stage errors and times. The scenario's input images are copied next to it so the
+//! folder is self-contained.
+use crate::error::Result;
+use crate::pipeline::GuideReport;
+use laparo_core::atomic::write_atomic;
+use std::path::Path;
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn num(v: &serde_json::Value) -> String {
+    match v.as_f64() {
+        Some(x) if x.abs() >= 100.0 => format!("{x:.0}"),
+        Some(x) => format!("{x:.3}"),
+        None => esc(&v.to_string()),
+    }
+}
+
+/// Copy the scenario inputs shown in the report into `out/inputs/` and write `out/report.html`.
+pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
+    let inputs = out.join("inputs");
+    std::fs::create_dir_all(&inputs).map_err(|e| laparo_core::CoreError::io(&inputs, e))?;
+    for n in ["past_left.png", "past_right.png", "present_left.png", "present_right.png"] {
+        let bytes = std::fs::read(scenario.join(n)).map_err(|e| laparo_core::CoreError::io(scenario.join(n), e))?;
+        write_atomic(&inputs.join(n), &bytes)?;
+    }
+    let img = |src: &str, cap: &str| {
+        format!("<figure><img src=\"{src}\" alt=\"{cap}\"><figcaption>{cap}</figcaption></figure>")
+    };
+    let mut h = String::new();
+    h.push_str("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>laparo guide</title><style>body{font-family:sans-serif;max-width:1400px;margin:auto}figure{display:inline-block;margin:4px;width:32%}img{width:100%}table{border-collapse:collapse}td,th{border:1px solid #aaa;padding:3px 8px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
+    h.push_str("<h1>laparo guide — guidance pipeline in silico (thesis §5.4.3, Fig. 5.10)</h1>\n");
+    h.push_str(&format!(
+        "<p>Scenario <code>{}</code>, stereo route <b>{:?}</b>, total {:.1} s, peak memory {} MiB.</p>\n",
+        esc(&r.scenario),
+        r.config.route,
+        r.total_seconds,
+        r.peak_memory_mib.map_or("?".into(), |m| format!("{m:.0}"))
+    ));
+    h.push_str("<h2>Stage errors and times</h2><table><tr><th>stage</th><th>time (s)</th><th>errors against the ground truth</th></tr>\n");
+    for s in &r.stages {
+        let m = &s.metrics;
+        let e = match s.name.as_str() {
+            n if n.starts_with("stereo") => format!(
+                "depth |error| mean {} mm, median {} mm, p95 {} mm, coverage {} of the liver",
+                num(&m["depth_error"]["mean_abs_mm"]),
+                num(&m["depth_error"]["median_abs_mm"]),
+                num(&m["depth_error"]["p95_abs_mm"]),
+                num(&m["depth_error"]["coverage"])
+            ),
+            "rigid alignment" => format!(
+                "rotation {} °, translation {} mm, mean vertex {} mm (initial pose: {} mm, {} °)",
+                num(&m["rotation_error_deg"]),
+                num(&m["translation_error_mm"]),
+                num(&m["mean_vertex_error_mm"]),
+                num(&m["initial_mean_vertex_error_mm"]),
+                num(&m["initial_rotation_error_deg"])
+            ),
+            "target lips" => format!("lifted lips to the true lips: {} mm", esc(&m["mean_distance_to_true_lip_mm"].to_string())),
+            "RODS-MPM registration" => format!(
+                "mean landmark distance {} → {} mm, {} particles, {} iterations",
+                num(&m["mean_landmark_distance_mm"][0]),
+                num(&m["mean_landmark_distance_mm"][1]),
+                num(&m["particles"]),
+                num(&m["iterations"])
+            ),
+            "transfer + evaluation" => format!(
+                "TRE mean {} / near {} / far {} mm (rigid only: {} / {} / {}); tumour centroid {} mm (rigid only {}); outline {} px @1920 (rigid only {})",
+                num(&m["tre_registered"]["mean_mm"]),
+                num(&m["tre_registered"]["near_mm"]),
+                num(&m["tre_registered"]["far_mm"]),
+                num(&m["tre_rigid_only"]["mean_mm"]),
+                num(&m["tre_rigid_only"]["near_mm"]),
+                num(&m["tre_rigid_only"]["far_mm"]),
+                num(&m["tumour_centroid_error_mm"]),
+                num(&m["tumour_centroid_error_rigid_only_mm"]),
+                num(&m["tumour_outline_error_px_1920"]),
+                num(&m["tumour_outline_error_rigid_only_px_1920"])
+            ),
+            _ => String::new(),
+        };
+        h.push_str(&format!(
+            "<tr><td>{}</td><td>{:.2}</td><td style=\"text-align:left\">{}</td></tr>\n",
+            esc(&s.name),
+            s.seconds,
+            e
+        ));
+    }
+    h.push_str("</table>\n");
+    let slowest =
+        r.stages.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds)).map(|s| s.name.clone()).unwrap_or_default();
+    h.push_str(&format!("<p>Goals (issue 16): tumour centroid ≤ 3 mm: <b>{}</b>; projected outline ≤ 10 px at 1920×1080: <b>{}</b>. Slowest stage: {}.</p>\n",
+        r.summary["goals"]["tumour_centroid_within_3mm"], r.summary["goals"]["outline_within_10px"], esc(&slowest)));
+    h.push_str("<h2>1. Stereo pairs (input)</h2>");
+    h.push_str(&img("inputs/past_left.png", "past left (before the incision)"));
+    h.push_str(&img("inputs/past_right.png", "past right (uncalibrated: rotated, principal point shifted)"));
+    h.push_str(&img("inputs/present_left.png", "present left (after the incision)"));
+    h.push_str("<h2>2. Stereo matching → depth</h2>");
+    h.push_str(&img("past_depth.png", "past depth (mm, viridis over the prior range)"));
+    h.push_str(&img("past_depth_error.png", "past |depth error| on the liver (0–5 mm, magma)"));
+    h.push_str(&img("present_depth.png", "present depth"));
+    h.push_str(&img("present_depth_error.png", "present |depth error| (0–5 mm)"));
+    h.push_str("<p>Point clouds: <a href=\"past_cloud.ply\">past_cloud.ply</a>, <a href=\"present_cloud.ply\">present_cloud.ply</a>.</p>");
+    h.push_str("<h2>3. Rigid alignment of the preoperative model (ICP)</h2>");
+    h.push_str(&img("rigid_overlay.png", "aligned model over the past left image"));
+    h.push_str("<p><a href=\"model_aligned.obj\">model_aligned.obj</a>, <a href=\"rigid.json\">rigid.json</a></p>");
+    h.push_str("<h2>4. Incision → source landmarks; lips → targets</h2>");
+    h.push_str(&img("incision_past.png", "incision drawn on the past left image"));
+    h.push_str(&img("lips_present.png", "lips drawn on the present left image"));
+    h.push_str("<p><a href=\"source_landmarks.ply\">source_landmarks.ply</a>, <a href=\"target_lips.ply\">target_lips.ply</a>, <a href=\"target_surface.ply\">target_surface.ply</a></p>");
+    h.push_str("<h2>5. RODS-MPM registration</h2>");
+    h.push_str(&img("registration/loss.png", "mean landmark distance per iteration"));
+    h.push_str("<p><a href=\"registration/report.json\">registration/report.json</a>, <a href=\"registration/surface_registered.ply\">surface_registered.ply</a>, <a href=\"liver_registered.obj\">liver_registered.obj</a></p>");
+    h.push_str("<h2>6. Overlay</h2>");
+    h.push_str("<figure style=\"width:98%\"><img src=\"overlay.png\" alt=\"overlay\"><figcaption>registered liver (blue) and tumour (yellow) on the present left image; green: true tumour outline</figcaption></figure>");
+    h.push_str("<h2>Summary</h2><pre>");
+    h.push_str(&esc(&serde_json::to_string_pretty(&r.summary).unwrap_or_default()));
+    h.push_str("</pre></body></html>\n");
+    write_atomic(&out.join("report.html"), h.as_bytes())?;
+    Ok(())
+}
