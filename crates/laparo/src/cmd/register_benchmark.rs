@@ -303,6 +303,17 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             &[("u_norm_mm", &mag)],
             &[("displacement_mm", &u)],
         )?;
+        // the same ground truth as a `laparo guide scenario --deformation` input (issue 16)
+        if let Some(t) = &scn.tumour {
+            let d = laparo_guide::deformation::Deformation {
+                rest: scn.cut.mesh.clone(),
+                deformed: case.ground_truth.clone(),
+                lips: scn.cut.lips.clone(),
+                tumour_centre_mm: t.centre,
+                tumour_radius_mm: t.radius_mm,
+            };
+            d.write(&dir.join("deformation"))?;
+        }
         gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped}));
         cases.push(case);
     }
