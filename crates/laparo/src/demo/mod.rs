@@ -10,6 +10,7 @@ use std::time::Instant;
 mod cpc;
 mod depth;
 mod mpm;
+mod guide;
 mod register;
 mod stereo;
 
@@ -19,7 +20,7 @@ pub struct DemoArgs {
     /// Output folder of the report.
     #[arg(long, default_value = "demo-report")]
     pub out: PathBuf,
-    /// Only these sections (depth, stereo, cpc, mpm, register); all by default.
+    /// Only these sections (depth, stereo, cpc, mpm, register, guide); all by default.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 }
@@ -53,12 +54,13 @@ pub(crate) fn shared_data(rel: &str) -> Option<PathBuf> {
 pub fn run(args: DemoArgs) -> Result<()> {
     let out = &args.out;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let sections: [(&str, SectionFn); 5] = [
+    let sections: [(&str, SectionFn); 6] = [
         ("depth", depth::section),
         ("stereo", stereo::section),
         ("cpc", cpc::section),
         ("mpm", mpm::section),
         ("register", register::section),
+        ("guide", guide::section),
     ];
     let mut html = String::new();
     let mut summary = serde_json::Map::new();
