@@ -13,6 +13,7 @@ pub mod camera;
 pub mod colormap;
 pub mod depth;
 pub mod error;
+pub mod geometry;
 pub mod homography;
 pub mod image;
 pub mod io;

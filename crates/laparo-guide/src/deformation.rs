@@ -418,69 +418,6 @@ pub fn synthetic_incision(g: &GridTetMesh, spec: &IncisionSpec) -> Result<Deform
     Ok(d)
 }
 
-/// An icosphere of `subdivisions` levels (radius 1, outward faces).
-pub fn icosphere(subdivisions: usize) -> TriMesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<Vector3<f64>> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|p| Vector3::new(p[0], p[1], p[2]).normalize())
-    .collect();
-    let mut f: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
-        let mut m = |a: usize, b: usize, v: &mut Vec<Vector3<f64>>| {
-            let k = (a.min(b), a.max(b));
-            *mid.entry(k).or_insert_with(|| {
-                v.push(((v[a] + v[b]) / 2.0).normalize());
-                v.len() - 1
-            })
-        };
-        let mut nf = Vec::with_capacity(4 * f.len());
-        for t in &f {
-            let ab = m(t[0], t[1], &mut v);
-            let bc = m(t[1], t[2], &mut v);
-            let ca = m(t[2], t[0], &mut v);
-            nf.extend([[t[0], ab, ca], [t[1], bc, ab], [t[2], ca, bc], [ab, bc, ca]]);
-        }
-        f = nf;
-    }
-    TriMesh { vertices: v, faces: f }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -576,16 +513,5 @@ mod tests {
         let r = Deformation::read(dir.path()).unwrap();
         assert_eq!(r.lips, d.lips);
         assert!(r.deformed.iter().zip(&d.deformed).all(|(a, b)| (a - b).norm() < 1e-9));
-    }
-
-    #[test]
-    fn icosphere_is_a_closed_unit_sphere() {
-        let s = icosphere(2);
-        assert_eq!(s.vertices.len(), 162);
-        assert!(s.is_closed());
-        assert!(s.vertices.iter().all(|v| (v.norm() - 1.0).abs() < 1e-12));
-        // volume of the inscribed polyhedron approaches 4π/3 from below
-        let v = s.signed_volume();
-        assert!(v > 0.0 && v < 4.0 * std::f64::consts::PI / 3.0 && v > 0.95 * 4.0 * std::f64::consts::PI / 3.0, "{v}");
     }
 }

@@ -220,35 +220,14 @@ pub fn stereo_depth(
             })
         }
         Route::SelfRectified => {
-            use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
             use laparo_stereo::self_rectify::{self_rectify, SelfRectifyOptions};
-            let sift = DetectorConfig::by_name("sift")?;
-            let fl = detect_and_describe(left, &sift, None)?;
-            let fr = detect_and_describe(right, &sift, None)?;
-            let m = match_features(&fl, &fr, &MatchConfig::default())?;
-            let (pl, pr): (Vec<[f64; 2]>, Vec<[f64; 2]>) = m
-                .iter()
-                .map(|m| {
-                    let (a, b) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
-                    ([a.x, a.y], [b.x, b.y])
-                })
-                .unzip();
+            let (pl, pr) = laparo_stereo::self_rectify::sift_matches(left, right)?;
             let sr = self_rectify(&pl, &pr, (w, h), &SelfRectifyOptions::default())
                 .map_err(|e| bad("stereo", input, format!("self-rectification: {e} (too little texture?)")))?;
             let off = calib.left.cx - calib.right.cx;
             let f = calib.left.fx;
             // raw disparity range from the prior, shifted by the inliers' median rectified change
-            let mut shift: Vec<f64> = pl
-                .iter()
-                .zip(&pr)
-                .zip(&sr.inliers)
-                .filter(|(_, i)| **i)
-                .filter_map(|((l, r), _)| {
-                    let (lr, rr) = (sr.rectify_left(l[0], l[1])?, sr.rectify_right(r[0], r[1])?);
-                    Some((lr[0] - rr[0]) - (l[0] - r[0]))
-                })
-                .collect();
-            let s = if shift.is_empty() { 0.0 } else { laparo_core::stats::median(&mut shift) };
+            let s = laparo_stereo::self_rectify::rectified_disparity_shift(&sr, &pl, &pr);
             let lo = (f * b / depth_prior_mm[1] + off + s).floor() as i32 - 4;
             let hi = (f * b / depth_prior_mm[0] + off + s).ceil() as i32 + 4;
             let ((l, _), (r, _)) = sr.rectify_images(left, right)?;

@@ -16,7 +16,7 @@
 //!   frame mirrored in both directions and darkened.
 //! - Ground truth: depth (mm) and raw disparity `d = x_L − x_R` (px) of every left pixel, liver
 //!   masks, the organ pose, the deformed organ and tumour, lips in 3D and on the images.
-use crate::deformation::{icosphere, synthetic_incision, Deformation, IncisionSpec};
+use crate::deformation::{synthetic_incision, Deformation, IncisionSpec};
 use crate::error::{GuideError, Result};
 use crate::render::{render, Rendered, Textured, View};
 use crate::tetmesh::grid_tet_mesh;
@@ -388,11 +388,7 @@ pub fn generate(
     let (pre, _node, copies) = def.preoperative_surface();
     laparo_core::mesh::write_obj(out.join("model.obj"), &pre)?;
     laparo_core::mesh::write_vtk(out.join("model_tets.vtk"), &def.uncut_tets())?;
-    let sphere = icosphere(2);
-    let tum = TriMesh {
-        vertices: sphere.vertices.iter().map(|p| def.tumour_centre_mm + p * def.tumour_radius_mm).collect(),
-        faces: sphere.faces.clone(),
-    };
+    let tum = laparo_fem::mesh::shapes::icosphere(&def.tumour_centre_mm, def.tumour_radius_mm, 2);
     laparo_core::mesh::write_obj(out.join("tumour.obj"), &tum)?;
     // ground truth: tumour and model vertices after the incision (camera frame)
     let tum_present = TriMesh {

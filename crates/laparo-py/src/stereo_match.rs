@@ -3,9 +3,8 @@
 //! raw pair from SIFT matches — the computations of `laparo stereo match` without the files.
 use crate::arrays::*;
 use laparo_core::Image;
-use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
-use laparo_stereo::self_rectify::{self_rectify, RectifyMethod, SelfRectification, SelfRectifyOptions};
-use laparo_stereo::sgm::{match_pair, SgmOutput, SgmParams, SgmStats};
+use laparo_stereo::self_rectify::{self_rectify, RectifyMethod, SelfRectifyOptions};
+use laparo_stereo::sgm::{match_pair, SgmParams};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -67,81 +66,7 @@ fn sgm_params(
     Ok(p)
 }
 
-/// SIFT keypoints of both images matched with Lowe 0.8 + mutual check: (left, right) points, px.
-type Points = (Vec<[f64; 2]>, Vec<[f64; 2]>);
-
-fn sift_matches(left: &Image<u8>, right: &Image<u8>) -> Result<Points, laparo_features::FeaturesError> {
-    let sift = DetectorConfig::by_name("sift")?;
-    let (fl, fr) = rayon::join(|| detect_and_describe(left, &sift, None), || detect_and_describe(right, &sift, None));
-    let (fl, fr) = (fl?, fr?);
-    let m = match_features(&fl, &fr, &MatchConfig::default())?;
-    Ok(m.iter()
-        .map(|m| {
-            let (a, b) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
-            ([a.x, a.y], [b.x, b.y])
-        })
-        .unzip())
-}
-
-/// Everything `laparo stereo match --self-rectify` computes.
-struct SelfRectified {
-    out: SgmOutput,
-    rect: SelfRectification,
-    n_matches: usize,
-    range: (i32, i32),
-    shift: f64,
-    left_rect: Image<u8>,
-    right_rect: Image<u8>,
-    disparity_rect: Image<f32>,
-}
-
-/// SIFT + matching, self-rectification, SGM on the rectified pair over the raw range shifted by
-/// the inliers' median change of disparity (± 2 px), disparity / dy / confidence mapped back to
-/// the raw left frame (as the CLI).
-fn self_rectified_match(left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> Result<SelfRectified, String> {
-    let (w, h) = left.size();
-    let (pl, pr) = sift_matches(left, right).map_err(|e| format!("SIFT matching: {e}"))?;
-    let sr = self_rectify(&pl, &pr, (w, h), &SelfRectifyOptions::default()).map_err(|e| e.to_string())?;
-    let mut shift: Vec<f64> = pl
-        .iter()
-        .zip(&pr)
-        .zip(&sr.inliers)
-        .filter(|(_, i)| **i)
-        .filter_map(|((l, r), _)| {
-            let (lr, rr) = (sr.rectify_left(l[0], l[1])?, sr.rectify_right(r[0], r[1])?);
-            Some((lr[0] - rr[0]) - (l[0] - r[0]))
-        })
-        .collect();
-    let off = if shift.is_empty() { 0.0 } else { laparo_core::stats::median(&mut shift) };
-    let (lo, hi) = ((p.d_min as f64 + off).floor() as i32 - 2, (p.d_max as f64 + off).ceil() as i32 + 2);
-    let ((l, _), (r, _)) = sr.rectify_images(left, right).map_err(|e| e.to_string())?;
-    let o = match_pair(&l, &r, &SgmParams { d_min: lo, d_max: hi, ..p.clone() }).map_err(|e| e.to_string())?;
-    let (d, dy) = sr.disparity_to_raw_left(&o.disparity).map_err(|e| e.to_string())?;
-    let hl = sr.h_left();
-    let mut conf = Image::filled(w, h, 1, 0f32);
-    for y in 0..h {
-        for x in 0..w {
-            if d.get(x, y, 0).is_finite() {
-                let q = hl * nalgebra::Vector3::new(x as f64, y as f64, 1.0);
-                if let Some(c) = o.confidence.sample_nearest(q.x / q.z, q.y / q.z, 0) {
-                    conf.set(x, y, 0, c);
-                }
-            }
-        }
-    }
-    let n_valid = d.data.iter().filter(|v| v.is_finite()).count();
-    let stats = SgmStats { n_valid, ..o.stats.clone() };
-    Ok(SelfRectified {
-        out: SgmOutput { disparity: d, confidence: conf, dy: Some(dy), stats },
-        rect: sr,
-        n_matches: pl.len(),
-        range: (lo, hi),
-        shift: off,
-        left_rect: l,
-        right_rect: r,
-        disparity_rect: o.disparity,
-    })
-}
+use laparo_stereo::self_rectify::{match_self_rectified, sift_matches};
 
 /// Semi-global matching of a stereo pair (8-bit grey/RGB/RGBA, same size) over the disparity
 /// range [d_min, d_max) px, d = x_L − x_R of either sign. Returns `disparity` (float32, +inf where
@@ -174,15 +99,16 @@ pub fn stereo_match<'py>(
         let (w, h) = l.size();
         let d = PyDict::new(py);
         let out = if self_rectify {
-            let s = par(py, || self_rectified_match(&l, &r, &p)).map_err(|e| bad("self_rectify", e))?;
-            d.set_item("rectification", to_py(py, &s.rect)?)?;
+            let s = par(py, || match_self_rectified(&l, &r, &p).map_err(|e| e.to_string()))
+                .map_err(|e| bad("self_rectify", e))?;
+            d.set_item("rectification", to_py(py, &s.rectification)?)?;
             d.set_item("n_matches", s.n_matches)?;
-            d.set_item("rectified_range_px", (s.range.0, s.range.1))?;
-            d.set_item("median_disparity_shift_px", s.shift)?;
-            d.set_item("left_rectified", image_to_numpy(py, s.left_rect)?)?;
-            d.set_item("right_rectified", image_to_numpy(py, s.right_rect)?)?;
-            d.set_item("disparity_rectified", image_to_numpy(py, s.disparity_rect)?)?;
-            s.out
+            d.set_item("rectified_range_px", s.rectified_range_px)?;
+            d.set_item("median_disparity_shift_px", s.median_disparity_shift_px)?;
+            d.set_item("left_rectified", image_to_numpy(py, s.left_rectified)?)?;
+            d.set_item("right_rectified", image_to_numpy(py, s.right_rectified)?)?;
+            d.set_item("disparity_rectified", image_to_numpy(py, s.disparity_rectified)?)?;
+            s.output
         } else {
             par(py, || match_pair(&l, &r, &p)).map_err(|e| bad("stereo match", e))?
         };

@@ -33,56 +33,8 @@ pub fn closest_on_segment<const D: usize>(x: &Vector<D>, a: &Vector<D>, b: &Vect
     a + ab * t
 }
 
-/// Closest point to `p` on the triangle (a, b, c) (Ericson, Real-Time Collision Detection §5.1.5).
-pub fn closest_on_triangle(p: &Vector<3>, a: &Vector<3>, b: &Vector<3>, c: &Vector<3>) -> Vector<3> {
-    if (b - a).cross(&(c - a)).norm_squared() == 0.0 {
-        // degenerate (zero-area) triangle: the closest point of its edges
-        let cands = [closest_on_segment(p, a, b), closest_on_segment(p, b, c), closest_on_segment(p, c, a)];
-        return cands
-            .into_iter()
-            .min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared()))
-            .unwrap_or(*a);
-    }
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(&ap);
-    let d2 = ac.dot(&ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - b;
-    let d3 = ab.dot(&bp);
-    let d4 = ac.dot(&bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return a + ab * v;
-    }
-    let cp = p - c;
-    let d5 = ab.dot(&cp);
-    let d6 = ac.dot(&cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return a + ac * w;
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return b + (c - b) * w;
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let v = vb * denom;
-    let w = vc * denom;
-    a + ab * v + ac * w
-}
+/// Closest point to `p` on the triangle (a, b, c) (laparo-core's, Ericson §5.1.5).
+pub use laparo_core::geometry::closest_point_on_triangle as closest_on_triangle;
 
 /// Something a landmark can be scored against: the closest point of the target to `x`.
 pub trait ClosestPoint<const D: usize>: Sync + Send {

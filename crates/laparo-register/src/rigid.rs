@@ -257,26 +257,7 @@ pub fn ray_triangle(
     b: &Vector3<f64>,
     c: &Vector3<f64>,
 ) -> Option<f64> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let p = dir.cross(&e2);
-    let det = e1.dot(&p);
-    if det.abs() < 1e-14 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - a;
-    let u = s.dot(&p) * inv;
-    if !(-1e-12..=1.0 + 1e-12).contains(&u) {
-        return None;
-    }
-    let q = s.cross(&e1);
-    let v = dir.dot(&q) * inv;
-    if v < -1e-12 || u + v > 1.0 + 1e-12 {
-        return None;
-    }
-    let t = e2.dot(&q) * inv;
-    (t >= 0.0).then_some(t)
+    laparo_core::geometry::ray_triangle(o, dir, a, b, c).filter(|&t| t >= 0.0)
 }
 
 /// Vertical (gravity) projection (App. A): each point moved along `direction` to the first surface

@@ -626,3 +626,105 @@ pub fn perturbation(
         dx_right_px: shift_left_px[0] - shift_right_px[0],
     }
 }
+
+/// Matched points of a pair: (left, right), px.
+pub type PointPairs = (Vec<[f64; 2]>, Vec<[f64; 2]>);
+
+/// SIFT keypoints of both images matched with Lowe 0.8 + mutual check (laparo-features defaults).
+pub fn sift_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
+    use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
+    let feat = |e: laparo_features::FeaturesError| StereoError::Config(format!("SIFT matching: {e}"));
+    let sift = DetectorConfig::by_name("sift").map_err(feat)?;
+    let (fl, fr) = rayon::join(|| detect_and_describe(left, &sift, None), || detect_and_describe(right, &sift, None));
+    let (fl, fr) = (fl.map_err(feat)?, fr.map_err(feat)?);
+    let m = match_features(&fl, &fr, &MatchConfig::default()).map_err(feat)?;
+    Ok(m.iter()
+        .map(|m| {
+            let (a, b) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
+            ([a.x, a.y], [b.x, b.y])
+        })
+        .unzip())
+}
+
+/// Median over the inlier matches of how much the self-rectification changes their disparity
+/// (rectified x_L − x_R minus raw x_L − x_R), px; 0 without inliers. A raw disparity range shifted by it
+/// is the range to search on the rectified pair.
+pub fn rectified_disparity_shift(sr: &SelfRectification, pl: &[[f64; 2]], pr: &[[f64; 2]]) -> f64 {
+    let mut shift: Vec<f64> = pl
+        .iter()
+        .zip(pr)
+        .zip(&sr.inliers)
+        .filter(|(_, i)| **i)
+        .filter_map(|((l, r), _)| {
+            let (lr, rr) = (sr.rectify_left(l[0], l[1])?, sr.rectify_right(r[0], r[1])?);
+            Some((lr[0] - rr[0]) - (l[0] - r[0]))
+        })
+        .collect();
+    if shift.is_empty() {
+        0.0
+    } else {
+        laparo_core::stats::median(&mut shift)
+    }
+}
+
+/// Everything [`match_self_rectified`] computes.
+pub struct SelfRectifiedMatch {
+    /// Disparity (d = x_L − x_R, +inf invalid), vertical offset and confidence in the raw left frame.
+    pub output: crate::sgm::SgmOutput,
+    /// The rectification.
+    pub rectification: SelfRectification,
+    /// SIFT matches used.
+    pub n_matches: usize,
+    /// Range searched on the rectified pair, [lo, hi) px.
+    pub rectified_range_px: (i32, i32),
+    /// The median disparity shift of the rectification (px), see [`rectified_disparity_shift`].
+    pub median_disparity_shift_px: f64,
+    /// The rectified left image.
+    pub left_rectified: Image<u8>,
+    /// The rectified right image.
+    pub right_rectified: Image<u8>,
+    /// The disparity on the rectified pair.
+    pub disparity_rectified: Image<f32>,
+}
+
+/// A raw, uncalibrated pair → SIFT matches → self-rectification → SGM over the raw range
+/// [`p.d_min`, `p.d_max`) shifted by the rectification (± 2 px) → disparity, dy and confidence mapped back
+/// to the raw left frame (§3.3, CATS' convention).
+pub fn match_self_rectified(
+    left: &Image<u8>,
+    right: &Image<u8>,
+    p: &crate::sgm::SgmParams,
+) -> Result<SelfRectifiedMatch, StereoError> {
+    let (w, h) = left.size();
+    let (pl, pr) = sift_matches(left, right)?;
+    let sr = self_rectify(&pl, &pr, (w, h), &SelfRectifyOptions::default())?;
+    let off = rectified_disparity_shift(&sr, &pl, &pr);
+    let (lo, hi) = ((p.d_min as f64 + off).floor() as i32 - 2, (p.d_max as f64 + off).ceil() as i32 + 2);
+    let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
+    let o = crate::sgm::match_pair(&l, &r, &crate::sgm::SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
+    let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
+    let hl = sr.h_left();
+    let mut conf = Image::filled(w, h, 1, 0f32);
+    for y in 0..h {
+        for x in 0..w {
+            if d.get(x, y, 0).is_finite() {
+                let q = hl * Vector3::new(x as f64, y as f64, 1.0);
+                if let Some(c) = o.confidence.sample_nearest(q.x / q.z, q.y / q.z, 0) {
+                    conf.set(x, y, 0, c);
+                }
+            }
+        }
+    }
+    let n_valid = d.data.iter().filter(|v| v.is_finite()).count();
+    let stats = crate::sgm::SgmStats { n_valid, ..o.stats.clone() };
+    Ok(SelfRectifiedMatch {
+        output: crate::sgm::SgmOutput { disparity: d, confidence: conf, dy: Some(dy), stats },
+        rectification: sr,
+        n_matches: pl.len(),
+        rectified_range_px: (lo, hi),
+        median_disparity_shift_px: off,
+        left_rectified: l,
+        right_rectified: r,
+        disparity_rectified: o.disparity,
+    })
+}

@@ -150,69 +150,26 @@ pub fn to_raw_frame(rect: &Rectification, disp: &Image<f32>, w: usize, h: usize)
     (d, dy)
 }
 
-/// `--self-rectify`: SIFT + matching (laparo-features), self-rectification, SGM on the
-/// rectified pair, disparity / dy / confidence mapped back to the raw left frame.
+/// `--self-rectify`: `laparo_stereo::self_rectify::match_self_rectified` (SIFT matches, self-rectification,
+/// SGM on the rectified pair, results in the raw left frame), with its intermediates written to `--out`.
 fn self_rectified_match(
     a: &MatchArgs,
     left: &Image<u8>,
     right: &Image<u8>,
     p: &SgmParams,
 ) -> anyhow::Result<(SgmOutput, serde_json::Value)> {
-    use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
-    use laparo_stereo::self_rectify::{self_rectify, SelfRectifyOptions};
-    let (w, h) = left.size();
-    let sift = DetectorConfig::by_name("sift")?;
-    let fl = detect_and_describe(left, &sift, None).with_context(|| format!("SIFT on {}", a.left.display()))?;
-    let fr = detect_and_describe(right, &sift, None).with_context(|| format!("SIFT on {}", a.right.display()))?;
-    let m = match_features(&fl, &fr, &MatchConfig::default())?;
-    let (pl, pr): (Vec<[f64; 2]>, Vec<[f64; 2]>) = m
-        .iter()
-        .map(|m| {
-            let (x, y) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
-            ([x.x, x.y], [y.x, y.y])
-        })
-        .unzip();
-    let sr = self_rectify(&pl, &pr, (w, h), &SelfRectifyOptions::default())
-        .with_context(|| format!("self-rectification of {} / {}", a.left.display(), a.right.display()))?;
-    // Rectified range: the raw range shifted by the inliers' median change of disparity.
-    let mut shift: Vec<f64> = pl
-        .iter()
-        .zip(&pr)
-        .zip(&sr.inliers)
-        .filter(|(_, i)| **i)
-        .filter_map(|((l, r), _)| {
-            let (lr, rr) = (sr.rectify_left(l[0], l[1])?, sr.rectify_right(r[0], r[1])?);
-            Some((lr[0] - rr[0]) - (l[0] - r[0]))
-        })
-        .collect();
-    let off = if shift.is_empty() { 0.0 } else { laparo_core::stats::median(&mut shift) };
-    let (lo, hi) = ((p.d_min as f64 + off).floor() as i32 - 2, (p.d_max as f64 + off).ceil() as i32 + 2);
-    let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
-    laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
-    laparo_core::io::write_png(a.out.join("right_rectified.png"), &r)?;
-    let o = match_pair(&l, &r, &SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
-    write_pfm(&a.out.join("disparity_rectified.pfm"), &o.disparity)?;
-    let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
-    let hl = sr.h_left();
-    let mut conf = Image::filled(w, h, 1, 0f32);
-    for y in 0..h {
-        for x in 0..w {
-            if d.get(x, y, 0).is_finite() {
-                let q = hl * nalgebra::Vector3::new(x as f64, y as f64, 1.0);
-                if let Some(c) = o.confidence.sample_nearest(q.x / q.z, q.y / q.z, 0) {
-                    conf.set(x, y, 0, c);
-                }
-            }
-        }
-    }
-    let n_valid = d.data.iter().filter(|v| v.is_finite()).count();
-    let info = serde_json::json!({"rectification": sr, "n_matches": pl.len(), "rectified_range_px": [lo, hi], "median_disparity_shift_px": off});
+    let m = laparo_stereo::self_rectify::match_self_rectified(left, right, p)
+        .with_context(|| format!("self-rectified matching of {} / {}", a.left.display(), a.right.display()))?;
+    laparo_core::io::write_png(a.out.join("left_rectified.png"), &m.left_rectified)?;
+    laparo_core::io::write_png(a.out.join("right_rectified.png"), &m.right_rectified)?;
+    write_pfm(&a.out.join("disparity_rectified.pfm"), &m.disparity_rectified)?;
+    let (lo, hi) = m.rectified_range_px;
+    let info = serde_json::json!({"rectification": m.rectification, "n_matches": m.n_matches, "rectified_range_px": [lo, hi], "median_disparity_shift_px": m.median_disparity_shift_px});
     laparo_core::atomic::write_atomic(
         &a.out.join("self_rectification.json"),
         (serde_json::to_string_pretty(&info)? + "\n").as_bytes(),
     )?;
-    let stats = laparo_stereo::sgm::SgmStats { n_valid, ..o.stats.clone() };
-    Ok((SgmOutput { disparity: d, confidence: conf, dy: Some(dy), stats }, info))
+    Ok((m.output, info))
 }
 
 pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {

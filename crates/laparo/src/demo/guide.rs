@@ -36,5 +36,9 @@ pub fn section(out: &Path) -> Result<DemoSection> {
          (errors per stage in the report)</figcaption></figure>\n<pre>{}</pre>\n",
         serde_json::to_string_pretty(&rep.summary)?
     );
-    Ok(DemoSection { title: "Guidance pipeline end to end (§5.4.3, Fig. 5.10)".into(), html, summary: rep.summary.clone() })
+    Ok(DemoSection {
+        title: "Guidance pipeline end to end (§5.4.3, Fig. 5.10)".into(),
+        html,
+        summary: rep.summary.clone(),
+    })
 }

@@ -9,8 +9,8 @@ use std::time::Instant;
 
 mod cpc;
 mod depth;
-mod mpm;
 mod guide;
+mod mpm;
 mod register;
 mod stereo;
 
