@@ -627,9 +627,6 @@ pub fn perturbation(
     }
 }
 
-/// Matched points of a pair: (left, right), px.
-pub type PointPairs = (Vec<[f64; 2]>, Vec<[f64; 2]>);
-
 /// SIFT keypoints of both images matched with Lowe 0.8 + mutual check (laparo-features defaults).
 pub fn sift_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
     use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
