@@ -424,30 +424,7 @@ mod tests {
     use crate::tetmesh::grid_tet_mesh;
 
     fn box_surface(lo: [f64; 3], hi: [f64; 3]) -> TriMesh {
-        let v: Vec<Vector3<f64>> = (0..8)
-            .map(|i| {
-                Vector3::new(
-                    if i & 1 == 1 { hi[0] } else { lo[0] },
-                    if i & 2 == 2 { hi[1] } else { lo[1] },
-                    if i & 4 == 4 { hi[2] } else { lo[2] },
-                )
-            })
-            .collect();
-        let f = vec![
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        TriMesh { vertices: v, faces: f }
+        laparo_fem::mesh::shapes::box_surface(&Vector3::from(lo), &Vector3::from(hi))
     }
 
     fn spec() -> IncisionSpec {

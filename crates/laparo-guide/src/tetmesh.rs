@@ -174,23 +174,7 @@ mod tests {
     fn cube_surface_is_filled_with_positive_tets_of_the_right_volume() {
         // a 20 mm cube: the grid cubes inside fill it up to the border layer, then snapping moves
         // the boundary nodes onto the faces, so the volume is close to 8000 mm³
-        let v: Vec<Vector3<f64>> =
-            (0..8).map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64) * 20.0).collect();
-        let f = vec![
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        let c = TriMesh { vertices: v, faces: f };
+        let c = laparo_fem::mesh::shapes::box_surface(&Vector3::zeros(), &Vector3::repeat(20.0));
         let g = grid_tet_mesh(&c, 2.0).unwrap();
         assert!(g.mesh.tets.iter().enumerate().all(|(i, _)| g.mesh.tet_volume(i) > 0.0));
         let vol = g.mesh.volume();

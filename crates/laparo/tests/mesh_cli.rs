@@ -7,73 +7,14 @@ fn laparo() -> Command {
     Command::new(env!("CARGO_BIN_EXE_laparo"))
 }
 
-/// An icosphere (radius `r` mm, 3 subdivisions) as OBJ text.
+/// An icosphere (radius `r` mm, 3 subdivisions) as OBJ text (laparo-fem's test shape).
 fn sphere_obj(r: f64) -> String {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<[f64; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let norm = |p: [f64; 3]| {
-        let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        [p[0] / n, p[1] / n, p[2] / n]
-    };
-    for p in v.iter_mut() {
-        *p = norm(*p);
-    }
-    let mut f: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..3 {
-        let mut mid = std::collections::HashMap::new();
-        let mut g = Vec::new();
-        for [a, b, c] in f {
-            let mut m = |x: usize, y: usize| -> usize {
-                *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
-                    let p = norm([(v[x][0] + v[y][0]) / 2.0, (v[x][1] + v[y][1]) / 2.0, (v[x][2] + v[y][2]) / 2.0]);
-                    v.push(p);
-                    v.len() - 1
-                })
-            };
-            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-            g.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = g;
-    }
+    let m = laparo_fem::mesh::shapes::icosphere(&nalgebra::Vector3::zeros(), r, 3);
     let mut s = String::new();
-    for p in &v {
-        s += &format!("v {} {} {}\n", p[0] * r, p[1] * r, p[2] * r);
+    for p in &m.vertices {
+        s += &format!("v {} {} {}\n", p[0], p[1], p[2]);
     }
-    for t in &f {
+    for t in &m.faces {
         s += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
     }
     s
