@@ -1,6 +1,6 @@
 """A NumPy/OpenCV implementation of the CATS augmentation of one stereo sample (thesis §3.3.5,
 eqs. 3.6–3.9), written as a user of NumPy + OpenCV would: the peer of `laparo.cats.augment`
-in `cats_python_bench.py` (same work: both views warped bilinearly by their homographies
+in `crates/laparo-py/bench/bench_cats.py` (same work: both views warped bilinearly by their homographies
 H = K_rel K R K⁻¹ with inverse mapping, validity masks, and the left disparity by the exact
 rule — p = H_L⁻¹ p', d sampled at p, p_R = (x − d, y), d' = x' − (H_R p_R)_x).
 
