@@ -405,6 +405,41 @@ fn longest_chain(edges: &BTreeSet<(usize, usize)>) -> Vec<usize> {
     best
 }
 
+/// `n_total` landmarks, `n_total / 2` per lip, at arc lengths (k + ½) L / (n_total / 2) along each lip
+/// (ordered node ids) measured in `positions` (mm); each a material point (a, b, t) of the lip polyline.
+pub fn lip_landmarks(lips: &[Vec<usize>; 2], positions: &[V3], n_total: usize) -> Result<Landmarks> {
+    if n_total < 2 || !n_total.is_multiple_of(2) {
+        return Err(FemError::param("landmarks", n_total as f64, "must be an even count ≥ 2"));
+    }
+    let per = n_total / 2;
+    let mut items = Vec::with_capacity(n_total);
+    for (s, lip) in lips.iter().enumerate() {
+        if lip.len() < 2 || lip.iter().any(|&k| k >= positions.len()) {
+            return Err(FemError::bad(format!("lip {s}"), format!("{} nodes (need ≥ 2 valid ids)", lip.len())));
+        }
+        let p: Vec<V3> = lip.iter().map(|&k| positions[k]).collect();
+        let mut cum = vec![0.0];
+        for w in p.windows(2) {
+            cum.push(cum.last().unwrap_or(&0.0) + (w[1] - w[0]).norm());
+        }
+        let total = *cum.last().unwrap_or(&0.0);
+        if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return Err(FemError::bad(format!("lip {s}"), "has zero length"));
+        }
+        let mut seg = 0;
+        for k in 0..per {
+            let target = (k as f64 + 0.5) * total / per as f64;
+            while seg + 2 < cum.len() && cum[seg + 1] < target {
+                seg += 1;
+            }
+            let len = cum[seg + 1] - cum[seg];
+            let t = if len > 0.0 { ((target - cum[seg]) / len).clamp(0.0, 1.0) } else { 0.0 };
+            items.push(Landmark { side: s as u8, a: lip[seg], b: lip[seg + 1], t });
+        }
+    }
+    Ok(Landmarks { items })
+}
+
 impl CutMesh {
     /// Positions of lip `side` (0 = A, 1 = B) in a configuration `positions` (mm).
     pub fn lip_positions(&self, side: usize, positions: &[V3]) -> Vec<V3> {
@@ -417,33 +452,9 @@ impl CutMesh {
     }
 
     /// `n_total` landmarks, `n_total / 2` per lip, at arc lengths (k + ½) L / (n_total / 2) along
-    /// each lip in the rest configuration.
+    /// each lip in the rest configuration ([`lip_landmarks`]).
     pub fn landmarks(&self, n_total: usize) -> Result<Landmarks> {
-        if n_total < 2 || !n_total.is_multiple_of(2) {
-            return Err(FemError::param("landmarks", n_total as f64, "must be an even count ≥ 2"));
-        }
-        let per = n_total / 2;
-        let mut items = Vec::with_capacity(n_total);
-        for s in 0..2 {
-            let lip = &self.lips[s];
-            let p = self.lip_positions(s, &self.mesh.vertices);
-            let mut cum = vec![0.0];
-            for w in p.windows(2) {
-                cum.push(cum.last().unwrap_or(&0.0) + (w[1] - w[0]).norm());
-            }
-            let total = *cum.last().unwrap_or(&0.0);
-            let mut seg = 0;
-            for k in 0..per {
-                let target = (k as f64 + 0.5) * total / per as f64;
-                while seg + 2 < cum.len() && cum[seg + 1] < target {
-                    seg += 1;
-                }
-                let len = cum[seg + 1] - cum[seg];
-                let t = if len > 0.0 { ((target - cum[seg]) / len).clamp(0.0, 1.0) } else { 0.0 };
-                items.push(Landmark { side: s as u8, a: lip[seg], b: lip[seg + 1], t });
-            }
-        }
-        Ok(Landmarks { items })
+        lip_landmarks(&self.lips, &self.mesh.vertices, n_total)
     }
 
     /// Connected components of the tets over shared faces (crack faces are no longer shared).

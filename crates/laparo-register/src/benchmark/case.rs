@@ -128,36 +128,25 @@ impl BenchmarkCase {
         self.rest.iter().zip(&self.ground_truth).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
     }
 
-    /// `n_total` landmarks, half on each lip, equally spaced by rest arc length along the lip (ends included),
-    /// with noiseless targets at the same material points in the ground truth.
+    /// `n_total` landmarks, half on each lip, equally spaced by rest arc length along the lip (at (k + ½) L / (N/2),
+    /// `laparo_fem::mesh::incision::lip_landmarks`), with noiseless targets at the same material points in the
+    /// ground truth.
     pub fn lip_landmarks(&self, n_total: usize) -> Result<Vec<LandmarkSet>> {
-        if n_total < 4 || !n_total.is_multiple_of(2) {
-            return Err(RegisterError::param("landmarks", n_total as f64, "must be even and ≥ 4 (half per lip)"));
-        }
-        let per = n_total / 2;
-        let mut out = Vec::new();
-        for (k, lip) in self.lips.iter().enumerate() {
-            let mut cum = vec![0.0];
-            for w in lip.windows(2) {
-                cum.push(cum.last().copied().unwrap_or(0.0) + (self.rest[w[1]] - self.rest[w[0]]).norm());
-            }
-            let total = *cum.last().unwrap_or(&0.0);
-            if !(total > 0.0) {
-                return Err(RegisterError::bad(format!("lip {}", k + 1), "has zero length"));
-            }
-            let mut points = Vec::with_capacity(per);
-            for j in 0..per {
-                let s = total * j as f64 / (per - 1) as f64;
-                let seg = cum.partition_point(|&c| c <= s).clamp(1, lip.len() - 1) - 1;
-                let len = cum[seg + 1] - cum[seg];
-                let t = if len > 0.0 { ((s - cum[seg]) / len).clamp(0.0, 1.0) } else { 0.0 };
-                points.push(MaterialPoint::combination(&[(lip[seg], 1.0 - t), (lip[seg + 1], t)]));
-            }
-            let sources = points.iter().map(|p| p.position(&self.rest)).collect();
-            let targets = points.iter().map(|p| p.position(&self.ground_truth)).collect();
-            out.push(LandmarkSet { name: format!("lip {}", k + 1), side: k as u8 + 1, points, sources, targets });
-        }
-        Ok(out)
+        let lm = laparo_fem::mesh::incision::lip_landmarks(&self.lips, &self.rest, n_total)
+            .map_err(|e| RegisterError::bad(format!("benchmark case `{}`: landmarks", self.scenario), e.to_string()))?;
+        Ok((0..2u8)
+            .map(|side| {
+                let points: Vec<MaterialPoint> = lm
+                    .items
+                    .iter()
+                    .filter(|l| l.side == side)
+                    .map(|l| MaterialPoint::combination(&[(l.a, 1.0 - l.t), (l.b, l.t)]))
+                    .collect();
+                let sources = points.iter().map(|p| p.position(&self.rest)).collect();
+                let targets = points.iter().map(|p| p.position(&self.ground_truth)).collect();
+                LandmarkSet { name: format!("lip {}", side + 1), side: side + 1, points, sources, targets }
+            })
+            .collect())
     }
 }
 
@@ -318,14 +307,15 @@ mod tests {
         c.validate().unwrap();
         let lm = c.lip_landmarks(6).unwrap();
         assert_eq!(lm.len(), 2);
-        // lip 1: (0,10,0) → (0,0,10) → (0,-10,0); 3 points: both ends and the middle node
+        // lip 1: (0,10,0) → (0,0,10) → (0,-10,0), length L; 3 points at L/6, L/2 (the crack node), 5L/6
         assert!((lm[0].sources[1] - Vector3::new(0.0, 0.0, 10.0)).norm() < 1e-12);
         assert!((lm[0].targets[1] - Vector3::new(-3.0, 0.0, 10.0)).norm() < 1e-12);
         assert!((lm[1].targets[1] - Vector3::new(4.0, 0.0, 10.0)).norm() < 1e-12);
-        assert!((lm[0].sources[0] - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-12);
+        let first = Vector3::new(0.0, 10.0, 0.0) * (2.0 / 3.0) + Vector3::new(0.0, 0.0, 10.0) * (1.0 / 3.0);
+        assert!((lm[0].sources[0] - first).norm() < 1e-12);
         assert!(c.lip_landmarks(5).is_err());
-        let lm = c.lip_landmarks(8).unwrap(); // 4 per lip: at 1/3 of the arc, a point between nodes 2 and 4
-        let expect = Vector3::new(0.0, 10.0, 0.0) * (1.0 / 3.0) + Vector3::new(0.0, 0.0, 10.0) * (2.0 / 3.0);
+        let lm = c.lip_landmarks(8).unwrap(); // 4 per lip: the second at 3L/8, ¾ along the first segment
+        let expect = Vector3::new(0.0, 10.0, 0.0) * 0.25 + Vector3::new(0.0, 0.0, 10.0) * 0.75;
         assert!((lm[0].sources[1] - expect).norm() < 1e-12);
     }
 
@@ -348,10 +338,11 @@ mod tests {
         assert_eq!(id.tre_volume.max, 4.0);
         assert_eq!(id.max_gt_displacement_mm, 4.0);
         assert_eq!(r[1].tre_volume.max, 0.0);
-        // 2 landmarks per lip sit at the lip ends (nodes 2, 3: distance 0, error 0); the crack pair is
-        // √200 ≈ 14.1 mm from them, in the 10–20 mm bin with the base nodes 0, 1, 6
-        assert_eq!((id.bins[0].stats.n, id.bins[0].stats.max), (2, 0.0));
-        assert_eq!((id.bins[2].stats.n, id.bins[2].stats.max), (5, 4.0));
+        // 2 landmarks per lip sit mid-segment at (0, ±5, 5): nodes 2, 3 and the crack pair are √50 ≈ 7.1 mm from
+        // them (5–10 mm bin, errors 0, 0, 3, 4); the base nodes 0, 1, 6 are 12.2–15.8 mm away (10–20 mm, error 0)
+        assert_eq!(id.bins[0].stats.n, 0);
+        assert_eq!((id.bins[1].stats.n, id.bins[1].stats.max), (4, 4.0));
+        assert_eq!((id.bins[2].stats.n, id.bins[2].stats.max), (3, 0.0));
         // resumed on a second call
         let mut resumed = 0;
         run_protocol(&[c], &[&Identity, &Oracle], &cols, 2, &store, &mut |e| {
