@@ -7,6 +7,9 @@
 //! The default run is short (a few seconds in all). Long campaigns:
 //! `LAPARO_FUZZ_SECS=600 cargo test --release -p laparo-core --test fuzz_parsers -- --nocapture --test-threads 1`
 //! runs each target for that many seconds and prints iterations and the slowest input per target.
+//! `LAPARO_FUZZ_CPU_SECS=600` budgets CPU time of the fuzzing thread instead of wall time (Linux:
+//! `/proc/thread-self/schedstat`), so that a campaign run at low priority beside other work still
+//! gets its full share.
 //! A panicking input is saved to `$TMPDIR/laparo-fuzz-<target>-<iteration>.bin` and reported.
 use laparo_core::calib::StereoCalibration;
 use laparo_core::io;
@@ -218,18 +221,23 @@ struct Outcome {
     ok: u64,
     slowest: Duration,
     panics: Vec<String>,
+    wall_secs: f64,
+    cpu_secs: f64,
 }
 
 fn fuzz_target(t: &Target, dir: &Path, seed: u64, budget: Budget) -> Outcome {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let path = dir.join(t.file);
     let start = Instant::now();
-    let mut out = Outcome { iterations: 0, ok: 0, slowest: Duration::ZERO, panics: Vec::new() };
+    let cpu0 = thread_cpu_secs().unwrap_or(0.0);
+    let mut out =
+        Outcome { iterations: 0, ok: 0, slowest: Duration::ZERO, panics: Vec::new(), wall_secs: 0.0, cpu_secs: 0.0 };
     let mut corpus = t.seeds.clone();
     loop {
         match budget {
             Budget::Iterations(n) if out.iterations >= n => break,
             Budget::Seconds(s) if start.elapsed().as_secs_f64() >= s => break,
+            Budget::CpuSeconds(s) if thread_cpu_secs().unwrap_or_else(|| start.elapsed().as_secs_f64()) - cpu0 >= s => break,
             _ => {}
         }
         let base = &corpus[rng.gen_range(0..corpus.len())];
@@ -261,6 +269,8 @@ fn fuzz_target(t: &Target, dir: &Path, seed: u64, budget: Budget) -> Outcome {
         }
         out.iterations += 1;
     }
+    out.wall_secs = start.elapsed().as_secs_f64();
+    out.cpu_secs = thread_cpu_secs().map_or(f64::NAN, |c| c - cpu0);
     out
 }
 
@@ -268,14 +278,23 @@ fn fuzz_target(t: &Target, dir: &Path, seed: u64, budget: Budget) -> Outcome {
 enum Budget {
     Iterations(u64),
     Seconds(f64),
+    CpuSeconds(f64),
+}
+
+/// CPU time of the calling thread (s), from `/proc/thread-self/schedstat` (Linux; `None` elsewhere).
+fn thread_cpu_secs() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    s.split_whitespace().next()?.parse::<u64>().ok().map(|ns| ns as f64 * 1e-9)
 }
 
 #[test]
 fn every_parser_survives_mutated_inputs() {
     let dir = tempfile::tempdir().unwrap();
-    let budget = match std::env::var("LAPARO_FUZZ_SECS").ok().and_then(|s| s.parse::<f64>().ok()) {
-        Some(s) => Budget::Seconds(s),
-        None => Budget::Iterations(std::env::var("LAPARO_FUZZ_ITERS").ok().and_then(|s| s.parse().ok()).unwrap_or(60)),
+    let secs = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<f64>().ok());
+    let budget = match (secs("LAPARO_FUZZ_CPU_SECS"), secs("LAPARO_FUZZ_SECS")) {
+        (Some(s), _) => Budget::CpuSeconds(s),
+        (None, Some(s)) => Budget::Seconds(s),
+        (None, None) => Budget::Iterations(std::env::var("LAPARO_FUZZ_ITERS").ok().and_then(|s| s.parse().ok()).unwrap_or(60)),
     };
     let only = std::env::var("LAPARO_FUZZ_TARGET").ok();
     let seed: u64 = std::env::var("LAPARO_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x1a9a_0010);
@@ -289,12 +308,14 @@ fn every_parser_survives_mutated_inputs() {
         }
         let o = fuzz_target(t, dir.path(), seed.wrapping_add(i as u64), budget);
         eprintln!(
-            "fuzz {:16} iterations {:>9}  parsed {:>7}  slowest {:>8.1} ms  panics {}",
+            "fuzz {:16} iterations {:>9}  parsed {:>7}  slowest {:>8.1} ms  panics {}  cpu {:.0} s  wall {:.0} s",
             t.name,
             o.iterations,
             o.ok,
             o.slowest.as_secs_f64() * 1e3,
-            o.panics.len()
+            o.panics.len(),
+            o.cpu_secs,
+            o.wall_secs
         );
         panics.extend(o.panics.into_iter().take(5));
     }
