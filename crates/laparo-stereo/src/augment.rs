@@ -494,6 +494,138 @@ fn sample_disparity(d: &Image<f32>, x: f64, y: f64) -> Option<f64> {
     nearest()
 }
 
+/// One row of the exact rule when both maps are plain homographies: the arithmetic of
+/// [`sample_disparity`] and [`CameraMap::forward`] (bit for bit), in two passes: the disparity
+/// samples (gathers and branches), then the other view's homography over the whole row, branch-free
+/// so that it vectorises (the two divisions per pixel were the rule's bottleneck).
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn exact_row_homography(
+    h_other: &Matrix3<f64>,
+    d: &Image<f32>,
+    sign: f64,
+    y: usize,
+    src: &[(f64, f64)],
+    dbuf: &mut [f64],
+    drow: &mut [f32],
+    rrow: &mut [f32],
+    vrow: &mut [bool],
+) {
+    let (w, hgt) = (d.width, d.height);
+    let (wf, hf) = (w as f64, hgt as f64);
+    let data = &d.data[..w * hgt];
+    let interior = w >= 2 && hgt >= 2;
+    let (xmax, ymax) = ((w.max(2) - 1) as f64, (hgt.max(2) - 1) as f64);
+    // Pass 1: sample_disparity (bilinear on smooth 2×2 neighbourhoods, else nearest); NaN = none.
+    for (dv_out, &(sx, sy)) in dbuf.iter_mut().zip(src) {
+        *dv_out = f64::NAN;
+        if !(sx >= -0.5 && sy >= -0.5 && sx < wf - 0.5 && sy < hf - 0.5) {
+            continue;
+        }
+        if interior && sx >= 0.0 && sy >= 0.0 && sx <= xmax && sy <= ymax {
+            let x0 = (sx as usize).min(w - 2);
+            let y0 = (sy as usize).min(hgt - 2);
+            let i = y0 * w + x0;
+            let (p00, p10, p01, p11) = (data[i], data[i + 1], data[i + w], data[i + w + 1]);
+            // All four finite (the NaN-free min/max below are then f32::min/max exactly).
+            let finite = (p00 - p00) + (p10 - p10) + (p01 - p01) + (p11 - p11) == 0.0;
+            if finite {
+                let mn = |a: f32, b: f32| if a < b { a } else { b };
+                let mx = |a: f32, b: f32| if a > b { a } else { b };
+                let lo = mn(mn(p00, p10), mn(p01, p11));
+                let hi = mx(mx(p00, p10), mx(p01, p11));
+                if hi - lo <= 1.0 {
+                    let (a, b, c, e) = (p00 as f64, p10 as f64, p01 as f64, p11 as f64);
+                    *dv_out = remap::bilerp(a, b, c, e, sx - x0 as f64, sy - y0 as f64, true);
+                    continue;
+                }
+            }
+        }
+        let v = data[(sy + 0.5) as usize * w + (sx + 0.5) as usize];
+        if v.is_finite() {
+            *dv_out = v as f64;
+        }
+    }
+    // Pass 2: CameraMap::forward of the other view (apply_h, nalgebra's evaluation order).
+    let hh: [f64; 9] = h_other.as_slice().try_into().expect("3x3");
+    if sign < 0.0 {
+        forward_row::<true>(&hh, sign, y as f64, src, dbuf, drow, rrow, vrow);
+    } else {
+        forward_row::<false>(&hh, sign, y as f64, src, dbuf, drow, rrow, vrow);
+    }
+}
+
+/// Pass 2 of [`exact_row_homography`]; `LEFT`: d = x − x_other (else x_other − x).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn forward_row<const LEFT: bool>(
+    h: &[f64; 9],
+    sign: f64,
+    yf: f64,
+    src: &[(f64, f64)],
+    dbuf: &[f64],
+    drow: &mut [f32],
+    rrow: &mut [f32],
+    vrow: &mut [bool],
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked above). Same operations, no FMA contraction.
+            unsafe { forward_row_avx2::<LEFT>(h, sign, yf, src, dbuf, drow, rrow, vrow) };
+            return;
+        }
+    }
+    forward_row_body::<LEFT>(h, sign, yf, src, dbuf, drow, rrow, vrow);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2")]
+unsafe fn forward_row_avx2<const LEFT: bool>(
+    h: &[f64; 9],
+    sign: f64,
+    yf: f64,
+    src: &[(f64, f64)],
+    dbuf: &[f64],
+    drow: &mut [f32],
+    rrow: &mut [f32],
+    vrow: &mut [bool],
+) {
+    forward_row_body::<LEFT>(h, sign, yf, src, dbuf, drow, rrow, vrow);
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn forward_row_body<const LEFT: bool>(
+    h: &[f64; 9],
+    sign: f64,
+    yf: f64,
+    src: &[(f64, f64)],
+    dbuf: &[f64],
+    drow: &mut [f32],
+    rrow: &mut [f32],
+    vrow: &mut [bool],
+) {
+    let [h00, h10, h20, h01, h11, h21, h02, h12, h22] = *h;
+    let n = src.len().min(dbuf.len()).min(drow.len()).min(rrow.len()).min(vrow.len());
+    for x in 0..n {
+        let (sx, sy) = src[x];
+        let dv = dbuf[x];
+        let u = sx + sign * dv;
+        let pz = h20 * u + h21 * sy + h22;
+        let ox = (h00 * u + h01 * sy + h02) / pz;
+        let oy = (h10 * u + h11 * sy + h12) / pz;
+        // NaN dv makes pz NaN, and NaN fails the comparison.
+        let ok = pz > 1e-12;
+        let xf = x as f64;
+        let dd = if LEFT { xf - ox } else { ox - xf };
+        drow[x] = if ok { dd as f32 } else { f32::INFINITY };
+        rrow[x] = if ok { (oy - yf) as f32 } else { f32::NAN };
+        vrow[x] = ok;
+    }
+}
+
 /// Thesis rule (a): d'(p') = d(nearest(A⁻¹ p')) + offset.
 fn disparity_thesis(map: &CameraMap, d: &Image<f32>, offset: f64) -> Result<AugmentedDisparity, AugmentError> {
     let w = map.warp_nearest_f32(d, f32::INFINITY)?;
@@ -514,20 +646,36 @@ fn disparity_exact(
     d: &Image<f32>,
     sign: f64,
 ) -> Result<AugmentedDisparity, AugmentError> {
+    disparity_exact_with(own, other, d, sign, true)
+}
+
+/// [`disparity_exact`], with the homography fast path allowed or not (tests compare both).
+fn disparity_exact_with(
+    own: &CameraMap,
+    other: &CameraMap,
+    d: &Image<f32>,
+    sign: f64,
+    allow_fast: bool,
+) -> Result<AugmentedDisparity, AugmentError> {
     own.check_size(d.width, d.height, "disparity")?;
     let (w, h) = (own.width, own.height);
     let mut disp = Image::filled(w, h, 1, f32::INFINITY);
     let mut res = Image::filled(w, h, 1, f32::NAN);
     let mut valid = Image::filled(w, h, 1, false);
+    let fast = allow_fast && own.is_homography() && other.is_homography();
     disp.data
         .par_chunks_mut(w)
         .zip(res.data.par_chunks_mut(w))
         .zip(valid.data.par_chunks_mut(w))
         .enumerate()
         .for_each_init(
-            || vec![(0.0, 0.0); w],
-            |buf, (y, ((drow, rrow), vrow))| {
+            || (vec![(0.0, 0.0); w], vec![0.0; w]),
+            |(buf, dbuf), (y, ((drow, rrow), vrow))| {
                 own.row_sources(y, buf);
+                if fast {
+                    exact_row_homography(&other.h, d, sign, y, buf, dbuf, drow, rrow, vrow);
+                    return;
+                }
                 for (x, &(sx, sy)) in buf.iter().enumerate() {
                     let Some(dv) = sample_disparity(d, sx, sy) else { continue };
                     let Some((ox, oy)) = other.forward(sx + sign * dv, sy) else { continue };
@@ -620,6 +768,45 @@ mod tests {
             }
         }
         assert!(worst < 1e-9, "worst {worst} px");
+    }
+
+    #[test]
+    fn exact_rule_fast_path_is_bit_identical_to_the_general_path() {
+        let (w, h) = (128usize, 96usize);
+        // A smooth surface with a step (nearest fallback), holes and NaN.
+        let data: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                match (i % 97, x > 70.0) {
+                    (0, _) => f32::INFINITY,
+                    (13, _) => f32::NAN,
+                    (_, true) => 30.0 + 0.05 * x + 0.3 * (y * 0.2).sin(),
+                    _ => 12.0 + 0.1 * x - 0.02 * y,
+                }
+            })
+            .collect();
+        let d = Image::from_vec(w, h, 1, data).unwrap();
+        let cam = |e: [f64; 3], dx: f64| {
+            CameraAugmentation::from_euler_deg(
+                k(),
+                Distortion::default(),
+                e,
+                Matrix3::new(1.0, 0.0, -dx, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+                Distortion::default(),
+            )
+            .map()
+            .unwrap()
+        };
+        let (l, r) = (cam([0.4, -0.7, 1.5], 0.0), cam([-0.3, 0.9, -2.0], -40.0));
+        for (own, other, sign) in [(&l, &r, -1.0), (&r, &l, 1.0)] {
+            let a = disparity_exact_with(own, other, &d, sign, true).unwrap();
+            let b = disparity_exact_with(own, other, &d, sign, false).unwrap();
+            assert_eq!(a.valid.data, b.valid.data);
+            assert!(a.valid.data.iter().filter(|&&v| v).count() > w * h / 2);
+            let bits = |im: &Image<f32>| im.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&a.disparity), bits(&b.disparity));
+            assert_eq!(bits(a.vertical_residual.as_ref().unwrap()), bits(b.vertical_residual.as_ref().unwrap()));
+        }
     }
 
     #[test]
