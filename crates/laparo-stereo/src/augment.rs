@@ -558,7 +558,7 @@ fn sample_row_scalar(data: &[f32], w: usize, hgt: usize, src: &[(f64, f64)], dbu
             let i = y0 * w + x0;
             let (p00, p10, p01, p11) = (data[i], data[i + 1], data[i + w], data[i + w + 1]);
             // All four finite (the NaN-free min/max below are then f32::min/max exactly).
-            let finite = (p00 - p00) + (p10 - p10) + (p01 - p01) + (p11 - p11) == 0.0;
+            let finite = p00.is_finite() & p10.is_finite() & p01.is_finite() & p11.is_finite();
             if finite {
                 let mn = |a: f32, b: f32| if a < b { a } else { b };
                 let mx = |a: f32, b: f32| if a > b { a } else { b };
