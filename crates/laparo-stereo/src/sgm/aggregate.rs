@@ -219,7 +219,10 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, slots: &[std::sync::Mutex
     let mut cur = vec![0xFFFFu16; n_dirs * w * stride];
     let mut pmin = vec![0u16; n_dirs * w];
     let mut cmin = vec![0u16; n_dirs * w];
-    let (p1, pen, avx2, nd) = (inp.pen.p1, inp.pen, inp.avx2, g.nd);
+    let (p1, avx2, nd) = (inp.pen.p1, inp.avx2, g.nd);
+    // P2 by |ΔI| (the division of `p2_at` once per grey step, not per pixel and path).
+    let p2_lut: Vec<u16> = (0..=255u8).map(|di| inp.pen.p2_at(di, 0)).collect();
+    let p2_at = |a: u8, b: u8| p2_lut[a.abs_diff(b) as usize];
     for step in 0..h {
         let y = if forward { step } else { h - 1 - step };
         let yp = if forward { y.wrapping_sub(1) } else { y + 1 };
@@ -241,7 +244,7 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, slots: &[std::sync::Mutex
                 (0, true) => path_start::<true>(&costs, nd, ndp, &mut ha, sp),
                 _ => {
                     let xq = if forward { x - 1 } else { x + 1 };
-                    let p2 = pen.p2_at(gray[x], gray[xq]);
+                    let p2 = p2_at(gray[x], gray[xq]);
                     if second {
                         path_step::<true>(avx2, &hb, m, p1, p2, &costs, nd, ndp, &mut ha, sp)
                     } else {
@@ -261,7 +264,7 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, slots: &[std::sync::Mutex
                 cmin[k * w + x] = match xq {
                     Some(xq) if step > 0 => {
                         let pb = &prev[(k * w + xq) * stride..(k * w + xq + 1) * stride];
-                        let p2 = pen.p2_at(gray[x], gprev[xq]);
+                        let p2 = p2_at(gray[x], gprev[xq]);
                         path_step::<true>(avx2, pb, pmin[k * w + xq], p1, p2, &costs, nd, ndp, cb, sp)
                     }
                     _ => path_start::<true>(&costs, nd, ndp, cb, sp),
