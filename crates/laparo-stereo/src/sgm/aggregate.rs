@@ -10,6 +10,7 @@
 //! and the scalar kernel perform the same u16 operations (saturating adds for `+ P1`, `+ P2` and
 //! the sum into S, wrapping `C + t − min` which never wraps): results are identical bit for bit.
 use super::cost::{row_costs, tolerance_rows, CostGeom};
+use super::select::{select, Selection};
 
 /// Sentinel lanes on each side of a path buffer.
 pub const SENT: usize = 16;
@@ -188,52 +189,72 @@ pub struct Inputs<'a> {
     pub avx2: bool,
 }
 
+/// One row of the shared S volume and its selections. The first sweep to reach row `y` writes
+/// its paths' sum there (`done` set); the second adds its own paths and selects the disparity of
+/// each pixel while the pixel's S is still in cache. Every path value is at most
+/// `C_max + P2 ≤ 62 + 1000`, so even 8 paths never saturate u16 and the sum does not depend on
+/// which sweep came first: the output is the same for any thread count and timing.
+pub struct RowSlot<'a> {
+    /// Whether one sweep has written this row.
+    pub done: bool,
+    /// S of the row (`w × ndp`).
+    pub s: &'a mut [u16],
+    /// Selections of the row (written by the second sweep).
+    pub sel: &'a mut [Selection],
+}
+
 /// One sweep over the rows, forward (top→bottom: left→right, top→bottom and, with `eight`, the
 /// two downward diagonals) or backward (bottom→top: right→left, bottom→top, upward diagonals).
-/// The paths of a sweep share the row's costs; their sum is written to `s` (`h × w × ndp`).
-/// A sweep is sequential over rows; the forward and the backward sweep run in parallel
-/// ([`aggregate`]), so the result never depends on the thread count.
-pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
+/// The paths of a sweep share each pixel's costs, computed on the fly; all paths of a pixel are
+/// processed together so that its S stays in cache. A sweep is sequential over rows; the forward
+/// and the backward sweep run in parallel ([`aggregate_select`]), meeting in [`RowSlot`]s.
+pub fn sweep(inp: &Inputs, forward: bool, eight: bool, slots: &[std::sync::Mutex<RowSlot>]) {
     let g = inp.g;
     let (w, h, ndp) = (g.w, inp.h, g.ndp);
     let stride = ndp + 2 * SENT;
-    let mut costs = vec![0u8; w * ndp];
+    let mut costs = vec![0u8; ndp];
     let (mut ha, mut hb) = (path_buffer(ndp), path_buffer(ndp));
     let n_dirs = if eight { 3 } else { 1 }; // vertical, diagonal from x − 1, diagonal from x + 1
     let mut prev = vec![0xFFFFu16; n_dirs * w * stride];
     let mut cur = vec![0xFFFFu16; n_dirs * w * stride];
     let mut pmin = vec![0u16; n_dirs * w];
     let mut cmin = vec![0u16; n_dirs * w];
-    let (p1, pen, avx2, nd) = (inp.pen.p1, inp.pen, inp.avx2, g.nd);
+    let (p1, avx2, nd) = (inp.pen.p1, inp.avx2, g.nd);
+    // P2 by |ΔI| (the division of `p2_at` once per grey step, not per pixel and path).
+    let p2_lut: Vec<u16> = (0..=255u8).map(|di| inp.pen.p2_at(di, 0)).collect();
+    let p2_at = |a: u8, b: u8| p2_lut[a.abs_diff(b) as usize];
     for step in 0..h {
         let y = if forward { step } else { h - 1 - step };
         let yp = if forward { y.wrapping_sub(1) } else { y + 1 };
         let rows = tolerance_rows(inp.census_r, w, h, y, inp.vtol);
-        row_costs(avx2, &g, 0, w, &inp.census_l[y * w..(y + 1) * w], &rows, &mut costs);
-        let srow = &mut s[y * w * ndp..(y + 1) * w * ndp];
+        let cl_row = &inp.census_l[y * w..(y + 1) * w];
         let gray = &inp.gray_l[y * w..(y + 1) * w];
-        // Horizontal path.
-        let xs: Box<dyn Iterator<Item = usize>> = if forward { Box::new(0..w) } else { Box::new((0..w).rev()) };
+        let gprev = if step > 0 { &inp.gray_l[yp * w..(yp + 1) * w] } else { gray };
+        let mut guard = slots[y].lock().unwrap_or_else(|e| e.into_inner());
+        let slot = &mut *guard;
+        let second = slot.done;
         let mut m = 0u16;
-        for (i, x) in xs.enumerate() {
-            let o = x * ndp;
-            let c = &costs[o..o + ndp];
-            let sp = &mut srow[o..o + ndp];
-            m = if i == 0 {
-                path_start::<false>(c, nd, ndp, &mut ha, sp)
-            } else {
-                let xq = if forward { x - 1 } else { x + 1 };
-                path_step::<false>(avx2, &hb, m, p1, pen.p2_at(gray[x], gray[xq]), c, nd, ndp, &mut ha, sp)
+        for i in 0..w {
+            let x = if forward { i } else { w - 1 - i };
+            row_costs(avx2, &g, x, x + 1, cl_row, &rows, &mut costs);
+            let sp = &mut slot.s[x * ndp..(x + 1) * ndp];
+            // Horizontal path: writes S (first sweep) or adds to it (second).
+            m = match (i, second) {
+                (0, false) => path_start::<false>(&costs, nd, ndp, &mut ha, sp),
+                (0, true) => path_start::<true>(&costs, nd, ndp, &mut ha, sp),
+                _ => {
+                    let xq = if forward { x - 1 } else { x + 1 };
+                    let p2 = p2_at(gray[x], gray[xq]);
+                    if second {
+                        path_step::<true>(avx2, &hb, m, p1, p2, &costs, nd, ndp, &mut ha, sp)
+                    } else {
+                        path_step::<false>(avx2, &hb, m, p1, p2, &costs, nd, ndp, &mut ha, sp)
+                    }
+                }
             };
             std::mem::swap(&mut ha, &mut hb);
-        }
-        // Vertical and diagonal paths, from the previous row.
-        let gprev = if step > 0 { &inp.gray_l[yp * w..(yp + 1) * w] } else { gray };
-        for k in 0..n_dirs {
-            for x in 0..w {
-                let o = x * ndp;
-                let c = &costs[o..o + ndp];
-                let sp = &mut srow[o..o + ndp];
+            // Vertical and diagonal paths, from the previous row.
+            for k in 0..n_dirs {
                 let xq = match k {
                     0 => Some(x),
                     1 => x.checked_sub(1),
@@ -243,35 +264,40 @@ pub fn sweep(inp: &Inputs, forward: bool, eight: bool, s: &mut [u16]) {
                 cmin[k * w + x] = match xq {
                     Some(xq) if step > 0 => {
                         let pb = &prev[(k * w + xq) * stride..(k * w + xq + 1) * stride];
-                        path_step::<true>(
-                            avx2,
-                            pb,
-                            pmin[k * w + xq],
-                            p1,
-                            pen.p2_at(gray[x], gprev[xq]),
-                            c,
-                            nd,
-                            ndp,
-                            cb,
-                            sp,
-                        )
+                        let p2 = p2_at(gray[x], gprev[xq]);
+                        path_step::<true>(avx2, pb, pmin[k * w + xq], p1, p2, &costs, nd, ndp, cb, sp)
                     }
-                    _ => path_start::<true>(c, nd, ndp, cb, sp),
+                    _ => path_start::<true>(&costs, nd, ndp, cb, sp),
                 };
             }
+            if second {
+                slot.sel[x] = select(avx2, sp, nd, ndp);
+            }
         }
+        slot.done = true;
+        drop(guard);
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut pmin, &mut cmin);
     }
 }
 
-/// Aggregate all paths (eq. 14): the forward and the backward [`sweep`] in parallel
-/// (`rayon::join`), returning their two partial sums `S = S_f + S_b` (added at selection).
-pub fn aggregate(inp: &Inputs, eight: bool) -> (Vec<u16>, Vec<u16>) {
-    let n = inp.g.w * inp.h * inp.g.ndp;
-    let (mut sf, mut sb) = (take_buffer(n), take_buffer(n));
-    rayon::join(|| sweep(inp, true, eight, &mut sf), || sweep(inp, false, eight, &mut sb));
-    (sf, sb)
+/// Aggregate all paths (eq. 14) and select (see [`super::select`]): the forward and the backward
+/// [`sweep`] in parallel (`rayon::join`) over one shared S volume; returns the `w × h`
+/// selections.
+pub fn aggregate_select(inp: &Inputs, eight: bool) -> Vec<Selection> {
+    let (w, h, ndp) = (inp.g.w, inp.h, inp.g.ndp);
+    let mut s = take_buffer(w * h * ndp);
+    let mut sel = vec![Selection::default(); w * h];
+    {
+        let slots: Vec<std::sync::Mutex<RowSlot>> = s
+            .chunks_mut(w * ndp)
+            .zip(sel.chunks_mut(w))
+            .map(|(s, sel)| std::sync::Mutex::new(RowSlot { done: false, s, sel }))
+            .collect();
+        rayon::join(|| sweep(inp, true, eight, &slots), || sweep(inp, false, eight, &slots));
+    }
+    recycle(s);
+    sel
 }
 
 /// Reused S volumes: a video or a benchmark matches pair after pair of one size, and a fresh
@@ -285,8 +311,8 @@ fn take_buffer(n: usize) -> Vec<u16> {
     v
 }
 
-/// Give S volumes back for the next pair (at most two are kept).
-pub fn recycle(v: Vec<u16>) {
+/// Give an S volume back for the next pair (at most two are kept).
+fn recycle(v: Vec<u16>) {
     if let Ok(mut p) = POOL.lock() {
         if p.len() < 2 {
             p.push(v);

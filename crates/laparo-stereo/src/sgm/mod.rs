@@ -240,22 +240,7 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
         pen: aggregate::Penalties { p1: p.p1, p2: p.p2, gamma: p.p2_gamma },
         avx2,
     };
-    let (sf, sb) = aggregate::aggregate(&inp, p.paths == Paths::Eight);
-    let mut sel = vec![select::Selection::default(); w * h];
-    sel.par_chunks_mut(w).enumerate().for_each_init(
-        || vec![0u16; ndp],
-        |buf, (y, row)| {
-            for (x, out) in row.iter_mut().enumerate() {
-                let o = (y * w + x) * ndp;
-                for ((b, &f), &k) in buf.iter_mut().zip(&sf[o..o + ndp]).zip(&sb[o..o + ndp]) {
-                    *b = f.saturating_add(k);
-                }
-                *out = select::select(avx2, buf, nd, ndp);
-            }
-        },
-    );
-    aggregate::recycle(sf);
-    aggregate::recycle(sb);
+    let sel = aggregate::aggregate_select(&inp, p.paths == Paths::Eight);
 
     // Per row: sub-pixel disparity, uniqueness, confidence, left–right check.
     let mut disp = vec![f32::INFINITY; w * h];

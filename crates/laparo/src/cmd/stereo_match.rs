@@ -28,6 +28,16 @@ pub struct MatchArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub calib: CalibArgs,
+    /// With --calib: OpenCV's free scaling α of the rectification: 0 = only pixels seen by both
+    /// source images (default; crops the borders), 1 = every source pixel kept, < 0 = no scaling.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, requires = "calib")]
+    pub alpha: f64,
+    /// With --calib: keep each camera's own c_x (doffs = c_x^L − c_x^R ≠ 0, the raw-like
+    /// disparity convention) instead of a common principal point. A rig with a large principal-
+    /// point offset (SCARED: −91 px) then keeps in the rectified right image the content near the
+    /// left border that the right camera does see; --range is in this convention.
+    #[arg(long, requires = "calib")]
+    pub keep_offset: bool,
     /// Self-rectify the raw pair without a calibration (SIFT matches, robust F, quasi-Euclidean
     /// rectification of laparo_stereo::self_rectify), match in the rectified frame and map the
     /// disparity back to the raw left frame (d = x_L − x_R). --range is the raw range; the
@@ -128,8 +138,11 @@ fn write_pfm(path: &Path, img: &Image<f32>) -> anyhow::Result<()> {
 }
 
 /// Map a disparity of the rectified left image back to the raw left frame: for raw pixel
-/// (u, v), its rectified position (nearest pixel), the rectified match (x' − d', y'), and that
-/// point's raw right position (u_R, v_R): raw d = u − u_R, dy = v_R − v (NaN/+∞ where unknown).
+/// (u, v), its rectified position (x', y'), the rectified disparity d' there, the rectified match
+/// (x' − d', y'), and that point's raw right position (u_R, v_R): raw d = u − u_R, dy = v_R − v
+/// (NaN/+∞ where unknown). d' is interpolated bilinearly when the four surrounding pixels are
+/// valid and within 1 px of each other (one surface), else taken from the nearest pixel (so
+/// depth edges are not blended and no invalid pixel becomes valid).
 pub fn to_raw_frame(rect: &Rectification, disp: &Image<f32>, w: usize, h: usize) -> (Image<f32>, Image<f32>) {
     use rayon::prelude::*;
     let mut d = Image::filled(w, h, 1, f32::INFINITY);
@@ -137,7 +150,7 @@ pub fn to_raw_frame(rect: &Rectification, disp: &Image<f32>, w: usize, h: usize)
     d.data.par_chunks_mut(w).zip(dy.data.par_chunks_mut(w)).enumerate().for_each(|(v, (drow, dyrow))| {
         for u in 0..w {
             let Some((x, y)) = rect.rectify_point(Side::Left, u as f64, v as f64) else { continue };
-            let Some(dr) = disp.sample_nearest(x, y, 0) else { continue };
+            let Some(dr) = sample_disparity(disp, x, y) else { continue };
             if !dr.is_finite() {
                 continue;
             }
@@ -148,6 +161,32 @@ pub fn to_raw_frame(rect: &Rectification, disp: &Image<f32>, w: usize, h: usize)
         }
     });
     (d, dy)
+}
+
+/// Largest disparity span (px) of the four pixels around a sample that is still interpolated.
+const BILINEAR_MAX_SPAN_PX: f32 = 2.0;
+
+/// Disparity at a sub-pixel position: the nearest pixel's value (`None` outside, +∞ if invalid),
+/// bilinear when its four neighbours are valid and span at most 1 px.
+fn sample_disparity(disp: &Image<f32>, x: f64, y: f64) -> Option<f32> {
+    let near = disp.sample_nearest(x, y, 0)?;
+    if !near.is_finite() {
+        return Some(near);
+    }
+    let (x0, y0) = (x.floor(), y.floor());
+    if x0 < 0.0 || y0 < 0.0 || x0 as usize + 1 >= disp.width || y0 as usize + 1 >= disp.height {
+        return Some(near);
+    }
+    let (xi, yi) = (x0 as usize, y0 as usize);
+    let q = [disp.get(xi, yi, 0), disp.get(xi + 1, yi, 0), disp.get(xi, yi + 1, 0), disp.get(xi + 1, yi + 1, 0)];
+    let (lo, hi) = q.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    if !(lo.is_finite() && hi.is_finite()) || hi - lo > BILINEAR_MAX_SPAN_PX {
+        return Some(near);
+    }
+    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+    let top = q[0] + (q[1] - q[0]) * fx;
+    let bottom = q[2] + (q[3] - q[2]) * fx;
+    Some(top + (bottom - top) * fy)
 }
 
 /// `--self-rectify`: `laparo_stereo::self_rectify::match_self_rectified` (SIFT matches, self-rectification,
@@ -205,8 +244,8 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
             for warn in super::stereo::check_calibration_fits(c, w, h, &label)? {
                 eprintln!("warning: {warn}");
             }
-            let rect =
-                Rectification::new(c, RectifyOptions::default()).context("cannot rectify with this calibration")?;
+            let opts = RectifyOptions { alpha: a.alpha, align_principal_points: !a.keep_offset };
+            let rect = Rectification::new(c, opts).context("cannot rectify with this calibration")?;
             let (l, _) = rect.rectify_image(Side::Left, &left)?;
             let (r, _) = rect.rectify_image(Side::Right, &right)?;
             laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
@@ -280,6 +319,7 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
         "disparity_p1_p50_p99_px": [pct(&mut dv, 0.01), pct(&mut dv, 0.5), pct(&mut dv, 0.99)],
         "frame": if rect.is_some() { "rectified (calibrated); disparity_raw.pfm is the raw left frame" } else { "raw left frame" },
         "depth": depth_stats, "raw_frame": raw,
+        "rectification": rect.as_ref().map(|_| serde_json::json!({"alpha": a.alpha, "keep_offset": a.keep_offset})),
         "self_rectification": self_rect.get("rectification").map(|r| serde_json::json!({
             "n_matches": self_rect["n_matches"], "n_inliers": r["n_inliers"], "dy_raw": r["dy_raw"],
             "dy_rectified": r["dy_rectified"], "rectified_range_px": self_rect["rectified_range_px"]})),
