@@ -421,3 +421,24 @@ fn eval_range_flags_and_scaffolded_range() {
     // An invalid range names the flags.
     assert_clean_failure(&args(&["--depth-min-m", "0.3", "--depth-max-m", "0.2"]), &["--depth-min-m", "depth range"]);
 }
+
+/// Issue 10 ("silent garbage"): an all-zero disparity has no s-alignment (scale = NaN, JSON
+/// `null`); the metrics were printed without a word. The JSON keeps `null` (as the reference).
+#[test]
+fn eval_pair_warns_when_the_scale_alignment_is_undefined() {
+    let d = tempfile::tempdir().unwrap();
+    let (p, g) = (d.path().join("zero.npy"), d.path().join("gt.npy"));
+    write_npy_f64(&g, &img(gt_m())).unwrap();
+    write_npy_f64(&p, &img(vec![0.0; W * H])).unwrap();
+    let o = laparo(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "m", "--json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("zero.npy: the 'scale' alignment is undefined (scale NaN"), "{err}");
+    assert!(!err.contains("'scale_shift' alignment") && !err.contains("'none' alignment"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["scale"]["scale"].is_null(), "{v}");
+    // An ordinary prediction: no such warning.
+    write_npy_f64(&p, &img(disparity(2.0, 0.0))).unwrap();
+    let o = laparo(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "m", "--json"]);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("undefined"));
+}

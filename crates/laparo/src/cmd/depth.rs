@@ -46,6 +46,26 @@ fn print_gt_warnings(check: &GtRangeCheck, what: &str, flags: &str) {
     }
 }
 
+/// An alignment whose fit is undefined (s-alignment of a prediction whose median over the valid
+/// pixels is 0, e.g. an all-zero disparity: scale = NaN, JSON `null`) is reported on stderr
+/// instead of silently (issue 10); the metrics themselves stay those of the reference.
+fn print_fit_warnings(r: &laparo_depth::metrics::PairMetrics, pred: &std::path::Path) {
+    for al in Alignment::ALL {
+        if let Some(m) = r.get(al) {
+            if !m.scale.is_finite() || !m.shift.is_finite() {
+                eprintln!(
+                    "warning: {}: the '{}' alignment is undefined (scale {}, shift {}): the prediction's median over \
+                     the valid pixels is 0 (an all-zero prediction?), so its aligned depth is the far end of the range",
+                    pred.display(),
+                    al.key(),
+                    m.scale,
+                    m.shift
+                );
+            }
+        }
+    }
+}
+
 #[derive(Subcommand)]
 pub enum DepthCmd {
     /// Scaffold a dataset manifest from a folder layout, or validate one.
@@ -396,6 +416,7 @@ fn run_eval_pair(a: EvalPairArgs) -> Result<()> {
     let (r, check) =
         evaluate_files_checked(&a.pred, a.pred_kind, &a.gt, a.gt_unit, a.mask.as_deref(), &opts, a.resize_pred)?;
     print_gt_warnings(&check, &format!("{} (--gt-unit {})", a.gt.display(), a.gt_unit), "--depth-min-m/--depth-max-m");
+    print_fit_warnings(&r, &a.pred);
     if emit_json(&a.json, &serde_json::to_value(&r)?)? {
         return Ok(());
     }
