@@ -517,7 +517,12 @@ fn exact_row_homography(
     #[cfg(target_arch = "x86_64")]
     {
         // i32 gather indices: the whole disparity map must be addressable with them.
-        if allow_simd && w >= 2 && hgt >= 2 && w * hgt < (i32::MAX as usize) && std::arch::is_x86_feature_detected!("avx2") {
+        if allow_simd
+            && w >= 2
+            && hgt >= 2
+            && w * hgt < (i32::MAX as usize)
+            && std::arch::is_x86_feature_detected!("avx2")
+        {
             let n = src.len().min(drow.len()).min(rrow.len()).min(vrow.len());
             // SAFETY: the CPU supports AVX2 (checked above); sizes checked inside.
             unsafe {
@@ -720,7 +725,10 @@ mod simd {
                 _mm256_and_pd(_mm256_cmp_pd::<_CMP_LT_OQ>(sx, hi_x), _mm256_cmp_pd::<_CMP_LT_OQ>(sy, hi_y)),
             );
             let inner = _mm256_and_pd(
-                _mm256_and_pd(outer, _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(sx, zero), _mm256_cmp_pd::<_CMP_GE_OQ>(sy, zero))),
+                _mm256_and_pd(
+                    outer,
+                    _mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(sx, zero), _mm256_cmp_pd::<_CMP_GE_OQ>(sy, zero)),
+                ),
                 _mm256_and_pd(_mm256_cmp_pd::<_CMP_LE_OQ>(sx, xmax), _mm256_cmp_pd::<_CMP_LE_OQ>(sy, ymax)),
             );
             // Bilinear candidate (indices forced to 0 outside `inner`, so every gather is in bounds).
@@ -758,8 +766,10 @@ mod simd {
             // CameraMap::forward of the other view.
             let u = _mm256_add_pd(sx, _mm256_mul_pd(vsign, dv));
             let pz = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(h20, u), _mm256_mul_pd(h21, sy)), h22);
-            let ox = _mm256_div_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(h00, u), _mm256_mul_pd(h01, sy)), h02), pz);
-            let oy = _mm256_div_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(h10, u), _mm256_mul_pd(h11, sy)), h12), pz);
+            let ox =
+                _mm256_div_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(h00, u), _mm256_mul_pd(h01, sy)), h02), pz);
+            let oy =
+                _mm256_div_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(h10, u), _mm256_mul_pd(h11, sy)), h12), pz);
             let ok = _mm256_cmp_pd::<_CMP_GT_OQ>(pz, eps);
             let xf = _mm256_setr_pd(x as f64, (x + 1) as f64, (x + 2) as f64, (x + 3) as f64);
             let dd = if LEFT { _mm256_sub_pd(xf, ox) } else { _mm256_sub_pd(ox, xf) };
