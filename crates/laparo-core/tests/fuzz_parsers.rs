@@ -237,7 +237,9 @@ fn fuzz_target(t: &Target, dir: &Path, seed: u64, budget: Budget) -> Outcome {
         match budget {
             Budget::Iterations(n) if out.iterations >= n => break,
             Budget::Seconds(s) if start.elapsed().as_secs_f64() >= s => break,
-            Budget::CpuSeconds(s) if thread_cpu_secs().unwrap_or_else(|| start.elapsed().as_secs_f64()) - cpu0 >= s => break,
+            Budget::CpuSeconds(s) if thread_cpu_secs().unwrap_or_else(|| start.elapsed().as_secs_f64()) - cpu0 >= s => {
+                break
+            }
             _ => {}
         }
         let base = &corpus[rng.gen_range(0..corpus.len())];
@@ -294,7 +296,9 @@ fn every_parser_survives_mutated_inputs() {
     let budget = match (secs("LAPARO_FUZZ_CPU_SECS"), secs("LAPARO_FUZZ_SECS")) {
         (Some(s), _) => Budget::CpuSeconds(s),
         (None, Some(s)) => Budget::Seconds(s),
-        (None, None) => Budget::Iterations(std::env::var("LAPARO_FUZZ_ITERS").ok().and_then(|s| s.parse().ok()).unwrap_or(60)),
+        (None, None) => {
+            Budget::Iterations(std::env::var("LAPARO_FUZZ_ITERS").ok().and_then(|s| s.parse().ok()).unwrap_or(60))
+        }
     };
     let only = std::env::var("LAPARO_FUZZ_TARGET").ok();
     let seed: u64 = std::env::var("LAPARO_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x1a9a_0010);
