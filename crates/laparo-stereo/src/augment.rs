@@ -583,51 +583,11 @@ fn sample_row_scalar(data: &[f32], w: usize, hgt: usize, src: &[(f64, f64)], dbu
     }
 }
 
-/// Pass 2 of [`exact_row_homography`]; `LEFT`: d = x − x_other (else x_other − x).
+/// Pass 2 of [`exact_row_homography`] (scalar; the AVX2 kernel fuses both passes); `LEFT`:
+/// d = x − x_other (else x_other − x); `x_offset` is the column of `src[0]`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn forward_row<const LEFT: bool>(
-    h: &[f64; 9],
-    sign: f64,
-    yf: f64,
-    x_offset: usize,
-    src: &[(f64, f64)],
-    dbuf: &[f64],
-    drow: &mut [f32],
-    rrow: &mut [f32],
-    vrow: &mut [bool],
-) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked above). Same operations, no FMA contraction.
-            unsafe { forward_row_avx2::<LEFT>(h, sign, yf, x_offset, src, dbuf, drow, rrow, vrow) };
-            return;
-        }
-    }
-    forward_row_body::<LEFT>(h, sign, yf, x_offset, src, dbuf, drow, rrow, vrow);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[allow(clippy::too_many_arguments)]
-#[target_feature(enable = "avx2")]
-unsafe fn forward_row_avx2<const LEFT: bool>(
-    h: &[f64; 9],
-    sign: f64,
-    yf: f64,
-    x_offset: usize,
-    src: &[(f64, f64)],
-    dbuf: &[f64],
-    drow: &mut [f32],
-    rrow: &mut [f32],
-    vrow: &mut [bool],
-) {
-    forward_row_body::<LEFT>(h, sign, yf, x_offset, src, dbuf, drow, rrow, vrow);
-}
-
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn forward_row_body<const LEFT: bool>(
     h: &[f64; 9],
     sign: f64,
     yf: f64,
@@ -786,7 +746,7 @@ mod simd {
         if x < n {
             let mut dbuf = [0.0f64; 4];
             super::sample_row_scalar(data, w, hgt, &src[x..n], &mut dbuf[..n - x]);
-            super::forward_row_body::<LEFT>(
+            super::forward_row::<LEFT>(
                 h,
                 sign,
                 yf,
