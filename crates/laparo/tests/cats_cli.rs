@@ -368,3 +368,48 @@ fn apply_rejects_a_singular_camera_without_panicking() {
     );
     assert!(!ok && err.contains("would overwrite the input"), "{err}");
 }
+
+/// Issue 10: a camera turned away from the source (80° about y) gave an all-invalid view with exit
+/// 0 and no word; it must still succeed (a valid parameter set) but warn, naming the view and the
+/// parameters file, and write an all-zero validity mask.
+#[test]
+fn apply_warns_when_a_view_has_no_valid_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    make_dataset(&input, 1);
+    let k = default_camera(64, 48);
+    let params = dir.path().join("away.json");
+    std::fs::write(
+        &params,
+        format!(
+            r#"{{"k": {{"fx": {f}, "fy": {f}, "cx": {cx}, "cy": {cy}}}, "left": {{"euler_deg": [0, 80, 0]}}}}"#,
+            f = k.fx,
+            cx = k.cx,
+            cy = k.cy
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("a");
+    let (ok, err) = run(
+        &[
+            "cats",
+            "apply",
+            "--params",
+            params.to_str().unwrap(),
+            "--left",
+            input.join("left/0000.png").to_str().unwrap(),
+            "--right",
+            input.join("right/0000.png").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        1,
+    );
+    assert!(ok, "{err}");
+    assert!(err.contains("left view has no valid pixel") && err.contains("away.json"), "{err}");
+    assert!(!err.contains("right view has no valid pixel"), "{err}");
+    let valid = io::read_image(out.join("valid_left.png")).unwrap();
+    assert!(valid.data.iter().all(|&v| v == 0));
+    let valid_r = io::read_image(out.join("valid_right.png")).unwrap();
+    assert!(valid_r.data.iter().any(|&v| v == 255));
+}

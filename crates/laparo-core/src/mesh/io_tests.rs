@@ -276,3 +276,52 @@ fn real_sofa_liver_msh_matches_obj_surface() {
         assert_eq!(only_b, vec![[89, 92, 139], [89, 93, 139], [92, 93, 139]]);
     }
 }
+
+/// The one VTK-with-data writer: geometry reads back through the core reader, and the data
+/// sections hold the given values in the documented layout (parsed here independently).
+#[test]
+fn vtk_fields_round_trip_and_reject_bad_arrays() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.vtk");
+    let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::new(0.1, 0.2, 1.0 / 3.0)];
+    let tre = [0.0, 1.5, 2.0, 1e-17];
+    let side = [2i64];
+    write_vtk_fields(
+        &p,
+        "two\nlines",
+        &v,
+        &[[0, 1, 2, 3]],
+        &[VtkField::new("tre_mm", VtkValues::Double(&tre)), VtkField::new("u_mm", VtkValues::Vector(&v))],
+        &[VtkField::new("side", VtkValues::Int(&side))],
+    )
+    .unwrap();
+    let m = read_vtk(&p).unwrap();
+    assert_eq!(m.vertices, v);
+    assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
+    let text = std::fs::read_to_string(&p).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[1], "two lines", "the title stays one line");
+    let at = |key: &str| lines.iter().position(|l| *l == key).unwrap_or_else(|| panic!("{key} missing:\n{text}"));
+    let c = at("CELL_DATA 1");
+    assert_eq!(&lines[c + 1..c + 4], ["SCALARS side int 1", "LOOKUP_TABLE default", "2"]);
+    let s = at("SCALARS tre_mm double 1");
+    assert_eq!(lines[s - 1], "POINT_DATA 4");
+    let back: Vec<f64> = lines[s + 2..s + 6].iter().map(|l| l.parse().unwrap()).collect();
+    assert_eq!(back, tre, "doubles round-trip exactly");
+    let u = at("VECTORS u_mm double");
+    let back: Vec<f64> =
+        lines[u + 1..u + 5].iter().flat_map(|l| l.split(' ').map(|x| x.parse::<f64>().unwrap())).collect();
+    assert_eq!(back, v.iter().flat_map(|x| [x.x, x.y, x.z]).collect::<Vec<_>>());
+    // wrong lengths, bad names and bad indices are errors naming the file, and write nothing
+    let q = dir.path().join("bad.vtk");
+    let e = write_vtk_fields(&q, "t", &v, &[[0, 1, 2, 3]], &[VtkField::new("x", VtkValues::Double(&[0.0]))], &[])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.vtk") && e.contains("1 values for 4 nodes"), "{e}");
+    let e = write_vtk_fields(&q, "t", &v, &[[0, 1, 2, 3]], &[], &[VtkField::new("a b", VtkValues::Int(&side))])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.vtk") && e.contains("whitespace"), "{e}");
+    assert!(write_vtk_fields(&q, "t", &v, &[[0, 1, 2, 4]], &[], &[]).is_err());
+    assert!(!q.exists());
+}

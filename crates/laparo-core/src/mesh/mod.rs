@@ -25,7 +25,7 @@ pub use msh::{read_msh, read_msh_mixed, write_msh};
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, read_ply_with_colors, write_ply, write_ply_with, PlyEncoding};
 pub use stl::{read_stl, write_stl};
-pub use vtk::{read_vtk, read_vtk_mixed, write_vtk};
+pub use vtk::{read_vtk, read_vtk_mixed, write_vtk, write_vtk_fields, VtkField, VtkValues};
 
 use crate::error::{CoreError, Result};
 use crate::se3::Se3;

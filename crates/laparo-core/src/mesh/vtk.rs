@@ -233,20 +233,115 @@ pub fn read_vtk_mixed(path: impl AsRef<Path>) -> Result<MixedMesh> {
 
 /// Write tetrahedra as an ASCII legacy VTK unstructured grid (double points), atomically.
 pub fn write_vtk(path: impl AsRef<Path>, mesh: &TetMesh) -> Result<()> {
+    write_vtk_fields(path, "laparo tetrahedral mesh", &mesh.vertices, &mesh.tets, &[], &[])
+}
+
+/// Values of one named VTK data array: one per node (`POINT_DATA`) or one per tetrahedron
+/// (`CELL_DATA`).
+#[derive(Debug, Clone, Copy)]
+pub enum VtkValues<'a> {
+    /// `SCALARS name int 1` (labels, indices).
+    Int(&'a [i64]),
+    /// `SCALARS name double 1` (distances in mm, errors, …).
+    Double(&'a [f64]),
+    /// `VECTORS name double` (displacements in mm, …).
+    Vector(&'a [Vector3<f64>]),
+}
+
+impl VtkValues<'_> {
+    fn len(&self) -> usize {
+        match self {
+            VtkValues::Int(v) => v.len(),
+            VtkValues::Double(v) => v.len(),
+            VtkValues::Vector(v) => v.len(),
+        }
+    }
+}
+
+/// A named data array for [`write_vtk_fields`].
+#[derive(Debug, Clone, Copy)]
+pub struct VtkField<'a> {
+    /// Array name as ParaView shows it (no whitespace).
+    pub name: &'a str,
+    /// The values.
+    pub values: VtkValues<'a>,
+}
+
+impl<'a> VtkField<'a> {
+    /// A named array.
+    pub fn new(name: &'a str, values: VtkValues<'a>) -> Self {
+        VtkField { name, values }
+    }
+}
+
+/// Write tetrahedra as an ASCII legacy VTK unstructured grid with per-node (`point_fields`) and
+/// per-tetrahedron (`cell_fields`) data arrays, atomically; `title` is the header's comment line.
+/// An array of the wrong length, a name with whitespace, a non-finite vertex or an out-of-range
+/// index is an error naming `path`; nothing is written then.
+pub fn write_vtk_fields(
+    path: impl AsRef<Path>,
+    title: &str,
+    vertices: &[Vector3<f64>],
+    tets: &[[usize; 4]],
+    point_fields: &[VtkField<'_>],
+    cell_fields: &[VtkField<'_>],
+) -> Result<()> {
     let path = path.as_ref();
-    check_read(path, &mesh.vertices, &mesh.tets)?;
-    let mut s = String::from("# vtk DataFile Version 3.0\nlaparo tetrahedral mesh\nASCII\nDATASET UNSTRUCTURED_GRID\n");
-    let _ = writeln!(s, "POINTS {} double", mesh.vertices.len());
-    for v in &mesh.vertices {
+    check_read(path, vertices, tets)?;
+    for (kind, fields, n) in [("node", point_fields, vertices.len()), ("cell", cell_fields, tets.len())] {
+        for f in fields {
+            if f.name.is_empty() || f.name.chars().any(char::is_whitespace) {
+                return Err(CoreError::format(path, format!("VTK array name '{}' is empty or has whitespace", f.name)));
+            }
+            if f.values.len() != n {
+                return Err(CoreError::format(
+                    path,
+                    format!("{kind} field `{}` has {} values for {n} {kind}s", f.name, f.values.len()),
+                ));
+            }
+        }
+    }
+    let title: String = title.chars().map(|c| if c == '\n' || c == '\r' { ' ' } else { c }).collect();
+    let mut s = format!("# vtk DataFile Version 3.0\n{title}\nASCII\nDATASET UNSTRUCTURED_GRID\n");
+    let _ = writeln!(s, "POINTS {} double", vertices.len());
+    for v in vertices {
         let _ = writeln!(s, "{} {} {}", fmt_f64(v.x), fmt_f64(v.y), fmt_f64(v.z));
     }
-    let _ = writeln!(s, "CELLS {} {}", mesh.tets.len(), mesh.tets.len() * 5);
-    for c in &mesh.tets {
+    let _ = writeln!(s, "CELLS {} {}", tets.len(), tets.len() * 5);
+    for c in tets {
         let _ = writeln!(s, "4 {} {} {} {}", c[0], c[1], c[2], c[3]);
     }
-    let _ = writeln!(s, "CELL_TYPES {}", mesh.tets.len());
-    for _ in &mesh.tets {
+    let _ = writeln!(s, "CELL_TYPES {}", tets.len());
+    for _ in tets {
         s.push_str("10\n");
+    }
+    for (section, fields, n) in [("CELL_DATA", cell_fields, tets.len()), ("POINT_DATA", point_fields, vertices.len())] {
+        if fields.is_empty() {
+            continue;
+        }
+        let _ = writeln!(s, "{section} {n}");
+        for f in fields {
+            match f.values {
+                VtkValues::Int(v) => {
+                    let _ = writeln!(s, "SCALARS {} int 1\nLOOKUP_TABLE default", f.name);
+                    for x in v {
+                        let _ = writeln!(s, "{x}");
+                    }
+                }
+                VtkValues::Double(v) => {
+                    let _ = writeln!(s, "SCALARS {} double 1\nLOOKUP_TABLE default", f.name);
+                    for &x in v {
+                        let _ = writeln!(s, "{}", fmt_f64(x));
+                    }
+                }
+                VtkValues::Vector(v) => {
+                    let _ = writeln!(s, "VECTORS {} double", f.name);
+                    for x in v {
+                        let _ = writeln!(s, "{} {} {}", fmt_f64(x.x), fmt_f64(x.y), fmt_f64(x.z));
+                    }
+                }
+            }
+        }
     }
     write_atomic(path, s.as_bytes())
 }

@@ -10,7 +10,6 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::fmt::Write as _;
 use std::path::Path;
 
 type V3 = Vector3<f64>;
@@ -473,31 +472,17 @@ impl CutMesh {
     /// Write the cut mesh as legacy VTK (ASCII) with cell data `side` (0/1/2, see
     /// [`CutMesh::tet_side`]) and point data `original_node`, atomically.
     pub fn write_vtk(&self, path: &Path) -> Result<()> {
-        let m = &self.mesh;
-        let mut s = String::from(
-            "# vtk DataFile Version 3.0\nlaparo cut tetrahedral mesh (mm)\nASCII\nDATASET UNSTRUCTURED_GRID\n",
-        );
-        let _ = writeln!(s, "POINTS {} double", m.vertices.len());
-        for v in &m.vertices {
-            let _ = writeln!(s, "{:?} {:?} {:?}", v.x, v.y, v.z);
-        }
-        let _ = writeln!(s, "CELLS {} {}", m.tets.len(), m.tets.len() * 5);
-        for t in &m.tets {
-            let _ = writeln!(s, "4 {} {} {} {}", t[0], t[1], t[2], t[3]);
-        }
-        let _ = writeln!(s, "CELL_TYPES {}", m.tets.len());
-        for _ in &m.tets {
-            s.push_str("10\n");
-        }
-        let _ = writeln!(s, "CELL_DATA {}\nSCALARS side int 1\nLOOKUP_TABLE default", m.tets.len());
-        for &k in &self.tet_side {
-            let _ = writeln!(s, "{k}");
-        }
-        let _ = writeln!(s, "POINT_DATA {}\nSCALARS original_node int 1\nLOOKUP_TABLE default", m.vertices.len());
-        for &k in &self.original_node {
-            let _ = writeln!(s, "{k}");
-        }
-        laparo_core::atomic::write_atomic(path, s.as_bytes())?;
+        use laparo_core::mesh::{write_vtk_fields, VtkField, VtkValues};
+        let side: Vec<i64> = self.tet_side.iter().map(|&k| i64::from(k)).collect();
+        let original: Vec<i64> = self.original_node.iter().map(|&k| k as i64).collect();
+        write_vtk_fields(
+            path,
+            "laparo cut tetrahedral mesh (mm)",
+            &self.mesh.vertices,
+            &self.mesh.tets,
+            &[VtkField::new("original_node", VtkValues::Int(&original))],
+            &[VtkField::new("side", VtkValues::Int(&side))],
+        )?;
         Ok(())
     }
 }

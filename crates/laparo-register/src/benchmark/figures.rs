@@ -216,58 +216,6 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
     .map_err(|e| RegisterError::bad(path.display().to_string(), e.to_string()))
 }
 
-/// Legacy VTK unstructured grid of tetrahedra with per-node scalar fields (`name`, values) and vector
-/// fields, for ParaView. Written atomically.
-pub fn write_vtk_fields(
-    path: &Path,
-    vertices: &[Vector3<f64>],
-    tets: &[[usize; 4]],
-    scalars: &[(&str, &[f64])],
-    vectors: &[(&str, &[Vector3<f64>])],
-) -> Result<()> {
-    use std::fmt::Write;
-    let mut s = String::new();
-    let _ = writeln!(s, "# vtk DataFile Version 3.0\nlaparo incision benchmark\nASCII\nDATASET UNSTRUCTURED_GRID");
-    let _ = writeln!(s, "POINTS {} double", vertices.len());
-    for v in vertices {
-        let _ = writeln!(s, "{} {} {}", v[0], v[1], v[2]);
-    }
-    let _ = writeln!(s, "CELLS {} {}", tets.len(), 5 * tets.len());
-    for t in tets {
-        let _ = writeln!(s, "4 {} {} {} {}", t[0], t[1], t[2], t[3]);
-    }
-    let _ = writeln!(s, "CELL_TYPES {}", tets.len());
-    for _ in tets {
-        s.push_str("10\n");
-    }
-    let _ = writeln!(s, "POINT_DATA {}", vertices.len());
-    for (name, v) in scalars {
-        if v.len() != vertices.len() {
-            return Err(RegisterError::bad(
-                path.display().to_string(),
-                format!("field `{name}` has {} values for {} nodes", v.len(), vertices.len()),
-            ));
-        }
-        let _ = writeln!(s, "SCALARS {name} double 1\nLOOKUP_TABLE default");
-        for x in v.iter() {
-            let _ = writeln!(s, "{x}");
-        }
-    }
-    for (name, v) in vectors {
-        if v.len() != vertices.len() {
-            return Err(RegisterError::bad(
-                path.display().to_string(),
-                format!("field `{name}` has {} values for {} nodes", v.len(), vertices.len()),
-            ));
-        }
-        let _ = writeln!(s, "VECTORS {name} double");
-        for x in v.iter() {
-            let _ = writeln!(s, "{} {} {}", x[0], x[1], x[2]);
-        }
-    }
-    Ok(laparo_core::atomic::write_atomic(path, s.as_bytes())?)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -298,17 +246,5 @@ mod tests {
         // from the other side the far square (value 0) is in front
         let img = render_scalar_surface(&v, &f, &vals, (0.0, 1.0, Colormap::Gray), &view(1.0));
         assert_eq!(img.pixel(32, 32)[0], 0);
-    }
-
-    #[test]
-    fn vtk_fields_round_trip_through_the_core_reader() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("m.vtk");
-        let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()];
-        write_vtk_fields(&p, &v, &[[0, 1, 2, 3]], &[("tre_mm", &[0.0, 1.0, 2.0, 3.0])], &[("u", &v)]).unwrap();
-        let m = laparo_core::mesh::read_vtk(&p).unwrap();
-        assert_eq!(m.vertices, v);
-        assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
-        assert!(write_vtk_fields(&p, &v, &[[0, 1, 2, 3]], &[("bad", &[0.0])], &[]).is_err());
     }
 }

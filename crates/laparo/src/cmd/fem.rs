@@ -9,7 +9,6 @@ use laparo_fem::solid::{solve, FaceTraction, Loads, NodalForce, Quadrature, Soli
 use laparo_fem::NeoHookean;
 use nalgebra::Vector3;
 use serde::Deserialize;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -220,23 +219,13 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
 
 /// Legacy ASCII VTK of the linear tets with point data `displacement` (mm).
 fn write_vtk_displacement(path: &Path, mesh: &TetMesh, u: &[Vector3<f64>]) -> Result<()> {
-    let mut s =
-        String::from("# vtk DataFile Version 3.0\nlaparo fem displacement (mm)\nASCII\nDATASET UNSTRUCTURED_GRID\n");
-    let _ = writeln!(s, "POINTS {} double", mesh.vertices.len());
-    for v in &mesh.vertices {
-        let _ = writeln!(s, "{:e} {:e} {:e}", v.x, v.y, v.z);
-    }
-    let _ = writeln!(s, "CELLS {} {}", mesh.tets.len(), mesh.tets.len() * 5);
-    for c in &mesh.tets {
-        let _ = writeln!(s, "4 {} {} {} {}", c[0], c[1], c[2], c[3]);
-    }
-    let _ = writeln!(s, "CELL_TYPES {}", mesh.tets.len());
-    for _ in &mesh.tets {
-        s.push_str("10\n");
-    }
-    let _ = writeln!(s, "POINT_DATA {}\nVECTORS displacement double", u.len());
-    for d in u {
-        let _ = writeln!(s, "{:e} {:e} {:e}", d.x, d.y, d.z);
-    }
-    laparo_core::atomic::write_atomic(path, s.as_bytes()).with_context(|| format!("writing {}", path.display()))
+    laparo_core::mesh::write_vtk_fields(
+        path,
+        "laparo fem displacement (mm)",
+        &mesh.vertices,
+        &mesh.tets,
+        &[laparo_core::mesh::VtkField::new("displacement", laparo_core::mesh::VtkValues::Vector(u))],
+        &[],
+    )
+    .with_context(|| format!("writing {}", path.display()))
 }

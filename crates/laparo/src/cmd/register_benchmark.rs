@@ -5,6 +5,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use laparo_core::mesh::{write_vtk_fields, VtkField, VtkValues};
 use laparo_fem::mesh::{
     anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame,
     TetraParams,
@@ -13,7 +14,7 @@ use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig
 use laparo_register::benchmark::build::{
     case_from, choose_roi, fem_ground_truth, GroundTruthConfig, GroundTruthReport,
 };
-use laparo_register::benchmark::figures::{write_distance_plot, write_tre_map, write_vtk_fields, SurfaceView};
+use laparo_register::benchmark::figures::{write_distance_plot, write_tre_map, SurfaceView};
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
 use laparo_register::benchmark::{
     aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, ResultStore,
@@ -297,11 +298,15 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             (&format!("{name}: FEM ground truth (deformed), whole liver and the incision"), "|u| [mm]"),
         )?;
         write_vtk_fields(
-            &dir.join("ground_truth.vtk"),
+            dir.join("ground_truth.vtk"),
+            "laparo incision benchmark: FEM ground truth (mm)",
             &case.rest,
             &case.tets,
-            &[("u_norm_mm", &mag)],
-            &[("displacement_mm", &u)],
+            &[
+                VtkField::new("u_norm_mm", VtkValues::Double(&mag)),
+                VtkField::new("displacement_mm", VtkValues::Vector(&u)),
+            ],
+            &[],
         )?;
         // the same ground truth as a `laparo guide scenario --deformation` input (issue 16)
         if let Some(t) = &scn.tumour {
@@ -367,10 +372,11 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
                 })
                 .and_then(|_| {
                     Ok(write_vtk_fields(
-                        &dir.join(format!("{stem}.vtk")),
+                        dir.join(format!("{stem}.vtk")),
+                        "laparo incision benchmark: TRE per node (mm)",
                         nodes,
                         &e.case.tets,
-                        &[("tre_mm", &err)],
+                        &[VtkField::new("tre_mm", VtkValues::Double(&err))],
                         &[],
                     )?)
                 });
