@@ -23,10 +23,13 @@ use crate::metrics;
 use crate::solve::CpcSystem;
 use serde::Serialize;
 
-/// The default λ grid of the sweep: 0 to 0.95 by 0.05, then denser towards 1.
+/// The default λ grid of the sweep: 0 to 0.95 by 0.05, then denser towards 1, up to 1 − 10⁻⁵:
+/// with the area-normalised cost of [`crate::solve`] the final rise of δ_area (eq. 4.14's
+/// exponential branch) starts only beyond λ ≈ 0.99, and a grid ending at 0.999 put ℓ on the
+/// [`MIN_ELL`] guard (measured on `laparo cpc pair --kind hard`: ℓ 0.50 → 0.99).
 pub fn default_lambda_grid() -> Vec<f64> {
     let mut g: Vec<f64> = (0..20).map(|i| i as f64 * 0.05).collect();
-    g.extend([0.96, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999]);
+    g.extend([0.96, 0.97, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9999, 0.99995, 0.99999]);
     g
 }
 

@@ -48,6 +48,40 @@ pub fn delta_area(p: &[[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]]) -> 
     (s / faces.len().max(1) as f64).sqrt()
 }
 
+/// Restore the image scale of a flattening: the similarity p ↦ c₀ + s (p − c) with
+/// s = √(Σ A_init / Σ A_flat) (total triangle areas) and c, c₀ the area-weighted centroids of the
+/// flattened and the initial mesh. A uniform scale and a translation leave every angle, hence the
+/// conformal term (eq. 4.7), unchanged; they undo the global shrink that the convex
+/// least-displacement solve (eq. 4.12) trades against conformality, so the warped image keeps the
+/// original pixel density (the thesis' Fig. 4.11 shows that shrink). Returns s (1 when undefined).
+pub fn restore_scale(p: &mut [[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]]) -> f64 {
+    let (mut a_init, mut a_flat) = (0.0, 0.0);
+    let (mut c, mut c0) = ([0.0; 2], [0.0; 2]);
+    for f in faces {
+        let (ai, af) = (signed_area(p_init[f[0]], p_init[f[1]], p_init[f[2]]), signed_area(p[f[0]], p[f[1]], p[f[2]]));
+        a_init += ai;
+        a_flat += af;
+        for k in 0..2 {
+            c0[k] += ai * (p_init[f[0]][k] + p_init[f[1]][k] + p_init[f[2]][k]) / 3.0;
+            c[k] += af * (p[f[0]][k] + p[f[1]][k] + p[f[2]][k]) / 3.0;
+        }
+    }
+    let s = (a_init / a_flat).sqrt();
+    if !(s.is_finite() && s > 0.0 && a_init > 0.0) {
+        return 1.0;
+    }
+    for k in 0..2 {
+        c[k] /= a_flat;
+        c0[k] /= a_init;
+    }
+    for q in p.iter_mut() {
+        for k in 0..2 {
+            q[k] = c0[k] + s * (q[k] - c[k]);
+        }
+    }
+    s
+}
+
 /// Number of triangles whose flattened orientation is not positive (flipped or collapsed).
 pub fn n_flipped(p: &[[f64; 2]], faces: &[[usize; 3]]) -> usize {
     faces

@@ -563,6 +563,12 @@ impl Warp {
     /// positions in f32, clamped to the pixel-centre hull against round-off). Returns the warped
     /// image and its validity mask (uncovered canvas pixels are 0 / false).
     pub fn warp_image<T: Texel + Default>(&self, image: &Image<T>) -> Result<(Image<T>, Mask)> {
+        self.warp_image_with(image, Interp::Bilinear)
+    }
+
+    /// [`Warp::warp_image`] with a chosen interpolation (bicubic keeps the fine texture that
+    /// bilinear averaging blurs at sub-pixel offsets; see [`laparo_core::remap`]).
+    pub fn warp_image_with<T: Texel + Default>(&self, image: &Image<T>, interp: Interp) -> Result<(Image<T>, Mask)> {
         if image.width != self.src_width || image.height != self.src_height {
             return Err(CpcError::SizeMismatch(format!(
                 "image is {}x{}, the mesh was built on {}x{}",
@@ -582,7 +588,7 @@ impl Warp {
                 }
             }
         };
-        remap_rows(image, self.width, self.height, Interp::Bilinear, T::default(), coords)
+        remap_rows(image, self.width, self.height, interp, T::default(), coords)
             .map_err(|e| CpcError::SizeMismatch(e.to_string()))
     }
 

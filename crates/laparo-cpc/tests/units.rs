@@ -278,3 +278,39 @@ fn lambda_sweep_normalises_delta_area_and_falls_back_with_a_warning() {
     assert_eq!(csv.lines().count(), grid.len() + 1);
     assert!(csv.lines().nth(1).unwrap().contains("NaN"));
 }
+
+/// `metrics::restore_scale` is a similarity: every angle (hence the conformal residual and the
+/// angle error) is unchanged, the total area and the area-weighted centroid become the initial
+/// ones; on a mesh shrunk by ½ about a point and shifted it gives back P_init exactly.
+#[test]
+fn restore_scale_is_a_similarity_back_to_the_initial_area() {
+    let p_init = vec![[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [0.0, 3.0], [2.0, 1.5]];
+    let faces = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]];
+    let mut p: Vec<[f64; 2]> = p_init.iter().map(|q| [10.0 + 0.5 * q[0], -2.0 + 0.5 * q[1]]).collect();
+    let s = metrics::restore_scale(&mut p, &p_init, &faces);
+    assert!((s - 2.0).abs() < 1e-15);
+    for (a, b) in p.iter().zip(&p_init) {
+        assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12, "{a:?} vs {b:?}");
+    }
+    // a non-uniform deformation: angles kept, total area and centroid restored
+    let mut q: Vec<[f64; 2]> = p_init.iter().map(|v| [0.3 * v[0] + 0.05 * v[1] * v[1], 0.4 * v[1] + 1.0]).collect();
+    let before = q.clone();
+    let s = metrics::restore_scale(&mut q, &p_init, &faces);
+    assert!(s > 1.0);
+    let area = |p: &[[f64; 2]]| -> f64 {
+        faces.iter().map(|f| laparo_cpc::mesh::signed_area(p[f[0]], p[f[1]], p[f[2]])).sum()
+    };
+    assert!((area(&q) - 12.0).abs() < 1e-12, "{}", area(&q));
+    let angle = |p: &[[f64; 2]], f: &[usize; 3]| {
+        let (a, b, c) = (p[f[0]], p[f[1]], p[f[2]]);
+        let (u, v) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
+        (u[0] * v[1] - u[1] * v[0]).atan2(u[0] * v[0] + u[1] * v[1])
+    };
+    for f in &faces {
+        assert!((angle(&q, f) - angle(&before, f)).abs() < 1e-12);
+    }
+    // a degenerate (collapsed) flattening is left alone
+    let mut z = vec![[1.0, 1.0]; 5];
+    assert_eq!(metrics::restore_scale(&mut z, &p_init, &faces), 1.0);
+    assert_eq!(z, vec![[1.0, 1.0]; 5]);
+}

@@ -163,6 +163,83 @@ pub fn bilinear_row<T: Texel, const C: usize>(
     }
 }
 
+/// Keys' cubic convolution weights (a = −½) of the taps at offsets −1, 0, 1, 2 for the fraction
+/// t ∈ [0, 1] (they sum to 1; t = 0 gives (0, 1, 0, 0) exactly).
+#[inline(always)]
+pub fn cubic_weights(t: f64) -> [f64; 4] {
+    [
+        ((-0.5 * t + 1.0) * t - 0.5) * t,
+        (1.5 * t - 2.5) * t * t + 1.0,
+        ((-1.5 * t + 2.0) * t + 0.5) * t,
+        (0.5 * t - 0.5) * t * t,
+    ]
+}
+
+/// Bicubic sampling of one output row (`C` = 0: run-time `src_c` channels), the contract of
+/// [`super`]: valid domain [0, w−1]×[0, h−1], edge pixels replicated, zero weights skipped.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn bicubic_row<T: Texel, const C: usize>(
+    data: &[T],
+    w: usize,
+    h: usize,
+    src_c: usize,
+    fill: T,
+    sx: &[f32],
+    sy: &[f32],
+    orow: &mut [T],
+    mrow: &mut [bool],
+) {
+    let c = if C == 0 { src_c } else { C };
+    let n = mrow.len();
+    assert!(
+        c > 0 && sx.len() >= n && sy.len() >= n && orow.len() == n * c && data.len() == w * h * c && w > 0 && h > 0
+    );
+    let (xmax, ymax) = ((w - 1) as f32, (h - 1) as f32);
+    let taps = |f: f32, size: usize| -> ([usize; 4], [T::Acc; 4]) {
+        // f >= 0: truncation is floor.
+        let i1 = (f as i32 as usize).min(size - 1);
+        let wt = cubic_weights(f as f64 - i1 as f64).map(T::Acc::from_f64);
+        let idx = [i1.saturating_sub(1), i1, (i1 + 1).min(size - 1), (i1 + 2).min(size - 1)];
+        (idx, wt)
+    };
+    for x in 0..n {
+        let (fx, fy) = (sx[x], sy[x]);
+        let o = &mut orow[x * c..x * c + c];
+        if !(fx >= 0.0 && fy >= 0.0 && fx <= xmax && fy <= ymax) {
+            o.fill(fill);
+            mrow[x] = false;
+            continue;
+        }
+        let (ix, wx) = taps(fx, w);
+        let (iy, wy) = taps(fy, h);
+        let mut ok = true;
+        for ch in 0..c {
+            let mut v = T::Acc::ZERO;
+            for j in 0..4 {
+                if wy[j] == T::Acc::ZERO {
+                    continue;
+                }
+                let row = iy[j] * w;
+                let mut r = T::Acc::ZERO;
+                for i in 0..4 {
+                    if wx[i] != T::Acc::ZERO {
+                        r = r + wx[i] * data[(row + ix[i]) * c + ch].to_acc();
+                    }
+                }
+                v = v + wy[j] * r;
+            }
+            let t = T::from_acc(v);
+            ok &= t.is_finite();
+            o[ch] = t;
+        }
+        if !ok {
+            o.fill(fill);
+        }
+        mrow[x] = ok;
+    }
+}
+
 /// Nearest-neighbour sampling of one output row (`C` = 0: run-time `src_c` channels): the source
 /// pixel is (⌊x + ½⌋, ⌊y + ½⌋) (round half up); valid when x, y ∈ [−½, w − ½) × [−½, h − ½) and
 /// (float texels) every channel is finite. Writes every output pixel (`fill`, `false` if invalid).

@@ -14,6 +14,14 @@
 //!   queries, without FMA contraction. For float texels a weight of exactly 0 or 1 takes the
 //!   neighbour as is (so integer positions reproduce the source bit for bit even next to NaN or
 //!   inf). Integer texels are rounded half up: `(v + 0.5)` truncated, saturating.
+//! - **Bicubic** (Keys' cubic convolution, a = −½): same valid domain as bilinear;
+//!   x1 = ⌊x⌋ (x1 = w − 1 at the right edge), t = x − x1, weights
+//!   `w(−1) = ((−½t + 1)t − ½)t`, `w(0) = (1½t − 2½)t² + 1`, `w(1) = ((−1½t + 2)t + ½)t`,
+//!   `w(2) = (½t − ½)t²` of the source columns x1 − 1 … x1 + 2 clamped to [0, w − 1] (edge
+//!   replicated), likewise in y; weights in `f64` rounded to the interpolation type, then
+//!   `v = Σ_j wy_j Σ_i wx_i p_ij` (x first), zero weights skipped (integer positions reproduce the
+//!   source bit for bit). Integer texels are rounded half up and saturate at 0 and the maximum
+//!   (the kernel overshoots at edges); exact for polynomials of degree ≤ 2 away from the borders.
 //! - **Nearest**: the source pixel (⌊x + ½⌋, ⌊y + ½⌋) (round half up); valid when
 //!   `−½ <= x < w − ½` and `−½ <= y < h − ½`.
 //! - Float texels: an output whose value is not finite is invalid.
@@ -54,12 +62,17 @@ use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
 /// Interpolation of [`remap`], [`warp_homography`] and [`remap_rows`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Interp {
     /// Nearest neighbour, round half up (disparities, labels, masks).
     Nearest,
     /// Bilinear (images).
     Bilinear,
+    /// Bicubic convolution (Keys, a = −½; 4×4 neighbours, edge pixels replicated): keeps the
+    /// fine texture that bilinear averaging blurs at sub-pixel offsets (keypoint detectors on
+    /// resampled images, the CPC warp). Scalar only.
+    Bicubic,
 }
 
 mod private {
@@ -278,6 +291,9 @@ fn sample_row<T: Texel>(
         (Interp::Bilinear, 3) => kernel::bilinear_row::<T, 3>(d, w, h, c, fill, sx, sy, orow, mrow),
         (Interp::Bilinear, 4) => kernel::bilinear_row::<T, 4>(d, w, h, c, fill, sx, sy, orow, mrow),
         (Interp::Bilinear, _) => kernel::bilinear_row::<T, 0>(d, w, h, c, fill, sx, sy, orow, mrow),
+        (Interp::Bicubic, 1) => kernel::bicubic_row::<T, 1>(d, w, h, c, fill, sx, sy, orow, mrow),
+        (Interp::Bicubic, 3) => kernel::bicubic_row::<T, 3>(d, w, h, c, fill, sx, sy, orow, mrow),
+        (Interp::Bicubic, _) => kernel::bicubic_row::<T, 0>(d, w, h, c, fill, sx, sy, orow, mrow),
         (Interp::Nearest, 1) => kernel::nearest_row::<T, 1>(d, w, h, c, fill, sx, sy, orow, mrow),
         (Interp::Nearest, 3) => kernel::nearest_row::<T, 3>(d, w, h, c, fill, sx, sy, orow, mrow),
         (Interp::Nearest, _) => kernel::nearest_row::<T, 0>(d, w, h, c, fill, sx, sy, orow, mrow),

@@ -341,3 +341,65 @@ fn undistort_map_inverts_the_camera_distortion() {
     // With zero distortion the map is the identity.
     assert_eq!(CoordMap::undistort(&k, &Distortion::default(), 64, 48), CoordMap::identity(64, 48));
 }
+
+#[test]
+fn bicubic_weights_by_hand() {
+    use super::kernel::cubic_weights;
+    assert_eq!(cubic_weights(0.0), [0.0, 1.0, 0.0, 0.0]);
+    assert_eq!(cubic_weights(1.0), [0.0, 0.0, 1.0, 0.0]);
+    // t = ½: (−1/16, 9/16, 9/16, −1/16), all exact in binary
+    assert_eq!(cubic_weights(0.5), [-0.0625, 0.5625, 0.5625, -0.0625]);
+    let mut r = rng(5);
+    for _ in 0..100 {
+        let t = r();
+        let w = cubic_weights(t);
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+        // first moment: Σ w_i (i − 1) = t (linear reproduction)
+        assert!((w[0] * -1.0 + w[2] + 2.0 * w[3] - t).abs() < 1e-15);
+    }
+}
+
+#[test]
+fn bicubic_reproduces_quadratics_and_integer_positions() {
+    // Keys' kernel with a = −½ is exact for polynomials of degree ≤ 2 (tensor product in 2D).
+    let (w, h) = (12, 9);
+    let p = |x: f64, y: f64| 3.0 - 0.5 * x + 0.25 * y + 0.125 * x * x - 0.0625 * x * y + 0.03125 * y * y;
+    let img = Image::from_vec(w, h, 1, (0..w * h).map(|i| p((i % w) as f64, (i / w) as f64)).collect()).unwrap();
+    let mut r = rng(11);
+    let pts: Vec<[f32; 2]> = (0..200).map(|_| [(1.0 + r() * 7.9) as f32, (1.0 + r() * 4.9) as f32]).collect();
+    let map = CoordMap { width: pts.len(), height: 1, xy: pts.clone() };
+    let (out, valid) = remap(&img, &map, Interp::Bicubic, f64::NAN).unwrap();
+    for (i, q) in pts.iter().enumerate() {
+        assert!(valid.data[i]);
+        let exact = p(q[0] as f64, q[1] as f64);
+        assert!((out.data[i] - exact).abs() < 1e-12, "{q:?}: {} vs {exact}", out.data[i]);
+    }
+    // integer positions reproduce the source bit for bit, even next to NaN
+    let mut f = Image::from_vec(5, 4, 1, (0..20).map(|i| i as f32 * 0.37).collect()).unwrap();
+    f.data[7] = f32::NAN;
+    let (o, v) = remap(&f, &CoordMap::identity(5, 4), Interp::Bicubic, -1.0).unwrap();
+    for i in 0..20 {
+        if i == 7 {
+            assert!(!v.data[i] && o.data[i] == -1.0);
+        } else {
+            assert!(v.data[i] && o.data[i].to_bits() == f.data[i].to_bits(), "pixel {i}");
+        }
+    }
+    let u = random_u8(7, 6, 3, 3);
+    let (o, v) = remap(&u, &CoordMap::identity(7, 6), Interp::Bicubic, 0).unwrap();
+    assert_eq!(o, u);
+    assert!(v.data.iter().all(|&b| b));
+}
+
+#[test]
+fn bicubic_u8_rounds_and_saturates_by_hand() {
+    let img = Image::from_vec(4, 1, 1, vec![0u8, 0, 255, 255]).unwrap();
+    let map = CoordMap { width: 4, height: 1, xy: vec![[1.5, 0.0], [0.5, 0.0], [2.5, 0.0], [3.5, 0.0]] };
+    let (o, v) = remap(&img, &map, Interp::Bicubic, 7).unwrap();
+    // x = 1.5: 9/16·0 + 9/16·255 − 1/16·255 − 1/16·0 = 127.5 → 128 (half up)
+    // x = 0.5: taps 0,0,1,2 → −1/16·255 = −15.9 → 0 (saturated)
+    // x = 2.5: taps 1,2,3,3 → −1/16·0 + 9/16·255 + 9/16·255 − 1/16·255 = 271 → 255 (saturated)
+    // x = 3.5: outside [0, w − 1] → fill
+    assert_eq!(o.data, vec![128, 0, 255, 7]);
+    assert_eq!(v.data, vec![true, true, true, false]);
+}
