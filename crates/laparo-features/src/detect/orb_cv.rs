@@ -4,7 +4,6 @@
 //! Stephens, 7×7 Sobel window, k = 0.04), the intensity-centroid orientation (radius 15) and
 //! the steered BRIEF test on the level blurred by a 7×7 Gaussian (σ = 2).
 use laparo_core::image::Image;
-use laparo_core::remap::{remap, CoordMap, Interp};
 use rayon::prelude::*;
 
 use super::orb::OrbParams;
@@ -50,19 +49,45 @@ fn per_level(n: usize, levels: usize, scale: f64) -> Vec<usize> {
     out
 }
 
-/// Bilinear downscale (pixel-centre aligned, OpenCV INTER_LINEAR) through the shared sampler.
-fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
-    let (sx, sy) = (img.width as f32 / w as f32, img.height as f32 / h as f32);
-    let (mx, my) = ((img.width - 1) as f32, (img.height - 1) as f32);
-    let xy = (0..w * h)
+/// Source taps of a pixel-centre-aligned bilinear resize from `n` to `m` samples: (i₀, i₁, weight
+/// of i₁ in 1/256), position (i + ½)·n/m − ½ clamped to [0, n − 1] (OpenCV INTER_LINEAR_EXACT).
+fn taps(n: usize, m: usize) -> Vec<(usize, usize, u32)> {
+    let s = n as f64 / m as f64;
+    (0..m)
         .map(|i| {
-            let (x, y) = ((i % w) as f32, (i / w) as f32);
-            [((x + 0.5) * sx - 0.5).clamp(0.0, mx), ((y + 0.5) * sy - 0.5).clamp(0.0, my)]
+            let f = ((i as f64 + 0.5) * s - 0.5).clamp(0.0, (n - 1) as f64);
+            let i0 = f.floor() as usize;
+            let wgt = ((f - i0 as f64) * 256.0).round() as u32;
+            let i1 = (i0 + 1).min(n - 1);
+            if wgt == 256 {
+                (i1, i1, 0)
+            } else {
+                (i0, i1, wgt)
+            }
         })
-        .collect();
-    remap(img, &CoordMap { width: w, height: h, xy }, Interp::Bilinear, 0u8)
-        .map(|(o, _)| o)
-        .unwrap_or_else(|_| Image::filled(w, h, 1, 0))
+        .collect()
+}
+
+/// Bilinear downscale in 8-bit fixed point (weights in 1/256, rounded once at the end).
+fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
+    let (xt, yt) = (taps(img.width, w), taps(img.height, h));
+    let sw = img.width;
+    let mut out = Image::filled(w, h, 1, 0u8);
+    out.data.par_chunks_mut(w).zip(yt.par_iter()).for_each_init(
+        || (vec![0u32; w], vec![0u32; w]),
+        |(h0, h1), (row, &(y0, y1, wy))| {
+            for (dst, yy) in [(&mut *h0, y0), (&mut *h1, y1)] {
+                let src = &img.data[yy * sw..(yy + 1) * sw];
+                for (d, &(x0, x1, wx)) in dst.iter_mut().zip(&xt) {
+                    *d = src[x0] as u32 * (256 - wx) + src[x1] as u32 * wx;
+                }
+            }
+            for ((o, &a), &b) in row.iter_mut().zip(h0.iter()).zip(h1.iter()) {
+                *o = ((a * (256 - wy) + b * wy + (1 << 15)) >> 16) as u8;
+            }
+        },
+    );
+    out
 }
 
 /// FAST-9 score of pixel (x, y): the largest t for which 9 contiguous circle pixels are all
@@ -118,6 +143,39 @@ fn fast_score(d: &[u8], w: usize, x: usize, y: usize, thr: i32) -> i32 {
     }
 }
 
+/// Compass pre-test of one row, written to vectorise over u8 lanes: `out[k] = 1` where at least
+/// 2 of the 4 pixels at distance 3 (N, E, S, W) of pixel x = k + 3 are all brighter than p + t
+/// or all darker than p − t (an arc of 9 on the 16-circle always covers 2 of them).
+#[inline(always)]
+fn compass_row_impl(up: &[u8], row: &[u8], dn: &[u8], t: u8, out: &mut [u8]) {
+    let n = out.len();
+    let (up, dn, mid, west, east) = (&up[3..n + 3], &dn[3..n + 3], &row[3..n + 3], &row[..n], &row[6..n + 6]);
+    for k in 0..n {
+        let p = mid[k];
+        let (hi, lo) = (p.saturating_add(t), p.saturating_sub(t));
+        let nb = (up[k] > hi) as u8 + (dn[k] > hi) as u8 + (west[k] > hi) as u8 + (east[k] > hi) as u8;
+        let nd = (up[k] < lo) as u8 + (dn[k] < lo) as u8 + (west[k] < lo) as u8 + (east[k] < lo) as u8;
+        out[k] = ((nb >= 2) | (nd >= 2)) as u8;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn compass_row_avx2(up: &[u8], row: &[u8], dn: &[u8], t: u8, out: &mut [u8]) {
+    compass_row_impl(up, row, dn, t, out)
+}
+
+/// Runtime-dispatched compass pre-test (integer comparisons: both paths agree exactly).
+fn compass_row(up: &[u8], row: &[u8], dn: &[u8], t: u8, out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present (checked just above).
+        unsafe { compass_row_avx2(up, row, dn, t, out) };
+        return;
+    }
+    compass_row_impl(up, row, dn, t, out)
+}
+
 /// FAST-9 corners with 3×3 non-maximum suppression: (x, y, score).
 fn fast9(img: &Image<u8>, thr: i32) -> Vec<(usize, usize, i32)> {
     let (w, h) = (img.width, img.height);
@@ -125,12 +183,19 @@ fn fast9(img: &Image<u8>, thr: i32) -> Vec<(usize, usize, i32)> {
         return vec![];
     }
     let d = &img.data;
+    let t = thr.clamp(0, 255) as u8;
     let mut score = vec![0i32; w * h];
-    score.par_chunks_mut(w).enumerate().skip(3).take(h - 6).for_each(|(y, row)| {
-        for (x, r) in row.iter_mut().enumerate().take(w - 3).skip(3) {
-            *r = fast_score(d, w, x, y, thr);
-        }
-    });
+    score.par_chunks_mut(w).enumerate().skip(3).take(h - 6).for_each_init(
+        || vec![0u8; w - 6],
+        |mask, (y, row)| {
+            compass_row(&d[(y - 3) * w..(y - 2) * w], &d[y * w..(y + 1) * w], &d[(y + 3) * w..(y + 4) * w], t, mask);
+            for (k, &m) in mask.iter().enumerate() {
+                if m != 0 {
+                    row[k + 3] = fast_score(d, w, k + 3, y, thr);
+                }
+            }
+        },
+    );
     let mut out = vec![];
     for y in 4..h.saturating_sub(4) {
         for x in 4..w - 4 {
@@ -419,6 +484,57 @@ mod tests {
         assert_eq!(fast_score(&img.data, 30, 17, 17, 20), 0);
         // Score = the largest threshold still passing: 200 − 0 − 1 would fail at 200.
         assert_eq!(fast_score(&img.data, 30, 10, 10, 20), 200);
+    }
+
+    #[test]
+    fn resize_taps_and_ramp() {
+        // 6 → 5: positions (i + ½)·1.2 − ½ = 0.1, 1.3, 2.5, 3.7, 4.9.
+        let t = taps(6, 5);
+        assert_eq!(t, vec![(0, 1, 26), (1, 2, 77), (2, 3, 128), (3, 4, 179), (4, 5, 230)]);
+        // A ramp 10·x resized keeps 10·position (rounded).
+        let img = Image::from_vec(6, 2, 1, (0..12).map(|i| (i % 6 * 10) as u8).collect()).unwrap();
+        let r = resize(&img, 5, 2);
+        assert_eq!(&r.data[..5], &[1, 13, 25, 37, 49]);
+    }
+
+    #[test]
+    fn compass_pretest_never_rejects_a_corner() {
+        let mut s = 99u32;
+        let data: Vec<u8> = (0..64 * 40)
+            .map(|_| {
+                s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (s >> 24) as u8
+            })
+            .collect();
+        let img = Image::from_vec(64, 40, 1, data).unwrap();
+        let mut m = vec![0u8; 58];
+        let mut m2 = vec![0u8; 58];
+        let mut corners = 0;
+        for y in 3..37 {
+            let d = &img.data;
+            compass_row(
+                &d[(y - 3) * 64..(y - 2) * 64],
+                &d[y * 64..(y + 1) * 64],
+                &d[(y + 3) * 64..(y + 4) * 64],
+                20,
+                &mut m,
+            );
+            compass_row_impl(
+                &d[(y - 3) * 64..(y - 2) * 64],
+                &d[y * 64..(y + 1) * 64],
+                &d[(y + 3) * 64..(y + 4) * 64],
+                20,
+                &mut m2,
+            );
+            assert_eq!(m, m2);
+            for x in 3..61 {
+                if fast_score(d, 64, x, y, 20) > 0 {
+                    corners += 1;
+                    assert_eq!(m[x - 3], 1, "({x}, {y})");
+                }
+            }
+        }
+        assert!(corners > 10);
     }
 
     #[test]
