@@ -97,8 +97,20 @@ pub fn gaussian_blur(src: &Plane, sigma: f64) -> Plane {
 }
 
 /// Gaussian blur through a given accumulation kernel (tests compare the paths bit for bit).
-pub fn gaussian_blur_with(src: &Plane, sigma: f64, acc: fn(&mut [f32], &[f32], &[(&[f32], &[f32])], &[f32])) -> Plane {
-    let k = half_kernel(sigma);
+pub fn gaussian_blur_with(src: &Plane, sigma: f64, acc: AccumulateFn) -> Plane {
+    separable_blur(src, &half_kernel(sigma), acc)
+}
+
+/// Signature of the symmetric accumulation kernels.
+pub type AccumulateFn = fn(&mut [f32], &[f32], &[(&[f32], &[f32])], &[f32]);
+
+/// Blur by the symmetric separable kernel with half `k` = [k₀, k₁, …, k_r] (reflect-101).
+pub fn separable_blur(src: &Plane, k: &[f32], acc: AccumulateFn) -> Plane {
+    separable_blur_rows(src, k, acc, None)
+}
+
+/// `separable_blur` of the output rows with `rows[y]` true only (others 0); `None` = all.
+pub fn separable_blur_rows(src: &Plane, k: &[f32], acc: AccumulateFn, rows: Option<&[bool]>) -> Plane {
     let r = k.len() - 1;
     let (w, h) = (src.w, src.h);
     let mut data = vec![0f32; w * h];
@@ -108,6 +120,9 @@ pub fn gaussian_blur_with(src: &Plane, sigma: f64, acc: fn(&mut [f32], &[f32], &
     data.par_chunks_mut(w).enumerate().for_each_init(
         || vec![0f32; w + 2 * r],
         |tmp, (y, out)| {
+            if rows.is_some_and(|m| !m[y]) {
+                return;
+            }
             // Vertical pass into the middle of a padded row.
             let rows: Vec<(&[f32], &[f32])> = (1..=r)
                 .map(|t| {
@@ -116,7 +131,7 @@ pub fn gaussian_blur_with(src: &Plane, sigma: f64, acc: fn(&mut [f32], &[f32], &
                     (src.row(a), src.row(b))
                 })
                 .collect();
-            acc(&mut tmp[r..r + w], src.row(y), &rows, &k);
+            acc(&mut tmp[r..r + w], src.row(y), &rows, k);
             // Reflect-101 padding of the row, then the horizontal pass.
             for i in 0..r {
                 tmp[r - 1 - i] = tmp[r + reflect101(-(i as isize) - 1, w)];
@@ -125,7 +140,7 @@ pub fn gaussian_blur_with(src: &Plane, sigma: f64, acc: fn(&mut [f32], &[f32], &
             let tmp: &[f32] = tmp;
             let pairs: Vec<(&[f32], &[f32])> =
                 (1..=r).map(|t| (&tmp[r - t..r - t + w], &tmp[r + t..r + t + w])).collect();
-            acc(out, &tmp[r..r + w], &pairs, &k);
+            acc(out, &tmp[r..r + w], &pairs, k);
         },
     );
     Plane { w, h, data }

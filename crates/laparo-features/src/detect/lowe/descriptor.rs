@@ -51,7 +51,18 @@ pub fn describe(img: &Plane, pt: (f32, f32), ori: f32, scl: f32) -> [f32; DIM] {
         let (up, row, dn) = (img.row(r as usize - 1), img.row(r as usize), img.row(r as usize + 1));
         let ei = e[(i + radius) as usize];
         let (fi_s, fi_c) = (i as f32 * sin_t, i as f32 * cos_t);
-        for j in (-radius).max(1 - px)..=radius.min(w - 2 - px) {
+        // Both bins are linear in j: only the j with −1 < bin < D for both can count (one px
+        // of margin each side; the exact test below decides).
+        let (mut jlo, mut jhi) = ((-radius).max(1 - px), radius.min(w - 2 - px));
+        for (slope, icpt) in [(cos_t, half - fi_s), (sin_t, half + fi_c)] {
+            if slope.abs() > 1e-12 {
+                let (a, b) = ((-1.0 - icpt) / slope, (D as f32 - icpt) / slope);
+                let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+                jlo = jlo.max(lo.floor() as i64 - 1);
+                jhi = jhi.min(hi.ceil() as i64 + 1);
+            }
+        }
+        for j in jlo..=jhi {
             let c_rot = j as f32 * cos_t - fi_s;
             let r_rot = j as f32 * sin_t + fi_c;
             let rbin = r_rot + half;
@@ -74,11 +85,10 @@ pub fn describe(img: &Plane, pt: (f32, f32), ori: f32, scl: f32) -> [f32; DIM] {
         let (mut rbin, mut cbin) = (rb[k], cb[k]);
         let mut obin = (ang[k] - ori) * bins_per_deg;
         let m = mag[k] * wt[k];
-        let (r0, c0) = (rbin.floor(), cbin.floor());
-        let o0 = obin.floor();
-        rbin -= r0;
-        cbin -= c0;
-        obin -= o0;
+        let (r0, c0, o0) = (floor_i(rbin), floor_i(cbin), floor_i(obin));
+        rbin -= r0 as f32;
+        cbin -= c0 as f32;
+        obin -= o0 as f32;
         let mut o0 = o0 as i64;
         if o0 < 0 {
             o0 += N as i64;
@@ -130,9 +140,22 @@ pub fn describe(img: &Plane, pt: (f32, f32), ori: f32, scl: f32) -> [f32; DIM] {
     }
     let f = INT_FCTR / nrm2.sqrt().max(f32::EPSILON);
     for v in dst.iter_mut() {
-        *v = (*v * f).round().clamp(0.0, 255.0);
+        *v = (round_even(*v * f) as f32).min(255.0);
     }
     dst
+}
+
+/// ⌊v⌋ for |v| < 2³¹ without a libm call (SSE2 has no floor instruction).
+#[inline(always)]
+fn floor_i(v: f32) -> i32 {
+    let t = v as i32;
+    t - (v < t as f32) as i32
+}
+
+/// Round half to even (OpenCV `cvRound`) for 0 ≤ v < 2²²: the bits of v + 1.5·2²³.
+#[inline(always)]
+pub(super) fn round_even(v: f32) -> i32 {
+    (v + 12_582_912.0).to_bits() as i32 - 0x4B40_0000
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! so the output does not depend on the number of threads.
 use rayon::prelude::*;
 
-mod blur;
+pub(crate) mod blur;
 mod descriptor;
 mod extrema;
 mod fastmath;

@@ -43,7 +43,7 @@ pub fn histogram(img: &Plane, x: usize, y: usize, radius: i64, sigma: f32) -> [f
     mag_ang(&dx, &dy, &mut mag, &mut ang);
     let mut t = [0f32; BINS + 4];
     for k in 0..dx.len() {
-        let mut b = (ang[k] * (BINS as f32 / 360.0)).round() as i64;
+        let mut b = super::descriptor::round_even(ang[k] * (BINS as f32 / 360.0)) as i64;
         if b >= BINS as i64 {
             b -= BINS as i64;
         }
