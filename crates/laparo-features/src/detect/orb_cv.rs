@@ -592,9 +592,9 @@ mod tests {
         let mut s = 5u32;
         for _ in 0..2000 {
             let mut v = [0i16; 25];
-            for k in 0..16 {
+            for e in v.iter_mut().take(16) {
                 s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                v[k] = ((s >> 24) as i16) - 128;
+                *e = ((s >> 24) as i16) - 128;
             }
             for k in 16..25 {
                 v[k] = v[k - 16];

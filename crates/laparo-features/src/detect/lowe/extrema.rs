@@ -133,13 +133,11 @@ fn derivatives(dog: &[Plane], layer: usize, c: usize, r: usize) -> (Vector3<f32>
     (d, Matrix3::new(dxx, dxy, dxs, dxy, dyy, dys, dxs, dys, dss))
 }
 
-/// Refine a candidate (Lowe eq. 3, up to 5 steps), then apply the contrast and edge tests.
+/// Refine a candidate at (layer, column, row) (Lowe eq. 3, up to 5 steps), then apply the contrast and edge tests.
 pub fn refine(
     dog: &[Plane],
     octave: usize,
-    layer: usize,
-    c: usize,
-    r: usize,
+    (layer, c, r): (usize, usize, usize),
     s: usize,
     contrast_thr: f32,
     edge_thr: f32,
@@ -234,7 +232,7 @@ mod tests {
                     .collect(),
             })
             .collect();
-        let e = refine(&dog, 0, 1, 10, 10, 2, 0.04, 10.0).expect("kept");
+        let e = refine(&dog, 0, (1, 10, 10), 2, 0.04, 10.0).expect("kept");
         assert_eq!((e.c, e.r, e.layer), (10, 10, 1));
         assert!((e.xc - 0.3).abs() < 1e-4 && (e.xr + 0.2).abs() < 1e-4 && (e.xi - 0.2).abs() < 1e-4, "{e:?}");
         // D at the peak = 40 (on 0…255 grey levels) → 40/255.

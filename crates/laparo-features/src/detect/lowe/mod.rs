@@ -131,7 +131,9 @@ fn detect(gauss: &[Vec<Plane>], dog: &[Vec<Plane>], s: &Settings, first: i32) ->
             let oct = &dog[o];
             extrema::candidates(oct, i, thr, rows)
                 .into_iter()
-                .filter_map(move |(c, r)| extrema::refine(oct, o, i, c, r, s.layers, s.contrast as f32, s.edge as f32))
+                .filter_map(move |(c, r)| {
+                    extrema::refine(oct, o, (i, c, r), s.layers, s.contrast as f32, s.edge as f32)
+                })
                 .flat_map(move |e| orient(gauss, &e, s, first))
                 .collect::<Vec<_>>()
         })

@@ -20,7 +20,7 @@ pub fn initial_image(gray: &[u8], w: usize, h: usize, sigma: f64, upsample: bool
     // Sample positions (x + 0.5)/2 − 0.5: even x = 2i → 0.25·s[i−1] + 0.75·s[i], odd → 0.75·s[i] + 0.25·s[i+1].
     let tap = |i2: usize, n: usize| -> (usize, usize, f32) {
         let i = i2 / 2;
-        if i2 % 2 == 0 {
+        if i2.is_multiple_of(2) {
             if i == 0 {
                 (0, 0, 0.0)
             } else {
