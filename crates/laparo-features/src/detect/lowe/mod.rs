@@ -75,18 +75,30 @@ pub fn sift(gray: &[u8], w: usize, h: usize, s: &Settings) -> (Vec<SiftPoint>, V
     if s.n_features > 0 && kps.len() > s.n_features {
         retain_best(&mut kps, s.n_features);
     }
-    let desc: Vec<[f32; descriptor::DIM]> = kps
+    // Describe in (octave, layer, row) order so consecutive windows share cached image rows;
+    // each descriptor is written to its keypoint's slot, so the output order is unchanged.
+    let mut order: Vec<usize> = (0..kps.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (p, q) = (&kps[a], &kps[b]);
+        (p.octave, p.layer).cmp(&(q.octave, q.layer)).then(p.y.total_cmp(&q.y)).then(a.cmp(&b))
+    });
+    let described: Vec<(usize, [f32; descriptor::DIM])> = order
         .par_iter()
-        .map(|k| {
+        .map(|&i| {
+            let k = &kps[i];
             let o = (k.octave - first) as usize;
             let scale = 2f32.powi(-k.octave);
             let img = &gauss[o][k.layer];
             let angle = 360.0 - k.angle;
             let angle = if (angle - 360.0).abs() < f32::EPSILON { 0.0 } else { angle };
-            descriptor::describe(img, (k.x * scale, k.y * scale), angle, k.size * scale * 0.5)
+            (i, descriptor::describe(img, (k.x * scale, k.y * scale), angle, k.size * scale * 0.5))
         })
         .collect();
-    (kps, desc.into_iter().flatten().collect())
+    let mut desc = vec![0f32; kps.len() * descriptor::DIM];
+    for (i, d) in described {
+        desc[i * descriptor::DIM..(i + 1) * descriptor::DIM].copy_from_slice(&d);
+    }
+    (kps, desc)
 }
 
 /// Keep the `n` strongest (and every tie with the n-th, OpenCV `retainBest`), in list order.
