@@ -156,3 +156,43 @@ fn orb_respects_n_features_and_colour_input_is_converted() {
     let h = detect_and_describe(&img, &DetectorConfig::by_name("sift").unwrap(), None).unwrap();
     assert_eq!(g, h, "grey replicated to RGB must give the same features");
 }
+
+#[test]
+fn detectors_give_the_same_output_for_one_and_two_threads() {
+    let img = texture(320, 240, 9);
+    for cfg in detectors() {
+        let run = |t: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+            pool.install(|| detect_and_describe(&img, &cfg, None).unwrap())
+        };
+        let (a, b) = (run(1), run(2));
+        assert!(a.len() > 20, "{} {}", cfg.name(), a.len());
+        assert_eq!(a, b, "{}", cfg.name());
+    }
+}
+
+#[test]
+fn laparo_sift_finds_the_keypoints_of_kornias_opencv_port() {
+    // kornia-imgproc ports cv::SIFT: independent code, same algorithm. Most keypoints of one must
+    // lie within 0.5 px (and 10 % in size) of a keypoint of the other.
+    use laparo_features::detect::{SiftBackend, SiftParams};
+    let img = texture(320, 240, 4);
+    let ours = detect_and_describe(&img, &DetectorConfig::by_name("sift").unwrap(), None).unwrap();
+    let k = SiftParams { backend: SiftBackend::Kornia, ..SiftParams::default() };
+    let theirs = detect_and_describe(&img, &DetectorConfig::Sift(k), None).unwrap();
+    let hit = |a: &Features, b: &Features| {
+        let n = a
+            .keypoints
+            .iter()
+            .filter(|p| {
+                b.keypoints
+                    .iter()
+                    .any(|q| (p.x - q.x).hypot(p.y - q.y) < 0.5 && (p.size_px / q.size_px - 1.0).abs() < 0.1)
+            })
+            .count();
+        n as f64 / a.len().max(1) as f64
+    };
+    assert!(ours.len() > 50, "{}", ours.len());
+    let (h1, h2) = (hit(&ours, &theirs), hit(&theirs, &ours));
+    assert!(h1 > 0.9 && h2 > 0.9, "ours {} kornia {}: {h1:.3} {h2:.3}", ours.len(), theirs.len());
+}

@@ -1,18 +1,19 @@
-//! Detectors and descriptors: SIFT (Lowe 2004, thesis §4.2) and ORB (Rublee 2011), both from
-//! `kornia-imgproc` (ports of OpenCV's `cv::SIFT` and ORB-SLAM3's ORB extractor).
+//! Detectors and descriptors: SIFT (Lowe 2004, thesis §4.2; laparo's, after `cv::SIFT`) and ORB
+//! (Rublee 2011; laparo's port of `cv::ORB`), with kornia-imgproc's versions as alternatives.
 use laparo_core::image::{Image, Mask};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{FeaturesError, Result};
 use crate::keypoint::Features;
 
+mod lowe;
 pub mod orb;
 mod orb_cv;
 mod orb_pattern;
 pub mod sift;
 
 pub use orb::{OrbBackend, OrbParams};
-pub use sift::SiftParams;
+pub use sift::{SiftBackend, SiftParams};
 
 /// Which detector + descriptor to run (`Default` impls are OpenCV's defaults).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -4,9 +4,9 @@
 //! Stephens, 7×7 Sobel window, k = 0.04), the intensity-centroid orientation (radius 15) and
 //! the steered BRIEF test on the level blurred by a 7×7 Gaussian (σ = 2).
 use laparo_core::image::Image;
-use laparo_core::remap::{remap, CoordMap, Interp};
 use rayon::prelude::*;
 
+use super::lowe::blur::{accumulate, separable_blur_rows, Plane};
 use super::orb::OrbParams;
 use super::orb_pattern::BIT_PATTERN_31;
 use crate::keypoint::{Descriptors, Features, Keypoint};
@@ -50,67 +50,91 @@ fn per_level(n: usize, levels: usize, scale: f64) -> Vec<usize> {
     out
 }
 
-/// Bilinear downscale (pixel-centre aligned, OpenCV INTER_LINEAR) through the shared sampler.
-fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
-    let (sx, sy) = (img.width as f32 / w as f32, img.height as f32 / h as f32);
-    let (mx, my) = ((img.width - 1) as f32, (img.height - 1) as f32);
-    let xy = (0..w * h)
+/// Source taps of a pixel-centre-aligned bilinear resize from `n` to `m` samples: (i₀, i₁, weight
+/// of i₁ in 1/256), position (i + ½)·n/m − ½ clamped to [0, n − 1] (OpenCV INTER_LINEAR_EXACT).
+fn taps(n: usize, m: usize) -> Vec<(usize, usize, u32)> {
+    let s = n as f64 / m as f64;
+    (0..m)
         .map(|i| {
-            let (x, y) = ((i % w) as f32, (i / w) as f32);
-            [((x + 0.5) * sx - 0.5).clamp(0.0, mx), ((y + 0.5) * sy - 0.5).clamp(0.0, my)]
+            let f = ((i as f64 + 0.5) * s - 0.5).clamp(0.0, (n - 1) as f64);
+            let i0 = f.floor() as usize;
+            let wgt = ((f - i0 as f64) * 256.0).round() as u32;
+            let i1 = (i0 + 1).min(n - 1);
+            if wgt == 256 {
+                (i1, i1, 0)
+            } else {
+                (i0, i1, wgt)
+            }
         })
-        .collect();
-    remap(img, &CoordMap { width: w, height: h, xy }, Interp::Bilinear, 0u8)
-        .map(|(o, _)| o)
-        .unwrap_or_else(|_| Image::filled(w, h, 1, 0))
+        .collect()
+}
+
+/// Bilinear downscale in 8-bit fixed point (weights in 1/256, rounded once at the end): the
+/// vertical blend over the full source row (vectorises), then the horizontal taps.
+fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
+    let (xt, yt) = (taps(img.width, w), taps(img.height, h));
+    // (x₀, weight of x₀ + 1): x₁ = x₀ + 1 always, the row padded by a copy of its last value.
+    let xt: Vec<(u32, u32)> = xt.iter().map(|&(x0, _, wx)| (x0 as u32, wx)).collect();
+    let sw = img.width;
+    let mut out = Image::filled(w, h, 1, 0u8);
+    out.data.par_chunks_mut(w).zip(yt.par_iter()).for_each_init(
+        || vec![0u32; sw + 1],
+        |v, (row, &(y0, y1, wy))| {
+            let (r0, r1) = (&img.data[y0 * sw..(y0 + 1) * sw], &img.data[y1 * sw..(y1 + 1) * sw]);
+            for ((d, &a), &b) in v.iter_mut().zip(r0).zip(r1) {
+                *d = a as u32 * (256 - wy) + b as u32 * wy;
+            }
+            v[sw] = v[sw - 1];
+            for (o, &(x0, wx)) in row.iter_mut().zip(&xt) {
+                let (a, b) = (v[x0 as usize], v[x0 as usize + 1]);
+                *o = ((a * 256 + (b - a).wrapping_mul(wx) + (1 << 15)) >> 16) as u8;
+            }
+        },
+    );
+    out
+}
+
+/// Offsets of the 16 circle pixels in a row-major image of width `w`.
+fn circle_offsets(w: usize) -> [isize; 16] {
+    CIRCLE.map(|(dx, dy)| dy as isize * w as isize + dx as isize)
 }
 
 /// FAST-9 score of pixel (x, y): the largest t for which 9 contiguous circle pixels are all
 /// brighter than p + t or all darker than p − t (0 when not a corner at `thr`).
-#[inline]
+#[cfg(test)]
 fn fast_score(d: &[u8], w: usize, x: usize, y: usize, thr: i32) -> i32 {
-    let p = d[y * w + x] as i32;
-    let at = |k: usize| {
-        let (dx, dy) = CIRCLE[k];
-        d[((y as i32 + dy) as usize) * w + (x as i32 + dx) as usize] as i32
-    };
-    // Quick rejection: an arc of 9 covers at least 2 of the 4 compass pixels.
-    let c = [at(0), at(4), at(8), at(12)];
-    let nb = c.iter().filter(|&&v| v > p + thr).count();
-    let nd = c.iter().filter(|&&v| v < p - thr).count();
-    if nb < 2 && nd < 2 {
-        return 0;
-    }
-    let mut v = [0i32; 16];
+    fast_score_at(d, &circle_offsets(w), y * w + x, thr)
+}
+
+/// FAST-9 score at linear index `c` (circle offsets `off`): the largest t such that 9
+/// contiguous circle pixels all exceed p + t or all fall below p − t; 0 unless above `thr`.
+#[inline]
+fn fast_score_at(d: &[u8], off: &[isize; 16], c: usize, thr: i32) -> i32 {
+    let p = d[c] as i32;
+    let mut v = [0i16; 25];
     let (mut bm, mut dm) = (0u32, 0u32);
-    for (k, e) in v.iter_mut().enumerate() {
-        *e = at(k) - p;
-        bm |= ((*e > thr) as u32) << k;
-        dm |= ((*e < -thr) as u32) << k;
+    for k in 0..16 {
+        let e = d[(c as isize + off[k]) as usize] as i32 - p;
+        v[k] = e as i16;
+        bm |= ((e > thr) as u32) << k;
+        dm |= ((e < -thr) as u32) << k;
     }
     // 9 contiguous set bits on the 16-ring (doubled so arcs may wrap).
     let has9 = |m: u32| {
         let mut r = m | (m << 16);
-        for _ in 1..9 {
-            r &= r >> 1;
-        }
+        r &= r >> 1;
+        r &= r >> 2;
+        r &= r >> 4;
+        r &= r >> 1;
         r & 0xFFFF != 0
     };
     if !has9(bm) && !has9(dm) {
         return 0;
     }
-    let (mut best_b, mut best_d) = (i32::MIN, i32::MIN);
-    for s in 0..16 {
-        let (mut mb, mut md) = (i32::MAX, i32::MAX);
-        for k in 0..9 {
-            let e = v[(s + k) & 15];
-            mb = mb.min(e);
-            md = md.min(-e);
-        }
-        best_b = best_b.max(mb);
-        best_d = best_d.max(md);
+    for k in 16..25 {
+        v[k] = v[k - 16];
     }
-    let s = best_b.max(best_d);
+    let s = arc_score(&v);
     if s > thr {
         s
     } else {
@@ -118,46 +142,181 @@ fn fast_score(d: &[u8], w: usize, x: usize, y: usize, thr: i32) -> i32 {
     }
 }
 
-/// FAST-9 corners with 3×3 non-maximum suppression: (x, y, score).
-fn fast9(img: &Image<u8>, thr: i32) -> Vec<(usize, usize, i32)> {
+/// max over the 16 arcs of 9 of max(min e, min −e), e = I − p on the ring (`v` = e doubled to 25
+/// entries). SSE2 (x86-64 baseline) as OpenCV's `cornerScore<16>`; integer, so exact.
+#[inline(never)]
+fn arc_score(v: &[i16; 25]) -> i32 {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE2 is part of the x86-64 baseline; every load reads 8 i16 within `v` (k + 9 + 8 ≤ 25).
+    unsafe {
+        use std::arch::x86_64::*;
+        let ld = |i: usize| _mm_loadu_si128(v.as_ptr().add(i) as *const __m128i);
+        let (mut q0, mut q1) = (_mm_set1_epi16(i16::MIN), _mm_set1_epi16(i16::MAX));
+        for k in [0usize, 8] {
+            // a, b = min, max of e[k+j+1 … k+j+8] in lane j.
+            let (mut a, mut b) = (ld(k + 1), ld(k + 1));
+            for t in 2..=8 {
+                let x = ld(k + t);
+                a = _mm_min_epi16(a, x);
+                b = _mm_max_epi16(b, x);
+            }
+            for t in [k, k + 9] {
+                let x = ld(t);
+                q0 = _mm_max_epi16(q0, _mm_min_epi16(a, x));
+                q1 = _mm_min_epi16(q1, _mm_max_epi16(b, x));
+            }
+        }
+        // Bright: max min e = q0; dark: max min(−e) = −min max e = −q1; then the lane maximum.
+        let mut q = _mm_max_epi16(q0, _mm_sub_epi16(_mm_setzero_si128(), q1));
+        q = _mm_max_epi16(q, _mm_unpackhi_epi64(q, q));
+        q = _mm_max_epi16(q, _mm_srli_si128(q, 4));
+        q = _mm_max_epi16(q, _mm_srli_si128(q, 2));
+        _mm_cvtsi128_si32(q) as i16 as i32
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    arc_score_scalar(v)
+}
+
+/// Portable `arc_score`.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+fn arc_score_scalar(v: &[i16; 25]) -> i32 {
+    let (mut best_b, mut best_d) = (i32::MIN, i32::MIN);
+    for s in 0..16 {
+        let w = &v[s..s + 9];
+        best_b = best_b.max(w.iter().copied().min().unwrap_or(0) as i32);
+        best_d = best_d.max(-(w.iter().copied().max().unwrap_or(0) as i32));
+    }
+    best_b.max(best_d)
+}
+
+/// Arc pre-test of one row, written to vectorise over u8 lanes: `out[k] = 1` where, for pixel
+/// x = k + 3, 4 cyclically consecutive of the 8 even circle pixels (0, 2, …, 14) are all brighter
+/// than p + t, or all darker than p − t. An arc of 9 contiguous circle pixels always contains 4
+/// consecutive even ones, so no FAST-9 corner is rejected. `rows` = rows y − 3 … y + 3.
+#[inline(always)]
+fn compass_row_impl(rows: [&[u8]; 7], t: u8, out: &mut [u8]) {
+    let n = out.len();
+    // Even circle pixels k = 0, 2, …, 14: (dx, dy) = (0,3) (2,2) (3,0) (2,−2) (0,−3) (−2,−2) (−3,0) (−2,2).
+    let e: [&[u8]; 8] = [
+        &rows[6][3..n + 3],
+        &rows[5][5..n + 5],
+        &rows[3][6..n + 6],
+        &rows[1][5..n + 5],
+        &rows[0][3..n + 3],
+        &rows[1][1..n + 1],
+        &rows[3][..n],
+        &rows[5][1..n + 1],
+    ];
+    let mid = &rows[3][3..n + 3];
+    let run4 = |b: [u8; 8]| {
+        (b[0] & b[1] & b[2] & b[3])
+            | (b[1] & b[2] & b[3] & b[4])
+            | (b[2] & b[3] & b[4] & b[5])
+            | (b[3] & b[4] & b[5] & b[6])
+            | (b[4] & b[5] & b[6] & b[7])
+            | (b[5] & b[6] & b[7] & b[0])
+            | (b[6] & b[7] & b[0] & b[1])
+            | (b[7] & b[0] & b[1] & b[2])
+    };
+    for k in 0..n {
+        let p = mid[k];
+        let (hi, lo) = (p.saturating_add(t), p.saturating_sub(t));
+        let br: [u8; 8] = std::array::from_fn(|j| (e[j][k] > hi) as u8);
+        let dk: [u8; 8] = std::array::from_fn(|j| (e[j][k] < lo) as u8);
+        out[k] = run4(br) | run4(dk);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn compass_row_avx2(rows: [&[u8]; 7], t: u8, out: &mut [u8]) {
+    compass_row_impl(rows, t, out)
+}
+
+/// Runtime-dispatched arc pre-test (integer comparisons: both paths agree exactly).
+fn compass_row(rows: [&[u8]; 7], t: u8, out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present (checked just above).
+        unsafe { compass_row_avx2(rows, t, out) };
+        return;
+    }
+    compass_row_impl(rows, t, out)
+}
+
+/// FAST-9 corners with 3×3 non-maximum suppression, at least `border` (≥ 4) px from the edges:
+/// (x, y, score).
+fn fast9(img: &Image<u8>, thr: i32, border: usize) -> Vec<(usize, usize, i32)> {
     let (w, h) = (img.width, img.height);
-    if w < 7 || h < 7 {
+    let border = border.max(4);
+    if w < 2 * border + 1 || h < 2 * border + 1 {
         return vec![];
     }
     let d = &img.data;
-    let mut score = vec![0i32; w * h];
-    score.par_chunks_mut(w).enumerate().skip(3).take(h - 6).for_each(|(y, row)| {
-        for (x, r) in row.iter_mut().enumerate().take(w - 3).skip(3) {
-            *r = fast_score(d, w, x, y, thr);
-        }
-    });
+    let t = thr.clamp(0, 255) as u8;
+    let off = circle_offsets(w);
+    // Scores are ≤ 255: one byte each.
+    let mut score = vec![0u8; w * h];
+    score.par_chunks_mut(w).enumerate().skip(border - 1).take(h - 2 * border + 2).for_each_init(
+        || vec![0u8; w - 6],
+        |mask, (y, row)| {
+            compass_row(std::array::from_fn(|j| &d[(y + j - 3) * w..(y + j - 2) * w]), t, mask);
+            for_each_nonzero(mask, |k| row[k + 3] = fast_score_at(d, &off, y * w + k + 3, thr) as u8);
+        },
+    );
     let mut out = vec![];
-    for y in 4..h.saturating_sub(4) {
-        for x in 4..w - 4 {
-            let s = score[y * w + x];
-            if s == 0 {
-                continue;
+    for y in border..h - border {
+        let (up, row, dn) = (&score[(y - 1) * w..y * w], &score[y * w..(y + 1) * w], &score[(y + 1) * w..(y + 2) * w]);
+        for_each_nonzero(&row[border..w - border], |k| {
+            let x = k + border;
+            let s = row[x];
+            if s > row[x - 1]
+                && s > row[x + 1]
+                && s > up[x - 1]
+                && s > up[x]
+                && s > up[x + 1]
+                && s > dn[x - 1]
+                && s > dn[x]
+                && s > dn[x + 1]
+            {
+                out.push((x, y, s as i32));
             }
-            let mut is_max = true;
-            'n: for dy in -1i32..=1 {
-                for dx in -1i32..=1 {
-                    if (dx, dy) != (0, 0) && score[(y as i32 + dy) as usize * w + (x as i32 + dx) as usize] >= s {
-                        is_max = false;
-                        break 'n;
-                    }
-                }
-            }
-            if is_max {
-                out.push((x, y, s));
-            }
-        }
+        });
     }
     out
+}
+
+/// Call `f(i)` for every i with `bytes[i] != 0`, in increasing order, skipping zero 8-byte words.
+#[inline]
+fn for_each_nonzero(bytes: &[u8], mut f: impl FnMut(usize)) {
+    let mut chunks = bytes.chunks_exact(8);
+    let mut base = 0;
+    for c in &mut chunks {
+        let mut word = u64::from_le_bytes(c.try_into().expect("8 bytes"));
+        while word != 0 {
+            let b = (word.trailing_zeros() / 8) as usize;
+            f(base + b);
+            word &= !(0xFFu64 << (8 * b));
+        }
+        base += 8;
+    }
+    for (i, &v) in chunks.remainder().iter().enumerate() {
+        if v != 0 {
+            f(base + i);
+        }
+    }
 }
 
 /// Keep the `n` best by score (and every tie with the n-th, as OpenCV's `retainBest`), in a
 /// deterministic order (score descending, then row, then column).
 fn retain_best<T: Copy>(mut v: Vec<(usize, usize, T)>, n: usize, key: impl Fn(&T) -> f64) -> Vec<(usize, usize, T)> {
+    if n > 0 && v.len() > n {
+        // Drop everything below the n-th largest key first (linear), then sort the rest.
+        let mut keys: Vec<f64> = v.iter().map(|e| key(&e.2)).collect();
+        let (_, edge, _) = keys.select_nth_unstable_by(n - 1, |a, b| b.total_cmp(a));
+        let edge = *edge;
+        v.retain(|e| key(&e.2) >= edge);
+    }
     v.sort_by(|a, b| key(&b.2).total_cmp(&key(&a.2)).then(a.1.cmp(&b.1)).then(a.0.cmp(&b.0)));
     if v.len() > n {
         if n == 0 {
@@ -218,23 +377,29 @@ fn umax() -> [i32; 16] {
     u
 }
 
-/// Intensity-centroid orientation (rad, from +x towards +y): atan2(m01, m10) over the disc.
+/// Intensity-centroid orientation (rad, from +x towards +y): atan2(m01, m10) over the disc;
+/// row pairs ±v summed over slices (i32, vectorises).
 fn ic_angle(img: &Image<u8>, x: usize, y: usize, um: &[i32; 16]) -> f64 {
-    let (w, d) = (img.width as i64, &img.data);
-    let c = y as i64 * w + x as i64;
-    let (mut m01, mut m10) = (0i64, 0i64);
-    for u in -HALF_PATCH as i64..=HALF_PATCH as i64 {
-        m10 += u * d[(c + u) as usize] as i64;
+    let (w, d) = (img.width, &img.data);
+    let hp = HALF_PATCH as usize;
+    let c = y * w + x;
+    let (mut m01, mut m10) = (0i32, 0i32);
+    let mid = &d[c - hp..=c + hp];
+    for (i, &p) in mid.iter().enumerate() {
+        m10 += (i as i32 - HALF_PATCH) * p as i32;
     }
-    for v in 1..=HALF_PATCH as i64 {
-        let mut vs = 0i64;
-        let r = um[v as usize] as i64;
-        for u in -r..=r {
-            let (p, m) = (d[(c + u + v * w) as usize] as i64, d[(c + u - v * w) as usize] as i64);
+    for v in 1..=hp {
+        let r = um[v] as usize;
+        let n = 2 * r + 1;
+        let (lo, hi) = (&d[c + v * w - r..c + v * w - r + n], &d[c - v * w - r..c - v * w - r + n]);
+        let (mut vs, mut mu) = (0i32, 0i32);
+        for i in 0..n {
+            let (p, m) = (lo[i] as i32, hi[i] as i32);
             vs += p - m;
-            m10 += u * (p + m);
+            mu += (i as i32 - r as i32) * (p + m);
         }
-        m01 += v * vs;
+        m10 += mu;
+        m01 += v as i32 * vs;
     }
     let a = (m01 as f64).atan2(m10 as f64);
     if a < 0.0 {
@@ -244,85 +409,85 @@ fn ic_angle(img: &Image<u8>, x: usize, y: usize, um: &[i32; 16]) -> f64 {
     }
 }
 
-/// 7×7 Gaussian blur, σ = 2, border reflect-101 (OpenCV's pre-BRIEF smoothing); separable,
-/// interior rows and columns without border arithmetic so the loops vectorise.
-fn blur7(img: &Image<u8>) -> Image<u8> {
-    let k: [f32; 7] = {
-        let g: [f32; 7] = std::array::from_fn(|i| (-((i as f32 - 3.0).powi(2)) / 8.0).exp());
-        let s: f32 = g.iter().sum();
-        g.map(|v| v / s)
+/// 7×7 Gaussian blur, σ = 2, border reflect-101 (OpenCV's pre-BRIEF smoothing), through the
+/// separable f32 blur of `lowe::blur` (AVX2 by runtime dispatch), rounded half up to u8.
+fn blur7(img: &Image<u8>, rows: &[bool]) -> Image<u8> {
+    let k: [f32; 4] = {
+        let g: [f64; 7] = std::array::from_fn(|i| (-((i as f64 - 3.0).powi(2)) / 8.0).exp());
+        let s: f64 = g.iter().sum();
+        std::array::from_fn(|i| (g[i + 3] / s) as f32)
     };
-    let (w, h) = (img.width, img.height);
-    let refl = |i: i64, n: usize| -> usize {
-        let n = n as i64;
-        if n == 1 {
-            return 0;
-        }
-        let mut i = i;
-        while i < 0 || i >= n {
-            i = if i < 0 { -i } else { 2 * n - 2 - i };
-        }
-        i as usize
-    };
-    let mut tmp = vec![0f32; w * h];
-    tmp.par_chunks_mut(w).zip(img.data.par_chunks(w)).for_each(|(row, src)| {
-        for x in 0..w {
-            if x >= 3 && x + 3 < w {
-                let win = &src[x - 3..x + 4];
-                row[x] = k[0] * win[0] as f32
-                    + k[1] * win[1] as f32
-                    + k[2] * win[2] as f32
-                    + k[3] * win[3] as f32
-                    + k[4] * win[4] as f32
-                    + k[5] * win[5] as f32
-                    + k[6] * win[6] as f32;
-            } else {
-                row[x] = (0..7).map(|t| k[t] * src[refl(x as i64 + t as i64 - 3, w)] as f32).sum();
-            }
-        }
-    });
-    let mut out = Image::filled(w, h, 1, 0u8);
-    out.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let rows: [&[f32]; 7] = std::array::from_fn(|t| {
-            let yy = refl(y as i64 + t as i64 - 3, h);
-            &tmp[yy * w..(yy + 1) * w]
-        });
-        for x in 0..w {
-            let v = k[0] * rows[0][x]
-                + k[1] * rows[1][x]
-                + k[2] * rows[2][x]
-                + k[3] * rows[3][x]
-                + k[4] * rows[4][x]
-                + k[5] * rows[5][x]
-                + k[6] * rows[6][x];
-            row[x] = (v + 0.5) as u8;
-        }
-    });
-    out
+    let src = Plane { w: img.width, h: img.height, data: img.data.iter().map(|&v| v as f32).collect() };
+    let b = separable_blur_rows(&src, &k, accumulate, Some(rows));
+    // 0 ≤ v ≤ 255 (normalised kernel on 8-bit input): adding 1.5·2²³ leaves round-half-even(v)
+    // in the low mantissa bits (vectorises, unlike a saturating float → int cast).
+    const MAGIC: f32 = 12_582_912.0;
+    let data = b.data.iter().map(|&v| (v + MAGIC).to_bits() as u8).collect();
+    Image { width: img.width, height: img.height, channels: 1, data }
 }
 
-/// Steered BRIEF: 256 tests `I(R p1) < I(R p2)` on the blurred level, R = rotation by `angle`.
-fn brief(img: &Image<u8>, x: usize, y: usize, angle: f64) -> [u8; 32] {
+/// Rows within reach of a steered BRIEF test (|rotated offset| ≤ 15·√2 < 22) of a keypoint.
+fn brief_rows(h: usize, kps: &[(usize, usize, f64)]) -> Vec<bool> {
+    let mut need = vec![false; h];
+    for &(_, y, _) in kps {
+        for r in need.iter_mut().take((y + 23).min(h)).skip(y.saturating_sub(22)) {
+            *r = true;
+        }
+    }
+    need
+}
+
+/// `bit_pattern_31` as f32 columns: x₁, y₁, x₂, y₂ of the 256 tests, each point as one row of
+/// 512 (first points then second points), so the rotation loop vectorises.
+fn pattern_columns() -> ([f32; 512], [f32; 512]) {
+    let mut px = [0f32; 512];
+    let mut py = [0f32; 512];
+    for (i, p) in BIT_PATTERN_31.iter().enumerate() {
+        (px[i], py[i], px[i + 256], py[i + 256]) = (p[0] as f32, p[1] as f32, p[2] as f32, p[3] as f32);
+    }
+    (px, py)
+}
+
+/// Steered BRIEF: 256 tests `I(R p1) < I(R p2)` on the blurred level, R = rotation by `angle`
+/// (AVX2 by runtime dispatch; same IEEE operations, so the same bits as the portable path).
+fn brief(img: &Image<u8>, x: usize, y: usize, angle: f64, pat: &([f32; 512], [f32; 512])) -> [u8; 32] {
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present (checked just above).
+        return unsafe { brief_avx2(img, x, y, angle, pat) };
+    }
+    brief_impl(img, x, y, angle, pat)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn brief_avx2(img: &Image<u8>, x: usize, y: usize, angle: f64, pat: &([f32; 512], [f32; 512])) -> [u8; 32] {
+    brief_impl(img, x, y, angle, pat)
+}
+
+/// The steered BRIEF body.
+#[inline(always)]
+fn brief_impl(img: &Image<u8>, x: usize, y: usize, angle: f64, pat: &([f32; 512], [f32; 512])) -> [u8; 32] {
     let (a, b) = ((angle as f32).cos(), (angle as f32).sin());
-    let (w, d) = (img.width as i64, &img.data);
-    let c = y as i64 * w + x as i64;
+    let w = img.width as i32;
     // cvRound (half to even) by the 1.5·2²³ trick: exact for |v| < 2²², no libm call (SSE2
-    // has no round instruction; `round_ties_even` became a call to rintf, 11 % of ORB's time).
+    // has no round instruction; `round_ties_even` became a call to rintf).
     const MAGIC: f32 = 12_582_912.0;
-    let rnd = |v: f32| ((v + MAGIC) - MAGIC) as i64;
-    let val = |px: i8, py: i8| {
-        let (px, py) = (px as f32, py as f32);
-        let yy = rnd(px * b + py * a);
-        let xx = rnd(px * a - py * b);
-        d[(c + yy * w + xx) as usize]
-    };
+    // (v + 1.5·2²³) holds 0x4B40_0000 + round(v) in its bits for |v| < 2²²: integer only, so
+    // the loop vectorises (a float → int cast needs NaN / range checks).
+    let rnd = |v: f32| (v + MAGIC).to_bits() as i32 - 0x4B40_0000;
+    let mut off = [0i32; 512];
+    for ((o, &px), &py) in off.iter_mut().zip(&pat.0).zip(&pat.1) {
+        *o = rnd(px * b + py * a) * w + rnd(px * a - py * b);
+    }
+    let c = (y * img.width + x) as isize;
+    let d = &img.data;
     let mut out = [0u8; 32];
     for (i, byte) in out.iter_mut().enumerate() {
         for k in 0..8 {
-            let p = BIT_PATTERN_31[i * 8 + k];
-            if val(p[0], p[1]) < val(p[2], p[3]) {
-                *byte |= 1 << k;
-            }
+            let t = i * 8 + k;
+            let (p, q) = (d[(c + off[t] as isize) as usize], d[(c + off[t + 256] as isize) as usize]);
+            *byte |= ((p < q) as u8) << k;
         }
     }
     out
@@ -334,7 +499,7 @@ fn level_features(img: &Image<u8>, budget: usize, thr: i32, um: &[i32; 16]) -> V
         return vec![];
     }
     let (w, h) = (img.width, img.height);
-    let corners: Vec<_> = fast9(img, thr)
+    let corners: Vec<_> = fast9(img, thr, EDGE)
         .into_iter()
         .filter(|&(x, y, _)| x >= EDGE && x < w - EDGE && y >= EDGE && y < h - EDGE)
         .collect();
@@ -342,11 +507,12 @@ fn level_features(img: &Image<u8>, budget: usize, thr: i32, um: &[i32; 16]) -> V
     let scored: Vec<(usize, usize, f64)> = corners.iter().map(|&(x, y, _)| (x, y, harris(img, x, y))).collect();
     let mut best = retain_best(scored, budget, |&r| r);
     best.truncate(budget);
-    let blurred = blur7(img);
+    let blurred = blur7(img, &brief_rows(img.height, &best));
+    let pat = pattern_columns();
     best.iter()
         .map(|&(x, y, r)| {
             let a = ic_angle(img, x, y, um);
-            (x, y, r, a, brief(&blurred, x, y, a))
+            (x, y, r, a, brief(&blurred, x, y, a, &pat))
         })
         .collect()
 }
@@ -419,6 +585,70 @@ mod tests {
         assert_eq!(fast_score(&img.data, 30, 17, 17, 20), 0);
         // Score = the largest threshold still passing: 200 − 0 − 1 would fail at 200.
         assert_eq!(fast_score(&img.data, 30, 10, 10, 20), 200);
+    }
+
+    #[test]
+    fn sse2_and_scalar_arc_scores_agree() {
+        let mut s = 5u32;
+        for _ in 0..2000 {
+            let mut v = [0i16; 25];
+            for e in v.iter_mut().take(16) {
+                s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                *e = ((s >> 24) as i16) - 128;
+            }
+            for k in 16..25 {
+                v[k] = v[k - 16];
+            }
+            assert_eq!(arc_score(&v), arc_score_scalar(&v));
+        }
+    }
+
+    #[test]
+    fn nonzero_scan_visits_exactly_the_nonzero_bytes() {
+        let v: Vec<u8> = (0..37).map(|i| if i % 5 == 0 || i == 36 { 1 + i as u8 } else { 0 }).collect();
+        let mut seen = vec![];
+        for_each_nonzero(&v, |i| seen.push(i));
+        assert_eq!(seen, vec![0, 5, 10, 15, 20, 25, 30, 35, 36]);
+    }
+
+    #[test]
+    fn resize_taps_and_ramp() {
+        // 6 → 5: positions (i + ½)·1.2 − ½ = 0.1, 1.3, 2.5, 3.7, 4.9.
+        let t = taps(6, 5);
+        assert_eq!(t, vec![(0, 1, 26), (1, 2, 77), (2, 3, 128), (3, 4, 179), (4, 5, 230)]);
+        // A ramp 10·x resized keeps 10·position (rounded).
+        let img = Image::from_vec(6, 2, 1, (0..12).map(|i| (i % 6 * 10) as u8).collect()).unwrap();
+        let r = resize(&img, 5, 2);
+        assert_eq!(&r.data[..5], &[1, 13, 25, 37, 49]);
+    }
+
+    #[test]
+    fn compass_pretest_never_rejects_a_corner() {
+        let mut s = 99u32;
+        let data: Vec<u8> = (0..64 * 40)
+            .map(|_| {
+                s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (s >> 24) as u8
+            })
+            .collect();
+        let img = Image::from_vec(64, 40, 1, data).unwrap();
+        let mut m = vec![0u8; 58];
+        let mut m2 = vec![0u8; 58];
+        let mut corners = 0;
+        for y in 3..37 {
+            let d = &img.data;
+            let rows: [&[u8]; 7] = std::array::from_fn(|j| &d[(y + j - 3) * 64..(y + j - 2) * 64]);
+            compass_row(rows, 20, &mut m);
+            compass_row_impl(rows, 20, &mut m2);
+            assert_eq!(m, m2);
+            for x in 3..61 {
+                if fast_score(d, 64, x, y, 20) > 0 {
+                    corners += 1;
+                    assert_eq!(m[x - 3], 1, "({x}, {y})");
+                }
+            }
+        }
+        assert!(corners > 10);
     }
 
     #[test]
