@@ -239,7 +239,7 @@ impl RowJob<'_> {
 
     /// The previous-row pixel of path `k` at `x` (vertical, diagonal from x − 1, from x + 1).
     #[inline(always)]
-    fn from_above(&self, k: usize, x: usize) -> Option<usize> {
+    fn above_of(&self, k: usize, x: usize) -> Option<usize> {
         if self.first_row {
             return None;
         }
@@ -267,7 +267,7 @@ fn row_scalar(j: &mut RowJob, ha: &mut Vec<u16>, hb: &mut Vec<u16>) {
         let p2 = j.p2(j.gray[x], j.gray[xq]);
         let mut above = [(None, 0u16); 3];
         for (k, a) in above.iter_mut().enumerate().take(j.n_dirs) {
-            *a = match j.from_above(k, x) {
+            *a = match j.above_of(k, x) {
                 Some(xq) => (Some(xq), j.p2(j.gray[x], j.gprev[xq])),
                 None => (None, p2),
             };
@@ -289,8 +289,8 @@ fn row_scalar(j: &mut RowJob, ha: &mut Vec<u16>, hb: &mut Vec<u16>) {
             path_step_scalar::<false>(hp, hm, p1, p2, c, nd, ndp, ha, sp)
         };
         std::mem::swap(ha, hb);
-        for k in 0..j.n_dirs {
-            let (pb, pm, p2) = match above[k] {
+        for (k, &a) in above.iter().enumerate().take(j.n_dirs) {
+            let (pb, pm, p2) = match a {
                 (Some(xq), p2) => (&j.prev[(k * w + xq) * stride..(k * w + xq + 1) * stride], j.pmin[k * w + xq], p2),
                 (None, p2) => (j.zero, 0, p2),
             };
@@ -405,7 +405,7 @@ unsafe fn row_avx2<const NDIRS: usize, const SECOND: bool, const NARROW: bool>(
         let mut v_pm2 = [_mm256_setzero_si256(); NDIRS];
         let mut v_pmin = [_mm256_setzero_si256(); NDIRS];
         for k in 0..NDIRS {
-            let (pb, pm, p2) = match j.from_above(k, x) {
+            let (pb, pm, p2) = match j.above_of(k, x) {
                 Some(xq) => {
                     (j.prev.as_ptr().add((k * w + xq) * stride), j.pmin[k * w + xq], j.p2(j.gray[x], j.gprev[xq]))
                 }
@@ -453,8 +453,8 @@ unsafe fn row_avx2<const NDIRS: usize, const SECOND: bool, const NARROW: bool>(
             l += 16;
         }
         m = hmin16(hmin_v);
-        for k in 0..NDIRS {
-            *j.cmin.get_unchecked_mut(k * w + x) = hmin16(vmin_v[k]);
+        for (k, v) in vmin_v.iter().enumerate() {
+            *j.cmin.get_unchecked_mut(k * w + x) = hmin16(*v);
         }
         if SECOND {
             *j.sel.get_unchecked_mut(x) = super::select::select_avx2_min(&sbuf[..ndp], nd, ndp, hmin16(smin_v));

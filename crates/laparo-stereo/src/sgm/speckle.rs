@@ -73,9 +73,9 @@ pub fn filter_speckles(disp: &mut [f32], w: usize, h: usize, max_size: usize, ma
         }
     }
     let mut size = vec![0usize; runs.len()];
-    for i in 0..runs.len() {
+    for (i, run) in runs.iter().enumerate() {
         let r = root(&mut parent, i as u32) as usize;
-        size[r] += (runs[i].1 - runs[i].0) as usize;
+        size[r] += (run.1 - run.0) as usize;
     }
     let small: Vec<bool> = (0..runs.len()).map(|i| size[parent[i] as usize] < max_size).collect();
     disp.par_chunks_mut(w)
