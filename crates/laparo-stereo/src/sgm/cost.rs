@@ -205,6 +205,7 @@ fn hamming_rev<const MIN: bool>(avx2: bool, cl: u64, r: &[u64], dst: &mut [u8]) 
 /// `count_ones`), 16 costs at a time; returns how many leading outputs were written.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 unsafe fn hamming_rev_avx2<const MIN: bool>(cl: u64, r: &[u64], dst: &mut [u8]) -> usize {
     use std::arch::x86_64::*;
     let n = r.len();

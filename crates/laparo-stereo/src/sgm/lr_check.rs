@@ -36,7 +36,7 @@ pub fn lr_check_row(best: &[i32], smin: &[u16], disp: &mut [f32], max_diff: i32)
             continue;
         }
         let (lo, hi) = floor_ceil(d);
-        if inconsistent(lo, x) && inconsistent(hi, x) {
+        if inconsistent(lo, x) & inconsistent(hi, x) {
             *dx = f32::INFINITY;
             n += 1;
         }
@@ -50,7 +50,7 @@ pub fn lr_check_row(best: &[i32], smin: &[u16], disp: &mut [f32], max_diff: i32)
 fn floor_ceil(d: f32) -> (i32, i32) {
     let t = d as i32; // towards zero
     let tf = t as f32;
-    (if tf > d { t - 1 } else { t }, if tf < d { t + 1 } else { t })
+    (t - (tf > d) as i32, t + (tf < d) as i32) // branch-free: d is data
 }
 
 #[cfg(test)]

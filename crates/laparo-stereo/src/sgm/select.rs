@@ -59,13 +59,7 @@ impl Selection {
 fn round_half_away(v: f32) -> f32 {
     let t = v as i32;
     let f = v - t as f32; // exact: t and v share their integer part
-    let r = if f >= 0.5 {
-        t + 1
-    } else if f <= -0.5 {
-        t - 1
-    } else {
-        t
-    };
+    let r = t + (f >= 0.5) as i32 - (f <= -0.5) as i32; // branch-free: f is data
     (r as f32).copysign(v)
 }
 
