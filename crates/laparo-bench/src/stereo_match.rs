@@ -62,6 +62,10 @@ pub struct BenchArgs {
     /// Override the uniqueness margin (%) of the laparo modes.
     #[arg(long)]
     pub uniqueness: Option<u8>,
+    /// Write each laparo mode's disparity and confidence here (`<mode>_disparity.pfm`,
+    /// `<mode>_confidence.pfm`, first round) to compare builds bit for bit.
+    #[arg(long)]
+    pub save: Option<PathBuf>,
     /// Write all figures here (JSON).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -168,6 +172,11 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
                 best_ms[mi] = best_ms[mi].min(t.elapsed().as_secs_f64() * 1e3);
             }
             if round == 0 {
+                if let Some(dir) = &a.save {
+                    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+                    laparo_core::io::write_pfm(dir.join(format!("{m}_disparity.pfm")), &out.disparity)?;
+                    laparo_core::io::write_pfm(dir.join(format!("{m}_confidence.pfm")), &out.confidence)?;
+                }
                 let mut v = match &gt {
                     Some(g) => metrics(&out.disparity.data, g),
                     None => serde_json::json!({}),

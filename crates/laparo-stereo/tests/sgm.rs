@@ -76,9 +76,10 @@ fn shift_changes_interior_disparity_by_exactly_k() {
 #[test]
 fn avx2_equals_scalar_and_threads_do_not_matter() {
     let (l, r, _) = random_pair(133, 41, -5, 2);
-    for paths in [Paths::Four, Paths::Eight] {
+    // P2 = 60 with 4 paths stores the first sweep's sums as bytes, P2 = 100 as u16.
+    for (paths, p2) in [(Paths::Four, 60), (Paths::Four, 100), (Paths::Eight, 60)] {
         for vt in [0, 1] {
-            let p = SgmParams { paths, vertical_tol: vt, fill_holes: true, ..SgmParams::new(-12, 9) };
+            let p = SgmParams { paths, p2, vertical_tol: vt, fill_holes: true, ..SgmParams::new(-12, 9) };
             let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
             let a = pool(1).install(|| match_pair(&l, &r, &p).unwrap());
             let b = pool(2).install(|| match_pair(&l, &r, &p).unwrap());
@@ -92,8 +93,8 @@ fn avx2_equals_scalar_and_threads_do_not_matter() {
                     .map(|v| v.to_bits())
                     .collect()
             };
-            assert_eq!(bits(&a), bits(&b), "1 vs 2 threads, {paths:?}, vt {vt}");
-            assert_eq!(bits(&a), bits(&s), "AVX2 vs scalar, {paths:?}, vt {vt}");
+            assert_eq!(bits(&a), bits(&b), "1 vs 2 threads, {paths:?}, P2 {p2}, vt {vt}");
+            assert_eq!(bits(&a), bits(&s), "AVX2 vs scalar, {paths:?}, P2 {p2}, vt {vt}");
             assert!(a.stats.n_valid > 133 * 41 / 2);
         }
     }

@@ -20,9 +20,16 @@ pub const NEUTRAL_COST: u8 = (CENSUS_BITS / 2) as u8;
 /// 9×7 census transform of a grey image (row-major, `w × h`): bit set when the neighbour is darker
 /// than the centre; neighbours outside the image are clamped to the border.
 pub fn census(gray: &[u8], w: usize, h: usize, avx2: bool) -> Vec<u64> {
-    let mut out = vec![0u64; w * h];
+    let mut out = Vec::new();
+    census_into(gray, w, h, avx2, &mut out);
+    out
+}
+
+/// [`census`] into a reused buffer (resized to `w × h`).
+pub fn census_into(gray: &[u8], w: usize, h: usize, avx2: bool, out: &mut Vec<u64>) {
+    out.resize(w * h, 0);
     if w == 0 || h == 0 {
-        return out;
+        return;
     }
     // Border-replicated copy with margins rx, ry.
     let (rx, ry) = (CENSUS_W / 2, CENSUS_H / 2);
@@ -40,6 +47,7 @@ pub fn census(gray: &[u8], w: usize, h: usize, avx2: bool) -> Vec<u64> {
     }
     use rayon::prelude::*;
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        row.fill(0); // the bits are shifted in
         #[cfg(target_arch = "x86_64")]
         if avx2 {
             // SAFETY: the caller checked AVX2 and popcnt support at run time.
@@ -49,7 +57,6 @@ pub fn census(gray: &[u8], w: usize, h: usize, avx2: bool) -> Vec<u64> {
         let _ = avx2;
         census_row(&pad, pw, y, 0, w, row);
     });
-    out
 }
 
 /// Census of pixels `x0..w` of row `y` into `row[x0..]` (portable).
@@ -153,9 +160,16 @@ pub fn pixel_costs(avx2: bool, g: &CostGeom, x: usize, cl: u64, right_rows: &[&[
     let lo = hi - g.w as i64 + 1; // i ≥ lo
     let i0 = lo.clamp(0, g.nd as i64) as usize;
     let i1 = (hi + 1).clamp(0, g.nd as i64) as usize;
-    out[..i0].fill(NEUTRAL_COST);
-    out[i1..g.nd].fill(NEUTRAL_COST);
-    out[g.nd..].fill(0);
+    // (Guarded: most pixels have no neutral cells, and an empty `fill` is still a memset call.)
+    if i0 > 0 {
+        out[..i0].fill(NEUTRAL_COST);
+    }
+    if i1 < g.nd {
+        out[i1..g.nd].fill(NEUTRAL_COST);
+    }
+    if g.nd < g.ndp {
+        out[g.nd..].fill(0);
+    }
     if i0 >= i1 {
         return;
     }
@@ -191,6 +205,7 @@ fn hamming_rev<const MIN: bool>(avx2: bool, cl: u64, r: &[u64], dst: &mut [u8]) 
 /// `count_ones`), 16 costs at a time; returns how many leading outputs were written.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 unsafe fn hamming_rev_avx2<const MIN: bool>(cl: u64, r: &[u64], dst: &mut [u8]) -> usize {
     use std::arch::x86_64::*;
     let n = r.len();

@@ -35,8 +35,8 @@ pub fn lr_check_row(best: &[i32], smin: &[u16], disp: &mut [f32], max_diff: i32)
         if !d.is_finite() {
             continue;
         }
-        let (lo, hi) = (d.floor() as i32, d.ceil() as i32);
-        if inconsistent(lo, x) && inconsistent(hi, x) {
+        let (lo, hi) = floor_ceil(d);
+        if inconsistent(lo, x) & inconsistent(hi, x) {
             *dx = f32::INFINITY;
             n += 1;
         }
@@ -44,9 +44,25 @@ pub fn lr_check_row(best: &[i32], smin: &[u16], disp: &mut [f32], max_diff: i32)
     n
 }
 
+/// `(⌊d⌋, ⌈d⌉)` for finite |d| < 2³¹ without libm calls (the baseline x86-64 target has no
+/// `roundss`).
+#[inline(always)]
+fn floor_ceil(d: f32) -> (i32, i32) {
+    let t = d as i32; // towards zero
+    let tf = t as f32;
+    (t - (tf > d) as i32, t + (tf < d) as i32) // branch-free: d is data
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_ceil_as_std() {
+        for d in [0.0f32, -0.0, 0.25, -0.25, 3.0, -3.0, 2.5, -2.5, 63.996_094, -47.003_906] {
+            assert_eq!(floor_ceil(d), (d.floor() as i32, d.ceil() as i32), "{d}");
+        }
+    }
 
     #[test]
     fn occluded_pixel_rejected_consistent_kept() {

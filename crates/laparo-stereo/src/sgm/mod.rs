@@ -11,12 +11,14 @@
 use crate::error::StereoError;
 use laparo_core::image::Image;
 use rayon::prelude::*;
+use select::Selection;
 use serde::{Deserialize, Serialize};
 
 pub mod aggregate;
 pub mod cost;
 pub mod fill;
 pub mod lr_check;
+mod pool;
 pub mod select;
 pub mod speckle;
 
@@ -175,11 +177,36 @@ pub fn to_gray_u8(img: &Image<u8>) -> Vec<u8> {
     match img.channels {
         1 => img.data.clone(),
         2 => img.data.chunks_exact(2).map(|p| p[0]).collect(),
-        c => img
-            .data
-            .chunks_exact(c)
-            .map(|p| ((77 * p[0] as u32 + 150 * p[1] as u32 + 29 * p[2] as u32 + 128) >> 8) as u8)
-            .collect(),
+        c => {
+            // Rows in parallel (a 1280×1024 RGBA pair is 10 MB to read).
+            let mut out = vec![0u8; img.data.len() / c];
+            let row = img.width.max(1);
+            out.par_chunks_mut(row).zip(img.data.par_chunks(row * c)).for_each(|(o, px)| match c {
+                3 => luma_row::<3>(px, o),
+                4 => luma_row::<4>(px, o),
+                _ => {
+                    for (o, p) in o.iter_mut().zip(px.chunks_exact(c)) {
+                        *o = luma(p);
+                    }
+                }
+            });
+            out
+        }
+    }
+}
+
+/// BT.601 integer luminance of one pixel (R, G, B first).
+#[inline(always)]
+fn luma(p: &[u8]) -> u8 {
+    ((77 * p[0] as u32 + 150 * p[1] as u32 + 29 * p[2] as u32 + 128) >> 8) as u8
+}
+
+/// [`luma`] of a row of `C`-channel pixels (a constant stride, so that it vectorises).
+#[inline(always)]
+fn luma_row<const C: usize>(px: &[u8], out: &mut [u8]) {
+    let (px, _) = px.as_chunks::<C>();
+    for (o, p) in out.iter_mut().zip(px) {
+        *o = ((77 * p[0] as u32 + 150 * p[1] as u32 + 29 * p[2] as u32 + 128) >> 8) as u8;
     }
 }
 
@@ -209,8 +236,7 @@ pub fn match_pair(left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> Result<
     if w == 0 || h == 0 {
         return Err(StereoError::Invalid { what: "image".into(), msg: format!("empty image ({w}x{h})") });
     }
-    let gl = to_gray_u8(left);
-    let gr = to_gray_u8(right);
+    let (gl, gr) = rayon::join(|| to_gray_u8(left), || to_gray_u8(right));
     match_gray(&gl, &gr, w, h, p)
 }
 
@@ -227,8 +253,8 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
     let avx2 = p.kernel == Kernel::Auto && avx2_available();
     let nd = p.n_disparities();
     let ndp = nd.div_ceil(16) * 16;
-    let cl = cost::census(gl, w, h, avx2);
-    let cr = cost::census(gr, w, h, avx2);
+    let (mut cl, mut cr) = (pool::take_buffer(&pool::CENSUS_POOL, w * h), pool::take_buffer(&pool::CENSUS_POOL, w * h));
+    rayon::join(|| cost::census_into(gl, w, h, avx2, &mut cl), || cost::census_into(gr, w, h, avx2, &mut cr));
     let g = cost::CostGeom { w, d_min: p.d_min, nd, ndp };
     let inp = aggregate::Inputs {
         census_l: &cl,
@@ -239,48 +265,60 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
         vtol: p.vertical_tol,
         pen: aggregate::Penalties { p1: p.p1, p2: p.p2, gamma: p.p2_gamma },
         avx2,
+        narrow: aggregate::narrow_partial_sums(p.paths == Paths::Eight, p.p2),
     };
-    let sel = aggregate::aggregate_select(&inp, p.paths == Paths::Eight);
-
-    // Per row: sub-pixel disparity, uniqueness, confidence, left–right check.
-    let mut disp = vec![f32::INFINITY; w * h];
+    let counts: Vec<(usize, usize)>;
+    // Per row, as the second sweep finishes it: sub-pixel disparity, uniqueness, confidence,
+    // left–right check. Zeroed allocations (fresh pages, no serial fill); every element is
+    // written.
+    let mut disp = vec![0f32; w * h];
     let mut conf = vec![0f32; w * h];
-    let counts: Vec<(usize, usize)> = disp
-        .par_chunks_mut(w)
-        .zip(conf.par_chunks_mut(w))
-        .enumerate()
-        .map(|(y, (drow, crow))| {
-            let srow = &sel[y * w..(y + 1) * w];
-            let mut n_nu = 0;
+    {
+        type RowOut<'a> = std::sync::Mutex<(&'a mut [f32], &'a mut [f32], usize, usize)>;
+        let rows: Vec<RowOut> =
+            disp.chunks_mut(w).zip(conf.chunks_mut(w)).map(|(d, c)| std::sync::Mutex::new((d, c, 0, 0))).collect();
+        let finish = |y: usize, srow: &[Selection]| {
+            let mut g = rows[y].lock().unwrap_or_else(|e| e.into_inner());
+            let (drow, crow, n_nu, n_lr) = &mut *g;
             for x in 0..w {
                 let s = &srow[x];
                 if s.unique(p.uniqueness_pct) {
                     drow[x] = (p.d_min + s.best as i32) as f32 + s.subpixel_offset();
                     crow[x] = s.confidence();
                 } else {
-                    n_nu += 1;
+                    drow[x] = f32::INFINITY;
+                    *n_nu += 1;
                 }
             }
-            let n_lr = match p.lr_max_diff {
-                Some(md) => {
-                    let best: Vec<i32> = srow.iter().map(|s| p.d_min + s.best as i32).collect();
-                    let smin: Vec<u16> = srow.iter().map(|s| s.smin).collect();
-                    lr_check::lr_check_row(&best, &smin, drow, md)
-                }
-                None => 0,
-            };
-            (n_nu, n_lr)
-        })
-        .collect();
+            if let Some(md) = p.lr_max_diff {
+                let best: Vec<i32> = srow.iter().map(|s| p.d_min + s.best as i32).collect();
+                let smin: Vec<u16> = srow.iter().map(|s| s.smin).collect();
+                *n_lr = lr_check::lr_check_row(&best, &smin, drow, md);
+            }
+        };
+        aggregate::aggregate_select(&inp, p.paths == Paths::Eight, &finish);
+        counts =
+            rows.into_iter().map(|r| r.into_inner().unwrap_or_else(|e| e.into_inner())).map(|r| (r.2, r.3)).collect();
+    }
     let n_not_unique = counts.iter().map(|c| c.0).sum();
     let n_lr_rejected = counts.iter().map(|c| c.1).sum();
     let n_speckle_removed = speckle::filter_speckles(&mut disp, w, h, p.speckle_window, p.speckle_range);
     let n_filled = if p.fill_holes { fill::fill_background(&mut disp, w, h) } else { 0 };
-    for (c, d) in conf.iter_mut().zip(&disp) {
-        if !d.is_finite() {
-            *c = 0.0;
-        }
-    }
+    let n_valid: usize = conf
+        .par_chunks_mut(w)
+        .zip(disp.par_chunks(w))
+        .map(|(cr, dr)| {
+            let mut n = 0;
+            for (c, d) in cr.iter_mut().zip(dr) {
+                if d.is_finite() {
+                    n += 1;
+                } else {
+                    *c = 0.0;
+                }
+            }
+            n
+        })
+        .sum();
     let dy = (p.vertical_tol > 0).then(|| {
         let mut dy = vec![f32::NAN; w * h];
         dy.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -296,7 +334,8 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
         });
         Image { width: w, height: h, channels: 1, data: dy }
     });
-    let n_valid = disp.iter().filter(|d| d.is_finite()).count();
+    pool::recycle(&pool::CENSUS_POOL, cl);
+    pool::recycle(&pool::CENSUS_POOL, cr);
     Ok(SgmOutput {
         disparity: Image { width: w, height: h, channels: 1, data: disp },
         confidence: Image { width: w, height: h, channels: 1, data: conf },

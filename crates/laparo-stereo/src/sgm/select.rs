@@ -40,7 +40,7 @@ impl Selection {
         if den <= 0 {
             return 0.0;
         }
-        ((l - r) as f32 / (2 * den) as f32 * 256.0).round() / 256.0
+        round_half_away((l - r) as f32 / (2 * den) as f32 * 256.0) / 256.0
     }
 
     /// Confidence in [0, 1]: `(second − best) / second` (0 when second is 0).
@@ -51,6 +51,16 @@ impl Selection {
         }
         (self.second - self.smin) as f32 / self.second as f32
     }
+}
+
+/// `v.round()` (half away from zero, sign kept) for |v| < 2³¹ without a libm call (the
+/// baseline x86-64 target has no `roundss`).
+#[inline(always)]
+fn round_half_away(v: f32) -> f32 {
+    let t = v as i32;
+    let f = v - t as f32; // exact: t and v share their integer part
+    let r = t + (f >= 0.5) as i32 - (f <= -0.5) as i32; // branch-free: f is data
+    (r as f32).copysign(v)
 }
 
 /// Selection over `s[..nd]` (portable).
@@ -105,10 +115,27 @@ pub unsafe fn select_avx2(s: &[u16], nd: usize, ndp: usize) -> Selection {
         let m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
         _mm_extract_epi16(_mm_minpos_epu16(m), 0) as u16
     };
-    let smin = hmin(vmin);
+    select_avx2_min(s, nd, ndp, hmin(vmin))
+}
+
+/// [`select_avx2`] given the minimum `smin` of `s[..ndp]`.
+///
+/// # Safety
+/// AVX2 must be available.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1")]
+#[inline]
+pub unsafe fn select_avx2_min(s: &[u16], nd: usize, ndp: usize, smin: u16) -> Selection {
+    use std::arch::x86_64::*;
+    debug_assert!(s.len() >= ndp && ndp.is_multiple_of(16));
+    let p = s.as_ptr();
+    let hmin = |v: __m256i| -> u16 {
+        let m = _mm_min_epu16(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+        _mm_extract_epi16(_mm_minpos_epu16(m), 0) as u16
+    };
     let target = _mm256_set1_epi16(smin as i16);
     let mut best = 0usize;
-    j = 0;
+    let mut j = 0;
     while j < ndp {
         let eq = _mm256_cmpeq_epi16(_mm256_loadu_si256(p.add(j) as *const __m256i), target);
         let mask = _mm256_movemask_epi8(eq) as u32;
@@ -149,6 +176,13 @@ pub fn select(avx2: bool, s: &[u16], nd: usize, ndp: usize) -> Selection {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rounding_as_std() {
+        for v in [0.0f32, -0.0, 0.3, -0.3, 0.5, -0.5, 1.5, -1.5, 2.5, 127.49998, -127.5, 0.49999997, -0.49999997] {
+            assert_eq!(round_half_away(v).to_bits(), v.round().to_bits(), "{v}");
+        }
+    }
 
     #[test]
     fn selection_by_hand() {
