@@ -355,7 +355,7 @@ fn bicubic_weights_by_hand() {
         let w = cubic_weights(t);
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-15);
         // first moment: Σ w_i (i − 1) = t (linear reproduction)
-        assert!((w[0] * -1.0 + w[2] + 2.0 * w[3] - t).abs() < 1e-15);
+        assert!((-w[0] + w[2] + 2.0 * w[3] - t).abs() < 1e-15);
     }
 }
 
