@@ -325,3 +325,26 @@ fn vtk_fields_round_trip_and_reject_bad_arrays() {
     assert!(write_vtk_fields(&q, "t", &v, &[[0, 1, 2, 4]], &[], &[]).is_err());
     assert!(!q.exists());
 }
+
+/// Found by the fuzz campaign of 2026-12-03 (input `1 4 -1` in a v2 `$Elements` block): a negative
+/// tag count wrapped to a huge usize and panicked with an out-of-bounds index; likewise a negative
+/// v1 node count. Both are errors naming the file and line now.
+#[test]
+fn msh_negative_counts_are_errors_not_panics() {
+    let dir = tempfile::tempdir().unwrap();
+    let nodes = "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n";
+    let cases = [
+        ("v2.msh", format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n{nodes}$Elements\n1\n1 4 -1\n$EndElements\n")),
+        ("v2b.msh", format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n{nodes}$Elements\n1\n1 4 9 1 2 3\n$EndElements\n")),
+        (
+            "v1.msh",
+            "$NOD\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$ENDNOD\n$ELM\n1\n1 4 3 1 -4 1 2 3 4\n$ENDELM\n".to_string(),
+        ),
+    ];
+    for (name, text) in cases {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let e = std::panic::catch_unwind(|| read_msh_mixed(&p)).expect("no panic").unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains("element line"), "{e}");
+    }
+}

@@ -112,13 +112,16 @@ pub fn read_msh_mixed(path: impl AsRef<Path>) -> Result<MixedMesh> {
                     let ty = t[1];
                     // v1: id type phys elem nnodes nodes... ; v2: id type ntags tags... nodes...
                     let (tag, nodes) = if v1 {
-                        if t.len() < 5 || t.len() != 5 + t[4] as usize {
+                        // a negative or huge count is refused before any index arithmetic
+                        let nn = usize::try_from(t.get(4).copied().unwrap_or(-1)).ok();
+                        if t.len() < 5 || nn.and_then(|n| n.checked_add(5)) != Some(t.len()) {
                             return Err(err(nl, "v1 element line: node count does not match".into()));
                         }
                         (t[2], &t[5..])
                     } else {
-                        let nt = t[2] as usize;
-                        if t.len() < 3 + nt {
+                        let nt = usize::try_from(t[2])
+                            .map_err(|_| err(nl, format!("v2 element line: negative tag count {}", t[2])))?;
+                        if nt > t.len() - 3 {
                             return Err(err(nl, "v2 element line: fewer tags than announced".into()));
                         }
                         (if nt > 0 { t[3] } else { 0 }, &t[3 + nt..])
