@@ -130,7 +130,7 @@ pub fn evaluate_files_checked(
     let mut pred = read_prediction(pred_path)?;
     if let Some(f) = resize {
         if pred.size() != gt.gt_m.size() {
-            pred = resize_map(&pred, gt.gt_m.width, gt.gt_m.height, f);
+            pred = resize_map(&pred, gt.gt_m.width, gt.gt_m.height, f)?;
         }
     }
     let check = GtRangeCheck::new(&gt.gt_m.data, gt.mask.as_ref().map(|m| m.data.as_slice()), opts.range);
@@ -160,24 +160,16 @@ impl std::str::FromStr for ResizeFilter {
 }
 
 /// Resize a single-channel map to `width`×`height` px with pixel centres aligned
-/// (`x_src = (x + 0.5)·w_src/w − 0.5`, OpenCV's `resize` convention), clamped to the source.
-pub fn resize_map(img: &Image<f64>, width: usize, height: usize, filter: ResizeFilter) -> Image<f64> {
-    let sx = img.width as f64 / width as f64;
-    let sy = img.height as f64 / height as f64;
-    let (wmax, hmax) = ((img.width - 1) as f64, (img.height - 1) as f64);
-    let mut data = Vec::with_capacity(width * height);
-    for y in 0..height {
-        let v = ((y as f64 + 0.5) * sy - 0.5).clamp(0.0, hmax);
-        for x in 0..width {
-            let u = ((x as f64 + 0.5) * sx - 0.5).clamp(0.0, wmax);
-            let s = match filter {
-                ResizeFilter::Bilinear => img.sample_bilinear(u, v, 0),
-                ResizeFilter::Nearest => img.sample_nearest(u, v, 0),
-            };
-            data.push(s.unwrap_or(f64::NAN));
-        }
-    }
-    Image { width, height, channels: 1, data }
+/// (`x_src = (x + 0.5)·w_src/w − 0.5`, OpenCV's `resize` convention), clamped to the source:
+/// `laparo_core::remap::resize` (positions in f32 as in every `CoordMap`); invalid samples NaN.
+pub fn resize_map(img: &Image<f64>, width: usize, height: usize, filter: ResizeFilter) -> Result<Image<f64>> {
+    let interp = match filter {
+        ResizeFilter::Bilinear => laparo_core::remap::Interp::Bilinear,
+        ResizeFilter::Nearest => laparo_core::remap::Interp::Nearest,
+    };
+    let (out, _) = laparo_core::remap::resize(img, width, height, interp, f64::NAN)
+        .map_err(|e| DepthError::invalid("resize", e.to_string()))?;
+    Ok(out)
 }
 
 /// Where the valid GT depth lies with respect to the clamp range of aligned predictions, and

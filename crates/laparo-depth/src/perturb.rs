@@ -496,31 +496,27 @@ fn disk_blur(src: &Rgb, r: f64) -> Rgb {
     Rgb { w, h, d: out }
 }
 
-/// Uniform line-kernel motion blur of length `len` px along `angle` (rad), bilinear taps on the
-/// replicate-padded image. Every pixel shares the taps' fractional offsets, so the bilinear weights
-/// are computed once per tap.
+/// Uniform line-kernel motion blur of length `len` px along `angle` (rad): the mean of bilinear
+/// samples (the kernel of `laparo_core::remap`, f32) of the replicate-padded image at the taps.
+/// Every pixel shares the taps' fractional offsets, computed once per tap.
 fn motion_blur(src: &Rgb, len: f64, angle: f64) -> Rgb {
     let n = len.ceil() as usize + 1;
     let (dx, dy) = (angle.cos(), angle.sin());
-    // (integer x offset, integer y offset, weights of the 4 neighbours)
-    let taps: Vec<(isize, isize, [f32; 4])> = (0..n)
+    // (integer x offset, integer y offset, fractional x and y offsets)
+    let taps: Vec<(isize, isize, f32, f32)> = (0..n)
         .map(|i| {
             let t = -len / 2.0 + len * i as f64 / (n - 1) as f64;
             let (ox, oy) = (t * dx, t * dy);
             let (ix, iy) = (ox.floor(), oy.floor());
             let (fx, fy) = ((ox - ix) as f32, (oy - iy) as f32);
-            let inv = 1.0 / n as f32;
-            (
-                ix as isize,
-                iy as isize,
-                [(1.0 - fx) * (1.0 - fy) * inv, fx * (1.0 - fy) * inv, (1.0 - fx) * fy * inv, fx * fy * inv],
-            )
+            (ix as isize, iy as isize, fx, fy)
         })
         .collect();
     let (w, h) = (src.w as isize, src.h as isize);
+    let inv = 1.0 / n as f32;
     src.map_pixels(|x, y, _| {
         let mut acc = [0f32; 3];
-        for &(ix, iy, wt) in &taps {
+        for &(ix, iy, fx, fy) in &taps {
             let (xa, xb) = ((x as isize + ix).clamp(0, w - 1), (x as isize + ix + 1).clamp(0, w - 1));
             let (ya, yb) = ((y as isize + iy).clamp(0, h - 1), (y as isize + iy + 1).clamp(0, h - 1));
             let idx = [
@@ -530,13 +526,11 @@ fn motion_blur(src: &Rgb, len: f64, angle: f64) -> Rgb {
                 (yb * w + xb) as usize * 3,
             ];
             for (c, a) in acc.iter_mut().enumerate() {
-                *a += wt[0] * src.d[idx[0] + c]
-                    + wt[1] * src.d[idx[1] + c]
-                    + wt[2] * src.d[idx[2] + c]
-                    + wt[3] * src.d[idx[3] + c];
+                let p = idx.map(|i| src.d[i + c]);
+                *a += laparo_core::remap::bilerp(p[0], p[1], p[2], p[3], fx, fy, false);
             }
         }
-        acc
+        acc.map(|a| a * inv)
     })
 }
 

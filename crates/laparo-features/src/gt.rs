@@ -104,29 +104,7 @@ impl<'a> DepthView<'a> {
     /// `step_mm` of each other, else the nearest pixel's depth (if valid), else None.
     pub fn depth_at(&self, x: f64, y: f64, step_mm: f64) -> Option<f64> {
         let (w, h) = (self.depth_mm.width, self.depth_mm.height);
-        if !(x > -0.5 && y > -0.5 && x < w as f64 - 0.5 && y < h as f64 - 0.5) {
-            return None;
-        }
-        let nearest = self.valid_px((x.round() as usize).min(w - 1), (y.round() as usize).min(h - 1))?;
-        let (x0, y0) = (x.floor().max(0.0) as usize, y.floor().max(0.0) as usize);
-        if x0 + 1 >= w || y0 + 1 >= h {
-            return Some(nearest);
-        }
-        let q = [
-            self.valid_px(x0, y0),
-            self.valid_px(x0 + 1, y0),
-            self.valid_px(x0, y0 + 1),
-            self.valid_px(x0 + 1, y0 + 1),
-        ];
-        if let [Some(a), Some(b), Some(c), Some(d)] = q {
-            let lo = a.min(b).min(c).min(d);
-            let hi = a.max(b).max(c).max(d);
-            if hi - lo <= step_mm {
-                let (ax, ay) = (x - x0 as f64, y - y0 as f64);
-                return Some(laparo_core::remap::bilerp(a, b, c, d, ax, ay, true));
-            }
-        }
-        Some(nearest)
+        laparo_core::remap::sample_smooth(w, h, x, y, step_mm, |i, j| self.valid_px(i, j))
     }
 }
 

@@ -465,33 +465,20 @@ pub struct AugmentedStereo {
     pub occ_right: Option<Mask>,
 }
 
+/// Largest span (px) of the four disparities around a sample that the exact rule still
+/// interpolates (a smooth surface); across larger jumps it takes the nearest value.
+const SMOOTH_SPAN_PX: f32 = 1.0;
+
 /// Disparity at a real source position for the exact rule: bilinear when the 4 neighbours are
-/// finite and within 1 px of each other (a smooth surface), otherwise the nearest value.
+/// finite and within 1 px of each other (a smooth surface), otherwise the nearest value
+/// (`laparo_core::remap::sample_smooth`).
 #[inline]
 fn sample_disparity(d: &Image<f32>, x: f64, y: f64) -> Option<f64> {
-    let (w, h) = (d.width, d.height);
-    if !(x >= -0.5 && y >= -0.5 && x < w as f64 - 0.5 && y < h as f64 - 0.5) {
-        return None;
-    }
-    let nearest = || {
-        let v = d.get((x + 0.5) as usize, (y + 0.5) as usize, 0);
-        v.is_finite().then_some(v as f64)
-    };
-    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) || w < 2 || h < 2 {
-        return nearest();
-    }
-    let x0 = (x as usize).min(w - 2);
-    let y0 = (y as usize).min(h - 2);
-    let v = [d.get(x0, y0, 0), d.get(x0 + 1, y0, 0), d.get(x0, y0 + 1, 0), d.get(x0 + 1, y0 + 1, 0)];
-    if v.iter().all(|a| a.is_finite()) {
-        let lo = v.iter().cloned().fold(f32::INFINITY, f32::min);
-        let hi = v.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
-        if hi - lo <= 1.0 {
-            let [p00, p10, p01, p11] = v.map(f64::from);
-            return Some(remap::bilerp(p00, p10, p01, p11, x - x0 as f64, y - y0 as f64, true));
-        }
-    }
-    nearest()
+    let w = d.width;
+    remap::sample_smooth(w, d.height, x, y, SMOOTH_SPAN_PX, |i, j| {
+        let v = d.data[j * w + i];
+        v.is_finite().then_some(v)
+    })
 }
 
 /// One row of the exact rule when both maps are plain homographies: the arithmetic of
@@ -548,38 +535,13 @@ fn exact_row_homography(
 /// Pass 1 of the exact rule's fast path: [`sample_disparity`] at every source position of a row
 /// (bilinear on smooth 2×2 neighbourhoods, else nearest; NaN = none). `data` is the w × h map.
 fn sample_row_scalar(data: &[f32], w: usize, hgt: usize, src: &[(f64, f64)], dbuf: &mut [f64]) {
-    let (wf, hf) = (w as f64, hgt as f64);
     let data = &data[..w * hgt];
-    let interior = w >= 2 && hgt >= 2;
-    let (xmax, ymax) = ((w.max(2) - 1) as f64, (hgt.max(2) - 1) as f64);
+    let value = |i: usize, j: usize| {
+        let v = data[j * w + i];
+        v.is_finite().then_some(v)
+    };
     for (dv_out, &(sx, sy)) in dbuf.iter_mut().zip(src) {
-        *dv_out = f64::NAN;
-        if !(sx >= -0.5 && sy >= -0.5 && sx < wf - 0.5 && sy < hf - 0.5) {
-            continue;
-        }
-        if interior && sx >= 0.0 && sy >= 0.0 && sx <= xmax && sy <= ymax {
-            let x0 = (sx as usize).min(w - 2);
-            let y0 = (sy as usize).min(hgt - 2);
-            let i = y0 * w + x0;
-            let (p00, p10, p01, p11) = (data[i], data[i + 1], data[i + w], data[i + w + 1]);
-            // All four finite (the NaN-free min/max below are then f32::min/max exactly).
-            let finite = p00.is_finite() & p10.is_finite() & p01.is_finite() & p11.is_finite();
-            if finite {
-                let mn = |a: f32, b: f32| if a < b { a } else { b };
-                let mx = |a: f32, b: f32| if a > b { a } else { b };
-                let lo = mn(mn(p00, p10), mn(p01, p11));
-                let hi = mx(mx(p00, p10), mx(p01, p11));
-                if hi - lo <= 1.0 {
-                    let (a, b, c, e) = (p00 as f64, p10 as f64, p01 as f64, p11 as f64);
-                    *dv_out = remap::bilerp(a, b, c, e, sx - x0 as f64, sy - y0 as f64, true);
-                    continue;
-                }
-            }
-        }
-        let v = data[(sy + 0.5) as usize * w + (sx + 0.5) as usize];
-        if v.is_finite() {
-            *dv_out = v as f64;
-        }
+        *dv_out = remap::sample_smooth(w, hgt, sx, sy, SMOOTH_SPAN_PX, value).unwrap_or(f64::NAN);
     }
 }
 
@@ -623,15 +585,8 @@ fn forward_row<const LEFT: bool>(
 /// semantics).
 #[cfg(target_arch = "x86_64")]
 mod simd {
+    use laparo_core::remap::simd::bilerp_pd;
     use std::arch::x86_64::*;
-
-    /// `lerp(a, b, t)` with exact ends, as `remap::lerp::<f64>(.., true)`.
-    #[inline(always)]
-    unsafe fn lerp(a: __m256d, b: __m256d, t: __m256d) -> __m256d {
-        let r = _mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a)));
-        let r = _mm256_blendv_pd(r, b, _mm256_cmp_pd::<_CMP_EQ_OQ>(t, _mm256_set1_pd(1.0)));
-        _mm256_blendv_pd(r, a, _mm256_cmp_pd::<_CMP_EQ_OQ>(t, _mm256_setzero_pd()))
-    }
 
     /// Four i32 lane masks (all ones / zero) widened to four f64 lane masks.
     #[inline(always)]
@@ -713,9 +668,9 @@ mod simd {
             let bil_ok = _mm256_and_pd(inner, widen(_mm_and_ps(finite, smooth)));
             let ax = _mm256_sub_pd(sx, _mm256_cvtepi32_pd(x0));
             let ay = _mm256_sub_pd(sy, _mm256_cvtepi32_pd(y0));
-            let top = lerp(_mm256_cvtps_pd(p00), _mm256_cvtps_pd(p10), ax);
-            let bot = lerp(_mm256_cvtps_pd(p01), _mm256_cvtps_pd(p11), ax);
-            let bil = lerp(top, bot, ay);
+            let (q00, q10) = (_mm256_cvtps_pd(p00), _mm256_cvtps_pd(p10));
+            let (q01, q11) = (_mm256_cvtps_pd(p01), _mm256_cvtps_pd(p11));
+            let bil = bilerp_pd(q00, q10, q01, q11, ax, ay);
             // Nearest candidate (inside `outer`).
             let nx = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_add_pd(sx, half), outer));
             let ny = _mm256_cvttpd_epi32(_mm256_and_pd(_mm256_add_pd(sy, half), outer));

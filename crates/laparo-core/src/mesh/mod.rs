@@ -99,6 +99,35 @@ fn check_vertices(v: &[Vector3<f64>]) -> Result<()> {
 }
 
 impl TriMesh {
+    /// The axis-aligned box `[lo, hi]` as 12 outward triangles (volume Π(hi − lo)), 8 vertices
+    /// indexed by the bits (x, y, z) of 0..8.
+    pub fn cuboid(lo: &Vector3<f64>, hi: &Vector3<f64>) -> TriMesh {
+        let v: Vec<Vector3<f64>> = (0..8)
+            .map(|i| {
+                Vector3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if (i >> 1) & 1 == 0 { lo.y } else { hi.y },
+                    if (i >> 2) & 1 == 0 { lo.z } else { hi.z },
+                )
+            })
+            .collect();
+        let f = vec![
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ];
+        TriMesh { vertices: v, faces: f }
+    }
+
     /// Build and [`validate`](Self::validate) a mesh.
     pub fn new(vertices: Vec<Vector3<f64>>, faces: Vec<[usize; 3]>) -> Result<Self> {
         let m = TriMesh { vertices, faces };
@@ -384,23 +413,7 @@ pub(crate) mod tests {
 
     /// A unit cube [0,1]^3 with 12 outward triangles.
     pub fn cube() -> TriMesh {
-        let v: Vec<Vector3<f64>> =
-            (0..8).map(|i| Vector3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64)).collect();
-        let f = vec![
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        TriMesh::new(v, f).unwrap()
+        TriMesh::cuboid(&Vector3::zeros(), &Vector3::repeat(1.0))
     }
 
     /// The unit cube split into 5 tetrahedra (volume 1).

@@ -324,3 +324,22 @@ unsafe fn scalar_px(
     std::ptr::copy_nonoverlapping(o.as_ptr(), optr.add(x * 3), count * 3);
     std::ptr::copy_nonoverlapping(m.as_ptr() as *const u8, mptr.add(x), count);
 }
+
+/// [`super::lerp`]`::<f64>(a, b, t, true)` on four lanes: `a + t (b − a)`, with a weight of
+/// exactly 0 or 1 returning `a` or `b` untouched (float texels' exact ends).
+#[inline(always)]
+unsafe fn lerp_pd(a: __m256d, b: __m256d, t: __m256d) -> __m256d {
+    let r = _mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a)));
+    let r = _mm256_blendv_pd(r, b, _mm256_cmp_pd::<_CMP_EQ_OQ>(t, _mm256_set1_pd(1.0)));
+    _mm256_blendv_pd(r, a, _mm256_cmp_pd::<_CMP_EQ_OQ>(t, _mm256_setzero_pd()))
+}
+
+/// [`super::bilerp`]`::<f64>(.., true)` on four lanes, bitwise equal to the scalar kernel
+/// lane by lane: `lerp(lerp(p00, p10, ax), lerp(p01, p11, ax), ay)`.
+///
+/// # Safety
+/// The CPU must support AVX (callers inside `#[target_feature(enable = "avx2")]` functions).
+#[inline(always)]
+pub unsafe fn bilerp_pd(p00: __m256d, p10: __m256d, p01: __m256d, p11: __m256d, ax: __m256d, ay: __m256d) -> __m256d {
+    lerp_pd(lerp_pd(p00, p10, ax), lerp_pd(p01, p11, ax), ay)
+}

@@ -2,7 +2,9 @@
 //! source position) by a coordinate map, a homography or per-row coordinates computed by the
 //! caller; bilinear or nearest; 1, 3, 4 (or any number of) channels; `u8`, `u16`, `f32`, `f64`.
 //! Every warp of the workspace (CATS augmentation, rectification, the CPC texture warp, point
-//! queries via [`Image::sample_bilinear`]) goes through it.
+//! queries via [`Image::sample_bilinear`]), every resize ([`resize`]: depth predictions, SIFT's
+//! upsampled octave) and every edge-aware depth/disparity lookup ([`sample_smooth`]: the CATS exact
+//! rule, ground-truth transfer, raw-frame disparities) goes through it.
 //!
 //! # Arithmetic contract
 //! - Pixel centres are at integer coordinates; source coordinates are `f32` (as OpenCV's
@@ -26,6 +28,9 @@
 //!   `−½ <= x < w − ½` and `−½ <= y < h − ½`.
 //! - Float texels: an output whose value is not finite is invalid.
 //! - Invalid output pixels hold `fill` in every channel and `false` in the returned mask.
+//! - **OpenCV `INTER_LINEAR_EXACT`** ([`resize_exact_u8`] only, grey `u8`): 8-bit fixed-point
+//!   weights, one rounding; within one grey level of the float contract, bit-equal to OpenCV
+//!   (ORB's pyramid).
 //! - Homography rows: x_s = (a0 x + c0) / (a2 x + c2) in `f32` with the coefficients of H⁻¹ for
 //!   that row rounded to `f32`; NaN (invalid) where the denominator is <= 1e-12.
 //!
@@ -46,14 +51,23 @@
 //! assert_eq!(valid.data, vec![true, true, true, false]);
 //! ```
 mod kernel;
+mod resize;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+
+/// Lane-wise forms of the kernel for fused SIMD row kernels outside this module (the CATS exact
+/// rule samples disparities with it), bitwise equal to [`bilerp`] lane by lane (x86-64, AVX).
+#[cfg(target_arch = "x86_64")]
+pub mod simd {
+    pub use super::avx2::bilerp_pd;
+}
 
 #[cfg(test)]
 mod tests;
 
 pub use kernel::{bilerp, homography_row, lerp, Real};
+pub use resize::{resize, resize_exact_u8, resize_position, sample_smooth};
 
 use crate::camera::{Distortion, Intrinsics};
 use crate::error::{CoreError, Result};

@@ -403,3 +403,87 @@ fn bicubic_u8_rounds_and_saturates_by_hand() {
     assert_eq!(o.data, vec![128, 0, 255, 7]);
     assert_eq!(v.data, vec![true, true, true, false]);
 }
+
+/// The coordinate map of a pixel-centre-aligned resize, written out from its definition.
+fn resize_map(sw: usize, sh: usize, w: usize, h: usize) -> CoordMap {
+    let pos = |i: usize, n: usize, m: usize| ((i as f64 + 0.5) * n as f64 / m as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+    let mut xy = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            xy.push([pos(x, sw, w) as f32, pos(y, sh, h) as f32]);
+        }
+    }
+    CoordMap { width: w, height: h, xy }
+}
+
+#[test]
+fn resize_equals_remap_with_the_resize_map() {
+    let mut r = rng(7);
+    for &(sw, sh, w, h, c) in &[(37, 23, 29, 17, 1), (37, 23, 80, 51, 3), (5, 4, 13, 9, 4), (64, 48, 32, 24, 1)] {
+        let img = Image::from_vec(sw, sh, c, (0..sw * sh * c).map(|_| (r() * 256.0) as u8).collect()).unwrap();
+        let imf = Image::from_vec(sw, sh, c, img.data.iter().map(|&v| v as f32 * 0.37).collect()).unwrap();
+        let imd = Image::from_vec(sw, sh, c, img.data.iter().map(|&v| v as f64 * 0.37).collect()).unwrap();
+        let map = resize_map(sw, sh, w, h);
+        for interp in [Interp::Bilinear, Interp::Nearest, Interp::Bicubic] {
+            assert_eq!(resize(&img, w, h, interp, 0).unwrap(), remap(&img, &map, interp, 0).unwrap());
+            assert_eq!(resize(&imf, w, h, interp, 0.0).unwrap(), remap(&imf, &map, interp, 0.0).unwrap());
+            assert_eq!(resize(&imd, w, h, interp, 0.0).unwrap(), remap(&imd, &map, interp, 0.0).unwrap());
+        }
+    }
+}
+
+#[test]
+fn resize_hand_values_and_errors() {
+    // 6 → 5 columns: positions (i + ½)·1.2 − ½ = 0.1, 1.3, 2.5, 3.7, 4.9 on the ramp 10·x.
+    let img = Image::from_vec(6, 1, 1, vec![0u8, 10, 20, 30, 40, 50]).unwrap();
+    assert_eq!(resize(&img, 5, 1, Interp::Bilinear, 0).unwrap().0.data, vec![1, 13, 25, 37, 49]);
+    // 2× upsampling of [0, 4, 8]: positions −¼ (clamped to 0), ¼, ¾, 1¼, 1¾, 2¼ (clamped to 2).
+    let f = Image::from_vec(3, 1, 1, vec![0f32, 4.0, 8.0]).unwrap();
+    assert_eq!(resize(&f, 6, 1, Interp::Bilinear, 0.0).unwrap().0.data, vec![0.0, 1.0, 3.0, 5.0, 7.0, 8.0]);
+    // NaN propagates where its weight is non-zero and marks the sample invalid.
+    let n = Image::from_vec(3, 1, 1, vec![0f64, f64::NAN, 8.0]).unwrap();
+    let (o, m) = resize(&n, 6, 1, Interp::Bilinear, -1.0).unwrap();
+    assert_eq!(o.data, vec![0.0, -1.0, -1.0, -1.0, -1.0, 8.0]);
+    assert_eq!(m.data, vec![true, false, false, false, false, true]);
+    assert!(resize(&img, 0, 3, Interp::Bilinear, 0).is_err());
+    assert!(resize(&Image::<u8>::filled(0, 0, 1, 0), 3, 3, Interp::Bilinear, 0).is_err());
+}
+
+#[test]
+fn sample_smooth_interpolates_smooth_patches_and_keeps_edges() {
+    // 3×2 map: a smooth left part (1, 1.5 / 2, 2.5) and a 10 px jump to the right column.
+    let d = [1.0f32, 1.5, 11.0, 2.0, 2.5, 12.0];
+    let v = |i: usize, j: usize| Some(d[j * 3 + i]);
+    // Smooth 2×2 (span 1.5 ≤ 2): bilinear, 1 + 0.5·0.5 + 1·0.25 = 1.5 at (0.5, 0.25).
+    assert_eq!(sample_smooth(3, 2, 0.5, 0.25, 2.0f32, v), Some(1.5));
+    // Same patch with span limit 1: nearest of (0.5, 0.25) is (1, 0) → 1.5.
+    assert_eq!(sample_smooth(3, 2, 0.5, 0.25, 1.0f32, v), Some(1.5));
+    assert_eq!(sample_smooth(3, 2, 0.4, 0.6, 1.0f32, v), Some(2.0));
+    // Across the jump: nearest.
+    assert_eq!(sample_smooth(3, 2, 1.6, 0.0, 2.0f32, v), Some(11.0));
+    // Outside [−½, w − ½): none; at the border band: nearest.
+    assert_eq!(sample_smooth(3, 2, -0.6, 0.0, 2.0f32, v), None);
+    assert_eq!(sample_smooth(3, 2, 2.3, 1.4, 2.0f32, v), Some(12.0));
+    // An invalid neighbour: nearest; an invalid nearest: none.
+    let hole = |i: usize, j: usize| (i != 1 || j != 1).then_some(d[j * 3 + i] as f64);
+    assert_eq!(sample_smooth(3, 2, 0.3, 0.3, 2.0, hole), Some(1.0));
+    assert_eq!(sample_smooth(3, 2, 0.8, 0.8, 2.0, hole), None);
+}
+
+#[test]
+fn exact_u8_resize_hand_values_and_one_grey_level_from_the_float_contract() {
+    // 6 → 5: positions 0.1, 1.3, 2.5, 3.7, 4.9 → weights round(256·frac) = 26, 77, 128, 179, 230;
+    // 10·x0 + (10·w + 128) >> 8 on the ramp 10·x.
+    let img = Image::from_vec(6, 2, 1, (0..12).map(|i| (i % 6 * 10) as u8).collect()).unwrap();
+    let r = resize_exact_u8(&img, 5, 2).unwrap();
+    assert_eq!(&r.data[..5], &[1, 13, 25, 37, 49]);
+    let mut rnd = rng(11);
+    for &(sw, sh, w, h) in &[(640, 480, 533, 400), (97, 61, 40, 25), (31, 17, 62, 34)] {
+        let img = Image::from_vec(sw, sh, 1, (0..sw * sh).map(|_| (rnd() * 256.0) as u8).collect()).unwrap();
+        let a = resize_exact_u8(&img, w, h).unwrap();
+        let (b, _) = resize(&img, w, h, Interp::Bilinear, 0).unwrap();
+        let worst = a.data.iter().zip(&b.data).map(|(&p, &q)| (p as i32 - q as i32).abs()).max().unwrap();
+        assert!(worst <= 1, "{sw}x{sh} -> {w}x{h}: {worst} grey levels apart");
+    }
+    assert!(resize_exact_u8(&Image::filled(4, 4, 3, 0u8), 2, 2).is_err());
+}

@@ -50,48 +50,10 @@ fn per_level(n: usize, levels: usize, scale: f64) -> Vec<usize> {
     out
 }
 
-/// Source taps of a pixel-centre-aligned bilinear resize from `n` to `m` samples: (i₀, i₁, weight
-/// of i₁ in 1/256), position (i + ½)·n/m − ½ clamped to [0, n − 1] (OpenCV INTER_LINEAR_EXACT).
-fn taps(n: usize, m: usize) -> Vec<(usize, usize, u32)> {
-    let s = n as f64 / m as f64;
-    (0..m)
-        .map(|i| {
-            let f = ((i as f64 + 0.5) * s - 0.5).clamp(0.0, (n - 1) as f64);
-            let i0 = f.floor() as usize;
-            let wgt = ((f - i0 as f64) * 256.0).round() as u32;
-            let i1 = (i0 + 1).min(n - 1);
-            if wgt == 256 {
-                (i1, i1, 0)
-            } else {
-                (i0, i1, wgt)
-            }
-        })
-        .collect()
-}
-
-/// Bilinear downscale in 8-bit fixed point (weights in 1/256, rounded once at the end): the
-/// vertical blend over the full source row (vectorises), then the horizontal taps.
+/// Bilinear downscale of a pyramid level with OpenCV's `INTER_LINEAR_EXACT` arithmetic, as
+/// `cv::ORB` builds its pyramid (`laparo_core::remap::resize_exact_u8`).
 fn resize(img: &Image<u8>, w: usize, h: usize) -> Image<u8> {
-    let (xt, yt) = (taps(img.width, w), taps(img.height, h));
-    // (x₀, weight of x₀ + 1): x₁ = x₀ + 1 always, the row padded by a copy of its last value.
-    let xt: Vec<(u32, u32)> = xt.iter().map(|&(x0, _, wx)| (x0 as u32, wx)).collect();
-    let sw = img.width;
-    let mut out = Image::filled(w, h, 1, 0u8);
-    out.data.par_chunks_mut(w).zip(yt.par_iter()).for_each_init(
-        || vec![0u32; sw + 1],
-        |v, (row, &(y0, y1, wy))| {
-            let (r0, r1) = (&img.data[y0 * sw..(y0 + 1) * sw], &img.data[y1 * sw..(y1 + 1) * sw]);
-            for ((d, &a), &b) in v.iter_mut().zip(r0).zip(r1) {
-                *d = a as u32 * (256 - wy) + b as u32 * wy;
-            }
-            v[sw] = v[sw - 1];
-            for (o, &(x0, wx)) in row.iter_mut().zip(&xt) {
-                let (a, b) = (v[x0 as usize], v[x0 as usize + 1]);
-                *o = ((a * 256 + (b - a).wrapping_mul(wx) + (1 << 15)) >> 16) as u8;
-            }
-        },
-    );
-    out
+    laparo_core::remap::resize_exact_u8(img, w, h).expect("pyramid levels are non-empty grey images")
 }
 
 /// Offsets of the 16 circle pixels in a row-major image of width `w`.
@@ -612,11 +574,9 @@ mod tests {
     }
 
     #[test]
-    fn resize_taps_and_ramp() {
-        // 6 → 5: positions (i + ½)·1.2 − ½ = 0.1, 1.3, 2.5, 3.7, 4.9.
-        let t = taps(6, 5);
-        assert_eq!(t, vec![(0, 1, 26), (1, 2, 77), (2, 3, 128), (3, 4, 179), (4, 5, 230)]);
-        // A ramp 10·x resized keeps 10·position (rounded).
+    fn resize_ramp() {
+        // 6 → 5: positions (i + ½)·1.2 − ½ = 0.1, 1.3, 2.5, 3.7, 4.9; a ramp 10·x keeps 10·position
+        // (rounded half up).
         let img = Image::from_vec(6, 2, 1, (0..12).map(|i| (i % 6 * 10) as u8).collect()).unwrap();
         let r = resize(&img, 5, 2);
         assert_eq!(&r.data[..5], &[1, 13, 25, 37, 49]);

@@ -3,32 +3,9 @@ use laparo_core::mesh::TriMesh;
 use nalgebra::Vector3;
 use std::collections::HashMap;
 
-/// The box `[lo, hi]` as 12 outward triangles (volume Π(hi − lo)).
+/// The box `[lo, hi]` as 12 outward triangles (volume Π(hi − lo)): [`TriMesh::cuboid`].
 pub fn box_surface(lo: &Vector3<f64>, hi: &Vector3<f64>) -> TriMesh {
-    let v: Vec<Vector3<f64>> = (0..8)
-        .map(|i| {
-            Vector3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if (i >> 1) & 1 == 0 { lo.y } else { hi.y },
-                if (i >> 2) & 1 == 0 { lo.z } else { hi.z },
-            )
-        })
-        .collect();
-    let f = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    TriMesh { vertices: v, faces: f }
+    TriMesh::cuboid(lo, hi)
 }
 
 /// An icosphere of radius `radius` centred at `centre`: the icosahedron subdivided `levels` times,

@@ -250,7 +250,7 @@ fn refuse_overwriting_inputs(out: &Path, inputs: &[&Path]) -> Result<()> {
 /// Resize `depth` to `w`×`h` px with `filter` (invalid depth stays invalid: NaN propagates).
 fn resize_depth(depth: &DepthMap, w: usize, h: usize, filter: laparo_depth::eval::ResizeFilter) -> Result<DepthMap> {
     let img = depth.to_image().map(|v| if DepthMap::is_valid(v) { v } else { f64::NAN });
-    let r = laparo_depth::eval::resize_map(&img, w, h, filter);
+    let r = laparo_depth::eval::resize_map(&img, w, h, filter)?;
     Ok(DepthMap::new(w, h, depth.unit, r.data)?)
 }
 

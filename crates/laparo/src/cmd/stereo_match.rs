@@ -173,20 +173,12 @@ fn sample_disparity(disp: &Image<f32>, x: f64, y: f64) -> Option<f32> {
     if !near.is_finite() {
         return Some(near);
     }
-    let (x0, y0) = (x.floor(), y.floor());
-    if x0 < 0.0 || y0 < 0.0 || x0 as usize + 1 >= disp.width || y0 as usize + 1 >= disp.height {
-        return Some(near);
-    }
-    let (xi, yi) = (x0 as usize, y0 as usize);
-    let q = [disp.get(xi, yi, 0), disp.get(xi + 1, yi, 0), disp.get(xi, yi + 1, 0), disp.get(xi + 1, yi + 1, 0)];
-    let (lo, hi) = q.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-    if !(lo.is_finite() && hi.is_finite()) || hi - lo > BILINEAR_MAX_SPAN_PX {
-        return Some(near);
-    }
-    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-    let top = q[0] + (q[1] - q[0]) * fx;
-    let bottom = q[2] + (q[3] - q[2]) * fx;
-    Some(top + (bottom - top) * fy)
+    let w = disp.width;
+    let v = laparo_core::remap::sample_smooth(w, disp.height, x, y, BILINEAR_MAX_SPAN_PX, |i, j| {
+        let v = disp.data[j * w + i];
+        v.is_finite().then_some(v)
+    });
+    Some(v.map_or(near, |v| v as f32))
 }
 
 /// `--self-rectify`: `laparo_stereo::self_rectify::match_self_rectified` (SIFT matches, self-rectification,

@@ -1,7 +1,6 @@
 //! Gaussian and difference-of-Gaussian scale spaces (Lowe 2004 §3; OpenCV `buildGaussianPyramid`,
 //! `buildDoGPyramid`): octave base blurred to σ₀, layers σ₀·2^(i/S) by incremental blurs
 //! √(σᵢ² − σᵢ₋₁²), next octave = every second pixel of layer S.
-use rayon::prelude::*;
 
 use super::blur::{gaussian_blur, Plane};
 
@@ -16,33 +15,13 @@ pub fn initial_image(gray: &[u8], w: usize, h: usize, sigma: f64, upsample: bool
         let d = (sigma * sigma - INIT_SIGMA * INIT_SIGMA).max(0.01).sqrt();
         return gaussian_blur(&src, d);
     }
+    // Sample positions (x + 0.5)/2 − 0.5: even x = 2i → 0.25·s[i−1] + 0.75·s[i], odd → 0.75·s[i] + 0.25·s[i+1]
+    // (the one sampler of laparo_core::remap; edges clamped).
     let (w2, h2) = (2 * w, 2 * h);
-    // Sample positions (x + 0.5)/2 − 0.5: even x = 2i → 0.25·s[i−1] + 0.75·s[i], odd → 0.75·s[i] + 0.25·s[i+1].
-    let tap = |i2: usize, n: usize| -> (usize, usize, f32) {
-        let i = i2 / 2;
-        if i2.is_multiple_of(2) {
-            if i == 0 {
-                (0, 0, 0.0)
-            } else {
-                (i - 1, i, 0.75)
-            }
-        } else if i + 1 >= n {
-            (n - 1, n - 1, 0.0)
-        } else {
-            (i, i + 1, 0.25)
-        }
-    };
-    let xt: Vec<_> = (0..w2).map(|x| tap(x, w)).collect();
-    let mut up = vec![0f32; w2 * h2];
-    up.par_chunks_mut(w2).enumerate().for_each(|(y, out)| {
-        let (y0, y1, fy) = tap(y, h);
-        let (r0, r1) = (src.row(y0), src.row(y1));
-        for (o, &(x0, x1, fx)) in out.iter_mut().zip(&xt) {
-            let a = r0[x0] + fx * (r0[x1] - r0[x0]);
-            let b = r1[x0] + fx * (r1[x1] - r1[x0]);
-            *o = a + fy * (b - a);
-        }
-    });
+    let img = laparo_core::Image { width: w, height: h, channels: 1, data: src.data };
+    let (up, _) = laparo_core::remap::resize(&img, w2, h2, laparo_core::remap::Interp::Bilinear, 0.0)
+        .expect("non-empty image of finite values");
+    let up = up.data;
     let d = (sigma * sigma - 4.0 * INIT_SIGMA * INIT_SIGMA).max(0.01).sqrt();
     gaussian_blur(&Plane { w: w2, h: h2, data: up }, d)
 }
