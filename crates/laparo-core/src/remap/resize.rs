@@ -1,5 +1,5 @@
 //! Resizing and edge-aware point samples, both on the one bilinear kernel of [`super::kernel`].
-use super::{bilerp, check_source, drive, init_row, sample_row, Interp, Real, Texel};
+use super::{bilerp, check_source, drive, init_row, Interp, Real, Texel};
 use crate::error::{CoreError, Result};
 use crate::image::{Image, Mask};
 use rayon::prelude::*;
@@ -47,12 +47,10 @@ pub fn resize<T: Texel>(
             }
         }));
     }
-    Ok(drive(width, height, src.channels, |y, orow, mrow, sx, sy| {
+    super::remap_rows(src, width, height, interp, fill, |y, sx, sy| {
         sx.copy_from_slice(&xs);
         sy.fill(resize_position(y, src.height, height));
-        let (orow, mrow) = init_row(orow, mrow, fill);
-        sample_row(src, interp, fill, sx, sy, orow, mrow);
-    }))
+    })
 }
 
 /// (i0, weight of i0 + 1) of a position `f` in [0, n − 1]: i0 = min(⌊f⌋, n − 2), the weight
