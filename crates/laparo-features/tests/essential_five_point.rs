@@ -163,7 +163,7 @@ fn scene(seed: u64) -> Scene {
     let px = |x: &Vector3<f64>| [F * x[0] / x[2] + W / 2.0, F * x[1] / x[2] + H / 2.0];
     let mut s = Scene { n1: vec![], n2: vec![], ok: vec![], r, t };
     while s.n1.len() < 500 {
-        let inlier = s.n1.len() % 2 == 0;
+        let inlier = s.n1.len().is_multiple_of(2);
         let z = rng.gen_range(3.0..8.0);
         let x = Vector3::new(rng.gen_range(-0.6..0.6) * z, rng.gen_range(-0.45..0.45) * z, z);
         let a = px(&x);

@@ -96,13 +96,12 @@ impl Poly {
         let deg = self.deg + o.deg;
         debug_assert!(deg <= 3);
         let mut r = Poly::zero(deg);
-        for i in 0..LEN[self.deg] {
-            let a = self.c[i];
+        for (i, &a) in self.c[..LEN[self.deg]].iter().enumerate() {
             if a == 0.0 {
                 continue;
             }
-            for j in 0..LEN[o.deg] {
-                r.c[PROD[i][j]] += a * o.c[j];
+            for (&k, &b) in PROD[i][..LEN[o.deg]].iter().zip(&o.c[..LEN[o.deg]]) {
+                r.c[k] += a * b;
             }
         }
         r
@@ -156,23 +155,31 @@ fn monomials(x: f64, y: f64, z: f64) -> [f64; 20] {
     ]
 }
 
-/// Gradient of the 20 monomials w.r.t. (x, y, z).
+/// Gradient of the 20 monomials w.r.t. (x, y, z), in [`MONO`] order.
 fn monomial_gradients(x: f64, y: f64, z: f64) -> [[f64; 3]; 20] {
-    let mut g = [[0.0; 3]; 20];
-    for (k, e) in MONO.iter().enumerate() {
-        for v in 0..3 {
-            if e[v] == 0 {
-                continue;
-            }
-            let mut d = e[v] as f64;
-            for (w, base) in [x, y, z].iter().enumerate() {
-                let p = if w == v { e[w] - 1 } else { e[w] };
-                d *= base.powi(p as i32);
-            }
-            g[k][v] = d;
-        }
-    }
-    g
+    let (x2, y2, z2) = (x * x, y * y, z * z);
+    [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [2.0 * x, 0.0, 0.0],
+        [y, x, 0.0],
+        [z, 0.0, x],
+        [0.0, 2.0 * y, 0.0],
+        [0.0, z, y],
+        [0.0, 0.0, 2.0 * z],
+        [3.0 * x2, 0.0, 0.0],
+        [2.0 * x * y, x2, 0.0],
+        [2.0 * x * z, 0.0, x2],
+        [y2, 2.0 * x * y, 0.0],
+        [y * z, x * z, x * y],
+        [z2, 0.0, 2.0 * x * z],
+        [0.0, 3.0 * y2, 0.0],
+        [0.0, 2.0 * y * z, y2],
+        [0.0, z2, 2.0 * y * z],
+        [0.0, 0.0, 3.0 * z2],
+    ]
 }
 
 /// The epipolar row of one normalised correspondence: x̂₂ᵀ E x̂₁ = r · vec(E) (row-major E).
@@ -199,7 +206,7 @@ pub(crate) fn null_space_5x9(rows: &[[f64; 9]; 5]) -> Option<[[f64; 9]; 4]> {
     let mut order: [usize; 9] = [0, 1, 2, 3, 4, 5, 6, 7, 8];
     order.sort_by(|&i, &j| svd.singular_values[j].total_cmp(&svd.singular_values[i]));
     let s = &svd.singular_values;
-    if !(s[order[0]] > 0.0) || s[order[4]] <= 1e-10 * s[order[0]] {
+    if s[order[0]].is_nan() || s[order[0]] <= 0.0 || s[order[4]] <= 1e-10 * s[order[0]] {
         return None;
     }
     let mut out = [[0.0; 9]; 4];
@@ -292,6 +299,30 @@ fn action_matrix(eqs: &[Poly; 10]) -> Option<SMatrix<f64, 10, 10>> {
     Some(m)
 }
 
+/// The eigenvector of M for the eigenvalue x, reduced to its unknowns: with q₉ = 1 the last four
+/// rows of (M − x I) q = 0 give q₆ = x, q₀ = x², q₁ = x y, q₂ = x z, so the first six rows are
+/// linear in u = (y, z, y², yz, z²) (treated as independent): a 6 × 5 least-squares problem (QR).
+fn eigen_yz(m: &SMatrix<f64, 10, 10>, x: f64) -> Option<[f64; 2]> {
+    // row r: x q_r − Σ_k M_rk q_k = 0 with q = (x², x y, x z, u₂, u₃, u₄, x, y, z, 1)
+    let mut a = SMatrix::<f64, 6, 5>::zeros();
+    let mut b = SVector::<f64, 6>::zeros();
+    for r in 0..6 {
+        let mk = |k: usize| m[(r, k)] - if k == r { x } else { 0.0 };
+        // known part: q₀ = x², q₆ = x, q₉ = 1
+        b[r] = -(mk(0) * x * x + mk(6) * x + mk(9));
+        // y appears in q₁ = x y and q₇ = y; z in q₂ = x z and q₈ = z
+        a[(r, 0)] = mk(1) * x + mk(7);
+        a[(r, 1)] = mk(2) * x + mk(8);
+        a[(r, 2)] = mk(3);
+        a[(r, 3)] = mk(4);
+        a[(r, 4)] = mk(5);
+    }
+    let qr = a.qr();
+    let rhs = qr.q().transpose() * b;
+    let u = qr.r().solve_upper_triangular(&rhs)?;
+    (u[0].is_finite() && u[1].is_finite()).then_some([u[0], u[1]])
+}
+
 /// Gauss–Newton polish of (x, y, z) on the ten cubic equations (zero residual at a solution).
 fn polish(eqs: &[Poly; 10], s: [f64; 3]) -> [f64; 3] {
     let resid = |s: [f64; 3]| -> (SVector<f64, 10>, f64) {
@@ -336,18 +367,8 @@ pub fn five_point(a: &[[f64; 2]; 5], b: &[[f64; 2]; 5]) -> Vec<Matrix3<f64>> {
         if l.im.abs() > 1e-8 * scale.max(l.re.abs()) {
             continue;
         }
-        let mut a = m;
-        for k in 0..10 {
-            a[(k, k)] -= l.re;
-        }
-        let svd = a.svd(false, true);
-        let Some(vt) = svd.v_t else { continue };
-        let imin = (0..10).min_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j])).unwrap_or(9);
-        let v = vt.row(imin);
-        if v[9].abs() < 1e-14 {
-            continue; // solution at infinity (W coefficient 0)
-        }
-        let s = polish(&eqs, [l.re, v[7] / v[9], v[8] / v[9]]);
+        let Some([y, z]) = eigen_yz(&m, l.re) else { continue };
+        let s = polish(&eqs, [l.re, y, z]);
         let mut e = Matrix3::zeros();
         for k in 0..9 {
             e[(k / 3, k % 3)] = s[0] * basis[0][k] + s[1] * basis[1][k] + s[2] * basis[2][k] + basis[3][k];
@@ -380,6 +401,19 @@ mod tests {
         // (x + y + z + 1)³ at (1, 1, 1) = 64, via two products
         let l = Poly::linear(1.0, 1.0, 1.0, 1.0);
         assert_eq!(l.mul(&l).mul(&l).eval(1.0, 1.0, 1.0), 64.0);
+        // gradients against central differences of the monomials
+        let (x, y, z, h) = (0.7, -1.3, 0.4, 1e-6);
+        let g = monomial_gradients(x, y, z);
+        for k in 0..20 {
+            let d = [
+                (monomials(x + h, y, z)[k] - monomials(x - h, y, z)[k]) / (2.0 * h),
+                (monomials(x, y + h, z)[k] - monomials(x, y - h, z)[k]) / (2.0 * h),
+                (monomials(x, y, z + h)[k] - monomials(x, y, z - h)[k]) / (2.0 * h),
+            ];
+            for v in 0..3 {
+                assert!((g[k][v] - d[v]).abs() < 1e-8, "monomial {k} ({:?}), variable {v}", MONO[k]);
+            }
+        }
         let g = monomial_gradients(2.0, 3.0, 5.0);
         // d(x²y)/dx = 2xy = 12, d(xyz)/dz = xy = 6
         assert_eq!(g[mono_index(2, 1, 0)][0], 12.0);

@@ -103,7 +103,7 @@ pub fn recover_pose(
             return Err(FeaturesError::invalid("mask", format!("{} flags for {} correspondences", m.len(), p1n.len())));
         }
     }
-    if !(distance_thresh > 0.0) {
+    if distance_thresh.is_nan() || distance_thresh <= 0.0 {
         return Err(FeaturesError::invalid("distance_thresh", format!("{distance_thresh} (need > 0)")));
     }
     for (name, p) in [("p1", p1n), ("p2", p2n)] {
