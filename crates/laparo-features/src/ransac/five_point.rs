@@ -7,8 +7,9 @@
 //! 3. Gauss–Jordan elimination of the ten cubic monomials leaves them as linear combinations of
 //!    the basis q = (x², xy, xz, y², yz, z², x, y, z, 1) of the quotient ring (grevlex), from
 //!    which the 10 × 10 action matrix of multiplication by x is read off: M q = x q.
-//! 4. Each real eigenvalue x of M with eigenvector v ∝ q gives y = v₇/v₉, z = v₈/v₉ (0-based);
-//!    two Gauss–Newton steps on the ten cubic equations polish (x, y, z) to machine precision.
+//! 4. Each real eigenvalue x of M (Schur) has the eigenvector q(x, y, z); its unknowns follow from
+//!    a 6 × 5 least-squares solve (`eigen_yz`), and up to three Gauss–Newton steps on the ten
+//!    cubic equations polish (x, y, z) to machine precision.
 //!
 //! The polynomial bookkeeping is a dense array of the 20 monomials of degree ≤ 3 ordered by
 //! degree, so a degree-d polynomial uses the first 1, 4, 10 or 20 entries.
@@ -302,7 +303,7 @@ fn action_matrix(eqs: &[Poly; 10]) -> Option<SMatrix<f64, 10, 10>> {
 /// The eigenvector of M for the eigenvalue x, reduced to its unknowns: with q₉ = 1 the last four
 /// rows of (M − x I) q = 0 give q₆ = x, q₀ = x², q₁ = x y, q₂ = x z, so the first six rows are
 /// linear in u = (y, z, y², yz, z²) (treated as independent): a 6 × 5 least-squares problem (QR).
-fn eigen_yz(m: &SMatrix<f64, 10, 10>, x: f64) -> Option<[f64; 2]> {
+pub(crate) fn eigen_yz(m: &SMatrix<f64, 10, 10>, x: f64) -> Option<[f64; 2]> {
     // row r: x q_r − Σ_k M_rk q_k = 0 with q = (x², x y, x z, u₂, u₃, u₄, x, y, z, 1)
     let mut a = SMatrix::<f64, 6, 5>::zeros();
     let mut b = SVector::<f64, 6>::zeros();
