@@ -110,6 +110,7 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
     });
     out["ransac_500_50pct"] = serde_json::json!({"homography_ms_min": hmin, "homography_ms_median": hmed,
         "fundamental_ms_min": fmin, "fundamental_ms_median": fmed});
+    essential_row(a, &mut out)?;
     // (2) self-rectification
     let d = &a.data;
     let s = StereoSample {
@@ -212,4 +213,77 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
 
 fn dy_eval_raw(pl: &[[f64; 2]], pr: &[[f64; 2]]) -> DyStats {
     DyStats::of(&pl.iter().zip(pr).map(|(p, q)| q[1] - p[1]).collect::<Vec<_>>())
+}
+
+/// Essential matrix on 500 synthetic correspondences (50 % outliers, 0.5 px noise, f = 500 px,
+/// 640×480; the scene of `laparo-features/tests/essential_five_point.rs`, seed 9): laparo's
+/// 5-point and 8-point RANSAC + `recover_pose`, and with `--peer-python` OpenCV's
+/// `findEssentialMat` + `recoverPose` (`scripts/essential_opencv.py`) on the same points.
+fn essential_row(a: &BenchArgs, out: &mut serde_json::Value) -> Result<()> {
+    use laparo_features::ransac::{find_essential_with, recover_pose, EssentialSolver};
+    let (w, h, f) = (640.0, 480.0, 500.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let noise = Normal::new(0.0, 0.5).expect("valid sigma");
+    let r = *nalgebra::Rotation3::from_euler_angles(0.05, -0.2, 0.03).matrix();
+    let t = Vector3::new(0.8, 0.1, 0.15).normalize();
+    let px = |x: &Vector3<f64>| [f * x[0] / x[2] + w / 2.0, f * x[1] / x[2] + h / 2.0];
+    let (mut p1, mut p2, mut ok) = (vec![], vec![], vec![]);
+    while p1.len() < 500 {
+        let inlier = p1.len().is_multiple_of(2);
+        let z = rng.gen_range(3.0..8.0);
+        let x = Vector3::new(rng.gen_range(-0.6..0.6) * z, rng.gen_range(-0.45..0.45) * z, z);
+        let pa = px(&x);
+        let pb = if inlier { px(&(r * x + t)) } else { [rng.gen_range(0.0..w), rng.gen_range(0.0..h)] };
+        if !(0.0..w).contains(&pb[0]) || !(0.0..h).contains(&pb[1]) {
+            continue;
+        }
+        let mut n = |p: [f64; 2]| [p[0] + noise.sample(&mut rng), p[1] + noise.sample(&mut rng)];
+        p1.push(n(pa));
+        p2.push(n(pb));
+        ok.push(inlier);
+    }
+    let norm =
+        |v: &[[f64; 2]]| -> Vec<[f64; 2]> { v.iter().map(|p| [(p[0] - w / 2.0) / f, (p[1] - h / 2.0) / f]).collect() };
+    let (n1, n2) = (norm(&p1), norm(&p2));
+    let prm = RansacParams { threshold_px: 1.5 / f, seed: 4, ..Default::default() };
+    let mut row = serde_json::json!({});
+    let mut pose5 = None;
+    for (name, solver) in [("five_point", EssentialSolver::FivePoint), ("eight_point", EssentialSolver::EightPoint)] {
+        let fit = find_essential_with(&n1, &n2, &prm, solver)?;
+        let pose = recover_pose(&fit.model, &n1, &n2, Some(&fit.inliers), 50.0)?;
+        let (tmin, tmed) = time_min_median(a.runs, || {
+            let fit = find_essential_with(&n1, &n2, &prm, solver).expect("synthetic E fits");
+            recover_pose(&fit.model, &n1, &n2, Some(&fit.inliers), 50.0).expect("pose");
+        });
+        let recall = ok.iter().zip(&fit.inliers).filter(|(&a, &b)| a && b).count() as f64 / 250.0;
+        let rot = (((pose.r.transpose() * r).trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+        let tdir = pose.t.dot(&t).clamp(-1.0, 1.0).acos().to_degrees();
+        row[name] = serde_json::json!({"ms_min": tmin, "ms_median": tmed, "hypotheses": fit.iterations,
+            "n_inliers": fit.n_inliers, "inlier_recall": recall, "rotation_error_deg": rot, "translation_error_deg": tdir});
+        if pose5.is_none() {
+            pose5 = Some((pose, fit.inliers));
+        }
+    }
+    if let (Some(py), Some((pose, inliers))) = (&a.peer_python, pose5) {
+        let tmp = std::env::temp_dir().join(format!("laparo_geo_essential_{}.json", std::process::id()));
+        let inp = serde_json::json!({"p1": p1, "p2": p2, "true_inlier": ok, "focal": f, "pp": [w / 2.0, h / 2.0],
+            "threshold_px": 1.5, "runs": a.runs, "threads": a.threads,
+            "r_true": r.row_iter().map(|v| [v[0], v[1], v[2]]).collect::<Vec<_>>(), "t_true": [t[0], t[1], t[2]],
+            "laparo": {"r": pose.r.row_iter().map(|v| [v[0], v[1], v[2]]).collect::<Vec<_>>(),
+                "t": [pose.t[0], pose.t[1], pose.t[2]], "inliers": inliers}});
+        laparo_core::atomic::write_atomic(&tmp, serde_json::to_string(&inp)?.as_bytes())?;
+        let o = std::process::Command::new(py).arg("scripts/essential_opencv.py").arg(&tmp).output();
+        let _ = std::fs::remove_file(&tmp);
+        let o = o.context("running scripts/essential_opencv.py")?;
+        if !o.status.success() {
+            bail!("essential peer script failed: {}", String::from_utf8_lossy(&o.stderr));
+        }
+        let peer: serde_json::Value = serde_json::from_slice(&o.stdout).context("parsing the essential peer's JSON")?;
+        let ours = row["five_point"]["ms_min"].as_f64();
+        row["ratio_five_point_over_opencv_min"] =
+            serde_json::json!(ours.zip(peer["ms_min"].as_f64()).map(|(a, b)| a / b));
+        row["opencv"] = peer;
+    }
+    out["essential_500_50pct"] = row;
+    Ok(())
 }

@@ -46,4 +46,6 @@ pub use draw::draw_matches;
 pub use error::{FeaturesError, Result};
 pub use keypoint::{Descriptors, Features, Keypoint, Match, MatchConfig, RatioTest};
 pub use matching::match_features;
-pub use ransac::{find_essential, find_fundamental, find_homography, RansacParams, RobustFit};
+pub use ransac::{
+    find_essential, find_fundamental, find_homography, recover_pose, RansacParams, RelativePose, RobustFit,
+};

@@ -1,21 +1,27 @@
-//! Robust two-view geometry: homography, fundamental and essential matrices by RANSAC with
-//! MSAC scoring (truncated quadratic loss, Torr & Zisserman 2000), an adaptive iteration count
-//! and local optimisation on the inliers.
+//! Robust two-view geometry: homography, fundamental and essential matrices (5-point solver) by
+//! RANSAC with MSAC scoring (truncated quadratic loss, Torr & Zisserman 2000), an adaptive iteration count
+//! and local optimisation on the inliers; relative pose from E by cheirality ([`pose`]).
 //!
 //! Determinism: hypothesis `k` draws its minimal sample from its own ChaCha8 stream seeded by
 //! (`seed`, `k`); hypotheses are generated and scored in fixed batches of [`BATCH`] (in parallel
 //! with rayon), and the best one is chosen by (score, k). The stopping rule is checked only
-//! between batches. The output is therefore identical for any number of threads.
+//! between batches, and so is the local optimisation of a new best hypothesis (for estimators
+//! with `LO_ON_NEW_BEST`, the essential matrix). The output is therefore identical for any
+//! number of threads.
 //!
 //! Point convention: pixel centres at integer coordinates (laparo's), `[x, y]` in px.
 pub mod essential;
+pub mod five_point;
 pub mod fundamental;
 pub mod homography;
 mod linalg;
+pub mod pose;
 
-pub use essential::find_essential;
+pub use essential::{find_essential, find_essential_with, EssentialSolver};
+pub use five_point::five_point;
 pub use fundamental::{find_fundamental, sampson_distance_sq, symmetric_epipolar_distance};
 pub use homography::{find_homography, transfer_error_sq};
+pub use pose::{decompose_essential, recover_pose, RelativePose};
 
 use crate::error::{FeaturesError, Result};
 use rand::{Rng, SeedableRng};
@@ -75,6 +81,9 @@ pub(crate) trait Estimator: Sync {
     fn refit(&self, idx: &[usize]) -> Option<Self::Model>;
     /// Number of correspondences.
     fn len(&self) -> usize;
+    /// Run the local optimisation on every new best hypothesis (between batches, LO-RANSAC of
+    /// Chum, Matas & Kittler 2003) rather than only on the final one.
+    const LO_ON_NEW_BEST: bool = false;
 }
 
 /// Validate a correspondence set: same length, enough points, finite coordinates.
@@ -170,6 +179,25 @@ fn needed_iterations(confidence: f64, w: f64, s: usize) -> f64 {
 /// A scored hypothesis: (MSAC score, hypothesis index k, model, inlier count).
 type Candidate<M> = (f64, usize, M, usize);
 
+/// Local optimisation: refit on the inliers while the MSAC score improves.
+fn local_optimisation<E: Estimator>(est: &E, mut model: E::Model, mut score: f64, t2: f64) -> (E::Model, f64) {
+    for _ in 0..10 {
+        let idx: Vec<usize> = (0..est.len()).filter(|&i| est.residual_sq(&model, i) < t2).collect();
+        if idx.len() < E::SAMPLE {
+            break;
+        }
+        let Some(m2) = est.refit(&idx) else { break };
+        let Some((s2, _)) = msac(est, &m2, t2, f64::INFINITY) else { break };
+        if s2 < score * (1.0 - 1e-12) {
+            score = s2;
+            model = m2;
+        } else {
+            break;
+        }
+    }
+    (model, score)
+}
+
 /// The generic loop: sampling, MSAC scoring, adaptive stop, local optimisation.
 pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit<E::Model>> {
     check_params(prm)?;
@@ -197,37 +225,31 @@ pub(crate) fn run<E: Estimator>(est: &E, prm: &RansacParams) -> Result<RobustFit
             })
             .collect();
         drawn += b;
+        let before = best.as_ref().map(|b| b.1);
         for c in batch.into_iter().flatten() {
             if best.as_ref().is_none_or(|b| c.0 < b.0 || (c.0 == b.0 && c.1 < b.1)) {
                 best = Some(c);
+            }
+        }
+        if E::LO_ON_NEW_BEST {
+            if let Some(b) = best.as_mut().filter(|b| before != Some(b.1)) {
+                let (m, s) = local_optimisation(est, b.2.clone(), b.0, t2);
+                b.3 = (0..n).filter(|&i| est.residual_sq(&m, i) < t2).count();
+                (b.0, b.2) = (s, m);
             }
         }
         if let Some(b) = &best {
             needed = needed_iterations(prm.confidence, b.3 as f64 / n as f64, E::SAMPLE);
         }
     }
-    let Some((mut score, _, mut model, _)) = best else {
+    let Some((score, _, model, _)) = best else {
         return Err(FeaturesError::Estimation(format!(
             "{}: every sample of {} correspondences was degenerate ({drawn} tried)",
             E::NAME,
             n
         )));
     };
-    // Local optimisation: refit on the inliers while the MSAC score improves.
-    for _ in 0..10 {
-        let idx: Vec<usize> = (0..n).filter(|&i| est.residual_sq(&model, i) < t2).collect();
-        if idx.len() < E::SAMPLE {
-            break;
-        }
-        let Some(m2) = est.refit(&idx) else { break };
-        let Some((s2, _)) = msac(est, &m2, t2, f64::INFINITY) else { break };
-        if s2 < score * (1.0 - 1e-12) {
-            score = s2;
-            model = m2;
-        } else {
-            break;
-        }
-    }
+    let (model, _) = local_optimisation(est, model, score, t2);
     let inliers: Vec<bool> = (0..n).map(|i| est.residual_sq(&model, i) < t2).collect();
     let n_inliers = inliers.iter().filter(|&&b| b).count();
     if n_inliers < E::SAMPLE {
