@@ -289,7 +289,8 @@ pub fn features_find_fundamental<'py>(
     robust(py, find_fundamental, p1, p2, threshold_px, confidence, max_iters, seed)
 }
 
-/// RANSAC-MSAC essential matrix from normalised points (K⁻¹ x; threshold in normalised units).
+/// RANSAC-MSAC essential matrix from ≥ 5 normalised points (K⁻¹ x; threshold in normalised units):
+/// Stewénius–Engels–Nistér 5-point minimal solver, local optimisation on each new best.
 #[pyfunction]
 #[pyo3(signature = (p1, p2, threshold = 1e-3, confidence = 0.999, max_iters = 10000, seed = 0))]
 pub fn features_find_essential<'py>(

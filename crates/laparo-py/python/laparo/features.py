@@ -100,8 +100,9 @@ def find_essential(
     p1: np.ndarray, p2: np.ndarray, threshold: float = 1e-3, confidence: float = 0.999, max_iters: int = 10000,
     seed: int = 0,
 ) -> Dict[str, Any]:
-    """Robust essential matrix from *normalised* (N, 2) points (K⁻¹ x); ``threshold`` is in
-    normalised units (≈ px / f). Same keys as :func:`find_homography`."""
+    """Robust essential matrix from N ≥ 5 *normalised* (N, 2) points (K⁻¹ x), 5-point minimal
+    solver (Stewénius–Engels–Nistér); ``threshold`` is in normalised units (≈ px / f). Same keys
+    as :func:`find_homography`."""
     return _laparo.features_find_essential(p1, p2, float(threshold), float(confidence), int(max_iters), int(seed))
 
 
