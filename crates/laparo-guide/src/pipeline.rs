@@ -2,8 +2,9 @@
 //! folder, every stage callable on its own. Everything is expressed in the **left camera frame**
 //! (mm) of the (static) laparoscope: the past and present pairs are taken from the same viewpoint.
 //!
-//! 1. [`stereo_depth`]: a raw pair → (calibrated: rectify + SGM, or self-rectified: SIFT + F +
-//!    quasi-Euclidean rectification + SGM) → raw-left depth map (mm) → point cloud of the liver mask.
+//! 1. [`stereo_depth`]: a raw pair → (calibrated: rectify + SGM, or self-rectified: SIFT matches →
+//!    essential matrix → the pair's extrinsics, then rectify + SGM) → raw-left depth map (mm) →
+//!    point cloud of the liver mask.
 //! 2. [`rigid_alignment`]: ICP (point-to-plane, trimmed) of the past cloud to the preoperative model
 //!    from a rough initial pose; refuses a result whose RMSE says it did not converge.
 //! 3. [`back_project_polyline`]: the incision drawn on the past left image → rays → first hit on the
@@ -33,8 +34,9 @@ use std::time::Instant;
 pub enum Route {
     /// Bouguet rectification with the calibration, SGM.
     Calibrated,
-    /// Self-rectification from SIFT matches (no extrinsic calibration), SGM; f, b and the
-    /// principal-point offset c_x^L − c_x^R still come from the calibration file.
+    /// Extrinsics from the images (no extrinsic calibration): SIFT matches → essential matrix
+    /// (5-point RANSAC) → (R, t̂) by cheirality, scaled by the calibration's baseline length; the
+    /// intrinsics still come from the calibration file. Then as `Calibrated`.
     SelfRectified,
 }
 
@@ -180,75 +182,100 @@ pub fn stereo_depth(
     let b = calib.t_mm.norm();
     match route {
         Route::Calibrated => {
-            let rect = Rectification::new(calib, RectifyOptions::default())?;
-            let (l, _) = rect.rectify_image(Side::Left, left)?;
-            let (r, _) = rect.rectify_image(Side::Right, right)?;
-            let g = rect.geometry();
-            let lo = (g.disparity_px(depth_prior_mm[1])).floor() as i32 - 2;
-            let hi = (g.disparity_px(depth_prior_mm[0])).ceil() as i32 + 2;
-            let o = match_pair(&l, &r, &SgmParams::new(lo, hi))?;
-            // rectified left point → raw left frame (X_rect = R1 X_left) → raw left pixel
-            let mut depth = Image::filled(w, h, 1, f64::NAN);
-            let r1t = rect.r1.transpose();
-            let k = calib.left;
-            for v in 0..h {
-                for u in 0..w {
-                    let d = o.disparity.get(u, v, 0);
-                    if !d.is_finite() {
-                        continue;
-                    }
-                    let Some(p) = g.point_mm(u as f64, v as f64, d as f64) else { continue };
-                    let q = r1t * p;
-                    if q[2] <= 0.0 {
-                        continue;
-                    }
-                    let (x, y) = (k.fx * q[0] / q[2] + k.cx, k.fy * q[1] / q[2] + k.cy);
-                    let (xi, yi) = (x.round(), y.round());
-                    if xi < 0.0 || yi < 0.0 || xi >= w as f64 || yi >= h as f64 {
-                        continue;
-                    }
-                    let cur = depth.get(xi as usize, yi as usize, 0);
-                    if cur.is_nan() || q[2] < cur {
-                        depth.set(xi as usize, yi as usize, 0, q[2]);
-                    }
-                }
-            }
-            Ok(StereoDepth {
-                depth_mm: depth,
-                range_px: [lo, hi],
-                info: serde_json::json!({"rectification": rect.info()}),
-            })
+            let (depth_mm, range_px, rect_info) = calibrated_depth(left, right, calib, depth_prior_mm)?;
+            Ok(StereoDepth { depth_mm, range_px, info: serde_json::json!({"rectification": rect_info}) })
         }
         Route::SelfRectified => {
-            use laparo_stereo::self_rectify::{self_rectify, SelfRectifyOptions};
+            // The raw pair's extrinsics from the images: SIFT matches → essential matrix (5-point
+            // RANSAC on K⁻¹-normalised points) → (R, t̂) by cheirality; only the intrinsics and the
+            // baseline length come from the calibration (metric depth needs a length). Raw
+            // disparities cannot be used directly: the small rotation of the right camera shifts
+            // x_R by about f·tan(angle), 11 px for 0.5° at f = 1264 px.
+            use laparo_features::{find_essential, recover_pose, RansacParams};
             let (pl, pr) = laparo_stereo::self_rectify::sift_matches(left, right)?;
-            let sr = self_rectify(&pl, &pr, (w, h), &SelfRectifyOptions::default())
-                .map_err(|e| bad("stereo", input, format!("self-rectification: {e} (too little texture?)")))?;
-            let off = calib.left.cx - calib.right.cx;
-            let f = calib.left.fx;
-            // raw disparity range from the prior, shifted by the inliers' median rectified change
-            let s = laparo_stereo::self_rectify::rectified_disparity_shift(&sr, &pl, &pr);
-            let lo = (f * b / depth_prior_mm[1] + off + s).floor() as i32 - 4;
-            let hi = (f * b / depth_prior_mm[0] + off + s).ceil() as i32 + 4;
-            let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
-            let o = match_pair(&l, &r, &SgmParams::new(lo, hi))?;
-            let (d, _dy) = sr.disparity_to_raw_left(&o.disparity)?;
-            // §3.3.8: z = f b / (d − (c_x^L − c_x^R)) on the raw pair
-            let depth = d.map(|v| {
-                let den = v as f64 - off;
-                if v.is_finite() && den > 0.0 {
-                    f * b / den
-                } else {
-                    f64::NAN
-                }
-            });
+            let norm = |k: &laparo_core::Intrinsics, p: &[[f64; 2]]| -> Vec<[f64; 2]> {
+                p.iter().map(|q| [(q[0] - k.cx) / k.fx, (q[1] - k.cy) / k.fy]).collect()
+            };
+            let (p1n, p2n) = (norm(&calib.left, &pl), norm(&calib.right, &pr));
+            let ess = |e: laparo_features::FeaturesError| {
+                bad(
+                    "stereo",
+                    input,
+                    format!("self-rectification: {e} ({} SIFT matches; too little texture?)", pl.len()),
+                )
+            };
+            let prm = RansacParams { threshold_px: 1.0 / calib.left.fx, ..RansacParams::default() };
+            let fit = find_essential(&p1n, &p2n, &prm).map_err(ess)?;
+            let pose = recover_pose(&fit.model, &p1n, &p2n, Some(&fit.inliers), 50.0).map_err(ess)?;
+            let mut est = calib.clone();
+            est.r = pose.r;
+            est.t_mm = pose.t.normalize() * b;
+            let (depth_mm, range_px, rect_info) = calibrated_depth(left, right, &est, depth_prior_mm)?;
+            let rot_err_deg =
+                ((((est.r * calib.r.transpose()).trace() - 1.0) / 2.0).clamp(-1.0, 1.0)).acos().to_degrees();
+            let t_err_deg = est.t_mm.normalize().dot(&calib.t_mm.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
             Ok(StereoDepth {
-                depth_mm: depth,
-                range_px: [lo, hi],
-                info: serde_json::json!({"self_rectification": sr, "n_matches": pl.len(), "median_shift_px": s}),
+                depth_mm,
+                range_px,
+                info: serde_json::json!({
+                    "method": "extrinsics from the essential matrix of the SIFT matches (5-point RANSAC, 1 px), baseline length from the calibration, then Bouguet rectification",
+                    "n_matches": pl.len(),
+                    "n_inliers": fit.n_inliers,
+                    "sampson_rms_px": fit.rms_px * calib.left.fx,
+                    "rotation_error_deg": rot_err_deg,
+                    "baseline_direction_error_deg": t_err_deg,
+                    "estimated_r": est.r,
+                    "estimated_t_mm": est.t_mm,
+                    "rectification": rect_info,
+                }),
             })
         }
     }
+}
+
+/// Rectify with `calib` (Bouguet), SGM over the disparity range of `depth_prior_mm`, depth (mm)
+/// mapped back to the raw left frame (z-buffered); returns depth, range and rectification info.
+fn calibrated_depth(
+    left: &Image<u8>,
+    right: &Image<u8>,
+    calib: &StereoCalibration,
+    depth_prior_mm: [f64; 2],
+) -> Result<(Image<f64>, [i32; 2], serde_json::Value)> {
+    let (w, h) = left.size();
+    let rect = Rectification::new(calib, RectifyOptions::default())?;
+    let (l, _) = rect.rectify_image(Side::Left, left)?;
+    let (r, _) = rect.rectify_image(Side::Right, right)?;
+    let g = rect.geometry();
+    let lo = (g.disparity_px(depth_prior_mm[1])).floor() as i32 - 2;
+    let hi = (g.disparity_px(depth_prior_mm[0])).ceil() as i32 + 2;
+    let o = match_pair(&l, &r, &SgmParams::new(lo, hi))?;
+    // rectified left point → raw left frame (X_rect = R1 X_left) → raw left pixel
+    let mut depth = Image::filled(w, h, 1, f64::NAN);
+    let r1t = rect.r1.transpose();
+    let k = calib.left;
+    for v in 0..h {
+        for u in 0..w {
+            let d = o.disparity.get(u, v, 0);
+            if !d.is_finite() {
+                continue;
+            }
+            let Some(p) = g.point_mm(u as f64, v as f64, d as f64) else { continue };
+            let q = r1t * p;
+            if q[2] <= 0.0 {
+                continue;
+            }
+            let (x, y) = (k.fx * q[0] / q[2] + k.cx, k.fy * q[1] / q[2] + k.cy);
+            let (xi, yi) = (x.round(), y.round());
+            if xi < 0.0 || yi < 0.0 || xi >= w as f64 || yi >= h as f64 {
+                continue;
+            }
+            let cur = depth.get(xi as usize, yi as usize, 0);
+            if cur.is_nan() || q[2] < cur {
+                depth.set(xi as usize, yi as usize, 0, q[2]);
+            }
+        }
+    }
+    Ok((depth, [lo, hi], serde_json::to_value(rect.info()).unwrap_or_default()))
 }
 
 /// Depth error statistics (mm) against the ground truth on a mask.

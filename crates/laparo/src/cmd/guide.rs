@@ -31,7 +31,7 @@ pub struct RunArgs {
     /// Output folder.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Stereo route: calibrated or self-rectified.
+    /// Stereo route: calibrated, or self-rectified (extrinsics from the images: essential matrix of SIFT matches; intrinsics and baseline length from the calibration).
     #[arg(long, default_value = "calibrated")]
     pub route: String,
     /// Settings for the quick (960×540) scenario.
