@@ -76,11 +76,11 @@ def main():
 
 
 def e2e(e, thr, runs):
-    """End to end from image files: ORB (8000) + BFMatcher Hamming (Lowe 0.8 + cross check as
+    """End to end from image files: ORB (4000) + BFMatcher Hamming (Lowe 0.8 + cross check as
     laparo's matcher) + findFundamentalMat + stereoRectifyUncalibrated + warps; min / median ms."""
     left, right = cv2.imread(e["left"], cv2.IMREAD_COLOR), cv2.imread(e["right"], cv2.IMREAD_COLOR)
     h, w = left.shape[:2]
-    orb = cv2.ORB_create(nfeatures=8000)
+    orb = cv2.ORB_create(nfeatures=4000)
     bf = cv2.BFMatcher(cv2.NORM_HAMMING)
 
     def matches():

@@ -679,14 +679,14 @@ pub fn feature_matches(left: &Image<u8>, right: &Image<u8>, kind: FeatureKind) -
     }
 }
 
-/// ORB keypoints (laparo's port of `cv::ORB`, `n_features` 8000, 8 levels × 1.2) of both images,
+/// ORB keypoints (laparo's port of `cv::ORB`, `n_features` 4000, 8 levels × 1.2) of both images,
 /// Hamming 2-NN with Lowe 0.8 + mutual check, then every match refined at full resolution by an
 /// 11 × 11 NCC search (±3 px) with a parabola fit (laparo-features `refine`; peak NCC ≥ 0.8): the
 /// left point becomes its pixel, the right point sub-pixel. ORB positions of coarse pyramid
 /// levels are only pixel-accurate at that level; the refinement restores the sub-pixel
 /// accuracy the rectification fit needs.
 pub fn fast_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
-    fast_matches_with(left, right, 8000)
+    fast_matches_with(left, right, 4000)
 }
 
 /// [`fast_matches`] with `n_features` ORB keypoints per image.
