@@ -296,7 +296,8 @@ mod tests {
         let r = refine_matches_ncc(&a, &b, &[[40.2, 29.9]], &[[38.0, 31.0]], &RefineParams::default()).unwrap();
         let r = r[0].unwrap();
         assert_eq!(r.left, [40.0, 30.0]);
-        assert!((r.right[0] - 37.0).abs() < 1e-9 && (r.right[1] - 32.0).abs() < 1e-9, "{:?}", r.right);
+        // the parabola is off-centre (asymmetric neighbours); LK stops once a step is < 1e-3 px
+        assert!((r.right[0] - 37.0).abs() < 1e-3 && (r.right[1] - 32.0).abs() < 1e-3, "{:?}", r.right);
         assert!((r.ncc - 1.0).abs() < 1e-12);
     }
 
