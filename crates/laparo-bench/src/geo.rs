@@ -231,7 +231,8 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
     io::write_png(tmpdir.join("moto_left.png"), &tl)?;
     io::write_png(tmpdir.join("moto_right.png"), &tr)?;
     let mut e2e = serde_json::Map::new();
-    let pairs: [(&str, &Image<u8>, &Image<u8>, Option<(&[[f64; 2]], &[[f64; 2]])>); 2] =
+    type Pair<'a> = (&'a str, &'a Image<u8>, &'a Image<u8>, Option<(&'a [[f64; 2]], &'a [[f64; 2]])>);
+    let pairs: [Pair; 2] =
         [("scared_ds1-3", &scared.0, &scared.1, None), ("motorcycle_cats_1280x1024", &tl, &tr, Some((&pl, &pr)))];
     for (name, l, r, exact) in pairs {
         let mut per = serde_json::Map::new();
