@@ -9,6 +9,8 @@ Input: a JSON file written by `laparo-bench geo --peer-python ...`:
 Output (stdout): JSON with "opencv", "n_inliers", "dy_raw", "dy_rectified" (median/p95/max of
 |dy|), "max_corner_shift_px", "ms_fit_min", "ms_fit_median", "ms_fit_warp_min" (F + rectify +
 warpPerspective of two RGB images of the given size).
+With "e2e": [{"name", "left", "right"[, "eval_left", "eval_right"]}] also an end-to-end timing from
+the image files (ORB + BFMatcher + the above + warps), output under "e2e".
 Needs numpy and opencv-python-headless; not a test dependency.
 """
 import json
@@ -69,7 +71,57 @@ def main():
         cv2.warpPerspective(img, b, (w, h), flags=cv2.INTER_LINEAR)
         tw.append(1e3 * (time.perf_counter() - t))
     out["ms_fit_warp_min"] = float(min(tw))
+    out["e2e"] = {e["name"]: e2e(e, thr, runs) for e in cfg.get("e2e", [])}
     json.dump(out, sys.stdout)
+
+
+def e2e(e, thr, runs):
+    """End to end from image files: ORB (4000) + BFMatcher Hamming (Lowe 0.8 + cross check as
+    laparo's matcher) + findFundamentalMat + stereoRectifyUncalibrated + warps; min / median ms."""
+    left, right = cv2.imread(e["left"], cv2.IMREAD_COLOR), cv2.imread(e["right"], cv2.IMREAD_COLOR)
+    h, w = left.shape[:2]
+    orb = cv2.ORB_create(nfeatures=4000)
+    bf = cv2.BFMatcher(cv2.NORM_HAMMING)
+
+    def matches():
+        gl, gr = cv2.cvtColor(left, cv2.COLOR_BGR2GRAY), cv2.cvtColor(right, cv2.COLOR_BGR2GRAY)
+        kl, dl = orb.detectAndCompute(gl, None)
+        kr, dr = orb.detectAndCompute(gr, None)
+        fw = bf.knnMatch(dl, dr, k=2)
+        bw = {m[0].queryIdx: m[0].trainIdx for m in bf.knnMatch(dr, dl, k=1) if m}
+        good = [m[0] for m in fw if len(m) == 2 and m[0].distance < 0.8 * m[1].distance and bw.get(m[0].trainIdx) == m[0].queryIdx]
+        pl = np.float64([kl[m.queryIdx].pt for m in good])
+        pr = np.float64([kr[m.trainIdx].pt for m in good])
+        return pl, pr
+
+    def fit(pl, pr):
+        F, mask = cv2.findFundamentalMat(pl, pr, cv2.FM_RANSAC, thr, 0.999, 5000)
+        inl = mask.ravel().astype(bool)
+        ok, h1, h2 = cv2.stereoRectifyUncalibrated(pl[inl], pr[inl], F, (w, h))
+        return inl, ok, h1, h2
+
+    tm, tf, tw = [], [], []
+    for _ in range(max(runs, 5)):
+        t = time.perf_counter()
+        pl, pr = matches()
+        tm.append(1e3 * (time.perf_counter() - t))
+        t = time.perf_counter()
+        inl, ok, h1, h2 = fit(pl, pr)
+        tf.append(1e3 * (time.perf_counter() - t))
+        t = time.perf_counter()
+        cv2.warpPerspective(left, h1, (w, h), flags=cv2.INTER_LINEAR)
+        cv2.warpPerspective(right, h2, (w, h), flags=cv2.INTER_LINEAR)
+        tw.append(1e3 * (time.perf_counter() - t))
+    tot = [a + b + c for a, b, c in zip(tm, tf, tw)]
+    o = {"n_matches": int(len(pl)), "n_inliers": int(inl.sum()), "ok": bool(ok),
+         "ms_matches_min": float(min(tm)), "ms_matches_median": float(np.median(tm)),
+         "ms_fit_min": float(min(tf)), "ms_warps_min": float(min(tw)),
+         "ms_matches_fit_min": float(min(a + b for a, b in zip(tm, tf))),
+         "ms_total_min": float(min(tot)), "ms_total_median": float(np.median(tot))}
+    if ok and "eval_left" in e:
+        el, er = np.array(e["eval_left"], float), np.array(e["eval_right"], float)
+        o["exact_dy_rectified"] = stats(apply_h(h2, er)[:, 1] - apply_h(h1, el)[:, 1])
+    return o
 
 
 if __name__ == "__main__":

@@ -8,14 +8,20 @@
 //! principal-point shifts ±60 px) whose exact correspondences are scaled to 1280×1024
 //! (x·1280/741, y·1024/500: an axis scaling keeps rows rows), 1,500 of them + 500 random
 //! outliers as matches; timed: matches → rectifying homographies, and that plus warping two
-//! 1280×1024 RGB images.
+//! 1280×1024 RGB images; (3) end to end from images (issue 14's ≤ 100 ms per pair): keypoint
+//! matches (`fast` = ORB + NCC/LK refinement, `sift`), fit, warps, timed separately, on the real
+//! raw SCARED ds1-3 pair and on the perturbed Motorcycle pair resampled to 1280×1024 (bilinear;
+//! its exact correspondences scaled the same way evaluate the |dy|); the peer runs ORB +
+//! BFMatcher + findFundamentalMat + stereoRectifyUncalibrated + warpPerspective on the same files.
 use crate::timing::time_min_median;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use laparo_core::{io, Image, Intrinsics};
 use laparo_features::ransac::{find_fundamental, find_homography, RansacParams};
 use laparo_stereo::augment::{augment_stereo, GtRule, StereoSample};
-use laparo_stereo::self_rectify::{exact_correspondences, perturbation, self_rectify, DyStats, SelfRectifyOptions};
+use laparo_stereo::self_rectify::{
+    exact_correspondences, feature_matches, perturbation, self_rectify, DyStats, FeatureKind, SelfRectifyOptions,
+};
 use nalgebra::{Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -43,6 +49,12 @@ pub struct BenchArgs {
     /// The peer script.
     #[arg(long, default_value = "scripts/self_rectify_opencv.py")]
     pub peer_script: PathBuf,
+    /// Real raw SCARED pair directory (Left_Image.png, Right_Image.png) for the end-to-end timing.
+    #[arg(long, default_value = "../shared/data/surgical/scared_pair_ds1-3")]
+    pub scared: PathBuf,
+    /// Timed runs of the SIFT matcher end to end (seconds per pair; 0 = skip it).
+    #[arg(long, default_value_t = 1)]
+    pub sift_runs: usize,
 }
 
 fn synthetic_h() -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
@@ -134,6 +146,8 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
     let (sx, sy) = (1280.0 / 741.0, 1024.0 / 500.0);
     let scale = |v: &[[f64; 2]]| -> Vec<[f64; 2]> { v.iter().map(|p| [p[0] * sx, p[1] * sy]).collect() };
     let (pl, pr) = (scale(&pl), scale(&pr));
+    // 1280×1024 pixel (x', y') samples the 741×500 image at (x' / sx, y' / sy)
+    let scale_inv = [[1.0 / sx, 0.0, 0.0], [0.0, 1.0 / sy, 0.0], [0.0, 0.0, 1.0]];
     let mut rng = ChaCha8Rng::seed_from_u64(a.seed ^ 0xABCD);
     let (mut ml, mut mr) = (vec![], vec![]);
     for _ in 0..1500 {
@@ -187,10 +201,79 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
         "hartley": {"n_inliers": hart.n_inliers, "dy_rectified": dy_eval(&hart)?, "max_corner_shift_px": hart.max_corner_shift_px,
             "ms_fit_min": hqmin},
     });
+    // (3) end to end from images
+    let (tl, tr) = (
+        laparo_core::remap::warp_homography(
+            &aug.left.image,
+            &scale_inv,
+            1280,
+            1024,
+            laparo_core::remap::Interp::Bilinear,
+            0u8,
+        )?
+        .0,
+        laparo_core::remap::warp_homography(
+            &aug.right.image,
+            &scale_inv,
+            1280,
+            1024,
+            laparo_core::remap::Interp::Bilinear,
+            0u8,
+        )?
+        .0,
+    );
+    let sd = &a.scared;
+    let scared = (
+        io::read_image(sd.join("Left_Image.png")).with_context(|| format!("--scared {}", sd.display()))?,
+        io::read_image(sd.join("Right_Image.png")).with_context(|| format!("--scared {}", sd.display()))?,
+    );
+    let tmpdir = std::env::temp_dir().join(format!("laparo_geo_e2e_{}", std::process::id()));
+    std::fs::create_dir_all(&tmpdir)?;
+    io::write_png(tmpdir.join("moto_left.png"), &tl)?;
+    io::write_png(tmpdir.join("moto_right.png"), &tr)?;
+    let mut e2e = serde_json::Map::new();
+    type Pair<'a> = (&'a str, &'a Image<u8>, &'a Image<u8>, Option<(&'a [[f64; 2]], &'a [[f64; 2]])>);
+    let pairs: [Pair; 2] =
+        [("scared_ds1-3", &scared.0, &scared.1, None), ("motorcycle_cats_1280x1024", &tl, &tr, Some((&pl, &pr)))];
+    for (name, l, r, exact) in pairs {
+        let mut per = serde_json::Map::new();
+        for (kind, runs) in [(FeatureKind::Fast, a.runs.max(5)), (FeatureKind::Sift, a.sift_runs)] {
+            if runs == 0 {
+                continue;
+            }
+            let o = SelfRectifyOptions { features: kind, ..SelfRectifyOptions::default() };
+            let (ml, mr) = feature_matches(l, r, kind)?;
+            let rect =
+                self_rectify(&ml, &mr, (l.width, l.height), &o).with_context(|| format!("{name}: self-rectify"))?;
+            let (mmin, mmed) = time_min_median(runs, || {
+                feature_matches(l, r, kind).expect("matches");
+            });
+            let (fmin, fmed) = time_min_median(runs, || {
+                self_rectify(&ml, &mr, (l.width, l.height), &o).expect("fits");
+            });
+            let (wmin, wmed) = time_min_median(runs, || {
+                rect.rectify_images(l, r).expect("same size");
+            });
+            let mut v = serde_json::json!({"n_matches": ml.len(), "n_inliers": rect.n_inliers,
+                "inlier_dy_rectified": rect.dy_rectified, "focal_px": rect.focal_px,
+                "ms_matches_min": mmin, "ms_matches_median": mmed, "ms_fit_min": fmin, "ms_fit_median": fmed,
+                "ms_warps_min": wmin, "ms_warps_median": wmed,
+                "ms_matches_fit_min": mmin + fmin, "ms_total_min": mmin + fmin + wmin, "ms_total_median": mmed + fmed + wmed});
+            if let Some((el, er)) = exact {
+                v["exact_dy_rectified"] = serde_json::to_value(dy_eval_pts(&rect, el, er)?)?;
+            }
+            per.insert(format!("{kind:?}").to_lowercase(), v);
+        }
+        e2e.insert(name.to_string(), serde_json::Value::Object(per));
+    }
+    out["end_to_end"] = serde_json::Value::Object(e2e);
     if let Some(py) = &a.peer_python {
         let tmp = std::env::temp_dir().join(format!("laparo_geo_peer_{}.json", std::process::id()));
         let inp = serde_json::json!({"width": 1280, "height": 1024, "fit_left": ml, "fit_right": mr,
-            "eval_left": pl, "eval_right": pr, "threshold_px": opts.ransac.threshold_px, "runs": a.runs, "threads": a.threads});
+            "eval_left": pl, "eval_right": pr, "threshold_px": opts.ransac.threshold_px, "runs": a.runs, "threads": a.threads,
+            "e2e": [{"name": "scared_ds1-3", "left": sd.join("Left_Image.png"), "right": sd.join("Right_Image.png")},
+                    {"name": "motorcycle_cats_1280x1024", "left": tmpdir.join("moto_left.png"), "right": tmpdir.join("moto_right.png"),
+                     "eval_left": pl, "eval_right": pr}]});
         laparo_core::atomic::write_atomic(&tmp, serde_json::to_string(&inp)?.as_bytes())?;
         let o = std::process::Command::new(py)
             .arg(&a.peer_script)
@@ -206,7 +289,16 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
         out["opencv"] = peer.clone();
         out["ratio_ours_over_opencv"] = serde_json::json!({
             "fit_min": ratio(qmin, "ms_fit_min"), "fit_warp_min": ratio(wmin, "ms_fit_warp_min")});
+        for name in ["scared_ds1-3", "motorcycle_cats_1280x1024"] {
+            let ours = &out["end_to_end"][name]["fast"];
+            let theirs = &peer["e2e"][name];
+            let r = |k: &str, pk: &str| Some(ours[k].as_f64()? / theirs[pk].as_f64()?);
+            out["ratio_ours_over_opencv"][name] = serde_json::json!({
+                "matches_min": r("ms_matches_min", "ms_matches_min"), "matches_fit_min": r("ms_matches_fit_min", "ms_matches_fit_min"),
+                "total_min": r("ms_total_min", "ms_total_min")});
+        }
     }
+    let _ = std::fs::remove_dir_all(&tmpdir);
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
 }
@@ -286,4 +378,19 @@ fn essential_row(a: &BenchArgs, out: &mut serde_json::Value) -> Result<()> {
     }
     out["essential_500_50pct"] = row;
     Ok(())
+}
+
+fn dy_eval_pts(
+    r: &laparo_stereo::self_rectify::SelfRectification,
+    pl: &[[f64; 2]],
+    pr: &[[f64; 2]],
+) -> Result<DyStats> {
+    let mut v = Vec::with_capacity(pl.len());
+    for (p, q) in pl.iter().zip(pr) {
+        let (Some(x), Some(y)) = (r.rectify_left(p[0], p[1]), r.rectify_right(q[0], q[1])) else {
+            bail!("a correspondence maps to infinity")
+        };
+        v.push(y[1] - x[1]);
+    }
+    Ok(DyStats::of(&v))
 }

@@ -40,6 +40,7 @@ pub mod keypoint;
 pub mod matching;
 pub mod ransac;
 pub mod refcheck;
+pub mod refine;
 
 pub use detect::{detect_and_describe, DetectorConfig, OrbParams, SiftParams};
 pub use draw::draw_matches;

@@ -175,3 +175,55 @@ fn sift_matches_on_cats_perturbed_middlebury() {
     assert!(st.median_abs <= 0.15, "median |dy| {}", st.median_abs);
     assert!(st.p95_abs <= 0.5, "p95 |dy| {}", st.p95_abs);
 }
+
+/// End to end with the default (fast) matcher: ORB + Hamming matching + NCC sub-pixel refinement
+/// (`fast_matches`) on the perturbed images, then the same |dy| acceptance as with SIFT, and the
+/// SIFT route on the same pair for comparison.
+#[test]
+fn fast_matches_on_cats_perturbed_middlebury() {
+    use laparo_stereo::self_rectify::{fast_matches, sift_matches, FeatureKind};
+    let Some(d) = data_dir() else { return };
+    assert_eq!(SelfRectifyOptions::default().features, FeatureKind::Fast);
+    let s = StereoSample {
+        left: io::read_image(d.join("motorcycle_left.png")).unwrap(),
+        right: io::read_image(d.join("motorcycle_right.png")).unwrap(),
+        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm")).unwrap()),
+        disp_right: None,
+        occ_left: None,
+        occ_right: None,
+    };
+    let (kl, kr) = cameras();
+    for (k, p) in [
+        perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]),
+        perturbation(kl, kr, [-0.4, 0.1, -0.3], [0.35, -0.25, 0.2], [-55.0, 45.0], [50.0, -60.0]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
+        let (pl, pr) = exact_correspondences(aug.disp_left.as_ref().unwrap(), 3).unwrap();
+        let eval = |rect: &laparo_stereo::self_rectify::SelfRectification| {
+            DyStats::of(
+                &pl.iter()
+                    .zip(&pr)
+                    .map(|(a, b)| {
+                        rect.rectify_right(b[0], b[1]).unwrap()[1] - rect.rectify_left(a[0], a[1]).unwrap()[1]
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        };
+        let (a, b) = fast_matches(&aug.left.image, &aug.right.image).unwrap();
+        let rect = self_rectify(&a, &b, (741, 500), &SelfRectifyOptions::default()).unwrap();
+        let st = eval(&rect);
+        let (sa, sb) = sift_matches(&aug.left.image, &aug.right.image).unwrap();
+        let srect = self_rectify(&sa, &sb, (741, 500), &SelfRectifyOptions::default()).unwrap();
+        let ss = eval(&srect);
+        eprintln!(
+            "pair {k}: fast {} matches, {} inliers, |dy| median {:.4} p95 {:.4} max {:.4}; SIFT {} matches, {} inliers, median {:.4} p95 {:.4}",
+            a.len(), rect.n_inliers, st.median_abs, st.p95_abs, st.max_abs, sa.len(), srect.n_inliers, ss.median_abs, ss.p95_abs
+        );
+        assert!(rect.n_inliers >= 100, "{} inliers", rect.n_inliers);
+        assert!(st.median_abs <= 0.15, "pair {k}: median |dy| {}", st.median_abs);
+        assert!(st.p95_abs <= 0.5, "pair {k}: p95 |dy| {}", st.p95_abs);
+    }
+}
