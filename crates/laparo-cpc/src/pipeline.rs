@@ -68,6 +68,19 @@ pub enum ScaleRestore {
     Resolution,
 }
 
+impl std::str::FromStr for ScaleRestore {
+    type Err = CpcError;
+    /// `raw`, `area` or `resolution`.
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "raw" => Ok(ScaleRestore::Raw),
+            "area" => Ok(ScaleRestore::TotalArea),
+            "resolution" => Ok(ScaleRestore::Resolution),
+            o => Err(CpcError::invalid("scale", format!("'{o}' is not raw, area or resolution"))),
+        }
+    }
+}
+
 /// Default limit of [`CpcParams::max_rel_magnification`]: a triangle stretched 4× more than the
 /// median triangle of the warp is treated as a smeared rim triangle.
 pub const DEFAULT_MAX_REL_MAGNIFICATION: f64 = 4.0;
