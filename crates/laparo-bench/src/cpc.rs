@@ -84,6 +84,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         // topology (CpcSolver reuses pattern, ordering, symbolic factorisation and buffers).
         let (mut tm, mut ta, mut ts, mut tw, mut tt, mut t20) = (vec![], vec![], vec![], vec![], vec![], vec![]);
         let (mut ta0, mut ta1, mut ta2, mut twn, mut twi) = (vec![], vec![], vec![], vec![], vec![]);
+        // Automatic λ (sweep + fit of eq. 4.14) on the default grid (to 1 − 10⁻⁵, 31 λ) and on the
+        // grid before issue 11's extension (to 0.999, 27 λ), alternately in the same run.
+        let (mut tauto, mut tauto_old) = (vec![], vec![]);
+        let grid_new = laparo_cpc::lambda::default_lambda_grid();
+        let grid_old: Vec<f64> = grid_new.iter().copied().filter(|&l| l <= 0.999).collect();
         let (mut nm, mut na, mut ns, mut nw, mut nt) = (vec![], vec![], vec![], vec![], vec![]);
         let mut video = CpcSolver::new();
         video.set_factor_threads(a.solver_threads);
@@ -139,6 +144,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
                     std::hint::black_box(metrics::delta_area(&q, &mesh.p_init, &mesh.faces));
                 }
                 t20.push(t5.elapsed().as_secs_f64() * 1e3);
+                for (g, out) in [(&grid_old, &mut tauto_old), (&grid_new, &mut tauto)] {
+                    let t6 = Instant::now();
+                    std::hint::black_box(laparo_cpc::lambda::auto_lambda(&sys, &mesh, g)?.ell);
+                    out.push(t6.elapsed().as_secs_f64() * 1e3);
+                }
                 last = Some((mesh, sys, p));
             }
             pb.inc(1);
@@ -155,6 +165,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "ms_warp": med(tw), "ms_warp_new": med(twn), "ms_warp_image": med(twi), "ms_total": med(tt),
             "ms_mesh_next": med(nm), "ms_assemble_next": med(na), "ms_solve_next": med(ns), "ms_warp_next": med(nw), "ms_total_next": med(nt),
             "ms_sweep20": med(t20),
+            "ms_auto_lambda": med(tauto.clone()), "ms_auto_lambda_old_grid": med(tauto_old.clone()),
+            "min_ms_auto_lambda": vmin(&tauto), "min_ms_auto_lambda_old_grid": vmin(&tauto_old),
+            "n_lambda_auto": grid_new.len(), "n_lambda_auto_old_grid": grid_old.len(),
             "angle_error_deg_before": metrics::angle_error_deg(&mesh.p_init, &mesh.x3d, &mesh.faces),
             "angle_error_deg_after": metrics::angle_error_deg(&p, &mesh.x3d, &mesh.faces),
             "delta_area": metrics::delta_area(&p, &mesh.p_init, &mesh.faces), "n_flipped": metrics::n_flipped(&p, &mesh.faces),
@@ -196,6 +209,20 @@ pub fn run(a: BenchArgs) -> Result<()> {
             f("ms_sweep20"),
             f("angle_error_deg_after"),
             r["n_flipped"]
+        );
+    }
+    for r in &rows {
+        let f = |k: &str| r[k].as_f64().unwrap();
+        println!(
+            "step {}: automatic λ (sweep + fit) {:.1} ms over {} λ (min {:.1}), grid to 0.999: {:.1} ms over {} λ (min {:.1}); ratio {:.3}",
+            r["grid_step_px"],
+            f("ms_auto_lambda"),
+            r["n_lambda_auto"],
+            f("min_ms_auto_lambda"),
+            f("ms_auto_lambda_old_grid"),
+            r["n_lambda_auto_old_grid"],
+            f("min_ms_auto_lambda_old_grid"),
+            f("ms_auto_lambda") / f("ms_auto_lambda_old_grid")
         );
     }
     println!("(medians; minima and the per-stage split of the warp are in --json)");

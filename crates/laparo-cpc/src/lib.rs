@@ -42,7 +42,9 @@ pub mod warp;
 pub use conformal::{ConformalParams, RowConvention};
 pub use error::{CpcError, Result};
 pub use mesh::{CpcMesh, MeshParams, MeshReport};
-pub use pipeline::{cpc_warp, cpc_warp_with, CpcParams, CpcResult, CpcStats, LambdaChoice, DEFAULT_LAMBDA};
+pub use pipeline::{
+    cpc_warp, cpc_warp_with, CpcParams, CpcResult, CpcStats, LambdaChoice, ScaleRestore, DEFAULT_LAMBDA,
+};
 pub use solve::{CpcSolver, CpcSystem, CpcTopology};
 pub use warp::{Warp, WarpMaps};
 

@@ -55,6 +55,65 @@ pub fn delta_area(p: &[[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]]) -> 
 /// least-displacement solve (eq. 4.12) trades against conformality, so the warped image keeps the
 /// original pixel density (the thesis' Fig. 4.11 shows that shrink). Returns s (1 when undefined).
 pub fn restore_scale(p: &mut [[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]]) -> f64 {
+    rescale(p, p_init, faces, None)
+}
+
+/// Smaller singular value of the affine map of a triangle from its initial image position
+/// (a, b, c) to its flattened one (pa, pb, pc): the local scale along the most compressed
+/// direction (< 1: the warp minifies, i.e. downsamples, the image there). NaN when degenerate.
+pub fn min_singular_value(a: [f64; 2], b: [f64; 2], c: [f64; 2], pa: [f64; 2], pb: [f64; 2], pc: [f64; 2]) -> f64 {
+    // J · [b − a, c − a] = [pb − pa, pc − pa]  ⇒  J = Q E⁻¹.
+    let (e00, e10, e01, e11) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
+    let det = e00 * e11 - e01 * e10;
+    if det.abs() < 1e-300 {
+        return f64::NAN;
+    }
+    let (q00, q10, q01, q11) = (pb[0] - pa[0], pb[1] - pa[1], pc[0] - pa[0], pc[1] - pa[1]);
+    let j00 = (q00 * e11 - q01 * e10) / det;
+    let j01 = (-q00 * e01 + q01 * e00) / det;
+    let j10 = (q10 * e11 - q11 * e10) / det;
+    let j11 = (-q10 * e01 + q11 * e00) / det;
+    let ss = j00 * j00 + j01 * j01 + j10 * j10 + j11 * j11;
+    let dj = (j00 * j11 - j01 * j10).abs();
+    let disc = (ss * ss - 4.0 * dj * dj).max(0.0).sqrt();
+    (0.5 * (ss - disc)).max(0.0).sqrt()
+}
+
+/// Restore the image resolution of a flattening: the similarity p ↦ c₀ + s (p − c) (c, c₀ the
+/// area-weighted centroids) with s chosen so that the area-weighted median over the triangles of
+/// the local scale along the most compressed direction ([`min_singular_value`]) is 1: the warp
+/// then stretches foreshortened directions instead of downsampling the others, so no image
+/// detail is lost to minification (an oblique plane at tilt θ gets singular values 1 and 1/cos θ,
+/// where [`restore_scale`] gives √cos θ and 1/√cos θ). Returns s (1 when undefined).
+pub fn restore_resolution(p: &mut [[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]]) -> f64 {
+    let mut sv: Vec<(f64, f64)> = faces
+        .iter()
+        .map(|f| {
+            let a = signed_area(p_init[f[0]], p_init[f[1]], p_init[f[2]]);
+            (min_singular_value(p_init[f[0]], p_init[f[1]], p_init[f[2]], p[f[0]], p[f[1]], p[f[2]]), a)
+        })
+        .filter(|(s, a)| s.is_finite() && *s > 0.0 && *a > 0.0)
+        .collect();
+    if sv.is_empty() {
+        return 1.0;
+    }
+    sv.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let half = 0.5 * sv.iter().map(|x| x.1).sum::<f64>();
+    let mut acc = 0.0;
+    let mut med = sv[sv.len() - 1].0;
+    for &(s, a) in &sv {
+        acc += a;
+        if acc >= half {
+            med = s;
+            break;
+        }
+    }
+    rescale(p, p_init, faces, Some(1.0 / med))
+}
+
+/// The similarity of [`restore_scale`] / [`restore_resolution`]: scale `s` (total-area ratio
+/// when `None`) about the area-weighted centroids.
+fn rescale(p: &mut [[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3]], scale: Option<f64>) -> f64 {
     let (mut a_init, mut a_flat) = (0.0, 0.0);
     let (mut c, mut c0) = ([0.0; 2], [0.0; 2]);
     for f in faces {
@@ -66,7 +125,7 @@ pub fn restore_scale(p: &mut [[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3
             c[k] += af * (p[f[0]][k] + p[f[1]][k] + p[f[2]][k]) / 3.0;
         }
     }
-    let s = (a_init / a_flat).sqrt();
+    let s = scale.unwrap_or((a_init / a_flat).sqrt());
     if !(s.is_finite() && s > 0.0 && a_init > 0.0) {
         return 1.0;
     }

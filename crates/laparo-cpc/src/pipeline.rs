@@ -44,14 +44,41 @@ pub struct CpcParams {
     /// mesh are masked out of the warped image and its validity mask (no rim spikes); `None`
     /// keeps every triangle. Default [`DEFAULT_MAX_REL_MAGNIFICATION`].
     pub max_rel_magnification: Option<f64>,
-    /// Rescale the flattening to the ROI's original total area ([`metrics::restore_scale`]: a
-    /// similarity, so conformality is unchanged) before warping, so that the warped image keeps
-    /// the input's pixel density instead of shrinking with λ. Default `true`.
-    pub restore_scale: bool,
+    /// Which similarity is applied to the flattening before warping (the conformal term and
+    /// every angle are unchanged by it). Default [`ScaleRestore::Resolution`].
+    pub scale: ScaleRestore,
     /// Interpolation of the warped image. Default bicubic: bilinear resampling at sub-pixel
     /// offsets blurs fine texture enough to cost a third of the SIFT/ORB keypoints on a
     /// near-identity warp (measured on `laparo cpc pair --kind easy`, see the crate README).
     pub interp: Interp,
+}
+
+/// The scale of the warped image. The convex solve (eq. 4.11) changes the global scale with λ
+/// (the shrink of the thesis' Fig. 4.11); a similarity fixes it without touching angles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ScaleRestore {
+    /// The raw solve of eq. 4.11 (the thesis' warp).
+    Raw,
+    /// The original total ROI area ([`metrics::restore_scale`]): an oblique view is then
+    /// downsampled along its unforeshortened direction by √cos θ, losing fine texture.
+    TotalArea,
+    /// No local minification at the area-weighted median triangle
+    /// ([`metrics::restore_resolution`]): foreshortened directions are stretched, none is
+    /// downsampled, and views of the same surface at the same distance get the same scale.
+    Resolution,
+}
+
+impl std::str::FromStr for ScaleRestore {
+    type Err = CpcError;
+    /// `raw`, `area` or `resolution`.
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "raw" => Ok(ScaleRestore::Raw),
+            "area" => Ok(ScaleRestore::TotalArea),
+            "resolution" => Ok(ScaleRestore::Resolution),
+            o => Err(CpcError::invalid("scale", format!("'{o}' is not raw, area or resolution"))),
+        }
+    }
 }
 
 /// Default limit of [`CpcParams::max_rel_magnification`]: a triangle stretched 4× more than the
@@ -66,7 +93,7 @@ impl Default for CpcParams {
             lambda: LambdaChoice::Fixed(DEFAULT_LAMBDA),
             equiareal: None,
             max_rel_magnification: Some(DEFAULT_MAX_REL_MAGNIFICATION),
-            restore_scale: true,
+            scale: ScaleRestore::Resolution,
             interp: Interp::Bicubic,
         }
     }
@@ -112,7 +139,7 @@ pub struct CpcStats {
     pub equiareal_iterations: usize,
     /// Triangles masked out by the magnification limit ([`CpcParams::max_rel_magnification`]).
     pub n_magnified_masked: usize,
-    /// Uniform scale applied by [`CpcParams::restore_scale`] (1 when off).
+    /// Uniform scale applied by [`CpcParams::scale`] (1 for [`ScaleRestore::Raw`]).
     pub scale_restored: f64,
     /// Warnings (e.g. the automatic λ fell back to a fixed value); the CLI prints them.
     pub warnings: Vec<String>,
@@ -215,8 +242,11 @@ fn frame(
         eq_iters = r.iterations;
         timings.insert("equiareal".to_string(), ms(t));
     }
-    let scale_restored =
-        if params.restore_scale { metrics::restore_scale(&mut p, &mesh.p_init, &mesh.faces) } else { 1.0 };
+    let scale_restored = match params.scale {
+        ScaleRestore::Raw => 1.0,
+        ScaleRestore::TotalArea => metrics::restore_scale(&mut p, &mesh.p_init, &mesh.faces),
+        ScaleRestore::Resolution => metrics::restore_resolution(&mut p, &mesh.p_init, &mesh.faces),
+    };
     let t = Instant::now();
     let mut warp = Warp::new(&mesh, p, image.width, image.height)?;
     let n_magnified_masked = match params.max_rel_magnification {

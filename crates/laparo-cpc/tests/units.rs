@@ -314,3 +314,46 @@ fn restore_scale_is_a_similarity_back_to_the_initial_area() {
     assert_eq!(metrics::restore_scale(&mut z, &p_init, &faces), 1.0);
     assert_eq!(z, vec![[1.0, 1.0]; 5]);
 }
+
+/// `metrics::restore_resolution`: an anisotropic linear map diag(0.5, 0.25) (rotated by 30°) has
+/// singular values 0.5 and 0.25 on every triangle, so the scale is 1 / 0.25 = 4 and the result
+/// has singular values 2 and 1 (by hand); angles are unchanged and the area-weighted centroid is
+/// the initial one.
+#[test]
+fn restore_resolution_removes_minification_at_the_median_triangle() {
+    let p_init = vec![[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [0.0, 3.0], [2.0, 1.5]];
+    let faces = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]];
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    let map = |v: &[f64; 2]| {
+        let (x, y) = (0.5 * v[0], 0.25 * v[1]);
+        [7.0 + c * x - s * y, -3.0 + s * x + c * y]
+    };
+    let mut p: Vec<[f64; 2]> = p_init.iter().map(map).collect();
+    for f in &faces {
+        let sv = metrics::min_singular_value(p_init[f[0]], p_init[f[1]], p_init[f[2]], p[f[0]], p[f[1]], p[f[2]]);
+        assert!((sv - 0.25).abs() < 1e-12, "{sv}");
+    }
+    let k = metrics::restore_resolution(&mut p, &p_init, &faces);
+    assert!((k - 4.0).abs() < 1e-12, "{k}");
+    for f in &faces {
+        let sv = metrics::min_singular_value(p_init[f[0]], p_init[f[1]], p_init[f[2]], p[f[0]], p[f[1]], p[f[2]]);
+        assert!((sv - 1.0).abs() < 1e-12, "{sv}");
+    }
+    // total area 12 × (2 · 1) = 24; centroid (2, 1.5) kept
+    let area: f64 = faces.iter().map(|f| laparo_cpc::mesh::signed_area(p[f[0]], p[f[1]], p[f[2]])).sum();
+    assert!((area - 24.0).abs() < 1e-10, "{area}");
+    let cx: f64 = faces
+        .iter()
+        .map(|f| {
+            laparo_cpc::mesh::signed_area(p[f[0]], p[f[1]], p[f[2]]) * (p[f[0]][0] + p[f[1]][0] + p[f[2]][0]) / 3.0
+        })
+        .sum::<f64>()
+        / area;
+    assert!((cx - 2.0).abs() < 1e-10, "{cx}");
+    // the identity stays the identity
+    let mut q = p_init.clone();
+    assert!((metrics::restore_resolution(&mut q, &p_init, &faces) - 1.0).abs() < 1e-15);
+    for (a, b) in q.iter().zip(&p_init) {
+        assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12);
+    }
+}

@@ -68,6 +68,10 @@ pub struct InputArgs {
     /// triangle (near-grazing rim spikes); 0 disables.
     #[arg(long, default_value_t = laparo_cpc::pipeline::DEFAULT_MAX_REL_MAGNIFICATION)]
     pub max_magnification: f64,
+    /// Scale of the warped image: resolution (no minification at the median triangle), area
+    /// (original total ROI area) or raw (the solve of eq. 4.11 as it is).
+    #[arg(long, default_value = "resolution")]
+    pub scale: String,
 }
 
 #[derive(Args)]
@@ -204,6 +208,7 @@ fn load_inputs(a: &InputArgs, resize: Option<(usize, usize, laparo_depth::eval::
         },
         conformal: ConformalParams { theta_rad: a.theta_deg.to_radians(), ..ConformalParams::default() },
         max_rel_magnification: (a.max_magnification > 0.0).then_some(a.max_magnification),
+        scale: a.scale.parse()?,
         ..CpcParams::default()
     };
     // Lens distortion is applied, never ignored: depth (bilinear; NaN where any neighbour is

@@ -58,6 +58,10 @@ pub struct EvalOpts {
     /// CPC magnification guard (multiple of the median triangle magnification); 0 disables.
     #[arg(long, default_value_t = laparo_cpc::pipeline::DEFAULT_MAX_REL_MAGNIFICATION)]
     pub max_magnification: f64,
+    /// Scale of the warped image: resolution (no minification at the median triangle), area
+    /// (original total ROI area) or raw (the solve of eq. 4.11 as it is).
+    #[arg(long, default_value = "resolution")]
+    pub scale: String,
 }
 
 impl EvalOpts {
@@ -75,6 +79,7 @@ impl EvalOpts {
         }
         s.cpc.mesh.grid_step_px = self.grid_step;
         s.cpc.max_rel_magnification = (self.max_magnification > 0.0).then_some(self.max_magnification);
+        s.cpc.scale = self.scale.parse()?;
         Ok(s)
     }
 }
