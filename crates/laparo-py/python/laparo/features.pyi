@@ -65,8 +65,9 @@ def find_fundamental(p1: np.ndarray, p2: np.ndarray, threshold_px: float=..., co
     ...
 
 def find_essential(p1: np.ndarray, p2: np.ndarray, threshold: float=..., confidence: float=..., max_iters: int=..., seed: int=...) -> Dict[str, Any]:
-    """Robust essential matrix from *normalised* (N, 2) points (K⁻¹ x); ``threshold`` is in
-    normalised units (≈ px / f). Same keys as :func:`find_homography`."""
+    """Robust essential matrix from N ≥ 5 *normalised* (N, 2) points (K⁻¹ x), 5-point minimal
+    solver (Stewénius–Engels–Nistér); ``threshold`` is in normalised units (≈ px / f). Same keys
+    as :func:`find_homography`."""
     ...
 
 def transfer_error(homography: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
