@@ -4,7 +4,7 @@ use super::Texel;
 use std::ops::{Add, Mul, Sub};
 
 /// The arithmetic of interpolation: `f32` for 8/16-bit and `f32` texels, `f64` for `f64` ones.
-pub trait Real: Copy + Send + Sync + PartialEq + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+pub trait Real: Copy + PartialEq + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
     /// 0.
     const ZERO: Self;
     /// 1.

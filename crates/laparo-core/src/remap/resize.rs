@@ -1,5 +1,5 @@
 //! Resizing and edge-aware point samples, both on the one bilinear kernel of [`super::kernel`].
-use super::{bilerp, check_source, drive, init_row, Interp, Real, Texel};
+use super::{check_source, Interp, Texel};
 use crate::error::{CoreError, Result};
 use crate::image::{Image, Mask};
 use rayon::prelude::*;
@@ -19,8 +19,8 @@ fn position_f64(i: usize, n: usize, m: usize) -> f64 {
 /// Resize `src` to `width`×`height` with pixel centres aligned (OpenCV `resize` convention,
 /// `INTER_LINEAR` / `INTER_NEAREST`): output (x, y) samples the source at
 /// ([`resize_position`](x), [`resize_position`](y)) under the contract of [`super`]. Bit for bit
-/// what [`super::remap`] gives with that coordinate map; the positions of a column and a row are
-/// computed once. Every position is inside the source, so only non-finite float samples are
+/// what [`super::remap`] gives with that coordinate map (it is that remap, with the map's rows
+/// generated on the fly). Every position is inside the source, so only non-finite float samples are
 /// invalid (`fill`, `false` in the mask).
 pub fn resize<T: Texel>(
     src: &Image<T>,
@@ -34,64 +34,10 @@ pub fn resize<T: Texel>(
         return Err(CoreError::invalid("output size", format!("{width}x{height} is empty")));
     }
     let xs: Vec<f32> = (0..width).map(|x| resize_position(x, src.width, width)).collect();
-    if interp == Interp::Bilinear {
-        // Column taps once: (x0, ax), as the bilinear row kernel computes them per pixel.
-        let taps: Vec<(usize, T::Acc)> = xs.iter().map(|&fx| bilinear_tap::<T>(fx, src.width)).collect();
-        return Ok(drive(width, height, src.channels, |y, orow, mrow, _, _| {
-            let (orow, mrow) = init_row(orow, mrow, fill);
-            let tap_y = bilinear_tap::<T>(resize_position(y, src.height, height), src.height);
-            match src.channels {
-                1 => bilinear_resize_row::<T, 1>(src, &taps, tap_y, fill, orow, mrow),
-                3 => bilinear_resize_row::<T, 3>(src, &taps, tap_y, fill, orow, mrow),
-                _ => bilinear_resize_row::<T, 0>(src, &taps, tap_y, fill, orow, mrow),
-            }
-        }));
-    }
     super::remap_rows(src, width, height, interp, fill, |y, sx, sy| {
         sx.copy_from_slice(&xs);
         sy.fill(resize_position(y, src.height, height));
     })
-}
-
-/// (i0, weight of i0 + 1) of a position `f` in [0, n − 1]: i0 = min(⌊f⌋, n − 2), the weight
-/// f − i0 in f32 converted to the interpolation type (the bilinear row kernel's arithmetic).
-#[inline]
-fn bilinear_tap<T: Texel>(f: f32, n: usize) -> (usize, T::Acc) {
-    let i0 = (f as i32 as usize).min(n.saturating_sub(2));
-    (i0, T::Acc::from_f64((f - i0 as i32 as f32) as f64))
-}
-
-/// One output row of the bilinear [`resize`] from precomputed taps: the operations of
-/// `kernel::bilinear_row` for positions known to lie inside the source.
-#[inline(always)]
-fn bilinear_resize_row<T: Texel, const C: usize>(
-    src: &Image<T>,
-    taps: &[(usize, T::Acc)],
-    (y0, ay): (usize, T::Acc),
-    fill: T,
-    orow: &mut [T],
-    mrow: &mut [bool],
-) {
-    let c = if C == 0 { src.channels } else { C };
-    let stride = src.width * c;
-    let dx = if src.width > 1 { c } else { 0 };
-    let dy = if src.height > 1 { stride } else { 0 };
-    let row0 = &src.data[y0 * stride..];
-    for ((o, m), &(x0, ax)) in orow.chunks_exact_mut(c).zip(mrow.iter_mut()).zip(taps) {
-        let i00 = x0 * c;
-        let mut ok = true;
-        for ch in 0..c {
-            let p = |i: usize| row0[i + ch].to_acc();
-            let v = bilerp(p(i00), p(i00 + dx), p(i00 + dy), p(i00 + dy + dx), ax, ay, T::FLOAT);
-            let t = T::from_acc(v);
-            ok &= t.is_finite();
-            o[ch] = t;
-        }
-        if !ok {
-            o.fill(fill);
-        }
-        *m = ok;
-    }
 }
 
 /// Taps of [`resize_exact_u8`] along one axis: (i₀, weight of i₀ + 1 in 1/256) at the f64
