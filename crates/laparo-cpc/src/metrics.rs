@@ -62,21 +62,36 @@ pub fn restore_scale(p: &mut [[f64; 2]], p_init: &[[f64; 2]], faces: &[[usize; 3
 /// (a, b, c) to its flattened one (pa, pb, pc): the local scale along the most compressed
 /// direction (< 1: the warp minifies, i.e. downsamples, the image there). NaN when degenerate.
 pub fn min_singular_value(a: [f64; 2], b: [f64; 2], c: [f64; 2], pa: [f64; 2], pb: [f64; 2], pc: [f64; 2]) -> f64 {
-    // J · [b − a, c − a] = [pb − pa, pc − pa]  ⇒  J = Q E⁻¹.
-    let (e00, e10, e01, e11) = (b[0] - a[0], b[1] - a[1], c[0] - a[0], c[1] - a[1]);
-    let det = e00 * e11 - e01 * e10;
-    if det.abs() < 1e-300 {
-        return f64::NAN;
+    let d = |p: [f64; 2], q: [f64; 2]| [p[0] - q[0], p[1] - q[1]];
+    edge_map(d(pb, pa), d(pc, pa), d(b, a), d(c, a)).map_or(f64::NAN, |l| singular_values(l)[0])
+}
+
+/// Singular values (smaller, larger) of the 2×2 matrix [[l0, l1], [l2, l3]].
+pub(crate) fn singular_values(l: [f64; 4]) -> [f64; 2] {
+    let ss = l.iter().map(|v| v * v).sum::<f64>();
+    let det = l[0] * l[3] - l[1] * l[2];
+    let disc = (ss * ss - 4.0 * det * det).max(0.0).sqrt();
+    [(0.5 * (ss - disc)).max(0.0).sqrt(), (0.5 * (ss + disc)).sqrt()]
+}
+
+/// Largest singular value of the 2×2 matrix [[l0, l1], [l2, l3]].
+pub(crate) fn largest_singular_value(l: [f64; 4]) -> f64 {
+    singular_values(l)[1]
+}
+
+/// `[[e0x, e1x], [e0y, e1y]] · adj([[f0x, f1x], [f0y, f1y]]) / det(F)`: the linear part of the
+/// affine map sending edges f to edges e. Multiplying before dividing keeps the identity exact.
+pub(crate) fn edge_map(e0: [f64; 2], e1: [f64; 2], f0: [f64; 2], f1: [f64; 2]) -> Option<[f64; 4]> {
+    let det = f0[0] * f1[1] - f1[0] * f0[1];
+    if det == 0.0 || !det.is_finite() {
+        return None;
     }
-    let (q00, q10, q01, q11) = (pb[0] - pa[0], pb[1] - pa[1], pc[0] - pa[0], pc[1] - pa[1]);
-    let j00 = (q00 * e11 - q01 * e10) / det;
-    let j01 = (-q00 * e01 + q01 * e00) / det;
-    let j10 = (q10 * e11 - q11 * e10) / det;
-    let j11 = (-q10 * e01 + q11 * e00) / det;
-    let ss = j00 * j00 + j01 * j01 + j10 * j10 + j11 * j11;
-    let dj = (j00 * j11 - j01 * j10).abs();
-    let disc = (ss * ss - 4.0 * dj * dj).max(0.0).sqrt();
-    (0.5 * (ss - disc)).max(0.0).sqrt()
+    // adj(F) = [[f1y, −f1x], [−f0y, f0x]]
+    let m00 = e0[0] * f1[1] - e1[0] * f0[1];
+    let m01 = -e0[0] * f1[0] + e1[0] * f0[0];
+    let m10 = e0[1] * f1[1] - e1[1] * f0[1];
+    let m11 = -e0[1] * f1[0] + e1[1] * f0[0];
+    Some([m00 / det, m01 / det, m10 / det, m11 / det])
 }
 
 /// Restore the image resolution of a flattening: the similarity p ↦ c₀ + s (p − c) (c, c₀ the

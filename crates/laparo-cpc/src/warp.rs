@@ -9,6 +9,7 @@
 //! [`Warp::warped_to_original`] do the same for single points (barycentric coordinates).
 use crate::error::{CpcError, Result};
 use crate::mesh::{signed_area, CpcMesh};
+use crate::metrics::{edge_map, largest_singular_value};
 use laparo_core::image::{Image, Mask};
 use laparo_core::remap::{remap_rows, Interp, Texel};
 use rayon::prelude::*;
@@ -116,28 +117,6 @@ pub struct WarpMaps {
     pub backward: Image<f64>,
     /// Original-sized, 2 channels: canvas (x, y) of every original pixel (NaN outside the mesh).
     pub forward: Image<f64>,
-}
-
-/// Largest singular value of the 2×2 matrix [[l0, l1], [l2, l3]].
-fn largest_singular_value(l: [f64; 4]) -> f64 {
-    let ss = l.iter().map(|v| v * v).sum::<f64>();
-    let det = l[0] * l[3] - l[1] * l[2];
-    (0.5 * (ss + (ss * ss - 4.0 * det * det).max(0.0).sqrt())).sqrt()
-}
-
-/// `[[e0x, e1x], [e0y, e1y]] · adj([[f0x, f1x], [f0y, f1y]]) / det(F)`: the linear part of the
-/// affine map sending edges f to edges e. Multiplying before dividing keeps the identity exact.
-fn edge_map(e0: [f64; 2], e1: [f64; 2], f0: [f64; 2], f1: [f64; 2]) -> Option<[f64; 4]> {
-    let det = f0[0] * f1[1] - f1[0] * f0[1];
-    if det == 0.0 || !det.is_finite() {
-        return None;
-    }
-    // adj(F) = [[f1y, −f1x], [−f0y, f0x]]
-    let m00 = e0[0] * f1[1] - e1[0] * f0[1];
-    let m01 = -e0[0] * f1[0] + e1[0] * f0[0];
-    let m10 = e0[1] * f1[1] - e1[1] * f0[1];
-    let m11 = -e0[1] * f1[0] + e1[1] * f0[0];
-    Some([m00 / det, m01 / det, m10 / det, m11 / det])
 }
 
 #[inline]

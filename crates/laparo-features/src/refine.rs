@@ -98,18 +98,6 @@ fn vertex(sm: f64, s0: f64, sp: f64) -> f64 {
     (0.5 * (sm - sp) / den).clamp(-0.5, 0.5)
 }
 
-/// Bilinear sample of `img` at (x, y) (caller keeps (x, y) ≥ 0 and ≤ size − 2).
-#[inline]
-fn bilinear(img: &Image<u8>, x: f64, y: f64) -> f64 {
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let i = y0 as usize * img.width + x0 as usize;
-    let d = &img.data;
-    let top = d[i] as f64 + (d[i + 1] as f64 - d[i] as f64) * fx;
-    let bot = d[i + img.width] as f64 + (d[i + img.width + 1] as f64 - d[i + img.width] as f64) * fx;
-    top + (bot - top) * fy
-}
-
 /// Inverse-compositional Lucas–Kanade (Baker & Matthews 2004) for a translation with a
 /// mean-offset invariance: minimise Σ ((I(x + p) − Ī) − (T(x) − T̄))² over p, T = the left
 /// patch (central-difference gradients ∇T, constant Hessian H = Σ ∇T ∇Tᵀ), Δp = H⁻¹ Σ ∇T e,
@@ -167,7 +155,8 @@ fn lk_refine(
         }
         for j in 0..side {
             for i in 0..side {
-                ib[j * side + i] = bilinear(b, x0 + i as f64, y0 + j as f64);
+                // in bounds (checked above): the sampler of laparo_core::remap, f64
+                ib[j * side + i] = b.sample_bilinear(x0 + i as f64, y0 + j as f64, 0).unwrap_or(f64::NAN);
             }
         }
         let im = ib.iter().sum::<f64>() / n;

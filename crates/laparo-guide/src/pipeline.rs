@@ -211,8 +211,7 @@ pub fn stereo_depth(
             est.r = pose.r;
             est.t_mm = pose.t.normalize() * b;
             let (depth_mm, range_px, rect_info) = calibrated_depth(left, right, &est, depth_prior_mm)?;
-            let rot_err_deg =
-                ((((est.r * calib.r.transpose()).trace() - 1.0) / 2.0).clamp(-1.0, 1.0)).acos().to_degrees();
+            let rot_err_deg = rotation_error_deg(&est.r, &calib.r);
             let t_err_deg = est.t_mm.normalize().dot(&calib.t_mm.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
             Ok(StereoDepth {
                 depth_mm,

@@ -657,12 +657,22 @@ pub fn perturbation(
 
 /// SIFT keypoints of both images matched with Lowe 0.8 + mutual check (laparo-features defaults).
 pub fn sift_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
-    use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
+    use laparo_features::DetectorConfig;
     let feat = |e: laparo_features::FeaturesError| StereoError::Config(format!("SIFT matching: {e}"));
     let sift = DetectorConfig::by_name("sift").map_err(feat)?;
-    let (fl, fr) = rayon::join(|| detect_and_describe(left, &sift, None), || detect_and_describe(right, &sift, None));
-    let (fl, fr) = (fl.map_err(feat)?, fr.map_err(feat)?);
-    let m = match_features(&fl, &fr, &MatchConfig::default()).map_err(feat)?;
+    detect_and_match(left, right, &sift).map_err(feat)
+}
+
+/// Keypoints of both images (`det`, in parallel) matched with Lowe 0.8 + mutual check, as point pairs.
+fn detect_and_match(
+    left: &Image<u8>,
+    right: &Image<u8>,
+    det: &laparo_features::DetectorConfig,
+) -> Result<PointPairs, laparo_features::FeaturesError> {
+    use laparo_features::{detect_and_describe, match_features, MatchConfig};
+    let (fl, fr) = rayon::join(|| detect_and_describe(left, det, None), || detect_and_describe(right, det, None));
+    let (fl, fr) = (fl?, fr?);
+    let m = match_features(&fl, &fr, &MatchConfig::default())?;
     Ok(m.iter()
         .map(|m| {
             let (a, b) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
@@ -693,20 +703,11 @@ pub fn fast_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, S
 pub fn fast_matches_with(left: &Image<u8>, right: &Image<u8>, n_features: usize) -> Result<PointPairs, StereoError> {
     use laparo_features::detect::to_gray_u8;
     use laparo_features::refine::{refine_matches_ncc, RefineParams};
-    use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig, OrbParams};
+    use laparo_features::{DetectorConfig, OrbParams};
     let feat = |e: laparo_features::FeaturesError| StereoError::Config(format!("ORB matching: {e}"));
     let (gl, gr) = rayon::join(|| to_gray_u8(left), || to_gray_u8(right));
     let orb = DetectorConfig::Orb(OrbParams { n_features, ..OrbParams::default() });
-    let (fl, fr) = rayon::join(|| detect_and_describe(&gl, &orb, None), || detect_and_describe(&gr, &orb, None));
-    let (fl, fr) = (fl.map_err(feat)?, fr.map_err(feat)?);
-    let m = match_features(&fl, &fr, &MatchConfig::default()).map_err(feat)?;
-    let (pl, pr): PointPairs = m
-        .iter()
-        .map(|m| {
-            let (a, b) = (&fl.keypoints[m.i1 as usize], &fr.keypoints[m.i2 as usize]);
-            ([a.x, a.y], [b.x, b.y])
-        })
-        .unzip();
+    let (pl, pr) = detect_and_match(&gl, &gr, &orb).map_err(feat)?;
     let refined = refine_matches_ncc(&gl, &gr, &pl, &pr, &RefineParams::default()).map_err(feat)?;
     Ok(refined.into_iter().flatten().map(|r| (r.left, r.right)).unzip())
 }
