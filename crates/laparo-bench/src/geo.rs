@@ -202,26 +202,11 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
             "ms_fit_min": hqmin},
     });
     // (3) end to end from images
-    let (tl, tr) = (
-        laparo_core::remap::warp_homography(
-            &aug.left.image,
-            &scale_inv,
-            1280,
-            1024,
-            laparo_core::remap::Interp::Bilinear,
-            0u8,
-        )?
-        .0,
-        laparo_core::remap::warp_homography(
-            &aug.right.image,
-            &scale_inv,
-            1280,
-            1024,
-            laparo_core::remap::Interp::Bilinear,
-            0u8,
-        )?
-        .0,
-    );
+    let to_1280 = |img: &Image<u8>| {
+        laparo_core::remap::warp_homography(img, &scale_inv, 1280, 1024, laparo_core::remap::Interp::Bilinear, 0u8)
+            .map(|r| r.0)
+    };
+    let (tl, tr) = (to_1280(&aug.left.image)?, to_1280(&aug.right.image)?);
     let sd = &a.scared;
     let scared = (
         io::read_image(sd.join("Left_Image.png")).with_context(|| format!("--scared {}", sd.display()))?,

@@ -20,6 +20,18 @@ fn data_dir() -> Option<PathBuf> {
     }
 }
 
+/// The Middlebury Motorcycle pair with its left disparity.
+fn motorcycle(d: &std::path::Path) -> StereoSample {
+    StereoSample {
+        left: io::read_image(d.join("motorcycle_left.png")).unwrap(),
+        right: io::read_image(d.join("motorcycle_right.png")).unwrap(),
+        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm")).unwrap()),
+        disp_right: None,
+        occ_left: None,
+        occ_right: None,
+    }
+}
+
 fn cameras() -> (Intrinsics, Intrinsics) {
     let f = 994.97775;
     (
@@ -30,14 +42,7 @@ fn cameras() -> (Intrinsics, Intrinsics) {
 
 /// The perturbed pair's exact correspondences for one seed.
 fn perturbed(d: &std::path::Path, seed: u64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, String) {
-    let s = StereoSample {
-        left: io::read_image(d.join("motorcycle_left.png")).unwrap(),
-        right: io::read_image(d.join("motorcycle_right.png")).unwrap(),
-        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm")).unwrap()),
-        disp_right: None,
-        occ_left: None,
-        occ_right: None,
-    };
+    let s = motorcycle(&d);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut ang = || [rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4)];
     let (el, er) = (ang(), ang());
@@ -136,14 +141,7 @@ fn hartley_is_computed_and_compared() {
 fn sift_matches_on_cats_perturbed_middlebury() {
     use laparo_features::{detect_and_describe, match_features, DetectorConfig, MatchConfig};
     let Some(d) = data_dir() else { return };
-    let s = StereoSample {
-        left: io::read_image(d.join("motorcycle_left.png")).unwrap(),
-        right: io::read_image(d.join("motorcycle_right.png")).unwrap(),
-        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm")).unwrap()),
-        disp_right: None,
-        occ_left: None,
-        occ_right: None,
-    };
+    let s = motorcycle(&d);
     let (kl, kr) = cameras();
     let p = perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]);
     let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
@@ -184,14 +182,7 @@ fn fast_matches_on_cats_perturbed_middlebury() {
     use laparo_stereo::self_rectify::{fast_matches, sift_matches, FeatureKind};
     let Some(d) = data_dir() else { return };
     assert_eq!(SelfRectifyOptions::default().features, FeatureKind::Fast);
-    let s = StereoSample {
-        left: io::read_image(d.join("motorcycle_left.png")).unwrap(),
-        right: io::read_image(d.join("motorcycle_right.png")).unwrap(),
-        disp_left: Some(io::read_pfm(d.join("motorcycle_disp.pfm")).unwrap()),
-        disp_right: None,
-        occ_left: None,
-        occ_right: None,
-    };
+    let s = motorcycle(&d);
     let (kl, kr) = cameras();
     for (k, p) in [
         perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]),
