@@ -42,7 +42,7 @@ fn cameras() -> (Intrinsics, Intrinsics) {
 
 /// The perturbed pair's exact correspondences for one seed.
 fn perturbed(d: &std::path::Path, seed: u64) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, String) {
-    let s = motorcycle(&d);
+    let s = motorcycle(d);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut ang = || [rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4)];
     let (el, er) = (ang(), ang());
