@@ -1,5 +1,11 @@
 //! Load stepping with Newton's method and a backtracking line search on the total potential
 //! energy; sparse Cholesky (faer, AMD ordering) of the free-DOF tangent, shifted when indefinite.
+//!
+//! Factorisations dominate the cost (dense supernodal kernels), so a Newton direction is first sought
+//! by conjugate gradients on the current tangent preconditioned by the Cholesky factor of an earlier
+//! tangent (inexact Newton, [`SolverSettings::forcing`]); the tangent is factorised again only when
+//! that fails to converge in [`SolverSettings::pcg_max_iterations`] or meets non-positive curvature. The
+//! convergence test of Newton's method is unchanged, so the solution meets the same residual tolerance.
 use super::problem::SolidProblem;
 use crate::error::{FemError, Result};
 use faer::prelude::Solve;
@@ -21,11 +27,17 @@ pub struct SolverSettings {
     pub max_newton: usize,
     /// How many times an increment may be halved (inversion or no convergence) before giving up.
     pub max_cuts: usize,
+    /// Forcing term of the inexact Newton directions: conjugate gradients on a reused factor stop at
+    /// ‖K d + r‖ ≤ `forcing` ‖r‖ (or a tenth of the Newton tolerance, whichever is larger).
+    pub forcing: f64,
+    /// Conjugate-gradient iterations on a reused factor before the tangent is factorised again
+    /// (0: factorise at every Newton iteration, exact Newton).
+    pub pcg_max_iterations: usize,
 }
 
 impl Default for SolverSettings {
     fn default() -> Self {
-        Self { steps: 20, rel_tol: 1e-8, max_newton: 25, max_cuts: 8 }
+        Self { steps: 20, rel_tol: 1e-8, max_newton: 25, max_cuts: 8, forcing: 1e-2, pcg_max_iterations: 30 }
     }
 }
 
@@ -63,6 +75,11 @@ pub struct Timings {
     pub factorization_s: f64,
     /// Triangular solves.
     pub solve_s: f64,
+    /// Conjugate-gradient iterations preconditioned by a reused factor (each one a tangent product
+    /// and a pair of triangular solves).
+    pub pcg_iterations: usize,
+    /// Numeric factorisations (the rest of the Newton directions came from the reused factor).
+    pub factorizations: usize,
     /// Newton iterations in total.
     pub newton_iterations: usize,
 }
@@ -167,8 +184,9 @@ impl FreeSystem {
         self.src.iter().map(|&s| blocks[s]).collect()
     }
 
-    /// Solve K x = rhs; a diagonal shift grows until the Cholesky succeeds when K is not positive definite.
-    fn solve(&self, vals: &mut [f64], rhs: &mut [f64], timings: &mut Timings) -> Result<bool> {
+    /// Cholesky factor of K; a diagonal shift grows until it succeeds when K is not positive
+    /// definite. Returns the factor and whether a shift was needed.
+    fn factor(&self, vals: &mut [f64], timings: &mut Timings) -> Result<(Llt<usize, f64>, bool)> {
         let mut shift = 0.0;
         let dmax = self.diag.iter().map(|&d| vals[d].abs()).fold(0.0, f64::max).max(1e-300);
         let base: Vec<f64> = self.diag.iter().map(|&d| vals[d]).collect();
@@ -183,11 +201,9 @@ impl FreeSystem {
             let mat = SparseColMatRef::new(self.symbolic.as_ref(), &*vals);
             let llt = Llt::try_new_with_symbolic(self.llt_symbolic.clone(), mat, Side::Upper);
             timings.factorization_s += t0.elapsed().as_secs_f64();
+            timings.factorizations += 1;
             if let Ok(llt) = llt {
-                let t1 = Instant::now();
-                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
-                timings.solve_s += t1.elapsed().as_secs_f64();
-                return Ok(attempt > 0);
+                return Ok((llt, attempt > 0));
             }
             if shift > 1e3 * dmax {
                 break;
@@ -195,6 +211,120 @@ impl FreeSystem {
         }
         Err(FemError::Solver("the tangent stays singular even with a large diagonal shift".into()))
     }
+
+    /// y = K x for the symmetric K stored as its upper triangle.
+    fn product(&self, vals: &[f64], x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        let cp = self.symbolic.col_ptr();
+        let ri = self.symbolic.row_idx();
+        for j in 0..self.n {
+            let xj = x[j];
+            let mut acc = 0.0;
+            for k in cp[j]..cp[j + 1] {
+                let i = ri[k];
+                let v = vals[k];
+                if i == j {
+                    acc += v * xj;
+                } else {
+                    y[i] += v * xj;
+                    acc += v * x[i];
+                }
+            }
+            y[j] += acc;
+        }
+    }
+
+    /// Solve K x = rhs to ‖K x − rhs‖ ≤ max(`forcing` ‖rhs‖, `abs_tol`): conjugate gradients
+    /// preconditioned by the factor in `reuse` when there is one; otherwise, or when that fails, a
+    /// fresh factorisation, which is kept in `reuse` when it needed no shift. Returns whether a shift
+    /// was needed.
+    fn solve_reusing(
+        &self,
+        vals: &mut [f64],
+        rhs: &mut [f64],
+        abs_tol: f64,
+        (forcing, max_iterations): (f64, usize),
+        reuse: &mut Option<Llt<usize, f64>>,
+        timings: &mut Timings,
+    ) -> Result<bool> {
+        if let (Some(m), true) = (reuse.as_ref(), max_iterations > 0) {
+            let t0 = Instant::now();
+            let target = (forcing * norm(rhs)).max(abs_tol);
+            let before = timings.pcg_iterations;
+            let out = self.pcg(vals, rhs, m, target, max_iterations, timings);
+            timings.solve_s += t0.elapsed().as_secs_f64();
+            if let Some(x) = out {
+                rhs.copy_from_slice(&x);
+                // a slow solve means the tangent has drifted from the factor: refresh it next time
+                if timings.pcg_iterations - before > max_iterations / 3 {
+                    *reuse = None;
+                }
+                return Ok(false);
+            }
+        }
+        let (llt, shifted) = self.factor(vals, timings)?;
+        let t1 = Instant::now();
+        llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+        timings.solve_s += t1.elapsed().as_secs_f64();
+        *reuse = if shifted { None } else { Some(llt) };
+        Ok(shifted)
+    }
+
+    /// Preconditioned conjugate gradients from x = 0; `None` when it meets non-positive curvature or
+    /// has not reached `target` after `max_iterations`.
+    fn pcg(
+        &self,
+        vals: &[f64],
+        b: &[f64],
+        m: &Llt<usize, f64>,
+        target: f64,
+        max_iterations: usize,
+        timings: &mut Timings,
+    ) -> Option<Vec<f64>> {
+        let n = self.n;
+        let mut x = vec![0.0; n];
+        let mut r = b.to_vec();
+        if norm(&r) <= target {
+            return Some(x);
+        }
+        let precondition = |r: &[f64]| {
+            let mut z = r.to_vec();
+            m.solve_in_place(MatMut::from_column_major_slice_mut(&mut z, n, 1));
+            z
+        };
+        let mut z = precondition(&r);
+        let mut p = z.clone();
+        let mut rz = dot(&r, &z);
+        let mut q = vec![0.0; n];
+        for _ in 0..max_iterations {
+            timings.pcg_iterations += 1;
+            self.product(vals, &p, &mut q);
+            let pq = dot(&p, &q);
+            if !(pq > 0.0) || !(rz > 0.0) {
+                return None;
+            }
+            let alpha = rz / pq;
+            for i in 0..n {
+                x[i] += alpha * p[i];
+                r[i] -= alpha * q[i];
+            }
+            if norm(&r) <= target {
+                return Some(x);
+            }
+            z = precondition(&r);
+            let rz_new = dot(&r, &z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for i in 0..n {
+                p[i] = z[i] + beta * p[i];
+            }
+        }
+        None
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 enum StepFail {
@@ -224,9 +354,10 @@ pub fn solve(p: &SolidProblem, settings: &SolverSettings) -> Result<Solution> {
     let mut dt = dt0;
     let mut cuts = 0;
     let mut step_idx = 1;
+    let mut reuse: Option<Llt<usize, f64>> = None;
     while t < 1.0 - 1e-12 {
         let t_new = if t + dt > 1.0 - 1e-12 { 1.0 } else { t + dt };
-        match newton_step(p, &sys, &u, t, t_new, settings, &mut timings) {
+        match newton_step(p, &sys, &u, t, t_new, settings, &mut reuse, &mut timings) {
             Ok((u_new, mut rep)) => {
                 u = u_new;
                 t = t_new;
@@ -301,6 +432,7 @@ fn newton_step(
     t0: f64,
     t1: f64,
     settings: &SolverSettings,
+    reuse: &mut Option<Llt<usize, f64>>,
     timings: &mut Timings,
 ) -> StepOut {
     let nn = p.mesh.n_nodes();
@@ -344,7 +476,8 @@ fn newton_step(
             }
         }
         let mut vals = sys.values(blocks);
-        if sys.solve(&mut vals, &mut rhs, timings).is_err() {
+        let tol = 0.1 * settings.rel_tol * load_norm;
+        if sys.solve_reusing(&mut vals, &mut rhs, tol, (settings.forcing, settings.pcg_max_iterations), reuse, timings).is_err() {
             return Err(StepFail::NoConvergence);
         }
         for (i, &f) in sys.free_of_node.iter().enumerate() {
@@ -383,7 +516,7 @@ fn newton_step(
         let mut vals = sys.values(a.blocks.as_ref().expect("tangent asked"));
         // d = −K⁻¹ r
         let mut d: Vec<f64> = r.iter().map(|x| -x).collect();
-        match sys.solve(&mut vals, &mut d, timings) {
+        match sys.solve_reusing(&mut vals, &mut d, 0.1 * tol, (settings.forcing, settings.pcg_max_iterations), reuse, timings) {
             Ok(shifted) => rep.shifted_iterations += usize::from(shifted),
             Err(_) => return Err(StepFail::NoConvergence),
         }
@@ -470,7 +603,9 @@ mod tests {
         let rhs: Vec<f64> = (0..sys.n).map(|i| (i as f64 * 0.7).sin()).collect();
         let mut x = rhs.clone();
         let mut t = Timings::default();
-        assert!(!sys.solve(&mut vals.clone(), &mut x, &mut t).unwrap(), "SPD: no shift");
+        let mut reuse = None;
+        assert!(!sys.solve_reusing(&mut vals.clone(), &mut x, 0.0, (1e-4, 30), &mut reuse, &mut t).unwrap(), "SPD: no shift");
+        assert!(reuse.is_some(), "an unshifted factor is kept for reuse");
         // K_ff x = rhs with the dense tangent restricted to the free DOFs.
         let free: Vec<usize> = (0..p.mesh.n_nodes())
             .filter(|&i| !p.is_prescribed(i))
@@ -488,7 +623,30 @@ mod tests {
             neg[d] -= 2.0 * dmax;
         }
         let mut y = rhs.clone();
-        assert!(sys.solve(&mut neg, &mut y, &mut t).unwrap(), "indefinite: shifted");
+        let mut none = None;
+        assert!(sys.solve_reusing(&mut neg, &mut y, 0.0, (1e-4, 30), &mut none, &mut t).unwrap(), "indefinite: shifted");
+        assert!(none.is_none(), "a shifted factor is not kept");
         assert!(rhs.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>() > 0.0);
+        // Reuse: the factor of K preconditions conjugate gradients on another SPD tangent
+        // K' = K + 0.3 diag(K); the residual meets the forcing term without a new factorisation.
+        let mut other = vals.clone();
+        for &d in &sys.diag {
+            other[d] *= 1.3;
+        }
+        let f0 = t.factorizations;
+        let mut z = rhs.clone();
+        assert!(!sys.solve_reusing(&mut other.clone(), &mut z, 0.0, (1e-4, 30), &mut reuse, &mut t).unwrap());
+        assert_eq!(t.factorizations, f0, "no new factorisation");
+        assert!(t.pcg_iterations > 0);
+        let mut kz = vec![0.0; sys.n];
+        sys.product(&other, &z, &mut kz);
+        let res: f64 = kz.iter().zip(&rhs).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+        assert!(res <= 1e-4 * norm(&rhs) * (1.0 + 1e-12), "PCG residual {res}");
+        // the symmetric product equals the dense tangent's
+        let mut kx = vec![0.0; sys.n];
+        sys.product(&vals, &x, &mut kx);
+        for (a, b) in kx.iter().zip(&rhs) {
+            assert!((a - b).abs() < 1e-9 * (1.0 + b.abs()));
+        }
     }
 }

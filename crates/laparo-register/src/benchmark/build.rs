@@ -70,6 +70,19 @@ pub struct GroundTruthReport {
     pub max_relative_residual: f64,
     /// Wall time of all solves (s).
     pub seconds: f64,
+    /// Accepted solve: numeric Cholesky factorisations and their time (s).
+    #[serde(default)]
+    pub factorizations: usize,
+    #[serde(default)]
+    pub factorization_s: f64,
+    /// Accepted solve: conjugate-gradient iterations on a reused factor, and all triangular solves (s).
+    #[serde(default)]
+    pub pcg_iterations: usize,
+    #[serde(default)]
+    pub solve_s: f64,
+    /// Accepted solve: element evaluation and assembly (s).
+    #[serde(default)]
+    pub assembly_s: f64,
 }
 
 /// Largest distance between the deformed copies of each duplicated crack node (mm).
@@ -198,6 +211,11 @@ pub fn fem_ground_truth(
             .filter_map(|s| s.residual_history.last().map(|r| r / s.tolerance * cfg.rel_tol))
             .fold(0.0, f64::max),
         seconds: t0.elapsed().as_secs_f64(),
+        factorizations: sol.timings.factorizations,
+        factorization_s: sol.timings.factorization_s,
+        pcg_iterations: sol.timings.pcg_iterations,
+        solve_s: sol.timings.solve_s,
+        assembly_s: sol.timings.assembly_s,
     };
     Ok((u, report))
 }

@@ -201,7 +201,7 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
     let t = &sol.timings;
     println!(
         "{}: {} TET10 nodes, {} free DOFs, {} increments, {} Newton iterations, max |u| {:.4} mm, min J {:.4}; \
-         {:.2} s (assembly {:.2} s, factorisation {:.2} s) -> {}",
+         {:.2} s (assembly {:.2} s, {} factorisations {:.2} s, {} reused-factor CG iterations, solves {:.2} s) -> {}",
         a.mesh.display(),
         problem.mesh.n_nodes(),
         sol.free_dofs,
@@ -211,7 +211,10 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
         sol.min_j,
         t.total_s,
         t.assembly_s,
+        t.factorizations,
         t.factorization_s,
+        t.pcg_iterations,
+        t.solve_s,
         a.out.display()
     );
     Ok(())
