@@ -9,7 +9,7 @@ Input: a JSON file written by `laparo-bench geo --peer-python ...`:
 Output (stdout): JSON with "opencv", "n_inliers", "dy_raw", "dy_rectified" (median/p95/max of
 |dy|), "max_corner_shift_px", "ms_fit_min", "ms_fit_median", "ms_fit_warp_min" (F + rectify +
 warpPerspective of two RGB images of the given size).
-With "e2e": [{"name", "left", "right"[, "eval_left", "eval_right"]}] also an end-to-end timing from
+With "e2e": [{"name", "left", "right"[, "eval_left", "eval_right", "orb_features", "orb_levels"]}] also an end-to-end timing from
 the image files (ORB + BFMatcher + the above + warps), output under "e2e".
 Needs numpy and opencv-python-headless; not a test dependency.
 """
@@ -80,7 +80,7 @@ def e2e(e, thr, runs):
     laparo's matcher) + findFundamentalMat + stereoRectifyUncalibrated + warps; min / median ms."""
     left, right = cv2.imread(e["left"], cv2.IMREAD_COLOR), cv2.imread(e["right"], cv2.IMREAD_COLOR)
     h, w = left.shape[:2]
-    orb = cv2.ORB_create(nfeatures=4000)
+    orb = cv2.ORB_create(nfeatures=e.get("orb_features", 4000), nlevels=e.get("orb_levels", 8))
     bf = cv2.BFMatcher(cv2.NORM_HAMMING)
 
     def matches():
