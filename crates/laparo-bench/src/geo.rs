@@ -269,11 +269,14 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
                 let t_warp = time_min_median(runs, || {
                     rect.rectify_images(l, r).expect("same size");
                 });
+                let cpu0 = proc_cpu_ms();
                 let t_total = time_min_median(runs, || {
                     let (ml, mr) = matches(l, r).expect("matches");
                     let rect = self_rectify(&ml, &mr, size, &o).expect("fits");
                     rect.rectify_images(l, r).expect("same size");
                 });
+                // process CPU time (user + system, all threads) per pair over the warm-up + timed calls
+                v["cpu_ms_total_per_pair"] = serde_json::json!((proc_cpu_ms() - cpu0) / (runs + 1) as f64);
                 v["route"] = serde_json::to_value(route)?;
                 v["n_keypoints"] = serde_json::json!([ff.left.len(), ff.right.len()]);
                 v["n_matches_unrefined"] = serde_json::json!(coarse.0.len());
@@ -355,14 +358,28 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
         let f = &out["end_to_end"][name]["fast"];
         let ms = |k: &str| f[format!("ms_{k}_min")].as_f64().unwrap_or(f64::NAN);
         let peer = out["opencv"]["e2e"][name]["ms_total_min"].as_f64();
+        let cpu = |v: &serde_json::Value| v["cpu_ms_total_per_pair"].as_f64().unwrap_or(f64::NAN);
+        let peer_cpu = cpu(&out["opencv"]["e2e"][name]);
         eprintln!(
             "self-rectify {name} 1280x1024, {} threads, fast: TOTAL {:.1} ms min ({:.1} median) = detect {:.1} + match {:.1} + refine {:.1} + fit {:.1} + warps {:.1} (part mins){}",
             a.threads, ms("total"), f["ms_total_median"].as_f64().unwrap_or(f64::NAN), ms("detect"), ms("match"), ms("refine"), ms("fit"), ms("warps"),
             peer.map(|p| format!("; OpenCV {p:.1} ms, ratio {:.2}", ms("total") / p)).unwrap_or_default()
         );
+        eprintln!("  CPU time per pair (user + sys, all threads): laparo {:.1} ms, OpenCV {peer_cpu:.1} ms", cpu(f));
     }
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
+}
+
+/// User + system CPU time of this process so far, ms (/proc/self/stat, 100 ticks per second;
+/// NaN where unavailable).
+fn proc_cpu_ms() -> f64 {
+    let Ok(st) = std::fs::read_to_string("/proc/self/stat") else { return f64::NAN };
+    // fields after the parenthesised command name: state is field 3, utime 14, stime 15
+    let Some(rest) = st.rsplit_once(')').map(|(_, r)| r) else { return f64::NAN };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(f64::NAN);
+    (tick(11) + tick(12)) * 10.0
 }
 
 fn dy_eval_raw(pl: &[[f64; 2]], pr: &[[f64; 2]]) -> DyStats {

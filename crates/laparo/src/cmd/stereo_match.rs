@@ -45,7 +45,7 @@ pub struct MatchArgs {
     #[arg(long, conflicts_with = "calib")]
     pub self_rectify: bool,
     /// With --self-rectify: the keypoint matcher, `fast` (ORB + guided matching + sub-pixel
-    /// refinement, ≈ 0.1 s per 1280×1024 pair; default) or `sift` (SIFT, seconds per pair).
+    /// refinement; default, a fraction of a second per 1280×1024 pair) or `sift` (seconds per pair).
     #[arg(long, default_value = "fast", requires = "self_rectify")]
     pub self_rectify_features: String,
     /// `default` (4 paths) or `accurate` (8 paths).
