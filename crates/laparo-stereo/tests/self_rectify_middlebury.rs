@@ -326,7 +326,7 @@ fn self_rectified_epe_against_the_unperturbed_pair() {
 
 /// The acceptance line itself (fails today, see above): `cargo test -- --ignored`.
 #[test]
-#[ignore = "issue 14 EPE-within-15 % line not met yet (BENCHMARKS.md, Issue 14)"]
+#[ignore = "issue 14 EPE-within-15 % line not met yet (BENCHMARKS.md, self-rectification update 2026-12-03 14:40)"]
 fn self_rectified_epe_within_15_percent_acceptance() {
     let Some((e0, rows)) = epe_rows() else { return };
     for (label, e) in rows {
