@@ -9,7 +9,7 @@ Input: a JSON file written by `laparo-bench geo --peer-python ...`:
 Output (stdout): JSON with "opencv", "n_inliers", "dy_raw", "dy_rectified" (median/p95/max of
 |dy|), "max_corner_shift_px", "ms_fit_min", "ms_fit_median", "ms_fit_warp_min" (F + rectify +
 warpPerspective of two RGB images of the given size).
-With "e2e": [{"name", "left", "right"[, "eval_left", "eval_right"]}] also an end-to-end timing from
+With "e2e": [{"name", "left", "right"[, "eval_left", "eval_right", "orb_features", "orb_levels"]}] also an end-to-end timing from
 the image files (ORB + BFMatcher + the above + warps), output under "e2e".
 Needs numpy and opencv-python-headless; not a test dependency.
 """
@@ -80,7 +80,7 @@ def e2e(e, thr, runs):
     laparo's matcher) + findFundamentalMat + stereoRectifyUncalibrated + warps; min / median ms."""
     left, right = cv2.imread(e["left"], cv2.IMREAD_COLOR), cv2.imread(e["right"], cv2.IMREAD_COLOR)
     h, w = left.shape[:2]
-    orb = cv2.ORB_create(nfeatures=4000)
+    orb = cv2.ORB_create(nfeatures=e.get("orb_features", 4000), nlevels=e.get("orb_levels", 8))
     bf = cv2.BFMatcher(cv2.NORM_HAMMING)
 
     def matches():
@@ -101,6 +101,7 @@ def e2e(e, thr, runs):
         return inl, ok, h1, h2
 
     tm, tf, tw = [], [], []
+    cpu0 = time.process_time()
     for _ in range(max(runs, 5)):
         t = time.perf_counter()
         pl, pr = matches()
@@ -112,12 +113,14 @@ def e2e(e, thr, runs):
         cv2.warpPerspective(left, h1, (w, h), flags=cv2.INTER_LINEAR)
         cv2.warpPerspective(right, h2, (w, h), flags=cv2.INTER_LINEAR)
         tw.append(1e3 * (time.perf_counter() - t))
+    cpu_per_pair = 1e3 * (time.process_time() - cpu0) / max(runs, 5)
     tot = [a + b + c for a, b, c in zip(tm, tf, tw)]
     o = {"n_matches": int(len(pl)), "n_inliers": int(inl.sum()), "ok": bool(ok),
          "ms_matches_min": float(min(tm)), "ms_matches_median": float(np.median(tm)),
          "ms_fit_min": float(min(tf)), "ms_warps_min": float(min(tw)),
          "ms_matches_fit_min": float(min(a + b for a, b in zip(tm, tf))),
-         "ms_total_min": float(min(tot)), "ms_total_median": float(np.median(tot))}
+         "ms_total_min": float(min(tot)), "ms_total_median": float(np.median(tot)),
+         "cpu_ms_total_per_pair": float(cpu_per_pair)}
     if ok and "eval_left" in e:
         el, er = np.array(e["eval_left"], float), np.array(e["eval_right"], float)
         o["exact_dy_rectified"] = stats(apply_h(h2, er)[:, 1] - apply_h(h1, el)[:, 1])

@@ -20,7 +20,8 @@ use laparo_core::{io, Image, Intrinsics};
 use laparo_features::ransac::{find_fundamental, find_homography, RansacParams};
 use laparo_stereo::augment::{augment_stereo, GtRule, StereoSample};
 use laparo_stereo::self_rectify::{
-    exact_correspondences, feature_matches, perturbation, self_rectify, DyStats, FeatureKind, SelfRectifyOptions,
+    exact_correspondences, fast_detect, fast_match_stage, fast_matches_with, fast_refine, feature_matches,
+    perturbation, self_rectify, DyStats, FastParams, FeatureKind, SelfRectifyOptions,
 };
 use nalgebra::{Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -55,6 +56,18 @@ pub struct BenchArgs {
     /// Timed runs of the SIFT matcher end to end (seconds per pair; 0 = skip it).
     #[arg(long, default_value_t = 1)]
     pub sift_runs: usize,
+    /// ORB keypoints per image of the fast matcher (default: `FastParams::default()`).
+    #[arg(long)]
+    pub orb_features: Option<usize>,
+    /// ORB pyramid levels of the fast matcher (default: `FastParams::default()`).
+    #[arg(long)]
+    pub orb_levels: Option<usize>,
+}
+
+/// The fast matcher's parameters with the `--orb-*` overrides.
+fn fast_params(a: &BenchArgs) -> FastParams {
+    let d = FastParams::default();
+    FastParams { n_features: a.orb_features.unwrap_or(d.n_features), n_levels: a.orb_levels.unwrap_or(d.n_levels), ..d }
 }
 
 fn synthetic_h() -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
@@ -227,23 +240,77 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
                 continue;
             }
             let o = SelfRectifyOptions { features: kind, ..SelfRectifyOptions::default() };
-            let (ml, mr) = feature_matches(l, r, kind)?;
-            let rect =
-                self_rectify(&ml, &mr, (l.width, l.height), &o).with_context(|| format!("{name}: self-rectify"))?;
-            let (mmin, mmed) = time_min_median(runs, || {
-                feature_matches(l, r, kind).expect("matches");
-            });
-            let (fmin, fmed) = time_min_median(runs, || {
-                self_rectify(&ml, &mr, (l.width, l.height), &o).expect("fits");
-            });
-            let (wmin, wmed) = time_min_median(runs, || {
-                rect.rectify_images(l, r).expect("same size");
-            });
+            let size = (l.width, l.height);
+            let matches = |l: &Image<u8>, r: &Image<u8>| match kind {
+                FeatureKind::Fast => fast_matches_with(l, r, &fast_params(a)).map(|(m, _)| m),
+                FeatureKind::Sift => feature_matches(l, r, kind),
+            };
+            let (ml, mr) = matches(l, r)?;
+            let rect = self_rectify(&ml, &mr, size, &o).with_context(|| format!("{name}: self-rectify"))?;
             let mut v = serde_json::json!({"n_matches": ml.len(), "n_inliers": rect.n_inliers,
-                "inlier_dy_rectified": rect.dy_rectified, "focal_px": rect.focal_px,
-                "ms_matches_min": mmin, "ms_matches_median": mmed, "ms_fit_min": fmin, "ms_fit_median": fmed,
-                "ms_warps_min": wmin, "ms_warps_median": wmed,
-                "ms_matches_fit_min": mmin + fmin, "ms_total_min": mmin + fmin + wmin, "ms_total_median": mmed + fmed + wmed});
+                "inlier_dy_rectified": rect.dy_rectified, "focal_px": rect.focal_px});
+            if kind == FeatureKind::Fast {
+                // each stage on its own, then the whole chain images → warped pair in one timed call
+                let fp = fast_params(a);
+                let ff = fast_detect(l, r, &fp)?;
+                let (coarse, route) = fast_match_stage(&ff, &fp)?;
+                let t_det = time_min_median(runs, || {
+                    fast_detect(l, r, &fp).expect("ORB");
+                });
+                let t_match = time_min_median(runs, || {
+                    fast_match_stage(&ff, &fp).expect("matching");
+                });
+                let t_ref = time_min_median(runs, || {
+                    fast_refine(&ff, &coarse).expect("refinement");
+                });
+                let t_fit = time_min_median(runs, || {
+                    self_rectify(&ml, &mr, size, &o).expect("fits");
+                });
+                let t_warp = time_min_median(runs, || {
+                    rect.rectify_images(l, r).expect("same size");
+                });
+                let cpu0 = proc_cpu_ms();
+                let t_total = time_min_median(runs, || {
+                    let (ml, mr) = matches(l, r).expect("matches");
+                    let rect = self_rectify(&ml, &mr, size, &o).expect("fits");
+                    rect.rectify_images(l, r).expect("same size");
+                });
+                // process CPU time (user + system, all threads) per pair over the warm-up + timed calls
+                v["cpu_ms_total_per_pair"] = serde_json::json!((proc_cpu_ms() - cpu0) / (runs + 1) as f64);
+                v["route"] = serde_json::to_value(route)?;
+                v["n_keypoints"] = serde_json::json!([ff.left.len(), ff.right.len()]);
+                v["n_matches_unrefined"] = serde_json::json!(coarse.0.len());
+                for (k, t) in [
+                    ("detect", t_det),
+                    ("match", t_match),
+                    ("refine", t_ref),
+                    ("fit", t_fit),
+                    ("warps", t_warp),
+                    ("total", t_total),
+                ] {
+                    v[format!("ms_{k}_min")] = serde_json::json!(t.0);
+                    v[format!("ms_{k}_median")] = serde_json::json!(t.1);
+                }
+                v["ms_matches_min"] = serde_json::json!(t_det.0 + t_match.0 + t_ref.0);
+                v["ms_matches_fit_min"] = serde_json::json!(t_det.0 + t_match.0 + t_ref.0 + t_fit.0);
+            } else {
+                let (mmin, mmed) = time_min_median(runs, || {
+                    feature_matches(l, r, kind).expect("matches");
+                });
+                let (fmin, fmed) = time_min_median(runs, || {
+                    self_rectify(&ml, &mr, size, &o).expect("fits");
+                });
+                let (wmin, wmed) = time_min_median(runs, || {
+                    rect.rectify_images(l, r).expect("same size");
+                });
+                for (k, t) in [("matches", (mmin, mmed)), ("fit", (fmin, fmed)), ("warps", (wmin, wmed))] {
+                    v[format!("ms_{k}_min")] = serde_json::json!(t.0);
+                    v[format!("ms_{k}_median")] = serde_json::json!(t.1);
+                }
+                v["ms_matches_fit_min"] = serde_json::json!(mmin + fmin);
+                v["ms_total_min"] = serde_json::json!(mmin + fmin + wmin);
+                v["ms_total_median"] = serde_json::json!(mmed + fmed + wmed);
+            }
             if let Some((el, er)) = exact {
                 v["exact_dy_rectified"] = serde_json::to_value(dy_eval_pts(&rect, el, er)?)?;
             }
@@ -253,12 +320,14 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
     }
     out["end_to_end"] = serde_json::Value::Object(e2e);
     if let Some(py) = &a.peer_python {
+        let fp = fast_params(a);
         let tmp = std::env::temp_dir().join(format!("laparo_geo_peer_{}.json", std::process::id()));
         let inp = serde_json::json!({"width": 1280, "height": 1024, "fit_left": ml, "fit_right": mr,
             "eval_left": pl, "eval_right": pr, "threshold_px": opts.ransac.threshold_px, "runs": a.runs, "threads": a.threads,
-            "e2e": [{"name": "scared_ds1-3", "left": sd.join("Left_Image.png"), "right": sd.join("Right_Image.png")},
+            "e2e": [{"name": "scared_ds1-3", "left": sd.join("Left_Image.png"), "right": sd.join("Right_Image.png"),
+                     "orb_features": fp.n_features, "orb_levels": fp.n_levels},
                     {"name": "motorcycle_cats_1280x1024", "left": tmpdir.join("moto_left.png"), "right": tmpdir.join("moto_right.png"),
-                     "eval_left": pl, "eval_right": pr}]});
+                     "eval_left": pl, "eval_right": pr, "orb_features": fp.n_features, "orb_levels": fp.n_levels}]});
         laparo_core::atomic::write_atomic(&tmp, serde_json::to_string(&inp)?.as_bytes())?;
         let o = std::process::Command::new(py)
             .arg(&a.peer_script)
@@ -284,8 +353,33 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
         }
     }
     let _ = std::fs::remove_dir_all(&tmpdir);
+    // one line per pair (stderr; the JSON on stdout stays parseable)
+    for name in ["scared_ds1-3", "motorcycle_cats_1280x1024"] {
+        let f = &out["end_to_end"][name]["fast"];
+        let ms = |k: &str| f[format!("ms_{k}_min")].as_f64().unwrap_or(f64::NAN);
+        let peer = out["opencv"]["e2e"][name]["ms_total_min"].as_f64();
+        let cpu = |v: &serde_json::Value| v["cpu_ms_total_per_pair"].as_f64().unwrap_or(f64::NAN);
+        let peer_cpu = cpu(&out["opencv"]["e2e"][name]);
+        eprintln!(
+            "self-rectify {name} 1280x1024, {} threads, fast: TOTAL {:.1} ms min ({:.1} median) = detect {:.1} + match {:.1} + refine {:.1} + fit {:.1} + warps {:.1} (part mins){}",
+            a.threads, ms("total"), f["ms_total_median"].as_f64().unwrap_or(f64::NAN), ms("detect"), ms("match"), ms("refine"), ms("fit"), ms("warps"),
+            peer.map(|p| format!("; OpenCV {p:.1} ms, ratio {:.2}", ms("total") / p)).unwrap_or_default()
+        );
+        eprintln!("  CPU time per pair (user + sys, all threads): laparo {:.1} ms, OpenCV {peer_cpu:.1} ms", cpu(f));
+    }
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
+}
+
+/// User + system CPU time of this process so far, ms (/proc/self/stat, 100 ticks per second;
+/// NaN where unavailable).
+fn proc_cpu_ms() -> f64 {
+    let Ok(st) = std::fs::read_to_string("/proc/self/stat") else { return f64::NAN };
+    // fields after the parenthesised command name: state is field 3, utime 14, stime 15
+    let Some(rest) = st.rsplit_once(')').map(|(_, r)| r) else { return f64::NAN };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(f64::NAN);
+    (tick(11) + tick(12)) * 10.0
 }
 
 fn dy_eval_raw(pl: &[[f64; 2]], pr: &[[f64; 2]]) -> DyStats {

@@ -36,6 +36,7 @@ pub mod detect;
 pub mod draw;
 pub mod error;
 pub mod gt;
+pub mod guided;
 pub mod keypoint;
 pub mod matching;
 pub mod ransac;

@@ -22,7 +22,7 @@ pub struct Knn2 {
 }
 
 /// Binary descriptors repacked into little-endian u64 words.
-fn pack_u64(bytes: usize, data: &[u8]) -> (usize, Vec<u64>) {
+pub(crate) fn pack_u64(bytes: usize, data: &[u8]) -> (usize, Vec<u64>) {
     let words = bytes.div_ceil(8);
     let n = data.len() / bytes;
     let mut out = vec![0u64; n * words];
@@ -37,6 +37,22 @@ fn pack_u64(bytes: usize, data: &[u8]) -> (usize, Vec<u64>) {
 #[inline(always)]
 fn hamming_generic(a: &[u64], b: &[u64]) -> u32 {
     a.iter().zip(b).map(|(x, y)| (x ^ y).count_ones()).sum()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "popcnt")]
+unsafe fn hamming_popcnt(a: &[u64], b: &[u64]) -> u32 {
+    hamming_generic(a, b)
+}
+
+/// Hamming distance of two packed descriptors (hardware popcnt when present; same count).
+pub(crate) fn hamming_words(a: &[u64], b: &[u64]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("popcnt") {
+        // SAFETY: the CPU supports popcnt (checked just above).
+        return unsafe { hamming_popcnt(a, b) };
+    }
+    hamming_generic(a, b)
 }
 
 #[inline(always)]
@@ -90,6 +106,11 @@ fn l2_sq_generic(a: &[f32], b: &[f32]) -> f32 {
     let mut s: f32 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| (x - y) * (x - y)).sum();
     s += ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
     s
+}
+
+/// Squared L2 distance of two float descriptors (the portable sum order of the brute-force path).
+pub(crate) fn l2_sq(a: &[f32], b: &[f32]) -> f32 {
+    l2_sq_generic(a, b)
 }
 
 #[inline(always)]

@@ -50,8 +50,8 @@ pub enum RectifyMethod {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FeatureKind {
-    /// [`fast_matches`]: ORB (FAST + rotated BRIEF, 8 levels) on the full-resolution pair, Hamming
-    /// 2-NN (Lowe 0.8 + mutual), each match refined to sub-pixel by NCC at full resolution.
+    /// [`fast_matches`]: ORB (FAST + rotated BRIEF, 3 levels) on the full-resolution pair, Hamming
+    /// 2-NN (Lowe 0.8 + mutual) guided by a coarse F, each match refined to sub-pixel by NCC.
     Fast,
     /// [`sift_matches`]: SIFT with OpenCV's 2× upsampled first octave, L2 brute force (slow).
     Sift,
@@ -229,7 +229,8 @@ impl SelfRectification {
 
     /// Map a disparity map computed on the rectified pair (indexed by the rectified left pixel,
     /// u_R = u − d; non-finite = invalid) to the raw left frame: for every raw left pixel p the
-    /// rectified disparity at H_L p (nearest sample) gives the raw right point; returns
+    /// rectified disparity at H_L p ([`sample_disparity`]: bilinear inside a smooth 2 × 2 cell,
+    /// nearest across a disparity edge) gives the raw right point; returns
     /// (raw disparity x_L − x_R, raw vertical offset y_R − y_L), +inf / NaN where invalid.
     pub fn disparity_to_raw_left(&self, d_rect: &Image<f32>) -> Result<(Image<f32>, Image<f32>), StereoError> {
         if d_rect.channels != 1 {
@@ -243,10 +244,7 @@ impl SelfRectification {
         d.data.par_chunks_mut(w).zip(dy.data.par_chunks_mut(w)).enumerate().for_each(|(y, (dr, yr))| {
             for x in 0..w {
                 let Some(q) = hp(&hl, x as f64, y as f64) else { continue };
-                let Some(v) = remap::sample_nearest(d_rect, q[0], q[1], 0) else { continue };
-                if !v.is_finite() {
-                    continue;
-                }
+                let Some(v) = sample_disparity(d_rect, q[0], q[1]) else { continue };
                 let Some(r) = hp(&hri, q[0] - v as f64, q[1]) else { continue };
                 dr[x] = (x as f64 - r[0]) as f32;
                 yr[x] = (r[1] - y as f64) as f32;
@@ -276,6 +274,25 @@ impl SelfRectification {
         let r = remap::warp_homography(right, &rows(&ir), w, h, Interp::Bilinear, T::default())?;
         Ok((l, r))
     }
+}
+
+/// A disparity map sampled at (x, y): bilinear when the four surrounding samples are valid and
+/// within 1 px of each other (a smooth surface), otherwise the nearest sample (no blending across
+/// a disparity edge); `None` outside the map or where the chosen sample is invalid.
+pub fn sample_disparity(d: &Image<f32>, x: f64, y: f64) -> Option<f32> {
+    let (x0, y0) = (x.floor(), y.floor());
+    if x0 >= 0.0 && y0 >= 0.0 && x0 + 1.0 < d.width as f64 && y0 + 1.0 < d.height as f64 {
+        let (i, j) = (x0 as usize, y0 as usize);
+        let v = [d.get(i, j, 0), d.get(i + 1, j, 0), d.get(i, j + 1, 0), d.get(i + 1, j + 1, 0)];
+        let (lo, hi) = v.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
+        if v.iter().all(|t| t.is_finite()) && hi - lo <= 1.0 {
+            let (fx, fy) = (x - x0, y - y0);
+            let top = v[0] as f64 * (1.0 - fx) + v[1] as f64 * fx;
+            let bot = v[2] as f64 * (1.0 - fx) + v[3] as f64 * fx;
+            return Some((top * (1.0 - fy) + bot * fy) as f32);
+        }
+    }
+    remap::sample_nearest(d, x, y, 0).filter(|v| v.is_finite())
 }
 
 /// Quasi-Euclidean model parameters: [yL, zL, xR, yR, zR] (rad), δ (px), ln(f / f0).
@@ -689,27 +706,221 @@ pub fn feature_matches(left: &Image<u8>, right: &Image<u8>, kind: FeatureKind) -
     }
 }
 
-/// ORB keypoints (laparo's port of `cv::ORB`, `n_features` 4000, 8 levels × 1.2) of both images,
-/// Hamming 2-NN with Lowe 0.8 + mutual check, then every match refined at full resolution by an
-/// 11 × 11 NCC search (±3 px) with a parabola fit (laparo-features `refine`; peak NCC ≥ 0.8): the
-/// left point becomes its pixel, the right point sub-pixel. ORB positions of coarse pyramid
-/// levels are only pixel-accurate at that level; the refinement restores the sub-pixel
-/// accuracy the rectification fit needs.
-pub fn fast_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
-    fast_matches_with(left, right, 4000)
+/// Options of the fast matcher ([`fast_matches_with`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FastParams {
+    /// ORB keypoints per image (laparo's port of `cv::ORB`).
+    pub n_features: usize,
+    /// ORB pyramid levels (× 1.2): a stereo pair has no scale change, so few levels suffice.
+    pub n_levels: usize,
+    /// Strongest keypoints per image (by ORB response) brute-force matched in the coarse stage.
+    pub coarse_n: usize,
+    /// RANSAC threshold of the coarse F, px (unrefined ORB positions).
+    pub coarse_threshold_px: f64,
+    /// Fewest coarse F-inliers (and at least 30 % of the coarse matches) for the guided stage;
+    /// otherwise every keypoint is brute-force matched.
+    pub min_coarse_inliers: usize,
+    /// Half-width of the epipolar band of the guided stage, px.
+    pub band_px: f64,
+    /// Margin added on both sides of the coarse inliers' x_R − x_L range in the guided stage, px.
+    pub dx_margin_px: f64,
 }
 
-/// [`fast_matches`] with `n_features` ORB keypoints per image.
-pub fn fast_matches_with(left: &Image<u8>, right: &Image<u8>, n_features: usize) -> Result<PointPairs, StereoError> {
-    use laparo_features::detect::to_gray_u8;
+impl Default for FastParams {
+    fn default() -> Self {
+        FastParams {
+            n_features: 4000,
+            n_levels: 3,
+            coarse_n: 600,
+            coarse_threshold_px: 1.0,
+            min_coarse_inliers: 40,
+            band_px: 3.0,
+            dx_margin_px: 16.0,
+        }
+    }
+}
+
+/// ORB features of both grey images (the inputs of [`fast_match_stage`]).
+pub struct FastFeatures {
+    /// Left image, grey.
+    pub left_gray: Image<u8>,
+    /// Right image, grey.
+    pub right_gray: Image<u8>,
+    /// Left ORB keypoints and descriptors.
+    pub left: laparo_features::Features,
+    /// Right ORB keypoints and descriptors.
+    pub right: laparo_features::Features,
+}
+
+/// How [`fast_match_stage`] matched.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MatchRoute {
+    /// Coarse brute force on the strongest keypoints, a coarse F, then matching along its
+    /// epipolar bands.
+    Guided {
+        /// Coarse matches.
+        coarse_matches: usize,
+        /// Coarse F-inliers.
+        coarse_inliers: usize,
+        /// x_R − x_L range searched, px.
+        dx_range_px: [f64; 2],
+    },
+    /// Brute force over all keypoints (the coarse fit failed or was too weak).
+    Full,
+}
+
+fn feat_err(e: laparo_features::FeaturesError) -> StereoError {
+    StereoError::Config(format!("ORB matching: {e}"))
+}
+
+/// Grey u8 of an image, bit-identical to `laparo_features::detect::to_gray_u8` (f32 luma
+/// 0.299 R + 0.587 G + 0.114 B, `f32::round`, i.e. half away from zero); the fixed channel count
+/// and an AVX2 build of the same loop (runtime dispatch) let it vectorise instead of calling libm
+/// `roundf` per pixel.
+pub fn gray_u8(img: &Image<u8>) -> Image<u8> {
+    let mut out = Image::filled(img.width, img.height, 1, 0u8);
+    match img.channels {
+        3 => luma_dispatch::<3>(&img.data, &mut out.data),
+        4 => luma_dispatch::<4>(&img.data, &mut out.data),
+        _ => return laparo_features::detect::to_gray_u8(img),
+    }
+    out
+}
+
+#[inline(always)]
+fn luma<const C: usize>(data: &[u8], out: &mut [u8]) {
+    for (o, p) in out.iter_mut().zip(data.chunks_exact(C)) {
+        let v = 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
+        *o = v.round().clamp(0.0, 255.0) as u8;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn luma_avx2<const C: usize>(data: &[u8], out: &mut [u8]) {
+    luma::<C>(data, out)
+}
+
+fn luma_dispatch<const C: usize>(data: &[u8], out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present (checked just above).
+        return unsafe { luma_avx2::<C>(data, out) };
+    }
+    luma::<C>(data, out)
+}
+
+/// Stage 1 of the fast matcher: grey conversion and ORB (`p.n_features`, `p.n_levels` × 1.2) of
+/// both images, the two images concurrently.
+pub fn fast_detect(left: &Image<u8>, right: &Image<u8>, p: &FastParams) -> Result<FastFeatures, StereoError> {
+    use laparo_features::{detect_and_describe, DetectorConfig, OrbParams};
+    if left.size() != right.size() {
+        return Err(StereoError::SizeMismatch(format!(
+            "left image is {}x{}, right image is {}x{}",
+            left.width, left.height, right.width, right.height
+        )));
+    }
+    let orb = DetectorConfig::Orb(OrbParams { n_features: p.n_features, n_levels: p.n_levels, ..OrbParams::default() });
+    let one = |img: &Image<u8>| {
+        let g = gray_u8(img);
+        let f = detect_and_describe(&g, &orb, None);
+        (g, f)
+    };
+    let ((gl, fl), (gr, fr)) = rayon::join(|| one(left), || one(right));
+    Ok(FastFeatures { left_gray: gl, right_gray: gr, left: fl.map_err(feat_err)?, right: fr.map_err(feat_err)? })
+}
+
+/// The `n` strongest keypoints (ORB response descending, then index): their indices, ascending.
+fn strongest(f: &laparo_features::Features, n: usize) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..f.len()).collect();
+    idx.sort_by(|&a, &b| f.keypoints[b].response.total_cmp(&f.keypoints[a].response).then(a.cmp(&b)));
+    idx.truncate(n);
+    idx.sort_unstable();
+    idx
+}
+
+fn subset(f: &laparo_features::Features, idx: &[usize]) -> laparo_features::Features {
+    laparo_features::Features {
+        keypoints: idx.iter().map(|&i| f.keypoints[i]).collect(),
+        descriptors: f.descriptors.select(idx),
+    }
+}
+
+/// Stage 2 of the fast matcher: Lowe 0.8 + mutual Hamming matching. Coarse: brute force on the
+/// `p.coarse_n` strongest keypoints of each image, refined ([`fast_refine`]), and a RANSAC F on
+/// them (`p.coarse_threshold_px`); if it has ≥ `p.min_coarse_inliers` inliers and ≥ 30 % of the
+/// coarse matches, every keypoint is matched only within `p.band_px` of its epipolar line and
+/// within the inliers' x_R − x_L range ± `p.dx_margin_px` ([`laparo_features::guided`]), otherwise
+/// by brute force over all keypoints ([`MatchRoute::Full`]). Returns unrefined point pairs.
+pub fn fast_match_stage(ff: &FastFeatures, p: &FastParams) -> Result<(PointPairs, MatchRoute), StereoError> {
+    use laparo_features::guided::match_features_guided;
+    use laparo_features::{match_features, MatchConfig};
+    let cfg = MatchConfig::default();
+    let (fl, fr) = (&ff.left, &ff.right);
+    let pairs = |m: &[laparo_features::Match], a: &laparo_features::Features, b: &laparo_features::Features| {
+        m.iter()
+            .map(|m| {
+                let (k, l) = (&a.keypoints[m.i1 as usize], &b.keypoints[m.i2 as usize]);
+                ([k.x, k.y], [l.x, l.y])
+            })
+            .unzip::<_, _, Vec<[f64; 2]>, Vec<[f64; 2]>>()
+    };
+    let (il, ir) = (strongest(fl, p.coarse_n), strongest(fr, p.coarse_n));
+    let (cl, cr) = (subset(fl, &il), subset(fr, &ir));
+    let coarse = match_features(&cl, &cr, &cfg).map_err(feat_err)?;
+    // the coarse matches refined to sub-pixel (as the final ones) so that the coarse F is accurate
+    let (ql, qr) = fast_refine(ff, &pairs(&coarse, &cl, &cr))?;
+    let prm = RansacParams { threshold_px: p.coarse_threshold_px, confidence: 0.999, max_iters: 2000, seed: 0 };
+    let fit = if ql.len() >= p.min_coarse_inliers.max(8) { find_fundamental(&ql, &qr, &prm).ok() } else { None };
+    let m = match fit {
+        Some(fit) if fit.n_inliers >= p.min_coarse_inliers && 10 * fit.n_inliers >= 3 * coarse.len() => {
+            // disparity prior: the coarse inliers' x_R − x_L range widened by `dx_margin_px`
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for (i, (a, b)) in ql.iter().zip(&qr).enumerate() {
+                if fit.inliers[i] {
+                    lo = lo.min(b[0] - a[0]);
+                    hi = hi.max(b[0] - a[0]);
+                }
+            }
+            let dx = [lo - p.dx_margin_px, hi + p.dx_margin_px];
+            let m = match_features_guided(fl, fr, &fit.model, p.band_px, Some(dx), &cfg).map_err(feat_err)?;
+            let route =
+                MatchRoute::Guided { coarse_matches: coarse.len(), coarse_inliers: fit.n_inliers, dx_range_px: dx };
+            return Ok((pairs(&m, fl, fr), route));
+        }
+        _ => match_features(fl, fr, &cfg).map_err(feat_err)?,
+    };
+    Ok((pairs(&m, fl, fr), MatchRoute::Full))
+}
+
+/// Stage 3 of the fast matcher: every match refined at full resolution by an 11 × 11 NCC search
+/// (±3 px) with a parabola fit and Lucas–Kanade steps (laparo-features `refine`; peak NCC ≥ 0.8):
+/// the left point becomes its pixel, the right point sub-pixel. ORB positions of coarse pyramid
+/// levels are only pixel-accurate at that level; this restores the sub-pixel accuracy the
+/// rectification fit needs.
+pub fn fast_refine(ff: &FastFeatures, m: &PointPairs) -> Result<PointPairs, StereoError> {
     use laparo_features::refine::{refine_matches_ncc, RefineParams};
-    use laparo_features::{DetectorConfig, OrbParams};
-    let feat = |e: laparo_features::FeaturesError| StereoError::Config(format!("ORB matching: {e}"));
-    let (gl, gr) = rayon::join(|| to_gray_u8(left), || to_gray_u8(right));
-    let orb = DetectorConfig::Orb(OrbParams { n_features, ..OrbParams::default() });
-    let (pl, pr) = detect_and_match(&gl, &gr, &orb).map_err(feat)?;
-    let refined = refine_matches_ncc(&gl, &gr, &pl, &pr, &RefineParams::default()).map_err(feat)?;
+    let refined =
+        refine_matches_ncc(&ff.left_gray, &ff.right_gray, &m.0, &m.1, &RefineParams::default()).map_err(feat_err)?;
     Ok(refined.into_iter().flatten().map(|r| (r.left, r.right)).unzip())
+}
+
+/// The fast matcher with default [`FastParams`]: [`fast_detect`] → [`fast_match_stage`] →
+/// [`fast_refine`].
+pub fn fast_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
+    fast_matches_with(left, right, &FastParams::default()).map(|(m, _)| m)
+}
+
+/// [`fast_matches`] with explicit parameters; also returns the matching route taken.
+pub fn fast_matches_with(
+    left: &Image<u8>,
+    right: &Image<u8>,
+    p: &FastParams,
+) -> Result<(PointPairs, MatchRoute), StereoError> {
+    let ff = fast_detect(left, right, p)?;
+    let (m, route) = fast_match_stage(&ff, p)?;
+    Ok((fast_refine(&ff, &m)?, route))
 }
 
 /// Median over the inlier matches of how much the self-rectification changes their disparity
@@ -809,4 +1020,31 @@ pub fn match_self_rectified_with(
         right_rectified: r,
         disparity_rectified: o.disparity,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gray_u8_matches_to_gray_u8_and_the_scalar_path() {
+        let mut st = 12345u32;
+        for ch in [3usize, 4] {
+            let data: Vec<u8> = (0..97 * 31 * ch)
+                .map(|_| {
+                    st = st.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    (st >> 24) as u8
+                })
+                .collect();
+            let img = Image::from_vec(97, 31, ch, data).unwrap();
+            let want = laparo_features::detect::to_gray_u8(&img);
+            assert_eq!(gray_u8(&img).data, want.data);
+            let mut scalar = vec![0u8; 97 * 31];
+            match ch {
+                3 => luma::<3>(&img.data, &mut scalar),
+                _ => luma::<4>(&img.data, &mut scalar),
+            }
+            assert_eq!(scalar, want.data);
+        }
+    }
 }

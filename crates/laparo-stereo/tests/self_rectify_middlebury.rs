@@ -218,3 +218,160 @@ fn fast_matches_on_cats_perturbed_middlebury() {
         assert!(st.p95_abs <= 0.5, "pair {k}: p95 |dy| {}", st.p95_abs);
     }
 }
+
+/// Disparity errors against a GT (+inf = unknown): EPE with invalid predictions filled by the row
+/// background (`sgm::fill`, as `tests/sgm.rs` and `sgbm_ref.py`), EPE over the valid predictions,
+/// density (valid / GT pixels) and the median error of the valid predictions, px.
+#[derive(Debug, Clone, Copy)]
+struct Errors {
+    epe_filled: f64,
+    epe_valid: f64,
+    density: f64,
+    median_valid: f64,
+}
+
+fn errors(pred: &laparo_core::Image<f32>, gt: &[f64]) -> Errors {
+    let mut f = pred.data.clone();
+    laparo_stereo::sgm::fill::fill_background(&mut f, pred.width, pred.height);
+    let (mut n, mut e) = (0usize, 0f64);
+    let mut valid = vec![];
+    for i in 0..f.len() {
+        if !gt[i].is_finite() {
+            continue;
+        }
+        n += 1;
+        e += ((if f[i].is_finite() { f[i] as f64 } else { 0.0 }) - gt[i]).abs();
+        if pred.data[i].is_finite() {
+            valid.push((pred.data[i] as f64 - gt[i]).abs());
+        }
+    }
+    let epe_valid = valid.iter().sum::<f64>() / valid.len().max(1) as f64;
+    let density = valid.len() as f64 / n as f64;
+    Errors { epe_filled: e / n as f64, epe_valid, density, median_valid: laparo_core::stats::median(&mut valid) }
+}
+
+/// The default SGM on the rectified Motorcycle pair ([0, 64)) against its GT, then the default
+/// self-rectified pipeline (fast matches → self-rectification → SGM → disparity in the raw left
+/// frame) on a zero CATS perturbation and on two CATS-perturbed raw pairs, against the augmented
+/// exact GT, searched over the GT range widened by 2 px: (unperturbed, [(label, errors)]).
+fn epe_rows() -> Option<(Errors, Vec<(String, Errors)>)> {
+    use laparo_stereo::self_rectify::match_self_rectified;
+    use laparo_stereo::sgm::{match_pair, SgmParams};
+    let d = data_dir()?;
+    let s = motorcycle(&d);
+    let gt0: Vec<f64> = s.disp_left.as_ref().unwrap().data.iter().map(|&v| v as f64).collect();
+    let e0 = errors(&match_pair(&s.left, &s.right, &SgmParams::new(0, 64)).unwrap().disparity, &gt0);
+    let (kl, kr) = cameras();
+    let mut rows = vec![];
+    for (k, p) in [
+        perturbation(kl, kr, [0.0; 3], [0.0; 3], [0.0, 0.0], [0.0, 0.0]),
+        perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]),
+        perturbation(kl, kr, [-0.4, 0.1, -0.3], [0.35, -0.25, 0.2], [-55.0, 45.0], [50.0, -60.0]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
+        let ad = aug.disp_left.as_ref().unwrap();
+        let gt: Vec<f64> = ad
+            .disparity
+            .data
+            .iter()
+            .zip(&ad.valid.data)
+            .map(|(&v, &ok)| if ok && v.is_finite() { v as f64 } else { f64::INFINITY })
+            .collect();
+        let lo = gt.iter().filter(|v| v.is_finite()).fold(f64::INFINITY, |a, &b| a.min(b));
+        let hi = gt.iter().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, |a, &b| a.max(b));
+        let prm = SgmParams::new(lo.floor() as i32 - 2, hi.ceil() as i32 + 3);
+        let m = match_self_rectified(&aug.left.image, &aug.right.image, &prm).unwrap();
+        let e = errors(&m.output.disparity, &gt);
+        let label = format!(
+            "perturbation {k} ({}), raw range [{}, {})",
+            if k == 0 { "zero" } else { "CATS" },
+            prm.d_min,
+            prm.d_max
+        );
+        eprintln!(
+            "{label}: {e:.3?}; EPE ratios filled {:.3} valid {:.3} (unperturbed {e0:.3?}); {} matches, {} inliers",
+            e.epe_filled / e0.epe_filled,
+            e.epe_valid / e0.epe_valid,
+            m.n_matches,
+            m.rectification.n_inliers
+        );
+        rows.push((label, e));
+    }
+    Some((e0, rows))
+}
+
+/// Issue 14's "EPE within 15 % of matching the unperturbed pair", checked with the default (fast)
+/// matcher: NOT met today (2026-12-03: EPE over valid pixels 1.37× on a zero perturbation,
+/// 1.7–1.8× on the CATS pairs; filled 1.7× / 2.6–10.6× as the density drops from 0.89 to
+/// 0.67–0.74 near the borders the perturbation moves out of view). This test guards the measured
+/// level (median error of the valid pixels within 0.05 px of the unperturbed pair's, density
+/// ≥ 0.6, valid EPE ≤ 2× the unperturbed); `..._acceptance` (ignored) asserts the 15 % line.
+#[test]
+fn self_rectified_epe_against_the_unperturbed_pair() {
+    let Some((e0, rows)) = epe_rows() else { return };
+    for (label, e) in rows {
+        assert!(
+            e.median_valid <= e0.median_valid + 0.05,
+            "{label}: median error {} vs {}",
+            e.median_valid,
+            e0.median_valid
+        );
+        assert!(e.density >= 0.6, "{label}: density {}", e.density);
+        assert!(e.epe_valid <= 2.0 * e0.epe_valid, "{label}: valid EPE {} vs {}", e.epe_valid, e0.epe_valid);
+    }
+}
+
+/// The acceptance line itself (fails today, see above): `cargo test -- --ignored`.
+#[test]
+#[ignore = "issue 14 EPE-within-15 % line not met yet (BENCHMARKS.md, self-rectification update 2026-12-03 14:40)"]
+fn self_rectified_epe_within_15_percent_acceptance() {
+    let Some((e0, rows)) = epe_rows() else { return };
+    for (label, e) in rows {
+        assert!(e.epe_filled <= 1.15 * e0.epe_filled, "{label}: EPE {} vs unperturbed {}", e.epe_filled, e0.epe_filled);
+    }
+}
+
+/// The fast matcher (ORB, coarse + guided matching, refinement) and the fit give the same bits
+/// with 1 and 2 threads, and take the guided route on a CATS-perturbed pair.
+#[test]
+fn fast_matches_identical_for_1_and_2_threads() {
+    use laparo_stereo::self_rectify::{fast_matches_with, FastParams, MatchRoute};
+    let Some(d) = data_dir() else { return };
+    let s = motorcycle(&d);
+    let (kl, kr) = cameras();
+    let p = perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]);
+    let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let (m, route) = fast_matches_with(&aug.left.image, &aug.right.image, &FastParams::default()).unwrap();
+            let r = self_rectify(&m.0, &m.1, (741, 500), &SelfRectifyOptions::default()).unwrap();
+            (m, route, r)
+        })
+    };
+    let (m1, r1, s1) = run(1);
+    let (m2, r2, s2) = run(2);
+    assert!(matches!(r1, MatchRoute::Guided { .. }), "{r1:?}");
+    assert_eq!(r1, r2);
+    assert_eq!(m1, m2);
+    assert_eq!(s1, s2);
+    // a coarse fit that cannot qualify falls back to brute force over all keypoints, which finds
+    // a superset-like match set of the same geometry
+    let strict = FastParams { min_coarse_inliers: usize::MAX, ..FastParams::default() };
+    let (mf, rf) = fast_matches_with(&aug.left.image, &aug.right.image, &strict).unwrap();
+    assert_eq!(rf, MatchRoute::Full);
+    let sf = self_rectify(&mf.0, &mf.1, (741, 500), &SelfRectifyOptions::default()).unwrap();
+    eprintln!(
+        "guided: {} matches, {} inliers, |dy| {:.4}; full: {} matches, {} inliers, |dy| {:.4}",
+        m1.0.len(),
+        s1.n_inliers,
+        s1.dy_rectified.median_abs,
+        mf.0.len(),
+        sf.n_inliers,
+        sf.dy_rectified.median_abs
+    );
+    assert!(s1.n_inliers as f64 >= 0.8 * sf.n_inliers as f64, "guided {} vs full {}", s1.n_inliers, sf.n_inliers);
+}
