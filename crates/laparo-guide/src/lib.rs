@@ -9,6 +9,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod deformation;
+pub mod end_to_end;
 mod error;
 pub mod pipeline;
 pub mod render;

@@ -121,3 +121,88 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
     write_atomic(&out.join("report.html"), h.as_bytes())?;
     Ok(())
 }
+
+/// The index of an end-to-end run (`out/index.html`): the ground truth, the time of every step, the
+/// stage errors of each route side by side, the difference in final TRE, and links to each route's
+/// full report.
+pub fn write_index(
+    out: &Path,
+    r: &crate::end_to_end::EndToEndReport,
+    routes: &[(&str, &GuideReport)],
+) -> Result<()> {
+    let mut h = String::new();
+    h.push_str("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>laparo guide: end to end</title><style>body{font-family:sans-serif;max-width:1400px;margin:auto}figure{display:inline-block;margin:4px;width:48%}img{width:100%}table{border-collapse:collapse}td,th{border:1px solid #aaa;padding:3px 8px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
+    h.push_str("<h1>laparo guide — from a stereo pair to the registered liver and its tumour (thesis §5.4.3)</h1>\n");
+    let g = &r.ground_truth;
+    h.push_str(&format!(
+        "<p>Incision: <b>{}</b>; FEM ground truth (TET10 Neo-Hookean, E 4.1 kPa, ν 0.49, calibrated crack pressure): {} nodes / {} tetrahedra at {} mm, lip gap {} mm at {} kPa, max |u| {} mm, min J {}. Total {:.1} s, peak memory {} MiB.</p>\n",
+        esc(&r.config.incision),
+        g["mesh"]["nodes"],
+        g["mesh"]["tets"],
+        r.config.edge_mm,
+        num(&g["report"]["max_gap_mm"]),
+        num(&g["report"]["pressure_kpa"]),
+        num(&g["report"]["max_displacement_mm"]),
+        num(&g["report"]["min_j"]),
+        r.total_seconds,
+        r.peak_memory_mib.map_or("?".into(), |m| format!("{m:.0}"))
+    ));
+    h.push_str("<h2>Steps</h2><table><tr><th>step</th><th>time (s)</th><th>result</th></tr>\n");
+    for s in &r.steps {
+        h.push_str(&format!(
+            "<tr><td>{}</td><td>{:.1}</td><td style=\"text-align:left\">{}</td></tr>\n",
+            esc(&s.name),
+            s.seconds,
+            esc(&s.detail)
+        ));
+    }
+    h.push_str("</table>\n<h2>Stage errors against the ground truth, per stereo route</h2><table><tr><th>error</th>");
+    for (name, _) in routes {
+        h.push_str(&format!("<th><a href=\"{name}/report.html\">{name}</a></th>"));
+    }
+    h.push_str("</tr>\n");
+    let rows = [
+        ("past depth |error| mean (mm)", "depth_error_past_mean_abs_mm"),
+        ("present depth |error| mean (mm)", "depth_error_present_mean_abs_mm"),
+        ("rigid rotation error (°)", "rigid_rotation_error_deg"),
+        ("rigid mean vertex error (mm)", "rigid_mean_vertex_error_mm"),
+        ("TRE, rigid only, mean (mm)", "tre_rigid_only_mean_mm"),
+        ("TRE after RODS-MPM, mean (mm)", "tre_mean_mm"),
+        ("TRE near the incision (mm)", "tre_near_mm"),
+        ("TRE far from it (mm)", "tre_far_mm"),
+        ("tumour centroid error (mm; goal ≤ 3)", "tumour_centroid_error_mm"),
+        ("tumour outline error (px at 1920×1080; goal ≤ 10)", "tumour_outline_error_px_1920"),
+    ];
+    for (label, key) in rows {
+        h.push_str(&format!("<tr><td>{}</td>", esc(label)));
+        for (_, g) in routes {
+            h.push_str(&format!("<td>{}</td>", num(&g.summary[key])));
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("<tr><td>slowest stage</td>");
+    for (_, g) in routes {
+        let s = g.stages.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds));
+        h.push_str(&format!("<td>{}</td>", s.map_or(String::new(), |s| format!("{} ({:.1} s)", esc(&s.name), s.seconds))));
+    }
+    h.push_str("</tr></table>\n");
+    if let Some(d) = r.tre_difference_mm {
+        h.push_str(&format!("<p>Final TRE, self-rectified minus calibrated: <b>{d:+.2} mm</b>.</p>\n"));
+    }
+    h.push_str("<h2>Overlays</h2>");
+    for (name, _) in routes {
+        h.push_str(&format!(
+            "<figure><img src=\"{name}/overlay.png\" alt=\"{name} overlay\"><figcaption>{name}: registered liver (blue) and tumour (yellow); green: true tumour outline. <a href=\"{name}/report.html\">every stage</a></figcaption></figure>"
+        ));
+    }
+    h.push_str("<h2>Scenario</h2>");
+    for (f, cap) in [
+        ("scenario/past_left.png", "past left (before the incision)"),
+        ("scenario/present_left.png", "present left (after the incision, FEM ground truth)"),
+    ] {
+        h.push_str(&format!("<figure><img src=\"{f}\" alt=\"{cap}\"><figcaption>{cap}</figcaption></figure>"));
+    }
+    h.push_str("<p><a href=\"summary.json\">summary.json</a>, <a href=\"ground-truth/ground_truth.json\">ground-truth/ground_truth.json</a></p></body></html>\n");
+    write_atomic(&out.join("index.html"), h.as_bytes())?;
+    Ok(())
+}

@@ -5,6 +5,8 @@
 //! - `laparo guide --scenario DIR --out DIR [--route calibrated|self-rectified] [--quick]`: run every
 //!   stage, write the intermediates, `report.json` and `report.html`.
 //! - `laparo guide stereo | rigid | landmarks`: one stage on its own.
+//! - `laparo guide end-to-end --out DIR [--quick]`: everything in one command — the FEM ground truth
+//!   of the non-anatomical incision, the scenario, the pipeline on both stereo routes, `DIR/index.html`.
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use laparo_guide::pipeline::{self, GuideConfig, Route};
@@ -50,6 +52,9 @@ pub struct RunArgs {
 pub enum GuideSub {
     /// Render a scenario folder with ground truth.
     Scenario(ScenarioArgs),
+    /// The whole chain in one command: FEM ground truth of the incision → scenario → pipeline on both
+    /// stereo routes → DIR/index.html (resumes: the ground truth is cached in DIR/ground-truth).
+    EndToEnd(EndToEndArgs),
     /// Stage 1 alone: depth (mm) of a scenario pair.
     Stereo {
         /// Scenario folder.
@@ -124,6 +129,86 @@ pub struct ScenarioArgs {
     pub width: Option<usize>,
 }
 
+/// `laparo guide end-to-end`.
+#[derive(Args)]
+pub struct EndToEndArgs {
+    /// Output folder (ground-truth/, scenario/, calibrated/, self-rectified/, index.html, summary.json).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Demo size: 960×540 images, 10 mm tetrahedra, short registration (default: 1920×1080, 8 mm).
+    #[arg(long)]
+    pub quick: bool,
+    /// Incision scenario of the benchmark (non-anatomical: wedge cut around a virtual tumour).
+    #[arg(long, default_value = "non-anatomical")]
+    pub incision: String,
+    /// Tetrahedron edge of the FEM ground truth (mm).
+    #[arg(long)]
+    pub edge_mm: Option<f64>,
+    /// FEM load increments per solve.
+    #[arg(long)]
+    pub fem_steps: Option<usize>,
+    /// FEM region (mm): nodes farther than this from the cut are held fixed; 0 = the whole organ.
+    #[arg(long)]
+    pub fem_region_mm: Option<f64>,
+    /// Stereo routes: both, calibrated or self-rectified.
+    #[arg(long, default_value = "both")]
+    pub route: String,
+    /// Organ surface (closed, mm); default ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj.
+    #[arg(long)]
+    pub organ: Option<PathBuf>,
+    /// Texture frame; default ../shared/data/surgical/p2ilf_frame/P2ILF22_patient1_12.jpg.
+    #[arg(long)]
+    pub frame: Option<PathBuf>,
+    /// Camera file; default ../shared/data/meshes/p2ilf/acquisition-camera-metadata.json.
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+}
+
+fn end_to_end(e: EndToEndArgs) -> Result<()> {
+    use laparo_guide::end_to_end::{self as e2e, EndToEndConfig};
+    let organ = data("meshes/p2ilf/patient2_1_3d-liver-model.obj", e.organ, "organ")?;
+    let frame = data("surgical/p2ilf_frame/P2ILF22_patient1_12.jpg", e.frame, "frame")?;
+    let camera = data("meshes/p2ilf/acquisition-camera-metadata.json", e.camera, "camera")?;
+    let mut cfg = if e.quick { EndToEndConfig::quick() } else { EndToEndConfig::full() };
+    cfg.incision = e.incision;
+    if let Some(v) = e.edge_mm {
+        cfg.edge_mm = v;
+    }
+    if let Some(v) = e.fem_steps {
+        cfg.fem_steps = v;
+    }
+    if let Some(v) = e.fem_region_mm {
+        cfg.fem_region_mm = (v > 0.0).then_some(v);
+    }
+    let keep: Vec<Route> = match e.route.as_str() {
+        "both" => vec![Route::Calibrated, Route::SelfRectified],
+        r => vec![r.parse().with_context(|| format!("--route {r}: expected both, calibrated or self-rectified"))?],
+    };
+    cfg.routes.retain(|c| keep.contains(&c.route));
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.enable_steady_tick(std::time::Duration::from_millis(250));
+    pb.set_message("FEM ground truth of the incision (TET10 Neo-Hookean, calibrated pressure)");
+    let rep = e2e::run(&organ, &frame, &camera, &cfg, &e.out, &mut |s: &str| {
+        pb.suspend(|| eprintln!("{s}"));
+        pb.set_message(s.chars().take(100).collect::<String>());
+    });
+    pb.finish_and_clear();
+    let rep = rep?;
+    for r in &rep.routes {
+        println!("{}: {}", r["route"], serde_json::to_string(&r["summary"])?);
+    }
+    if let Some(d) = rep.tre_difference_mm {
+        println!("final TRE, self-rectified − calibrated: {d:+.2} mm");
+    }
+    println!(
+        "total {:.1} s, peak {:.0} MiB; report: {}",
+        rep.total_seconds,
+        rep.peak_memory_mib.unwrap_or(f64::NAN),
+        e2e::index_path(&e.out).display()
+    );
+    Ok(())
+}
+
 fn data(rel: &str, given: Option<PathBuf>, flag: &str) -> Result<PathBuf> {
     match given {
         Some(p) => Ok(p),
@@ -134,6 +219,7 @@ fn data(rel: &str, given: Option<PathBuf>, flag: &str) -> Result<PathBuf> {
 
 pub fn run(a: GuideArgs) -> Result<()> {
     match a.sub {
+        Some(GuideSub::EndToEnd(e)) => end_to_end(e),
         Some(GuideSub::Scenario(s)) => {
             let organ = data("meshes/p2ilf/patient2_1_3d-liver-model.obj", s.organ, "organ")?;
             let frame = data("surgical/p2ilf_frame/P2ILF22_patient1_12.jpg", s.frame, "frame")?;
