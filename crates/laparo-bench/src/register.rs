@@ -30,6 +30,12 @@ pub struct BenchArgs {
     /// Folder of the DiffTaichi scripts.
     #[arg(long, default_value = "../shared/bench/taichi_mpm")]
     pub taichi_dir: PathBuf,
+    /// σ of the Gaussian preconditioner (Δx; default: the optimiser's).
+    #[arg(long)]
+    pub smoothing_dx: Option<f64>,
+    /// Largest landmark displacement per step (Δx; default: the optimiser's).
+    #[arg(long)]
+    pub max_step_dx: Option<f64>,
     /// Also run with 1 thread and compare the results bit for bit.
     #[arg(long)]
     pub check_threads: bool,
@@ -39,7 +45,9 @@ fn run_once<const D: usize>(
     counts: [usize; D],
     cfg: &OptimizerConfig,
 ) -> Result<(Vec<f64>, f64, usize, Vec<Vector<D>>)> {
-    let (scene, lm) = rods_scene::<D>(counts, 120, 200, 2e-4);
+    let (mut scene, lm) = rods_scene::<D>(counts, 120, 200, 2e-4);
+    // DiffTaichi's script starts from v₀ = 0 (`init_v.fill(0)`); rods_scene carries a test field
+    scene.velocities.iter_mut().for_each(|v| *v = Vector::<D>::zeros());
     let loss = RegistrationLoss::new(vec![LandmarkGroup {
         name: "lips".into(),
         particles: lm.indices.clone(),
@@ -61,7 +69,14 @@ pub fn run(a: BenchArgs) -> Result<()> {
         o => bail!("--optimizer {o}"),
     };
     let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
-    let cfg = OptimizerConfig { kind, iterations: a.iterations, rel_tol: 0.0, ..base };
+    let cfg = OptimizerConfig {
+        kind,
+        iterations: a.iterations,
+        rel_tol: 0.0,
+        smoothing_dx: a.smoothing_dx.unwrap_or(base.smoothing_dx),
+        max_step_dx: a.max_step_dx.unwrap_or(base.max_step_dx),
+        ..base
+    };
     let threads = rayon::current_num_threads();
     let (losses, secs, sims, v) = match a.dim {
         3 => {

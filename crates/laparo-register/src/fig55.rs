@@ -2,6 +2,12 @@
 //! thesis gives no shapes or targets): a unit square domain, n_grid 120, an 80 × 80 particle square
 //! (6,400 particles at Δx/2, centred), E 4.1, ν 0.49, ρ 1, Δt 2e-4, T 200, sticky walls of 3 cells
 //! (the units of the DiffTaichi script `mpm2d_rods.py`: length 144 mm, stress kPa).
+//!
+//! Cases (c)/(d) differ from `register.md` §3 on purpose: scoring only the top-edge halves against their
+//! moved copies is satisfied without a tear (unsmoothed L-BFGS reaches 0.09 Δx with one folded body), so
+//! each lip is its top-edge half *and* its face of the cut (the lattice column next to x = 0.5), scored
+//! against the same material curve opened like a book (±`LIP_TOP`, +`LIP_UP` at the top edge, ±`LIP_BOTTOM`
+//! at the bottom edge): the targets now demand a separation along the whole cut.
 use crate::distance::Polyline;
 use crate::loss::{GroupTarget, LandmarkGroup, RegistrationLoss};
 use laparo_mpm::{box_lattice, GridSpec, Material, Model, Scene, Vector};
@@ -14,7 +20,8 @@ pub enum Case {
     Stretch,
     /// (b) 20 top-edge landmarks onto a circular arc of sagitta 0.08.
     Curve,
-    /// (c) rupture: top-edge halves against their own polylines moved apart ±0.06 and up 0.04.
+    /// (c) rupture: each lip (top-edge half + its face of the cut) against its own polyline, opened like a
+    /// book (±0.06 and up 0.04 at the top, ±0.015 at the bottom).
     Rupture,
     /// (d) (a)'s points plus (c)'s polylines.
     RuptureStretch,
@@ -33,6 +40,18 @@ impl Case {
         }
     }
 }
+
+/// Opening of each lip at the top edge (x, outward) and its rise (y) (register.md §3: ±0.06, +0.04).
+pub const LIP_TOP: f64 = 0.06;
+/// Rise of the top edge of each lip.
+pub const LIP_UP: f64 = 0.04;
+/// Opening of each lip at the bottom edge (the cut opens like a book: linear in height in between).
+pub const LIP_BOTTOM: f64 = 0.015;
+
+/// Two particles belong to the same body when closer than this (Δx): three rest spacings (Δx/2), so a
+/// body stays connected under stretches up to 3× and a separation counts only once the lips are more
+/// than 1.5 Δx apart (the radius of the quadratic B-spline's support).
+pub const LINK_DX: f64 = 1.5;
 
 /// Particles per side of the square.
 pub const SIDE: usize = 80;
@@ -57,41 +76,47 @@ pub fn idx(i: usize, j: usize) -> usize {
 }
 
 /// Loss of a case on [`square_scene`].
-pub fn case_loss(scene: &Scene<2>, case: Case) -> RegistrationLoss<2> {
+pub fn case_loss(scene: &Scene<2>, case: Case) -> crate::Result<RegistrationLoss<2>> {
     let x = &scene.positions;
     let mid = SIDE / 2;
     let top = SIDE - 1;
     let points = || {
         let (l, r) = (idx(0, mid), idx(SIDE - 1, mid));
+        let (tl, tr) = (x[l] - Vector::<2>::new(0.08, 0.0), x[r] + Vector::<2>::new(0.08, 0.0));
         vec![
             LandmarkGroup {
                 name: "left point".into(),
                 particles: vec![l],
-                target: GroupTarget::Paired(vec![x[l] - Vector::<2>::new(0.08, 0.0)]),
+                target: GroupTarget::Paired(vec![tl]),
                 weight: 1.0,
             },
             LandmarkGroup {
                 name: "right point".into(),
                 particles: vec![r],
-                target: GroupTarget::Paired(vec![x[r] + Vector::<2>::new(0.08, 0.0)]),
+                target: GroupTarget::Paired(vec![tr]),
                 weight: 1.0,
             },
         ]
     };
     let halves = || {
-        let mut out = Vec::new();
-        for (name, range, sx) in [("left lip", 0..mid, -0.06), ("right lip", mid..SIDE, 0.06)] {
-            let parts: Vec<usize> = range.map(|i| idx(i, top)).collect();
-            let verts: Vec<Vector<2>> =
-                [parts[0], *parts.last().unwrap()].iter().map(|&p| x[p] + Vector::<2>::new(sx, 0.04)).collect();
-            out.push(LandmarkGroup {
-                name: name.into(),
-                particles: parts,
-                target: GroupTarget::Shared(Arc::new(Polyline::open(verts))),
-                weight: 1.0,
-            });
-        }
-        out
+        // each side: its top-edge half and its face of the cut (the lattice column next to x = 0.5),
+        // scored (closest point) against its own polyline: the same material curve opened like a book
+        lips()
+            .into_iter()
+            .zip([-1.0, 1.0])
+            .map(|((name, parts), sx)| {
+                let open = |p: usize| opened(scene, p, sx);
+                // the curve is straight on the top edge and on the cut face: three vertices
+                let corner = SIDE / 2;
+                let verts = vec![open(parts[0]), open(parts[corner - 1]), open(*parts.last().unwrap())];
+                LandmarkGroup {
+                    name: name.into(),
+                    particles: parts,
+                    target: GroupTarget::Shared(Arc::new(Polyline::open(verts))),
+                    weight: 1.0,
+                }
+            })
+            .collect::<Vec<_>>()
     };
     let groups = match case {
         Case::Stretch => points(),
@@ -125,10 +150,36 @@ pub fn case_loss(scene: &Scene<2>, case: Case) -> RegistrationLoss<2> {
             g
         }
     };
-    RegistrationLoss::new(groups)
+    Ok(RegistrationLoss::new(groups))
 }
 
-/// Connected bodies of particles: union of particles closer than `link` (length units); returns the
+/// Rest position of particle `p` moved by the book opening of its lip (`sx` = −1 left, +1 right): at
+/// height fraction s, (sx (`LIP_BOTTOM` + (`LIP_TOP` − `LIP_BOTTOM`) s), `LIP_UP` s).
+pub fn opened(scene: &Scene<2>, p: usize, sx: f64) -> Vector<2> {
+    let x = &scene.positions;
+    let (yb, yt) = (x[idx(0, 0)][1], x[idx(0, SIDE - 1)][1]);
+    let s = (x[p][1] - yb) / (yt - yb);
+    x[p] + Vector::<2>::new(sx * (LIP_BOTTOM + (LIP_TOP - LIP_BOTTOM) * s), LIP_UP * s)
+}
+
+/// The two lips of the cut along x = 0.5, each as an ordered material curve: its top-edge half (outer
+/// corner → cut) then its face of the cut (the lattice column next to x = 0.5, top → bottom).
+pub fn lips() -> [(&'static str, Vec<usize>); 2] {
+    let (mid, top) = (SIDE / 2, SIDE - 1);
+    let side = |outer: usize, inner: usize| -> Vec<usize> {
+        let mut v: Vec<usize> = if outer < inner {
+            (outer..=inner).map(|i| idx(i, top)).collect()
+        } else {
+            (inner..=outer).rev().map(|i| idx(i, top)).collect()
+        };
+        v.extend((0..top).rev().map(|j| idx(inner, j)));
+        v
+    };
+    [("left lip", side(0, mid - 1)), ("right lip", side(SIDE - 1, mid))]
+}
+
+/// Connected bodies of particles: flood fill linking particles closer than `link` (length units, k-d tree
+/// radius queries, deterministic order); returns the
 /// component label per particle and the component sizes (largest first order not guaranteed).
 pub fn components<const D: usize>(x: &[Vector<D>], link: f64) -> (Vec<usize>, Vec<usize>) {
     use kiddo::SquaredEuclidean;
@@ -168,13 +219,15 @@ pub struct CaseMetrics {
     pub residual_dx: [f64; 2],
     /// Distance between the two side landmarks / between their targets (cases a, d).
     pub width_ratio: Option<f64>,
-    /// Height at mid-width after / before.
+    /// Height of the particle column at mid-width after / at rest (for two bodies: each body at its own
+    /// mid-width, averaged).
     pub mid_height_ratio: f64,
     /// min det F.
     pub min_j: f64,
-    /// Connected bodies (particles closer than Δx linked), largest first: particle fractions.
+    /// Connected bodies (particles closer than [`LINK_DX`] Δx linked; flood fill over k-d tree radius queries), largest
+    /// first: particle fractions.
     pub bodies: Vec<f64>,
-    /// Smallest distance between the two largest bodies (Δx), if there are two.
+    /// Smallest particle-to-particle distance between the two largest bodies (Δx), if there are two.
     pub gap_dx: Option<f64>,
     /// Iterations, simulations, wall time (s).
     pub iterations: usize,
@@ -192,7 +245,7 @@ pub fn run_case(
     cfg: &crate::optimize::OptimizerConfig,
 ) -> crate::Result<(CaseMetrics, Vec<Vector<2>>, Vec<f64>)> {
     let scene = square_scene();
-    let loss = case_loss(&scene, case);
+    let loss = case_loss(&scene, case)?;
     let r = crate::optimize::register(&scene, &loss, cfg, None, &mut |_, _| true)?;
     let dx = scene.grid.dx;
     let x = r.final_state.x.clone();
@@ -206,6 +259,7 @@ pub fn run_case(
         }
         _ => None,
     };
+    // height of the particle column within Δx of the mid-width (centroid x) of a set of particles
     let height = |pts: &[Vector<2>]| {
         let cx = pts.iter().map(|p| p[0]).sum::<f64>() / pts.len() as f64;
         let col: Vec<f64> = pts.iter().filter(|p| (p[0] - cx).abs() < dx).map(|p| p[1]).collect();
@@ -214,23 +268,29 @@ pub fn run_case(
         }
         col.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - col.iter().cloned().fold(f64::INFINITY, f64::min)
     };
-    let (label, mut sizes) = components(&x, dx);
+    let (label, mut sizes) = components(&x, LINK_DX * dx);
     let n = x.len() as f64;
     let mut order: Vec<usize> = (0..sizes.len()).collect();
-    order.sort_by(|&a, &b| sizes[b].cmp(&sizes[a]));
+    order.sort_by(|&a, &b| sizes[b].cmp(&sizes[a]).then(a.cmp(&b)));
+    let body = |c: usize, pts: &[Vector<2>]| -> Vec<Vector<2>> {
+        pts.iter().zip(&label).filter(|(_, &l)| l == c).map(|(p, _)| *p).collect()
+    };
     let gap_dx = if order.len() >= 2 {
         let (a, b) = (order[0], order[1]);
-        let pb: Vec<Vector<2>> = x.iter().zip(&label).filter(|(_, &l)| l == b).map(|(p, _)| *p).collect();
+        let pb = body(b, &x);
         let tree = crate::distance::build_tree(&pb);
-        let g = x
+        let g = body(a, &x)
             .iter()
-            .zip(&label)
-            .filter(|(_, &l)| l == a)
-            .map(|(p, _)| tree.nearest_one::<kiddo::SquaredEuclidean>(&[p[0], p[1]]).distance.sqrt())
+            .map(|p| tree.nearest_one::<kiddo::SquaredEuclidean>(&[p[0], p[1]]).distance.sqrt())
             .fold(f64::INFINITY, f64::min);
         Some(g / dx)
     } else {
         None
+    };
+    // mid-width height of each of the (up to two) largest bodies, after / at rest, averaged
+    let mid_height_ratio = {
+        let k = order.len().min(2);
+        order[..k].iter().map(|&c| height(&body(c, &x)) / height(&body(c, &scene.positions))).sum::<f64>() / k as f64
     };
     sizes.sort_by(|a, b| b.cmp(a));
     let last = r.history.last().cloned().unwrap_or_else(|| r.history[0].clone());
@@ -238,7 +298,7 @@ pub fn run_case(
         case: case.label().into(),
         residual_dx: [r.history[0].mean_distance / dx, last.mean_distance / dx],
         width_ratio,
-        mid_height_ratio: height(&x) / height(&scene.positions),
+        mid_height_ratio,
         min_j,
         bodies: sizes.iter().map(|&s| s as f64 / n).collect(),
         gap_dx,
@@ -250,22 +310,22 @@ pub fn run_case(
     Ok((m, x, j))
 }
 
-/// Target marks of a case (for drawing): paired points and polyline vertices.
-pub fn case_marks(scene: &Scene<2>, case: Case) -> Vec<Vector<2>> {
-    let loss = case_loss(scene, case);
+/// Target marks of a case (for drawing): paired target points, the opened lip curves (every other
+/// landmark's target), or the curve target sampled at the landmarks' closest points at rest.
+pub fn case_marks(scene: &Scene<2>, case: Case) -> crate::Result<Vec<Vector<2>>> {
+    let loss = case_loss(scene, case)?;
     let mut out = Vec::new();
     for g in &loss.groups {
         match &g.target {
             GroupTarget::Paired(t) => out.extend(t.iter().copied()),
-            GroupTarget::Shared(s) => {
-                // sample the target near each landmark (closest points at rest)
-                for &p in &g.particles {
-                    out.push(s.closest(&scene.positions[p]).0);
-                }
-            }
+            GroupTarget::Shared(s) => match g.name.as_str() {
+                "left lip" => out.extend(g.particles.iter().step_by(2).map(|&p| opened(scene, p, -1.0))),
+                "right lip" => out.extend(g.particles.iter().step_by(2).map(|&p| opened(scene, p, 1.0))),
+                _ => out.extend(g.particles.iter().map(|&p| s.closest(&scene.positions[p]).0)),
+            },
         }
     }
-    out
+    Ok(out)
 }
 
 /// Picture of a case: particles coloured by J (Turbo, [0.5, 1.5]) in the view [0.2, 0.8]², target marks

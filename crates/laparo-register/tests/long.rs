@@ -6,28 +6,23 @@ use laparo_register::optimize::OptimizerConfig;
 #[test]
 #[ignore]
 fn fig55_acceptance() {
+    // (a): residual < 0.1 Δx, width within 2 % of the target, mid-width height reduced ≥ 5 %, min J > 0.2,
+    // one body; (c): two bodies of > 40 % of the particles each, gap ≥ 2 Δx; (d): both. (c) and (d) fail
+    // today (no rupture: see the README).
     let cfg = OptimizerConfig { iterations: 50, ..Default::default() };
     let mut fails = Vec::new();
     for case in Case::ALL {
         let (m, _, _) = run_case(case, &cfg).unwrap();
         eprintln!("{}", serde_json::to_string(&m).unwrap());
         let two = m.bodies.len() >= 2 && m.bodies[1] > 0.4 && m.gap_dx.unwrap_or(0.0) >= 2.0;
+        let stretch = m.residual_dx[1] < 0.1
+            && m.width_ratio.is_some_and(|w| (w - 1.0).abs() <= 0.02)
+            && m.mid_height_ratio <= 0.95
+            && m.min_j > 0.2;
         match case {
-            Case::Stretch => {
-                let w = m.width_ratio.unwrap();
-                if !(m.residual_dx[1] < 0.1
-                    && (w - 1.0).abs() <= 0.02
-                    && m.mid_height_ratio <= 0.95
-                    && m.min_j > 0.2
-                    && m.bodies.len() == 1)
-                {
-                    fails.push(format!("(a) {m:?}"));
-                }
-            }
+            Case::Stretch if !(stretch && m.bodies.len() == 1) => fails.push(format!("(a) {m:?}")),
             Case::Rupture if !two => fails.push(format!("(c) {m:?}")),
-            Case::RuptureStretch if !two || m.width_ratio.is_none_or(|w| (w - 1.0).abs() > 0.02) => {
-                fails.push(format!("(d) {m:?}"))
-            }
+            Case::RuptureStretch if !(two && stretch) => fails.push(format!("(d) {m:?}")),
             _ => {}
         }
     }
@@ -83,4 +78,48 @@ fn p2ilf_ridge_registration_3mm() {
             .unwrap();
     eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
     assert!(r.mean_distance_mm[1] < 1.0, "mean landmark error {} mm", r.mean_distance_mm[1]);
+}
+
+/// How fast must the two halves of the Fig. 5.5 square be pulled apart for the MLS-MPM body to tear?
+/// v₀ = the (c) book opening (each half ∓(LIP_BOTTOM + (LIP_TOP − LIP_BOTTOM) s, −LIP_UP s)/(T Δt),
+/// a velocity jump across x = 0.5) times k; prints the bodies and the lip gaps after T steps.
+#[test]
+#[ignore]
+fn fig55_rupture_threshold() {
+    use laparo_register::fig55::*;
+    let scene = square_scene();
+    let x = &scene.positions;
+    let (yb, yt) = (x[idx(0, 0)][1], x[idx(0, SIDE - 1)][1]);
+    let t = scene.steps as f64 * scene.dt;
+    let dx = scene.grid.dx;
+    let mut split_at = None;
+    for k in [1.0, 2.0, 4.0, 6.0, 8.0, 12.0] {
+        let mut s = scene.clone();
+        s.velocities = (0..x.len())
+            .map(|p| {
+                let sx = if p / SIDE < SIDE / 2 { -1.0 } else { 1.0 };
+                let h = (x[p][1] - yb) / (yt - yb);
+                laparo_mpm::Vector::<2>::new(sx * (LIP_BOTTOM + (LIP_TOP - LIP_BOTTOM) * h), LIP_UP * h) * (k / t)
+            })
+            .collect();
+        let fin = laparo_mpm::simulate(&s).unwrap().final_state;
+        let (_, mut sizes) = components(&fin.x, LINK_DX * dx);
+        sizes.sort_by(|a, b| b.cmp(a));
+        let (l, r) = (idx(SIDE / 2 - 1, SIDE - 1), idx(SIDE / 2, SIDE - 1));
+        let (lb, rb) = (idx(SIDE / 2 - 1, 0), idx(SIDE / 2, 0));
+        eprintln!(
+            "k {k}: jump {:.1} units/s at the top, bodies {:?}, lip gap top {:.2} Δx (target {:.1}), bottom {:.2} Δx (target {:.1})",
+            2.0 * k * LIP_TOP / t,
+            &sizes[..sizes.len().min(4)],
+            (fin.x[r][0] - fin.x[l][0]) / dx,
+            (2.0 * LIP_TOP + dx / 2.0) / dx,
+            (fin.x[rb][0] - fin.x[lb][0]) / dx,
+            (2.0 * LIP_BOTTOM + dx / 2.0) / dx
+        );
+        if split_at.is_none() && sizes.len() >= 2 && sizes[1] as f64 > 0.4 * x.len() as f64 {
+            split_at = Some(k);
+        }
+    }
+    // measured 2026-12-03: one body up to k = 8, two halves at k = 12
+    assert_eq!(split_at, Some(12.0));
 }

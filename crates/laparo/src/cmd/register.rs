@@ -61,7 +61,7 @@ pub fn fig55_figures(out: &std::path::Path, cfg: &OptimizerConfig) -> Result<Vec
     let scene = square_scene();
     let mut all = Vec::new();
     for case in Case::ALL {
-        let marks = case_marks(&scene, case);
+        let marks = case_marks(&scene, case)?;
         let ones = vec![1.0; scene.n_particles()];
         laparo_core::io::write_png(
             out.join(format!("{}_before.png", case.label())),
