@@ -474,7 +474,7 @@ pub fn back_project_polyline(
 }
 
 /// Stage 4: lift image points to 3D through a depth map (median of the valid depths within
-/// `radius` px).
+/// `radius` px, widened up to 4 × `radius` where there is none).
 pub fn lift_polyline(
     p: &[[f64; 2]],
     depth: &Image<f64>,
@@ -486,20 +486,30 @@ pub fn lift_polyline(
     p.iter()
         .map(|q| {
             let (x0, y0) = (q[0].round() as i64, q[1].round() as i64);
+            // the window widens (×2, up to 4 × radius) where the lip itself has no depth: the opened
+            // crack's walls are seen by one camera only
             let mut zs = Vec::new();
-            for dy in -radius..=radius {
-                for dx in -radius..=radius {
-                    let (x, y) = (x0 + dx, y0 + dy);
-                    if x >= 0 && y >= 0 && (x as usize) < depth.width && (y as usize) < depth.height {
-                        let z = depth.get(x as usize, y as usize, 0);
-                        if z.is_finite() {
-                            zs.push(z);
+            let mut r = radius.max(1);
+            while zs.is_empty() && r <= 4 * radius.max(1) {
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let (x, y) = (x0 + dx, y0 + dy);
+                        if x >= 0 && y >= 0 && (x as usize) < depth.width && (y as usize) < depth.height {
+                            let z = depth.get(x as usize, y as usize, 0);
+                            if z.is_finite() {
+                                zs.push(z);
+                            }
                         }
                     }
                 }
+                r *= 2;
             }
             if zs.is_empty() {
-                return Err(bad(stage, input, format!("no depth within {radius} px of ({:.1}, {:.1}) px", q[0], q[1])));
+                return Err(bad(
+                    stage,
+                    input,
+                    format!("no depth within {} px of ({:.1}, {:.1}) px", 4 * radius.max(1), q[0], q[1]),
+                ));
             }
             let z = laparo_core::stats::median(&mut zs);
             Ok(view.backproject(q[0], q[1], z))

@@ -205,3 +205,66 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("stereo") && e.contains("past_left.png") && e.contains("texture"), "{e}");
 }
+
+/// `laparo guide end-to-end`: the FEM ground truth of the non-anatomical incision (12 mm tetrahedra,
+/// the cut's far region held fixed), the scenario and the calibrated route in one command; the index
+/// links only files that exist, the ground truth opened the lips by 10–15 mm, every stage error is
+/// finite; a second run reuses the cached ground truth; a scenario without a tumour is refused.
+#[test]
+fn end_to_end_one_command_with_the_fem_ground_truth() {
+    let Some(d) = data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("e2e");
+    let args = |o: &Path, incision: &str| {
+        vec![
+            "guide".to_string(),
+            "end-to-end".into(),
+            "--quick".into(),
+            "--edge-mm".into(),
+            "12".into(),
+            "--route".into(),
+            "calibrated".into(),
+            "--incision".into(),
+            incision.into(),
+            "--organ".into(),
+            d.join("meshes/p2ilf/patient2_1_3d-liver-model.obj").display().to_string(),
+            "--frame".into(),
+            d.join("surgical/p2ilf_frame/P2ILF22_patient1_12.jpg").display().to_string(),
+            "--camera".into(),
+            d.join("meshes/p2ilf/acquisition-camera-metadata.json").display().to_string(),
+            "--out".into(),
+            o.display().to_string(),
+        ]
+    };
+    let run = |a: Vec<String>| laparo(&a.iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    let o = run(args(&out, "non-anatomical"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let gap = s["ground_truth"]["report"]["max_gap_mm"].as_f64().unwrap();
+    assert!((10.0..=15.0).contains(&gap), "FEM lip gap {gap} mm");
+    assert!(s["ground_truth"]["report"]["min_j"].as_f64().unwrap() > 0.0);
+    let r = &s["routes"][0]["summary"];
+    for k in ["rigid_mean_vertex_error_mm", "tre_mean_mm", "tre_near_mm", "tumour_centroid_error_mm"] {
+        let v = r[k].as_f64().unwrap_or(f64::NAN);
+        assert!(v.is_finite() && v >= 0.0 && v < 10.0, "{k} = {v}");
+    }
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    let mut n = 0;
+    for attr in ["src=\"", "href=\""] {
+        for part in html.split(attr).skip(1) {
+            let link = part.split('"').next().unwrap();
+            assert!(out.join(link).exists(), "index links {link}, which is missing");
+            n += 1;
+        }
+    }
+    assert!(n >= 6, "{n} links");
+    // the second run reuses the ground truth (its FEM solves are not repeated)
+    let o = run(args(&out, "non-anatomical"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("FEM solve"), "the ground truth was solved again");
+    // the anatomical cut has no tumour to guide to: a clear error naming the input
+    let o = run(args(&tmp.path().join("anat"), "anatomical"));
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("incision") && e.contains("tumour"), "{e}");
+}
