@@ -214,14 +214,18 @@ pub fn run(
     // 1. ground truth
     let t0 = Instant::now();
     let gt_dir = out.join("ground-truth");
-    let (_, gt) = fem_incision(organ, &cfg.incision, cfg.edge_mm, cfg.fem_steps, cfg.fem_region_mm, &gt_dir, &mut |s| {
-        progress(&format!("[ground truth] {s}"))
-    })?;
+    let (_, gt) =
+        fem_incision(organ, &cfg.incision, cfg.edge_mm, cfg.fem_steps, cfg.fem_region_mm, &gt_dir, &mut |s| {
+            progress(&format!("[ground truth] {s}"))
+        })?;
     let r = &gt["report"];
     let detail = format!(
         "{} TET10 free DOFs, lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, min J {:.3}",
-        r["free_dofs"], r["max_gap_mm"].as_f64().unwrap_or(f64::NAN), r["pressure_kpa"].as_f64().unwrap_or(f64::NAN),
-        r["max_displacement_mm"].as_f64().unwrap_or(f64::NAN), r["min_j"].as_f64().unwrap_or(f64::NAN)
+        r["free_dofs"],
+        r["max_gap_mm"].as_f64().unwrap_or(f64::NAN),
+        r["pressure_kpa"].as_f64().unwrap_or(f64::NAN),
+        r["max_displacement_mm"].as_f64().unwrap_or(f64::NAN),
+        r["min_j"].as_f64().unwrap_or(f64::NAN)
     );
     progress(&format!("[ground truth] {detail} ({:.1} s)", t0.elapsed().as_secs_f64()));
     steps.push(StepRecord { name: "FEM ground truth".into(), seconds: t0.elapsed().as_secs_f64(), detail });
@@ -231,7 +235,11 @@ pub fn run(
     let s = scenario::generate(organ, frame, camera, Some(&gt_dir.join("deformation")), &cfg.scenario, &scn_dir)?;
     let detail = format!(
         "{}×{} px, displacement mean {:.2} / max {:.2} mm, liver pixels {:?}",
-        cfg.scenario.width, cfg.scenario.height, s.manifest.displacement_mm[0], s.manifest.displacement_mm[1], s.liver_pixels
+        cfg.scenario.width,
+        cfg.scenario.height,
+        s.manifest.displacement_mm[0],
+        s.manifest.displacement_mm[1],
+        s.liver_pixels
     );
     progress(&format!("[scenario] {detail} ({:.1} s)", t0.elapsed().as_secs_f64()));
     steps.push(StepRecord { name: "scenario".into(), seconds: t0.elapsed().as_secs_f64(), detail });
@@ -251,9 +259,7 @@ pub fn run(
         });
         reports.push((rc.route, rep));
     }
-    let tre = |r: Route| {
-        reports.iter().find(|(k, _)| *k == r).and_then(|(_, g)| g.summary["tre_mean_mm"].as_f64())
-    };
+    let tre = |r: Route| reports.iter().find(|(k, _)| *k == r).and_then(|(_, g)| g.summary["tre_mean_mm"].as_f64());
     let tre_difference_mm = match (tre(Route::SelfRectified), tre(Route::Calibrated)) {
         (Some(a), Some(b)) => Some(a - b),
         _ => None,

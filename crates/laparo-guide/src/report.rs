@@ -125,11 +125,7 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
 /// The index of an end-to-end run (`out/index.html`): the ground truth, the time of every step, the
 /// stage errors of each route side by side, the difference in final TRE, and links to each route's
 /// full report.
-pub fn write_index(
-    out: &Path,
-    r: &crate::end_to_end::EndToEndReport,
-    routes: &[(&str, &GuideReport)],
-) -> Result<()> {
+pub fn write_index(out: &Path, r: &crate::end_to_end::EndToEndReport, routes: &[(&str, &GuideReport)]) -> Result<()> {
     let mut h = String::new();
     h.push_str("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>laparo guide: end to end</title><style>body{font-family:sans-serif;max-width:1400px;margin:auto}figure{display:inline-block;margin:4px;width:48%}img{width:100%}table{border-collapse:collapse}td,th{border:1px solid #aaa;padding:3px 8px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
     h.push_str("<h1>laparo guide — from a stereo pair to the registered liver and its tumour (thesis §5.4.3)</h1>\n");
@@ -183,7 +179,10 @@ pub fn write_index(
     h.push_str("<tr><td>slowest stage</td>");
     for (_, g) in routes {
         let s = g.stages.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds));
-        h.push_str(&format!("<td>{}</td>", s.map_or(String::new(), |s| format!("{} ({:.1} s)", esc(&s.name), s.seconds))));
+        h.push_str(&format!(
+            "<td>{}</td>",
+            s.map_or(String::new(), |s| format!("{} ({:.1} s)", esc(&s.name), s.seconds))
+        ));
     }
     h.push_str("</tr></table>\n");
     if let Some(d) = r.tre_difference_mm {

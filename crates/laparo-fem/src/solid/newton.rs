@@ -300,7 +300,8 @@ impl FreeSystem {
             timings.pcg_iterations += 1;
             self.product(vals, &p, &mut q);
             let pq = dot(&p, &q);
-            if !(pq > 0.0) || !(rz > 0.0) {
+            let positive_curvature = pq > 0.0 && rz > 0.0; // false for NaN too
+            if !positive_curvature {
                 return None;
             }
             let alpha = rz / pq;
@@ -425,6 +426,7 @@ fn norm(v: &[f64]) -> f64 {
 
 type StepOut = std::result::Result<(Vec<f64>, StepReport), StepFail>;
 
+#[allow(clippy::too_many_arguments)] // the reused factor and the timings are the step's running state
 fn newton_step(
     p: &SolidProblem,
     sys: &FreeSystem,
@@ -477,7 +479,10 @@ fn newton_step(
         }
         let mut vals = sys.values(blocks);
         let tol = 0.1 * settings.rel_tol * load_norm;
-        if sys.solve_reusing(&mut vals, &mut rhs, tol, (settings.forcing, settings.pcg_max_iterations), reuse, timings).is_err() {
+        if sys
+            .solve_reusing(&mut vals, &mut rhs, tol, (settings.forcing, settings.pcg_max_iterations), reuse, timings)
+            .is_err()
+        {
             return Err(StepFail::NoConvergence);
         }
         for (i, &f) in sys.free_of_node.iter().enumerate() {
@@ -516,7 +521,14 @@ fn newton_step(
         let mut vals = sys.values(a.blocks.as_ref().expect("tangent asked"));
         // d = −K⁻¹ r
         let mut d: Vec<f64> = r.iter().map(|x| -x).collect();
-        match sys.solve_reusing(&mut vals, &mut d, 0.1 * tol, (settings.forcing, settings.pcg_max_iterations), reuse, timings) {
+        match sys.solve_reusing(
+            &mut vals,
+            &mut d,
+            0.1 * tol,
+            (settings.forcing, settings.pcg_max_iterations),
+            reuse,
+            timings,
+        ) {
             Ok(shifted) => rep.shifted_iterations += usize::from(shifted),
             Err(_) => return Err(StepFail::NoConvergence),
         }
@@ -604,7 +616,10 @@ mod tests {
         let mut x = rhs.clone();
         let mut t = Timings::default();
         let mut reuse = None;
-        assert!(!sys.solve_reusing(&mut vals.clone(), &mut x, 0.0, (1e-4, 30), &mut reuse, &mut t).unwrap(), "SPD: no shift");
+        assert!(
+            !sys.solve_reusing(&mut vals.clone(), &mut x, 0.0, (1e-4, 30), &mut reuse, &mut t).unwrap(),
+            "SPD: no shift"
+        );
         assert!(reuse.is_some(), "an unshifted factor is kept for reuse");
         // K_ff x = rhs with the dense tangent restricted to the free DOFs.
         let free: Vec<usize> = (0..p.mesh.n_nodes())
@@ -624,7 +639,10 @@ mod tests {
         }
         let mut y = rhs.clone();
         let mut none = None;
-        assert!(sys.solve_reusing(&mut neg, &mut y, 0.0, (1e-4, 30), &mut none, &mut t).unwrap(), "indefinite: shifted");
+        assert!(
+            sys.solve_reusing(&mut neg, &mut y, 0.0, (1e-4, 30), &mut none, &mut t).unwrap(),
+            "indefinite: shifted"
+        );
         assert!(none.is_none(), "a shifted factor is not kept");
         assert!(rhs.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>() > 0.0);
         // Reuse: the factor of K preconditions conjugate gradients on another SPD tangent
