@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
 use crate::error::{FeaturesError, Result};
-use crate::keypoint::{Descriptors, Features, Match, MatchConfig, RatioTest};
+use crate::keypoint::{Descriptors, Features, Match, MatchConfig};
 use crate::matching::{hamming_words, l2_sq, pack_u64, ratio_accepts, Knn2};
 
 /// Side of a grid cell, px.
@@ -182,15 +182,7 @@ pub fn match_features_guided(
     if f.iter().any(|v| !v.is_finite()) {
         return Err(FeaturesError::invalid("fundamental matrix", "non-finite entries"));
     }
-    match cfg.ratio {
-        RatioTest::Lowe(r) if !(r > 0.0 && r <= 1.0) => {
-            return Err(FeaturesError::invalid("ratio", format!("Lowe ratio {r} must be in (0, 1]")))
-        }
-        RatioTest::Ubc(t) if !(t >= 1.0 && t.is_finite()) => {
-            return Err(FeaturesError::invalid("ratio", format!("ubcmatch threshold {t} must be ≥ 1")))
-        }
-        _ => {}
-    }
+    crate::matching::check_ratio(cfg.ratio)?;
     if a.is_empty() || b.is_empty() {
         return Ok(Vec::new());
     }
@@ -238,7 +230,7 @@ pub fn match_features_guided(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::keypoint::Keypoint;
+    use crate::keypoint::{Keypoint, RatioTest};
 
     fn kp(x: f64, y: f64) -> Keypoint {
         Keypoint { x, y, size_px: 31.0, angle_rad: 0.0, response: 0.0, octave: 0 }

@@ -185,21 +185,26 @@ pub fn ratio_accepts(ratio: RatioTest, d_best: f32, d_second: f32, squared: bool
     }
 }
 
+/// The ratio test's parameter is valid: Lowe in (0, 1], ubcmatch ≥ 1.
+pub(crate) fn check_ratio(ratio: RatioTest) -> Result<()> {
+    match ratio {
+        RatioTest::Lowe(r) if !(r > 0.0 && r <= 1.0) => {
+            Err(FeaturesError::invalid("ratio", format!("Lowe ratio {r} must be in (0, 1]")))
+        }
+        RatioTest::Ubc(t) if !(t >= 1.0 && t.is_finite()) => {
+            Err(FeaturesError::invalid("ratio", format!("ubcmatch threshold {t} must be ≥ 1")))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Match `a` (image 1) to `b` (image 2): 2-NN, ratio test, optional mutual check.
 /// Returned distances are L2 (not squared) or Hamming bit counts; sorted by `i1`.
 pub fn match_features(a: &Features, b: &Features, cfg: &MatchConfig) -> Result<Vec<Match>> {
     if a.descriptors.len() != a.keypoints.len() || b.descriptors.len() != b.keypoints.len() {
         return Err(FeaturesError::invalid("features", "keypoint and descriptor counts differ"));
     }
-    match cfg.ratio {
-        RatioTest::Lowe(r) if !(r > 0.0 && r <= 1.0) => {
-            return Err(FeaturesError::invalid("ratio", format!("Lowe ratio {r} must be in (0, 1]")))
-        }
-        RatioTest::Ubc(t) if !(t >= 1.0 && t.is_finite()) => {
-            return Err(FeaturesError::invalid("ratio", format!("ubcmatch threshold {t} must be ≥ 1")))
-        }
-        _ => {}
-    }
+    check_ratio(cfg.ratio)?;
     if a.is_empty() || b.is_empty() {
         return Ok(Vec::new());
     }
