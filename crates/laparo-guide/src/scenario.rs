@@ -372,6 +372,7 @@ pub fn generate(
     let bg_tint = [[0.5, 0.45, 0.45]; 2];
     let bg = Textured { vertices: &bg_v, faces: &bg_f, uv: &bg_uv, tint: &bg_tint, label: 2 };
     let mut liver_pixels = [0usize; 2];
+    let mut nearest_mm = f64::INFINITY;
     for (i, (name, verts)) in [("past", &def.rest.vertices), ("present", &def.deformed)].into_iter().enumerate() {
         let liver = Textured { vertices: verts, faces: &boundary.faces, uv: &uv, tint: &tint, label: 1 };
         let l = render(&vl, &[liver, bg], &texture);
@@ -381,6 +382,11 @@ pub fn generate(
         laparo_core::io::write_png(out.join(format!("{name}_right.png")), &rr.rgb)?;
         write_depth_and_disparity(&out.join("gt"), name, &l, &rr, &vl, &vr)?;
         liver_pixels[i] = l.label.data.iter().filter(|&&v| v == 1).count();
+        for (z, &lab) in l.depth_mm.data.iter().zip(&l.label.data) {
+            if lab == 1 && z.is_finite() {
+                nearest_mm = nearest_mm.min(*z);
+            }
+        }
         // the segmentation the pipeline is given (as a surgeon's annotation would be)
         laparo_core::io::write_mask_png(out.join(format!("{name}_liver_mask.png")), &l.label.map(|v| v == 1))?;
     }
@@ -464,7 +470,9 @@ pub fn generate(
         config: cfg.clone(),
         left: k,
         right: kr,
-        depth_prior_mm: [0.5 * dist, zb + 20.0],
+        // the working range a user would set: from 80 % of the nearest organ point (the organ may bulge
+        // towards the laparoscope closer than the incision) to behind the background
+        depth_prior_mm: [(0.5 * dist).min(0.8 * nearest_mm), zb + 20.0],
         gt_pose,
         tumour_centre_model_mm: [def.tumour_centre_mm[0], def.tumour_centre_mm[1], def.tumour_centre_mm[2]],
         tumour_centre_present_mm: [centre_present[0], centre_present[1], centre_present[2]],
