@@ -276,23 +276,17 @@ impl SelfRectification {
     }
 }
 
-/// A disparity map sampled at (x, y): bilinear when the four surrounding samples are valid and
-/// within 1 px of each other (a smooth surface), otherwise the nearest sample (no blending across
-/// a disparity edge); `None` outside the map or where the chosen sample is invalid.
+/// A disparity map sampled at (x, y) by the core's edge-aware lookup
+/// (`laparo_core::remap::sample_smooth`, span 1 px): bilinear when the four surrounding samples are
+/// valid and within 1 px of each other, otherwise the nearest sample (no blending across a
+/// disparity edge); `None` outside the map or where the chosen sample is invalid.
 pub fn sample_disparity(d: &Image<f32>, x: f64, y: f64) -> Option<f32> {
-    let (x0, y0) = (x.floor(), y.floor());
-    if x0 >= 0.0 && y0 >= 0.0 && x0 + 1.0 < d.width as f64 && y0 + 1.0 < d.height as f64 {
-        let (i, j) = (x0 as usize, y0 as usize);
-        let v = [d.get(i, j, 0), d.get(i + 1, j, 0), d.get(i, j + 1, 0), d.get(i + 1, j + 1, 0)];
-        let (lo, hi) = v.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
-        if v.iter().all(|t| t.is_finite()) && hi - lo <= 1.0 {
-            let (fx, fy) = (x - x0, y - y0);
-            let top = v[0] as f64 * (1.0 - fx) + v[1] as f64 * fx;
-            let bot = v[2] as f64 * (1.0 - fx) + v[3] as f64 * fx;
-            return Some((top * (1.0 - fy) + bot * fy) as f32);
-        }
-    }
-    remap::sample_nearest(d, x, y, 0).filter(|v| v.is_finite())
+    let w = d.width;
+    remap::sample_smooth(w, d.height, x, y, 1.0f32, |i, j| {
+        let v = d.data[j * w + i];
+        v.is_finite().then_some(v)
+    })
+    .map(|v| v as f32)
 }
 
 /// Quasi-Euclidean model parameters: [yL, zL, xR, yR, zR] (rad), δ (px), ln(f / f0).
@@ -774,43 +768,6 @@ fn feat_err(e: laparo_features::FeaturesError) -> StereoError {
     StereoError::Config(format!("ORB matching: {e}"))
 }
 
-/// Grey u8 of an image, bit-identical to `laparo_features::detect::to_gray_u8` (f32 luma
-/// 0.299 R + 0.587 G + 0.114 B, `f32::round`, i.e. half away from zero); the fixed channel count
-/// and an AVX2 build of the same loop (runtime dispatch) let it vectorise instead of calling libm
-/// `roundf` per pixel.
-pub fn gray_u8(img: &Image<u8>) -> Image<u8> {
-    let mut out = Image::filled(img.width, img.height, 1, 0u8);
-    match img.channels {
-        3 => luma_dispatch::<3>(&img.data, &mut out.data),
-        4 => luma_dispatch::<4>(&img.data, &mut out.data),
-        _ => return laparo_features::detect::to_gray_u8(img),
-    }
-    out
-}
-
-#[inline(always)]
-fn luma<const C: usize>(data: &[u8], out: &mut [u8]) {
-    for (o, p) in out.iter_mut().zip(data.chunks_exact(C)) {
-        let v = 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
-        *o = v.round().clamp(0.0, 255.0) as u8;
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn luma_avx2<const C: usize>(data: &[u8], out: &mut [u8]) {
-    luma::<C>(data, out)
-}
-
-fn luma_dispatch<const C: usize>(data: &[u8], out: &mut [u8]) {
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx2") {
-        // SAFETY: AVX2 is present (checked just above).
-        return unsafe { luma_avx2::<C>(data, out) };
-    }
-    luma::<C>(data, out)
-}
-
 /// Stage 1 of the fast matcher: grey conversion and ORB (`p.n_features`, `p.n_levels` × 1.2) of
 /// both images, the two images concurrently.
 pub fn fast_detect(left: &Image<u8>, right: &Image<u8>, p: &FastParams) -> Result<FastFeatures, StereoError> {
@@ -823,7 +780,7 @@ pub fn fast_detect(left: &Image<u8>, right: &Image<u8>, p: &FastParams) -> Resul
     }
     let orb = DetectorConfig::Orb(OrbParams { n_features: p.n_features, n_levels: p.n_levels, ..OrbParams::default() });
     let one = |img: &Image<u8>| {
-        let g = gray_u8(img);
+        let g = laparo_features::detect::to_gray_u8(img);
         let f = detect_and_describe(&g, &orb, None);
         (g, f)
     };
@@ -1022,29 +979,3 @@ pub fn match_self_rectified_with(
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn gray_u8_matches_to_gray_u8_and_the_scalar_path() {
-        let mut st = 12345u32;
-        for ch in [3usize, 4] {
-            let data: Vec<u8> = (0..97 * 31 * ch)
-                .map(|_| {
-                    st = st.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                    (st >> 24) as u8
-                })
-                .collect();
-            let img = Image::from_vec(97, 31, ch, data).unwrap();
-            let want = laparo_features::detect::to_gray_u8(&img);
-            assert_eq!(gray_u8(&img).data, want.data);
-            let mut scalar = vec![0u8; 97 * 31];
-            match ch {
-                3 => luma::<3>(&img.data, &mut scalar),
-                _ => luma::<4>(&img.data, &mut scalar),
-            }
-            assert_eq!(scalar, want.data);
-        }
-    }
-}

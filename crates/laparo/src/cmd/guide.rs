@@ -111,15 +111,9 @@ pub struct ScenarioArgs {
     /// 960×540, 6 mm tetrahedra (the demo size).
     #[arg(long)]
     pub quick: bool,
-    /// Organ surface (closed, mm); default ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj.
-    #[arg(long)]
-    pub organ: Option<PathBuf>,
-    /// Texture frame; default ../shared/data/surgical/p2ilf_frame/P2ILF22_patient1_12.jpg.
-    #[arg(long)]
-    pub frame: Option<PathBuf>,
-    /// Camera file; default ../shared/data/meshes/p2ilf/acquisition-camera-metadata.json.
-    #[arg(long)]
-    pub camera: Option<PathBuf>,
+    /// The scenario's organ, texture frame and camera.
+    #[command(flatten)]
+    pub inputs: SceneInputs,
     /// Ground-truth deformation folder from laparo-fem (rest.vtk + deformation.json); default: the
     /// stand-in analytic incision.
     #[arg(long)]
@@ -153,6 +147,14 @@ pub struct EndToEndArgs {
     /// Stereo routes: both, calibrated or self-rectified.
     #[arg(long, default_value = "both")]
     pub route: String,
+    /// The scenario's organ, texture frame and camera.
+    #[command(flatten)]
+    pub inputs: SceneInputs,
+}
+
+/// The inputs of a rendered scenario; each defaults to the P2ILF data under ../shared/data.
+#[derive(Args)]
+pub struct SceneInputs {
     /// Organ surface (closed, mm); default ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj.
     #[arg(long)]
     pub organ: Option<PathBuf>,
@@ -164,11 +166,20 @@ pub struct EndToEndArgs {
     pub camera: Option<PathBuf>,
 }
 
+impl SceneInputs {
+    /// (organ, frame, camera) paths, the defaults filled in.
+    fn resolve(self) -> Result<(PathBuf, PathBuf, PathBuf)> {
+        Ok((
+            data("meshes/p2ilf/patient2_1_3d-liver-model.obj", self.organ, "organ")?,
+            data("surgical/p2ilf_frame/P2ILF22_patient1_12.jpg", self.frame, "frame")?,
+            data("meshes/p2ilf/acquisition-camera-metadata.json", self.camera, "camera")?,
+        ))
+    }
+}
+
 fn end_to_end(e: EndToEndArgs) -> Result<()> {
     use laparo_guide::end_to_end::{self as e2e, EndToEndConfig};
-    let organ = data("meshes/p2ilf/patient2_1_3d-liver-model.obj", e.organ, "organ")?;
-    let frame = data("surgical/p2ilf_frame/P2ILF22_patient1_12.jpg", e.frame, "frame")?;
-    let camera = data("meshes/p2ilf/acquisition-camera-metadata.json", e.camera, "camera")?;
+    let (organ, frame, camera) = e.inputs.resolve()?;
     let mut cfg = if e.quick { EndToEndConfig::quick() } else { EndToEndConfig::full() };
     cfg.incision = e.incision;
     if let Some(v) = e.edge_mm {
@@ -221,9 +232,7 @@ pub fn run(a: GuideArgs) -> Result<()> {
     match a.sub {
         Some(GuideSub::EndToEnd(e)) => end_to_end(e),
         Some(GuideSub::Scenario(s)) => {
-            let organ = data("meshes/p2ilf/patient2_1_3d-liver-model.obj", s.organ, "organ")?;
-            let frame = data("surgical/p2ilf_frame/P2ILF22_patient1_12.jpg", s.frame, "frame")?;
-            let camera = data("meshes/p2ilf/acquisition-camera-metadata.json", s.camera, "camera")?;
+            let (organ, frame, camera) = s.inputs.resolve()?;
             let mut cfg = if s.quick { ScenarioConfig::quick() } else { ScenarioConfig::full() };
             if let Some(w) = s.width {
                 cfg.width = w;
