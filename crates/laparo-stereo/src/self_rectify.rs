@@ -978,4 +978,3 @@ pub fn match_self_rectified_with(
         disparity_rectified: o.disparity,
     })
 }
-
