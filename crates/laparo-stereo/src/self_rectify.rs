@@ -148,8 +148,11 @@ impl DyStats {
 pub struct SelfRectification {
     /// Method used.
     pub method: RectifyMethod,
-    /// Image size (width, height), px.
+    /// Raw image size (width, height), px.
     pub size: (usize, usize),
+    /// Rectified canvas size (width, height), px: large enough for both rectified images (the
+    /// homographies include the canvas offset), so no raw pixel is cropped away.
+    pub rectified_size: (usize, usize),
     /// Left raw → rectified homography, row-major.
     pub h_left: [[f64; 3]; 3],
     /// Right raw → rectified homography, row-major.
@@ -231,7 +234,8 @@ impl SelfRectification {
     /// u_R = u − d; non-finite = invalid) to the raw left frame: for every raw left pixel p the
     /// rectified disparity at H_L p ([`sample_disparity`]: bilinear inside a smooth 2 × 2 cell,
     /// nearest across a disparity edge) gives the raw right point; returns
-    /// (raw disparity x_L − x_R, raw vertical offset y_R − y_L), +inf / NaN where invalid.
+    /// (raw disparity x_L − x_R, raw vertical offset y_R − y_L), +inf / NaN where invalid or where
+    /// the raw right point falls outside the right image (a match against the warp's fill).
     pub fn disparity_to_raw_left(&self, d_rect: &Image<f32>) -> Result<(Image<f32>, Image<f32>), StereoError> {
         if d_rect.channels != 1 {
             return Err(invalid("rectified disparity", format!("{} channels (need 1)", d_rect.channels)));
@@ -246,6 +250,10 @@ impl SelfRectification {
                 let Some(q) = hp(&hl, x as f64, y as f64) else { continue };
                 let Some(v) = sample_disparity(d_rect, q[0], q[1]) else { continue };
                 let Some(r) = hp(&hri, q[0] - v as f64, q[1]) else { continue };
+                // a match outside the raw right image is a match against the warp's fill
+                if !(r[0] >= 0.0 && r[0] <= (w - 1) as f64 && r[1] >= 0.0 && r[1] <= (h - 1) as f64) {
+                    continue;
+                }
                 dr[x] = (x as f64 - r[0]) as f32;
                 yr[x] = (r[1] - y as f64) as f32;
             }
@@ -253,13 +261,14 @@ impl SelfRectification {
         Ok((d, dy))
     }
 
-    /// Warp a raw image pair to the rectified frames (bilinear, same size; laparo-core's sampler).
+    /// Warp a raw image pair to the rectified canvas (`rectified_size`; bilinear, laparo-core's sampler).
     pub fn rectify_images<T: Texel + Default>(
         &self,
         left: &Image<T>,
         right: &Image<T>,
     ) -> Result<(Rectified<T>, Rectified<T>), StereoError> {
         let (w, h) = self.size;
+        let (rw, rh) = self.rectified_size;
         for (name, img) in [("left image", left), ("right image", right)] {
             if (img.width, img.height) != (w, h) {
                 return Err(StereoError::SizeMismatch(format!(
@@ -270,8 +279,8 @@ impl SelfRectification {
         }
         let il = self.h_left().try_inverse().ok_or_else(|| invalid("h_left", "singular"))?;
         let ir = self.h_right().try_inverse().ok_or_else(|| invalid("h_right", "singular"))?;
-        let l = remap::warp_homography(left, &rows(&il), w, h, Interp::Bilinear, T::default())?;
-        let r = remap::warp_homography(right, &rows(&ir), w, h, Interp::Bilinear, T::default())?;
+        let l = remap::warp_homography(left, &rows(&il), rw, rh, Interp::Bilinear, T::default())?;
+        let r = remap::warp_homography(right, &rows(&ir), rw, rh, Interp::Bilinear, T::default())?;
         Ok((l, r))
     }
 }
@@ -328,13 +337,39 @@ fn residuals(hl: &Matrix3<f64>, hr: &Matrix3<f64>, pl: &[[f64; 2]], pr: &[[f64; 
     }
 }
 
+/// Corner displacement terms of [`model_residuals`]: 4 corners × 2 images × (x, y).
+const DISTORTION_TERMS: usize = 16;
+
+/// Weight of the distortion terms (per px of corner displacement): the rotational model has
+/// directions the matches do not observe (f, a common yaw, pitch against δ for a near-rectified
+/// pair); these terms pick, among rectifications of equal |dy|, the one closest to the raw images.
+/// 1e-2: a 100 px corner displacement costs as much as 1 px of dy on one match (the fits use hundreds).
+const DISTORTION_WEIGHT: f64 = 1e-2;
+
+/// The rectified dy of the matches `idx`, then the weighted displacements of the image corners by
+/// H_L and H_R.
+fn model_residuals(m: &Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], out: &mut [f64]) {
+    let (hl, hr) = (m.hl(), m.hr());
+    residuals(&hl, &hr, pl, pr, idx, &mut out[..idx.len()]);
+    let (w, h) = (2.0 * m.c[0], 2.0 * m.c[1]);
+    let mut k = idx.len();
+    for hh in [&hl, &hr] {
+        for c in [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]] {
+            let q = hp(hh, c[0], c[1]).unwrap_or([1e6, 1e6]);
+            out[k] = DISTORTION_WEIGHT * (q[0] - c[0]);
+            out[k + 1] = DISTORTION_WEIGHT * (q[1] - c[1]);
+            k += 2;
+        }
+    }
+}
+
 /// Levenberg–Marquardt on the rectified dy over `idx`; `free` selects the parameters.
 /// f stays within `f_range` (px): a step leaving it counts as a failed step.
 fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize], f_range: (f64, f64)) -> (Model, f64) {
-    let n = idx.len();
+    let n = idx.len() + DISTORTION_TERMS;
     let mut m = m0;
     let mut r = vec![0.0; n];
-    residuals(&m.hl(), &m.hr(), pl, pr, idx, &mut r);
+    model_residuals(&m, pl, pr, idx, &mut r);
     let mut cost: f64 = r.iter().map(|v| v * v).sum();
     let mut lambda = 1e-3;
     let steps = [1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-3, 1e-6];
@@ -344,7 +379,7 @@ fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize]
         for (c, &k) in free.iter().enumerate() {
             let mut mp = m;
             mp.p[k] += steps[k];
-            residuals(&mp.hl(), &mp.hr(), pl, pr, idx, &mut rp);
+            model_residuals(&mp, pl, pr, idx, &mut rp);
             for i in 0..n {
                 j[(i, c)] = (rp[i] - r[i]) / steps[k];
             }
@@ -370,7 +405,7 @@ fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize]
                 lambda *= 10.0;
                 continue;
             }
-            residuals(&mt.hl(), &mt.hr(), pl, pr, idx, &mut rp);
+            model_residuals(&mt, pl, pr, idx, &mut rp);
             let ct: f64 = rp.iter().map(|v| v * v).sum();
             if ct < cost {
                 let rel = (cost - ct) / cost.max(1e-300);
@@ -398,6 +433,41 @@ fn check_matches(pl: &[[f64; 2]], pr: &[[f64; 2]], size: (usize, usize)) -> Resu
         return Err(invalid("image size", format!("{}x{} (need at least 2x2)", size.0, size.1)));
     }
     Ok(())
+}
+
+/// The rectified canvas: both raw images' corners mapped by their homography, the union of the two
+/// boxes (rows are shared, so the vertical extent is common); the homographies are shifted by a whole
+/// number of pixels so the canvas starts at (0, 0). Errors when the canvas would exceed 2× the raw size
+/// (the pair is not near-rectified).
+fn canvas(
+    hl: &Matrix3<f64>,
+    hr: &Matrix3<f64>,
+    size: (usize, usize),
+) -> Result<(Matrix3<f64>, Matrix3<f64>, (usize, usize)), StereoError> {
+    let (w, h) = (size.0 as f64 - 1.0, size.1 as f64 - 1.0);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for hh in [hl, hr] {
+        for c in [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]] {
+            let q = hp(hh, c[0], c[1]).ok_or_else(|| invalid("self-rectification", "a corner maps to infinity"))?;
+            for k in 0..2 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+    }
+    let (x0, y0) = (lo[0].ceil(), lo[1].ceil());
+    let (cw, ch) = ((hi[0].floor() - x0) as usize + 1, (hi[1].floor() - y0) as usize + 1);
+    if cw > 2 * size.0 || ch > 2 * size.1 {
+        return Err(invalid(
+            "self-rectification",
+            format!(
+                "the rectified canvas would be {cw}x{ch} px for {}x{} images: not a near-rectified pair",
+                size.0, size.1
+            ),
+        ));
+    }
+    let t = Matrix3::new(1.0, 0.0, -x0, 0.0, 1.0, -y0, 0.0, 0.0, 1.0);
+    Ok((t * hl, t * hr, (cw, ch)))
 }
 
 /// Self-rectify a raw pair from matched points (left `[x, y]` ↔ right `[x, y]`, px) of images of
@@ -447,11 +517,18 @@ pub fn self_rectify(
                 .map(|&fov| {
                     let f0 = 0.5 * w / (0.5 * fov.to_radians()).tan();
                     let m0 = Model { p: [0.0; 7], f0, c };
-                    // f is weakly observable for near-rectified pairs: the joint refinement keeps
-                    // it within the plausible focal range (field of view 10°..140°)
-                    let (m1, _) = lm(m0, pl, pr, &sub, &[0, 1, 2, 3, 4, 5], (f_lo, f_hi));
+                    // f stays within the plausible focal range (field of view 10°..140°)
+                    let (m1, c1) = lm(m0, pl, pr, &sub, &[0, 1, 2, 3, 4, 5], (f_lo, f_hi));
                     let (m2, c2) = lm(m1, pl, pr, &sub, &[0, 1, 2, 3, 4, 5, 6], (f_lo, f_hi));
-                    (m2, c2, true)
+                    // f joins the model only when the data support it (BIC: the cost must drop by
+                    // more than ln n noise variances); on a near-rectified pair it is unobservable and
+                    // a free f drifts to a bound, which distorts the rectified images for nothing
+                    let n = sub.len() as f64;
+                    if c1 - c2 <= n.ln() * c2 / (n - 7.0).max(1.0) {
+                        (m1, c1, true)
+                    } else {
+                        (m2, c2, true)
+                    }
                 })
                 .collect();
             let mut best: Option<(Model, f64, bool)> = None;
@@ -525,6 +602,7 @@ pub fn self_rectify(
             shift = shift.max((q[0] - c[0]).hypot(q[1] - c[1]));
         }
     }
+    let (hl, hr, rectified_size) = canvas(&hl, &hr, size)?;
     let mut inliers = vec![false; pl.len()];
     for &i in &kept {
         inliers[i] = true;
@@ -532,6 +610,7 @@ pub fn self_rectify(
     Ok(SelfRectification {
         method: opts.method,
         size,
+        rectified_size,
         h_left: rows(&hl),
         h_right: rows(&hr),
         fundamental: rows(&fit.model),
@@ -901,6 +980,23 @@ pub fn rectified_disparity_shift(sr: &SelfRectification, pl: &[[f64; 2]], pr: &[
     }
 }
 
+/// A copy of `img` where the pixels outside `mask` take the value of the nearest in-mask pixel of
+/// their row (rows without one are left as they are).
+fn extend_rows<T: Texel>(img: &Image<T>, mask: &Mask) -> Image<T> {
+    let mut out = img.clone();
+    let (w, c) = (img.width, img.channels);
+    out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks(w)).for_each(|(row, m)| {
+        let (Some(first), Some(last)) = (m.iter().position(|&v| v), m.iter().rposition(|&v| v)) else { return };
+        for x in (0..first).chain(last + 1..w) {
+            let src = if x < first { first } else { last };
+            for ch in 0..c {
+                row[x * c + ch] = row[src * c + ch];
+            }
+        }
+    });
+    out
+}
+
 /// Everything [`match_self_rectified`] computes.
 pub struct SelfRectifiedMatch {
     /// Disparity (d = x_L − x_R, +inf invalid), vertical offset and confidence in the raw left frame.
@@ -947,11 +1043,26 @@ pub fn match_self_rectified_with(
         )));
     }
     let (pl, pr) = feature_matches(left, right, opts.features)?;
-    let sr = self_rectify(&pl, &pr, (w, h), opts)?;
+    let mut sr = self_rectify(&pl, &pr, (w, h), opts)?;
     let off = rectified_disparity_shift(&sr, &pl, &pr);
     let (lo, hi) = ((p.d_min as f64 + off).floor() as i32 - 2, (p.d_max as f64 + off).ceil() as i32 + 2);
-    let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
-    let o = crate::sgm::match_pair(&l, &r, &crate::sgm::SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
+    // centre the rectified disparity range on 0: shift the right image by the middle of the range
+    // (a whole number of pixels) and refit the canvas; the left border strip SGM cannot match is then
+    // half the range wide instead of its far end
+    let mid = (lo + hi).div_euclid(2);
+    let (lo, hi) = {
+        let t = Matrix3::new(1.0, 0.0, mid as f64, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        let (hl, hr, size2) = canvas(&sr.h_left(), &(t * sr.h_right()), (w, h))?;
+        sr.h_left = rows(&hl);
+        sr.h_right = rows(&hr);
+        sr.rectified_size = size2;
+        (lo - mid, hi - mid)
+    };
+    let ((l, ml), (r, mr)) = sr.rectify_images(left, right)?;
+    // SGM sees the canvas outside each raw image as the row's nearest image pixel, not as black:
+    // a black wedge has census codes that match each other and pulls paths astray near it
+    let (lm_, rm_) = (extend_rows(&l, &ml), extend_rows(&r, &mr));
+    let o = crate::sgm::match_pair(&lm_, &rm_, &crate::sgm::SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
     let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
     let hl = sr.h_left();
     let mut conf = Image::filled(w, h, 1, 0f32);

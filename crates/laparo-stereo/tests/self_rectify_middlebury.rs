@@ -219,58 +219,87 @@ fn fast_matches_on_cats_perturbed_middlebury() {
     }
 }
 
-/// Disparity errors against a GT (+inf = unknown): EPE with invalid predictions filled by the row
-/// background (`sgm::fill`, as `tests/sgm.rs` and `sgbm_ref.py`), EPE over the valid predictions,
-/// density (valid / GT pixels) and the median error of the valid predictions, px.
-#[derive(Debug, Clone, Copy)]
-struct Errors {
-    epe_filled: f64,
-    epe_valid: f64,
+/// A GT restricted to the pixels whose exact correspondence lies inside the right image's content
+/// (`right_valid`, after the vertical residual `dy`): the points a matcher can see in both views.
+fn in_view(
+    gt: &[f64],
+    dy: Option<&laparo_core::Image<f32>>,
+    right_valid: Option<&laparo_core::image::Mask>,
+    w: usize,
+    h: usize,
+) -> Vec<f64> {
+    (0..gt.len())
+        .map(|i| {
+            let g = gt[i];
+            if !g.is_finite() {
+                return g;
+            }
+            let dyv = dy.map(|d| d.data[i] as f64).filter(|v| v.is_finite()).unwrap_or(0.0);
+            let (xr, yr) = (((i % w) as f64 - g).round(), ((i / w) as f64 + dyv).round());
+            if xr < 0.0 || yr < 0.0 || xr > (w - 1) as f64 || yr > (h - 1) as f64 {
+                return f64::INFINITY;
+            }
+            match right_valid {
+                Some(m) if !m.data[yr as usize * w + xr as usize] => f64::INFINITY,
+                _ => g,
+            }
+        })
+        .collect()
+}
+
+/// Filled disparity (invalid → the row background, `sgm::fill`, as `tests/sgm.rs` and `sgbm_ref.py`).
+fn filled(d: &laparo_core::Image<f32>) -> Vec<f32> {
+    let mut f = d.data.clone();
+    laparo_stereo::sgm::fill::fill_background(&mut f, d.width, d.height);
+    f
+}
+
+/// One perturbed pair's EPE against the unperturbed pair's, on the same scene points.
+#[derive(Debug, Clone)]
+struct EpeRow {
+    label: String,
+    /// Scene points compared (in view in both pairs).
+    n: usize,
+    /// EPE (invalid filled) of the unperturbed pair's SGM at those points, px.
+    epe_unperturbed: f64,
+    /// EPE (invalid filled) of the self-rectified pipeline on the perturbed pair at the same points, px.
+    epe_perturbed: f64,
+    /// Density of the pipeline's valid pixels over its in-view GT pixels.
     density: f64,
-    median_valid: f64,
 }
 
-fn errors(pred: &laparo_core::Image<f32>, gt: &[f64]) -> Errors {
-    let mut f = pred.data.clone();
-    laparo_stereo::sgm::fill::fill_background(&mut f, pred.width, pred.height);
-    let (mut n, mut e) = (0usize, 0f64);
-    let mut valid = vec![];
-    for i in 0..f.len() {
-        if !gt[i].is_finite() {
-            continue;
-        }
-        n += 1;
-        e += ((if f[i].is_finite() { f[i] as f64 } else { 0.0 }) - gt[i]).abs();
-        if pred.data[i].is_finite() {
-            valid.push((pred.data[i] as f64 - gt[i]).abs());
-        }
-    }
-    let epe_valid = valid.iter().sum::<f64>() / valid.len().max(1) as f64;
-    let density = valid.len() as f64 / n as f64;
-    Errors { epe_filled: e / n as f64, epe_valid, density, median_valid: laparo_core::stats::median(&mut valid) }
-}
-
-/// The default SGM on the rectified Motorcycle pair ([0, 64)) against its GT, then the default
+/// The default SGM on the rectified Motorcycle pair ([0, 64)) against its GT, and the default
 /// self-rectified pipeline (fast matches → self-rectification → SGM → disparity in the raw left
-/// frame) on a zero CATS perturbation and on two CATS-perturbed raw pairs, against the augmented
-/// exact GT, searched over the GT range widened by 2 px: (unperturbed, [(label, errors)]).
-fn epe_rows() -> Option<(Errors, Vec<(String, Errors)>)> {
+/// frame) on CATS-perturbed raw pairs (a zero perturbation, two fixed ones, six random ones with
+/// rotations within ±0.4° and principal-point shifts within ±60 px), searched over the GT range
+/// widened by 2 px. Both are scored on the same scene points: a perturbed left pixel p' whose exact
+/// correspondence is in view, and the unperturbed pixel A_L⁻¹ p' whose correspondence is in view too
+/// (a perturbation moves parts of the scene out of the frame; no matcher can see those).
+fn epe_rows() -> Option<Vec<EpeRow>> {
     use laparo_stereo::self_rectify::match_self_rectified;
     use laparo_stereo::sgm::{match_pair, SgmParams};
     let d = data_dir()?;
     let s = motorcycle(&d);
+    let (w, h) = (741usize, 500usize);
     let gt0: Vec<f64> = s.disp_left.as_ref().unwrap().data.iter().map(|&v| v as f64).collect();
-    let e0 = errors(&match_pair(&s.left, &s.right, &SgmParams::new(0, 64)).unwrap().disparity, &gt0);
+    let gt0 = in_view(&gt0, None, None, w, h);
+    let f0 = filled(&match_pair(&s.left, &s.right, &SgmParams::new(0, 64)).unwrap().disparity);
     let (kl, kr) = cameras();
+    let mut cases = vec![
+        ("zero".to_string(), perturbation(kl, kr, [0.0; 3], [0.0; 3], [0.0, 0.0], [0.0, 0.0])),
+        ("fixed 1".into(), perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0])),
+        ("fixed 2".into(), perturbation(kl, kr, [-0.4, 0.1, -0.3], [0.35, -0.25, 0.2], [-55.0, 45.0], [50.0, -60.0])),
+    ];
+    for seed in 1u64..=6 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut ang = || [rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4), rng.gen_range(-0.4..0.4)];
+        let (el, er) = (ang(), ang());
+        let mut sh = || [rng.gen_range(-60.0..60.0), rng.gen_range(-60.0..60.0)];
+        let (sl, sr) = (sh(), sh());
+        cases.push((format!("seed {seed}"), perturbation(kl, kr, el, er, sl, sr)));
+    }
     let mut rows = vec![];
-    for (k, p) in [
-        perturbation(kl, kr, [0.0; 3], [0.0; 3], [0.0, 0.0], [0.0, 0.0]),
-        perturbation(kl, kr, [0.3, -0.2, 0.25], [-0.2, 0.3, -0.3], [40.0, -50.0], [-60.0, 30.0]),
-        perturbation(kl, kr, [-0.4, 0.1, -0.3], [0.35, -0.25, 0.2], [-55.0, 45.0], [50.0, -60.0]),
-    ]
-    .into_iter()
-    .enumerate()
-    {
+    for (label, p) in cases {
         let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
         let ad = aug.disp_left.as_ref().unwrap();
         let gt: Vec<f64> = ad
@@ -284,53 +313,80 @@ fn epe_rows() -> Option<(Errors, Vec<(String, Errors)>)> {
         let hi = gt.iter().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, |a, &b| a.max(b));
         let prm = SgmParams::new(lo.floor() as i32 - 2, hi.ceil() as i32 + 3);
         let m = match_self_rectified(&aug.left.image, &aug.right.image, &prm).unwrap();
-        let e = errors(&m.output.disparity, &gt);
-        let label = format!(
-            "perturbation {k} ({}), raw range [{}, {})",
-            if k == 0 { "zero" } else { "CATS" },
-            prm.d_min,
-            prm.d_max
-        );
+        let gt = in_view(&gt, ad.vertical_residual.as_ref(), Some(&aug.right.valid), w, h);
+        let fp = filled(&m.output.disparity);
+        let a_inv = p.left.homography_inverse().unwrap();
+        let (mut n, mut e0, mut e1, mut n_gt, mut n_valid) = (0usize, 0.0, 0.0, 0usize, 0usize);
+        for i in 0..gt.len() {
+            if !gt[i].is_finite() {
+                continue;
+            }
+            n_gt += 1;
+            n_valid += m.output.disparity.data[i].is_finite() as usize;
+            let q = a_inv * nalgebra::Vector3::new((i % w) as f64, (i / w) as f64, 1.0);
+            let (x, y) = ((q.x / q.z).round(), (q.y / q.z).round());
+            if x < 0.0 || y < 0.0 || x > (w - 1) as f64 || y > (h - 1) as f64 {
+                continue;
+            }
+            let j = y as usize * w + x as usize;
+            if !gt0[j].is_finite() {
+                continue;
+            }
+            let err = |f: f32, g: f64| ((if f.is_finite() { f as f64 } else { 0.0 }) - g).abs();
+            n += 1;
+            e0 += err(f0[j], gt0[j]);
+            e1 += err(fp[i], gt[i]);
+        }
+        let row = EpeRow {
+            label: format!("{label} (raw range [{}, {}))", prm.d_min, prm.d_max),
+            n,
+            epe_unperturbed: e0 / n as f64,
+            epe_perturbed: e1 / n as f64,
+            density: n_valid as f64 / n_gt as f64,
+        };
         eprintln!(
-            "{label}: {e:.3?}; EPE ratios filled {:.3} valid {:.3} (unperturbed {e0:.3?}); {} matches, {} inliers",
-            e.epe_filled / e0.epe_filled,
-            e.epe_valid / e0.epe_valid,
-            m.n_matches,
-            m.rectification.n_inliers
+            "{}: {} scene points, EPE unperturbed {:.3} px, self-rectified {:.3} px, ratio {:.3}; density {:.3}; {} matches, {} inliers, f {:.0} px, canvas {:?}",
+            row.label, row.n, row.epe_unperturbed, row.epe_perturbed, row.epe_perturbed / row.epe_unperturbed,
+            row.density, m.n_matches, m.rectification.n_inliers, m.rectification.focal_px.unwrap_or(f64::NAN),
+            m.rectification.rectified_size
         );
-        rows.push((label, e));
+        rows.push(row);
     }
-    Some((e0, rows))
+    Some(rows)
 }
 
-/// Issue 14's "EPE within 15 % of matching the unperturbed pair", checked with the default (fast)
-/// matcher: NOT met today (2026-12-03: EPE over valid pixels 1.37× on a zero perturbation,
-/// 1.7–1.8× on the CATS pairs; filled 1.7× / 2.6–10.6× as the density drops from 0.89 to
-/// 0.67–0.74 near the borders the perturbation moves out of view). This test guards the measured
-/// level (median error of the valid pixels within 0.05 px of the unperturbed pair's, density
-/// ≥ 0.6, valid EPE ≤ 2× the unperturbed); `..._acceptance` (ignored) asserts the 15 % line.
+/// Issue 14's "EPE within 15 % of matching the unperturbed pair", on the same scene points (see
+/// [`epe_rows`]). Measured 2026-12-03 (stop 24): ratios 1.08 (zero perturbation), 1.12, 1.08,
+/// 1.13, 1.17, 1.19, 1.09, 1.14, 1.11 — mean 1.12; the exact inverse of the perturbation (oracle
+/// rectification) gives 1.01–1.17 on the same pairs, so the rest is what the perturbed pair itself
+/// loses (resampling, cropped context). This test guards the measured level: every pair ≤ 1.25,
+/// the mean ≤ 1.16, density ≥ 0.85; `..._acceptance` (ignored) asserts ≤ 1.15 for every pair.
 #[test]
 fn self_rectified_epe_against_the_unperturbed_pair() {
-    let Some((e0, rows)) = epe_rows() else { return };
-    for (label, e) in rows {
-        assert!(
-            e.median_valid <= e0.median_valid + 0.05,
-            "{label}: median error {} vs {}",
-            e.median_valid,
-            e0.median_valid
-        );
-        assert!(e.density >= 0.6, "{label}: density {}", e.density);
-        assert!(e.epe_valid <= 2.0 * e0.epe_valid, "{label}: valid EPE {} vs {}", e.epe_valid, e0.epe_valid);
+    let Some(rows) = epe_rows() else { return };
+    let ratios: Vec<f64> = rows.iter().map(|r| r.epe_perturbed / r.epe_unperturbed).collect();
+    for (r, q) in rows.iter().zip(&ratios) {
+        assert!(r.n > 200_000, "{}: only {} scene points", r.label, r.n);
+        assert!(*q <= 1.25, "{}: EPE ratio {q}", r.label);
+        assert!(r.density >= 0.85, "{}: density {}", r.label, r.density);
     }
+    let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+    assert!(mean <= 1.16, "mean EPE ratio {mean}");
 }
 
-/// The acceptance line itself (fails today, see above): `cargo test -- --ignored`.
+/// The acceptance line itself (2 of 9 pairs miss it today, see above): `cargo test -- --ignored`.
 #[test]
-#[ignore = "issue 14 EPE-within-15 % line not met yet (BENCHMARKS.md, self-rectification update 2026-12-03 14:40)"]
+#[ignore = "issue 14 EPE-within-15 % line: 7 of 9 CATS pairs meet it (BENCHMARKS.md, stop 24)"]
 fn self_rectified_epe_within_15_percent_acceptance() {
-    let Some((e0, rows)) = epe_rows() else { return };
-    for (label, e) in rows {
-        assert!(e.epe_filled <= 1.15 * e0.epe_filled, "{label}: EPE {} vs unperturbed {}", e.epe_filled, e0.epe_filled);
+    let Some(rows) = epe_rows() else { return };
+    for r in rows {
+        assert!(
+            r.epe_perturbed <= 1.15 * r.epe_unperturbed,
+            "{}: EPE {} vs unperturbed {}",
+            r.label,
+            r.epe_perturbed,
+            r.epe_unperturbed
+        );
     }
 }
 
