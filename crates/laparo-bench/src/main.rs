@@ -14,6 +14,7 @@ mod cats;
 mod cpc;
 mod depth;
 mod features;
+mod fem;
 mod geo;
 mod mpm;
 mod register;
@@ -48,6 +49,8 @@ enum Command {
     Features(features::BenchArgs),
     /// RANSAC H/F and self-rectification timings (optionally against OpenCV stereoRectifyUncalibrated).
     Geo(geo::BenchArgs),
+    /// FEM ground truth: fill and time of the tangent's Cholesky with AMD vs nested dissection (P2ILF liver).
+    Fem(fem::BenchArgs),
 }
 
 fn main() {
@@ -62,6 +65,7 @@ fn main() {
         Command::StereoMatch(a) => stereo_match::run(a),
         Command::Features(a) => features::run(a),
         Command::Geo(a) => geo::run(a),
+        Command::Fem(a) => fem::run(a),
     };
     // As the `laparo` CLI: the command runs on a worker of the rayon pool (8 MiB stacks), so the
     // libraries' parallel regions start and end on a pool thread; timings are then those a

@@ -2,15 +2,18 @@
 //! benchmark (thesis §5.4.2). Nearly incompressible Neo-Hookean law of eq. 5.3
 //! ([`crate::material::NeoHookean`]), dead tractions / nodal / body forces and prescribed
 //! displacements ramped over load increments, Newton with a backtracking line search on the total
-//! potential energy, sparse Cholesky (faer, AMD fill-reducing ordering) of the tangent.
+//! potential energy, sparse Cholesky (faer; geometric nested-dissection or AMD fill-reducing ordering) of the tangent.
 //!
 //! Units: mm, kPa, mN (energy in mN·mm = µJ).
 mod newton;
+mod ordering;
 mod problem;
 mod quadrature;
 mod tet10;
 
-pub use newton::{solve, Solution, SolverSettings, StepReport, Timings};
+pub use newton::{
+    factorization_profile, solve, FactorizationProfile, FillOrdering, Solution, SolverSettings, StepReport, Timings,
+};
 pub use problem::{Assembled, BodyForce, Dirichlet, FaceTraction, Loads, NodalForce, SolidProblem};
 pub use quadrature::{tet10_shape, tet10_shape_grad, QuadPoint, Quadrature, TET10_EDGES};
 pub use tet10::Tet10Mesh;
