@@ -435,15 +435,14 @@ fn check_matches(pl: &[[f64; 2]], pr: &[[f64; 2]], size: (usize, usize)) -> Resu
     Ok(())
 }
 
+/// (H_L, H_R, canvas size) of [`canvas`].
+type Canvas = (Matrix3<f64>, Matrix3<f64>, (usize, usize));
+
 /// The rectified canvas: both raw images' corners mapped by their homography, the union of the two
 /// boxes (rows are shared, so the vertical extent is common); the homographies are shifted by a whole
 /// number of pixels so the canvas starts at (0, 0). Errors when the canvas would exceed 2× the raw size
 /// (the pair is not near-rectified).
-fn canvas(
-    hl: &Matrix3<f64>,
-    hr: &Matrix3<f64>,
-    size: (usize, usize),
-) -> Result<(Matrix3<f64>, Matrix3<f64>, (usize, usize)), StereoError> {
+fn canvas(hl: &Matrix3<f64>, hr: &Matrix3<f64>, size: (usize, usize)) -> Result<Canvas, StereoError> {
     let (w, h) = (size.0 as f64 - 1.0, size.1 as f64 - 1.0);
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for hh in [hl, hr] {
