@@ -445,7 +445,7 @@ pub fn register<const D: usize>(
         let slope = dot(&g, &dir);
         let mut accepted = None;
         if cfg.kind == OptimizerKind::Lbfgs && cfg.line_search == LineSearch::StrongWolfe {
-            let mut eval = |a: f64| -> Result<Option<(f64, f64, (Vec<f64>, Eval<D>))>> {
+            let mut eval = |a: f64| -> Trial<(Vec<f64>, Eval<D>), RegisterError> {
                 let xt: Vec<f64> = x.iter().zip(&dir).map(|(u, v)| u + a * v).collect();
                 match pb.eval(&xt) {
                     Ok(e) => Ok(Some((e.loss, dot(&e.grad, &dir), (xt, e)))),
@@ -526,6 +526,9 @@ pub fn register<const D: usize>(
     Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason })
 }
 
+/// One line-search trial: φ(α), φ'(α) and a payload, or None when the step is infeasible.
+type Trial<T, E> = std::result::Result<Option<(f64, f64, T)>, E>;
+
 /// Strong Wolfe line search on φ(α) = f(x + α d) (Nocedal & Wright Alg. 3.5 and 3.6, c₁ = 1e-4):
 /// extrapolate by doubling up to `alpha_max`, then zoom by safeguarded cubic interpolation. `eval(α)`
 /// gives φ(α), φ'(α) and a payload, or None when the step is infeasible (φ = +∞). Returns the trial with
@@ -538,7 +541,7 @@ fn strong_wolfe<T, E>(
     alpha_max: f64,
     c2: f64,
     max_evals: usize,
-    eval: &mut dyn FnMut(f64) -> std::result::Result<Option<(f64, f64, T)>, E>,
+    eval: &mut dyn FnMut(f64) -> Trial<T, E>,
 ) -> std::result::Result<Option<(f64, T)>, E> {
     const C1: f64 = 1e-4;
     // (α, φ, φ'); φ = +∞ and φ' = NaN for an infeasible step
@@ -569,7 +572,7 @@ fn strong_wolfe<T, E>(
             return Ok(done(best));
         }
         let (_, f, s) = p;
-        if !(f <= phi0 + C1 * a * dphi0) || (evals > 1 && f >= prev.1) {
+        if f > phi0 + C1 * a * dphi0 || (evals > 1 && f >= prev.1) {
             break (prev, p);
         }
         if s >= 0.0 {
@@ -607,7 +610,7 @@ fn strong_wolfe<T, E>(
             return Ok(done(best));
         }
         let (_, f, s) = p;
-        if !(f <= phi0 + C1 * t * dphi0) || f >= lo.1 {
+        if f > phi0 + C1 * t * dphi0 || f >= lo.1 {
             hi = p;
         } else {
             if s * (hi.0 - lo.0) >= 0.0 {
@@ -621,20 +624,20 @@ fn strong_wolfe<T, E>(
 
 #[cfg(test)]
 mod tests {
-    use super::strong_wolfe;
+    use super::{strong_wolfe, Trial};
 
     /// φ(α) = (α − 3)² − 9: φ'(0) = −6; a strong Wolfe point with c₂ = 0.1 has |2(α − 3)| ≤ 0.6, and the
     /// cubic through two points of a quadratic with their slopes is the quadratic, so the zoom lands on 3.
     #[test]
     fn strong_wolfe_on_a_parabola() {
         let mut trials = Vec::new();
-        let mut eval = |a: f64| -> Result<Option<(f64, f64, ())>, ()> {
+        let mut eval = |a: f64| -> Trial<(), ()> {
             trials.push(a);
             Ok(Some(((a - 3.0).powi(2) - 9.0, 2.0 * (a - 3.0), ())))
         };
         let (a, ()) = strong_wolfe(0.0, -6.0, 1.0, 100.0, 0.1, 20, &mut eval).unwrap().unwrap();
         assert!((a - 3.0).abs() < 1e-12, "α = {a}");
-        // 1 → 2 (φ' still < −0.6) → 4 (φ rises above φ(2): bracket [2, 4]) → cubic minimiser 3
+        // 1 → 2 (φ' still < −0.6) → 4 (φ(4) = φ(2), no further decrease: bracket [2, 4]) → cubic minimiser 3
         assert_eq!(trials, vec![1.0, 2.0, 4.0, 3.0]);
     }
 
@@ -642,8 +645,7 @@ mod tests {
     /// sufficient decrease.
     #[test]
     fn strong_wolfe_backs_off_infeasible_steps() {
-        let mut eval =
-            |a: f64| -> Result<Option<(f64, f64, ())>, ()> { Ok(if a > 0.5 { None } else { Some((-a, -1.0, ())) }) };
+        let mut eval = |a: f64| -> Trial<(), ()> { Ok(if a > 0.5 { None } else { Some((-a, -1.0, ())) }) };
         let (a, ()) = strong_wolfe(0.0, -1.0, 4.0, 4.0, 0.9, 10, &mut eval).unwrap().unwrap();
         assert!(a <= 0.5 && a > 0.0, "α = {a}");
     }
