@@ -3,7 +3,10 @@
 //!
 //! * [`OptimizerKind::Lbfgs`] (default): v₀ = v_warm + S θ with the Gaussian preconditioner S
 //!   ([`crate::smoothing`]), L-BFGS on θ with an Armijo backtracking line search; every trial step is
-//!   capped to a physical displacement (max |Δv₀|·T·Δt ≤ `max_step_dx`·Δx).
+//!   capped to a physical displacement (max |Δv₀|·T·Δt ≤ `max_step_dx`·Δx). Optionally a strong Wolfe
+//!   line search ([`LineSearch::StrongWolfe`]) and a distance-smoothing continuation (`epsilon_ratio`:
+//!   √(d² + ε²) − ε with ε following the residual down to 0; the reported loss stays eq. 5.10), both
+//!   used by [`OptimizerConfig::tear`] for targets that pull adjacent particles apart.
 //! * [`OptimizerKind::Adam`]: Adam on θ with the same cap, a rejected step halves the rate.
 //! * [`OptimizerKind::ThesisGd`]: the thesis' plain gradient descent on raw v₀ from v₀ = 0 (eq. 5.9),
 //!   α₀ then ×`thesis_decay` (0.5) whenever a step would raise the loss (the thesis states "initial lr
@@ -58,6 +61,25 @@ pub struct OptimizerConfig {
     pub max_backtracks: usize,
     /// Also optimise E (log-parameterised).
     pub joint_youngs_modulus: bool,
+    /// Line search of L-BFGS.
+    pub line_search: LineSearch,
+    /// Distance-smoothing continuation κ: optimise Σ √(d² + ε²) − ε with ε = κ × the current mean
+    /// landmark distance (eq. 5.10), lowered as the residual falls (ε → 0); 0 = off. The reported loss
+    /// stays eq. 5.10.
+    pub epsilon_ratio: f64,
+    /// Strong Wolfe curvature constant c₂ (0.9: quasi-Newton; smaller: closer to an exact line search).
+    pub wolfe_c2: f64,
+}
+
+/// Line search along an L-BFGS direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LineSearch {
+    /// Armijo backtracking (halving) from the unit step.
+    Backtracking,
+    /// Strong Wolfe conditions (Nocedal & Wright Alg. 3.5/3.6: extrapolation, then zoom by cubic
+    /// interpolation).
+    StrongWolfe,
 }
 
 impl Default for OptimizerConfig {
@@ -75,6 +97,9 @@ impl Default for OptimizerConfig {
             lbfgs_memory: 10,
             max_backtracks: 10,
             joint_youngs_modulus: false,
+            line_search: LineSearch::Backtracking,
+            epsilon_ratio: 0.0,
+            wolfe_c2: 0.9,
         }
     }
 }
@@ -84,6 +109,22 @@ impl OptimizerConfig {
     pub fn thesis() -> Self {
         OptimizerConfig { kind: OptimizerKind::ThesisGd, iterations: 500, smoothing_dx: 0.0, ..Default::default() }
     }
+
+    /// Preset for targets that tear adjacent particles apart (the thesis 3D box: two neighbouring rows,
+    /// 0.5 Δx apart, pushed apart by ±1.2 Δx). Unsmoothed (σ = 0: any smoothing over ≥ 0.5 Δx gives both
+    /// lips one velocity), step cap 16 Δx, strong Wolfe line search with c₂ = 0.1 (close to an exact line
+    /// search: the unsquared distances of eq. 5.10 make unit quasi-Newton steps poor) and the
+    /// distance-smoothing continuation ε = 0.5 × the mean landmark distance.
+    pub fn tear() -> Self {
+        OptimizerConfig {
+            smoothing_dx: 0.0,
+            max_step_dx: 16.0,
+            line_search: LineSearch::StrongWolfe,
+            wolfe_c2: 0.1,
+            epsilon_ratio: 0.5,
+            ..Default::default()
+        }
+    }
 }
 
 /// One accepted iteration.
@@ -91,8 +132,12 @@ impl OptimizerConfig {
 pub struct IterationRecord {
     /// Iteration (0 = the starting point).
     pub iteration: usize,
-    /// Loss (as optimised, smoothed distance).
+    /// Loss as given (eq. 5.10 for unit weights and ε = 0), at the accepted point.
     pub loss: f64,
+    /// Objective as optimised (with the continuation's ε; equals `loss` without continuation).
+    pub objective: f64,
+    /// ε of the distance-smoothing continuation (length units).
+    pub epsilon: f64,
     /// Mean landmark distance (eq. 5.10, unsmoothed, length units).
     pub mean_distance: f64,
     /// Young's modulus.
@@ -120,14 +165,20 @@ pub struct Registration<const D: usize> {
 }
 
 struct Eval<const D: usize> {
+    /// Objective as optimised (active ε).
     loss: f64,
+    /// The caller's loss (eq. 5.10) at the same state.
+    reported: f64,
     grad: Vec<f64>,
     state: ParticleState<D>,
 }
 
 struct Problem<'a, const D: usize> {
     scene: Scene<D>,
-    loss: &'a RegistrationLoss<D>,
+    /// The caller's loss.
+    user: &'a RegistrationLoss<D>,
+    /// The loss optimised (the caller's with the continuation's ε).
+    loss: RegistrationLoss<D>,
     smoother: Option<Smoother<D>>,
     warm: Vec<Vector<D>>,
     e0: f64,
@@ -164,7 +215,7 @@ impl<const D: usize> Problem<'_, D> {
         if self.joint {
             self.scene.material.youngs_modulus = self.e0 * x[self.n() * D].exp();
         }
-        let g = simulate_with_gradient_in(&mut self.ws, &self.scene, self.loss)?;
+        let g = simulate_with_gradient_in(&mut self.ws, &self.scene, &self.loss)?;
         self.evaluations += 1;
         if !g.loss.is_finite() {
             return Err(RegisterError::bad("registration", "the loss became non-finite (simulation unstable)"));
@@ -177,7 +228,13 @@ impl<const D: usize> Problem<'_, D> {
         if self.joint {
             grad.push(self.scene.material.youngs_modulus * g.d_youngs_modulus);
         }
-        Ok(Eval { loss: g.loss, grad, state: g.final_state })
+        let reported = if self.loss.epsilon == self.user.epsilon {
+            g.loss
+        } else {
+            let mut scratch = vec![Vector::<D>::zeros(); self.n()];
+            self.user.value_and_gradient(&g.final_state.x, &mut scratch)
+        };
+        Ok(Eval { loss: g.loss, reported, grad, state: g.final_state })
     }
     /// Largest landmark displacement |Δv|·T·Δt of a parameter step.
     fn step_length(&self, dx: &[f64]) -> f64 {
@@ -232,7 +289,8 @@ pub fn register<const D: usize>(
     let joint = cfg.joint_youngs_modulus;
     let mut pb = Problem {
         scene: scene.clone(),
-        loss,
+        user: loss,
+        loss: loss.clone(),
         smoother,
         warm,
         e0: scene.material.youngs_modulus,
@@ -244,11 +302,21 @@ pub fn register<const D: usize>(
     let start = Instant::now();
     let mut x = vec![0.0; dim];
     let mut cur = pb.eval(&x)?;
+    let continuation = cfg.epsilon_ratio > 0.0 && !thesis;
+    if continuation {
+        let eps = cfg.epsilon_ratio * loss.mean_distance(&cur.state.x);
+        if eps > pb.loss.epsilon {
+            pb.loss.epsilon = eps;
+            cur = pb.eval(&x)?;
+        }
+    }
     let max_step = cfg.max_step_dx * dxl;
     let mut history = Vec::new();
     let record = |it: usize, e: &Eval<D>, pb: &Problem<D>, step: f64| IterationRecord {
         iteration: it,
-        loss: e.loss,
+        loss: e.reported,
+        objective: e.loss,
+        epsilon: pb.loss.epsilon,
         mean_distance: loss.mean_distance(&e.state.x),
         youngs_modulus: pb.scene.material.youngs_modulus,
         step,
@@ -274,9 +342,17 @@ pub fn register<const D: usize>(
         }
         if history.len() > cfg.patience && cfg.patience > 0 {
             let old = history[history.len() - 1 - cfg.patience].loss;
-            if old - cur.loss <= cfg.rel_tol * old.abs() {
+            if old - cur.reported <= cfg.rel_tol * old.abs() {
                 stop_reason = format!("relative decrease below {} over {} iterations", cfg.rel_tol, cfg.patience);
                 break;
+            }
+        }
+        if continuation {
+            // ε follows the residual down to the caller's ε (eq. 5.10 in the limit)
+            let eps = (cfg.epsilon_ratio * loss.mean_distance(&cur.state.x)).max(loss.epsilon);
+            if eps < 0.5 * pb.loss.epsilon {
+                pb.loss.epsilon = eps;
+                cur = pb.eval(&x)?;
             }
         }
         let g = cur.grad.clone();
@@ -368,28 +444,42 @@ pub fn register<const D: usize>(
         };
         let slope = dot(&g, &dir);
         let mut accepted = None;
-        for _ in 0..=cfg.max_backtracks {
-            let xt: Vec<f64> = x.iter().zip(&dir).map(|(a, b)| a + alpha * b).collect();
-            let trial = match pb.eval(&xt) {
-                Ok(e) => Some(e),
-                Err(RegisterError::Mpm(_)) => None, // left the domain: shorter step
-                Err(e) => return Err(e),
-            };
-            if let Some(e) = trial {
-                let ok = match cfg.kind {
-                    OptimizerKind::Lbfgs => e.loss <= cur.loss + 1e-4 * alpha * slope,
-                    _ => e.loss < cur.loss,
-                };
-                if ok {
-                    accepted = Some((xt, e, alpha));
-                    break;
+        if cfg.kind == OptimizerKind::Lbfgs && cfg.line_search == LineSearch::StrongWolfe {
+            let mut eval = |a: f64| -> Trial<(Vec<f64>, Eval<D>), RegisterError> {
+                let xt: Vec<f64> = x.iter().zip(&dir).map(|(u, v)| u + a * v).collect();
+                match pb.eval(&xt) {
+                    Ok(e) => Ok(Some((e.loss, dot(&e.grad, &dir), (xt, e)))),
+                    Err(RegisterError::Mpm(_)) => Ok(None), // left the domain
+                    Err(e) => Err(e),
                 }
-            }
-            alpha *= 0.5;
-            match cfg.kind {
-                OptimizerKind::ThesisGd => gd_alpha *= cfg.thesis_decay,
-                OptimizerKind::Adam => adam_lr *= 0.5,
-                OptimizerKind::Lbfgs => {}
+            };
+            let max_evals = 2 * cfg.max_backtracks;
+            accepted = strong_wolfe(cur.loss, slope, alpha, cap.max(alpha), cfg.wolfe_c2, max_evals, &mut eval)?
+                .map(|(a, (xt, e))| (xt, e, a));
+        } else {
+            for _ in 0..=cfg.max_backtracks {
+                let xt: Vec<f64> = x.iter().zip(&dir).map(|(a, b)| a + alpha * b).collect();
+                let trial = match pb.eval(&xt) {
+                    Ok(e) => Some(e),
+                    Err(RegisterError::Mpm(_)) => None, // left the domain: shorter step
+                    Err(e) => return Err(e),
+                };
+                if let Some(e) = trial {
+                    let ok = match cfg.kind {
+                        OptimizerKind::Lbfgs => e.loss <= cur.loss + 1e-4 * alpha * slope,
+                        _ => e.loss < cur.loss,
+                    };
+                    if ok {
+                        accepted = Some((xt, e, alpha));
+                        break;
+                    }
+                }
+                alpha *= 0.5;
+                match cfg.kind {
+                    OptimizerKind::ThesisGd => gd_alpha *= cfg.thesis_decay,
+                    OptimizerKind::Adam => adam_lr *= 0.5,
+                    OptimizerKind::Lbfgs => {}
+                }
             }
         }
         let Some((xt, e, alpha)) = accepted else {
@@ -434,4 +524,129 @@ pub fn register<const D: usize>(
     let velocities: Vec<Vector<D>> = (0..n).map(|p| pb.warm[p] + dv[p]).collect();
     let youngs_modulus = if joint { pb.e0 * x[dim - 1].exp() } else { pb.e0 };
     Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason })
+}
+
+/// One line-search trial: φ(α), φ'(α) and a payload, or None when the step is infeasible.
+type Trial<T, E> = std::result::Result<Option<(f64, f64, T)>, E>;
+
+/// Strong Wolfe line search on φ(α) = f(x + α d) (Nocedal & Wright Alg. 3.5 and 3.6, c₁ = 1e-4):
+/// extrapolate by doubling up to `alpha_max`, then zoom by safeguarded cubic interpolation. `eval(α)`
+/// gives φ(α), φ'(α) and a payload, or None when the step is infeasible (φ = +∞). Returns the trial with
+/// the lowest φ among those with sufficient decrease (the strong Wolfe point when one was found within
+/// `max_evals` trials), or None.
+fn strong_wolfe<T, E>(
+    phi0: f64,
+    dphi0: f64,
+    alpha0: f64,
+    alpha_max: f64,
+    c2: f64,
+    max_evals: usize,
+    eval: &mut dyn FnMut(f64) -> Trial<T, E>,
+) -> std::result::Result<Option<(f64, T)>, E> {
+    const C1: f64 = 1e-4;
+    // (α, φ, φ'); φ = +∞ and φ' = NaN for an infeasible step
+    type Pt = (f64, f64, f64);
+    let mut best: Option<(f64, f64, T)> = None;
+    let mut evals = 0;
+    let mut trial = |a: f64, best: &mut Option<(f64, f64, T)>| -> std::result::Result<(Pt, bool), E> {
+        let (f, s) = match eval(a)? {
+            Some((f, s, payload)) => {
+                if f <= phi0 + C1 * a * dphi0 && best.as_ref().is_none_or(|b| f < b.1) {
+                    *best = Some((a, f, payload));
+                }
+                (f, s)
+            }
+            None => (f64::INFINITY, f64::NAN),
+        };
+        let wolfe = f <= phi0 + C1 * a * dphi0 && s.abs() <= -c2 * dphi0;
+        Ok(((a, f, s), wolfe))
+    };
+    let done = |best: Option<(f64, f64, T)>| best.map(|(a, _, p)| (a, p));
+    let mut prev: Pt = (0.0, phi0, dphi0);
+    let mut a = alpha0.min(alpha_max);
+    // bracketing: lo = the end with sufficient decrease and the lower φ, hi = the other end
+    let (mut lo, mut hi): (Pt, Pt) = loop {
+        let (p, wolfe) = trial(a, &mut best)?;
+        evals += 1;
+        if wolfe {
+            return Ok(done(best));
+        }
+        let (_, f, s) = p;
+        if f > phi0 + C1 * a * dphi0 || (evals > 1 && f >= prev.1) {
+            break (prev, p);
+        }
+        if s >= 0.0 {
+            break (p, prev);
+        }
+        if a >= alpha_max || evals >= max_evals {
+            return Ok(done(best));
+        }
+        prev = p;
+        a = (2.0 * a).min(alpha_max);
+    };
+    while evals < max_evals {
+        let (l, h) = (lo.0.min(hi.0), lo.0.max(hi.0));
+        let width = h - l;
+        if width <= 1e-12 * h {
+            break;
+        }
+        // minimiser of the cubic through (lo, hi) with their slopes (N&W eq. 3.59), else bisection
+        let mut t = 0.5 * (lo.0 + hi.0);
+        if hi.1.is_finite() && hi.2.is_finite() {
+            let d1 = lo.2 + hi.2 - 3.0 * (lo.1 - hi.1) / (lo.0 - hi.0);
+            let disc = d1 * d1 - lo.2 * hi.2;
+            if disc >= 0.0 {
+                let d2 = (hi.0 - lo.0).signum() * disc.sqrt();
+                let c = hi.0 - (hi.0 - lo.0) * (hi.2 + d2 - d1) / (hi.2 - lo.2 + 2.0 * d2);
+                if c.is_finite() {
+                    t = c;
+                }
+            }
+        }
+        t = t.clamp(l + 0.1 * width, h - 0.1 * width);
+        let (p, wolfe) = trial(t, &mut best)?;
+        evals += 1;
+        if wolfe {
+            return Ok(done(best));
+        }
+        let (_, f, s) = p;
+        if f > phi0 + C1 * t * dphi0 || f >= lo.1 {
+            hi = p;
+        } else {
+            if s * (hi.0 - lo.0) >= 0.0 {
+                hi = lo;
+            }
+            lo = p;
+        }
+    }
+    Ok(done(best))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{strong_wolfe, Trial};
+
+    /// φ(α) = (α − 3)² − 9: φ'(0) = −6; a strong Wolfe point with c₂ = 0.1 has |2(α − 3)| ≤ 0.6, and the
+    /// cubic through two points of a quadratic with their slopes is the quadratic, so the zoom lands on 3.
+    #[test]
+    fn strong_wolfe_on_a_parabola() {
+        let mut trials = Vec::new();
+        let mut eval = |a: f64| -> Trial<(), ()> {
+            trials.push(a);
+            Ok(Some(((a - 3.0).powi(2) - 9.0, 2.0 * (a - 3.0), ())))
+        };
+        let (a, ()) = strong_wolfe(0.0, -6.0, 1.0, 100.0, 0.1, 20, &mut eval).unwrap().unwrap();
+        assert!((a - 3.0).abs() < 1e-12, "α = {a}");
+        // 1 → 2 (φ' still < −0.6) → 4 (φ(4) = φ(2), no further decrease: bracket [2, 4]) → cubic minimiser 3
+        assert_eq!(trials, vec![1.0, 2.0, 4.0, 3.0]);
+    }
+
+    /// Infeasible trials (φ = +∞) beyond α = 0.5 shrink the step by bisection; the answer keeps
+    /// sufficient decrease.
+    #[test]
+    fn strong_wolfe_backs_off_infeasible_steps() {
+        let mut eval = |a: f64| -> Trial<(), ()> { Ok(if a > 0.5 { None } else { Some((-a, -1.0, ())) }) };
+        let (a, ()) = strong_wolfe(0.0, -1.0, 4.0, 4.0, 0.9, 10, &mut eval).unwrap().unwrap();
+        assert!(a <= 0.5 && a > 0.0, "α = {a}");
+    }
 }
