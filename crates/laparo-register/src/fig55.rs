@@ -1,13 +1,31 @@
 //! The 2D illustrations of Fig. 5.5 (§5.4.1) with the set-ups proposed in `register.md` §3 (the
-//! thesis gives no shapes or targets): a unit square domain, n_grid 120, an 80 × 80 particle square
-//! (6,400 particles at Δx/2, centred), E 4.1, ν 0.49, ρ 1, Δt 2e-4, T 200, sticky walls of 3 cells
-//! (the units of the DiffTaichi script `mpm2d_rods.py`: length 144 mm, stress kPa).
+//! thesis gives no shapes, targets or material for them): a unit square domain, n_grid 120, an 80 × 80
+//! particle square (6,400 particles at Δx/2, centred), ρ 1, Δt 2e-4, T 200, sticky walls of 3 cells (the
+//! units of the DiffTaichi script `mpm2d_rods.py`: length 144 mm, stress kPa).
 //!
-//! Cases (c)/(d) differ from `register.md` §3 on purpose: scoring only the top-edge halves against their
-//! moved copies is satisfied without a tear (unsmoothed L-BFGS reaches 0.09 Δx with one folded body), so
-//! each lip is its top-edge half *and* its face of the cut (the lattice column next to x = 0.5), scored
-//! against the same material curve opened like a book (±`LIP_TOP`, +`LIP_UP` at the top edge, ±`LIP_BOTTOM`
-//! at the bottom edge): the targets now demand a separation along the whole cut.
+//! * (a) stretch and (b) curve: the DiffTaichi material, E 4.1, ν 0.49 (the thesis' liver), from v₀ = 0.
+//! * (c) rupture and (d) rupture + stretch: each lip is its top-edge half *and* its face of the cut, scored
+//!   (closest point) against the same material curve moved by [`RUPTURE_OPENING`] (each half ±0.06 in x,
+//!   top edge down 0.03); (d) adds (a)'s two side points. Scoring only the top-edge halves (`register.md`)
+//!   is met by a fold without a tear. Three choices make the tear reachable, each measured (BENCHMARKS.md,
+//!   Issue 12, "stop 24"):
+//!   1. **Material [`RUPTURE_MATERIAL`]: E 1, ν 0.4** (a soft, compressible illustration material, not the
+//!      liver). A forward velocity jump of k × the lips' opening speed tears the square at k = 1 for it,
+//!      at k = 4 for the liver values (k = 12 with the old book opening): MLS-MPM has no damage model, so a
+//!      separation is a band of material stretched until its particles are > 1.5 Δx apart, and with
+//!      ν = 0.49 (λ ≈ 16 E) that band costs more elastic energy than an opening at the target speed carries.
+//!   2. **Kerf of one column per side ([`KERF`])**: the two particle columns straddling x = 0.5 (±Δx/4)
+//!      share every grid node, so P2G gives them one velocity and any velocity jump leaves them behind as a
+//!      1–2-column sliver (≈ 2.5 % of the particles); the lips are the first columns that follow their side
+//!      (x = 0.5 ± 0.75 Δx), so the incision is 1.5 Δx wide (`register.md` pitfall 5: < 2 Δx is unresolved).
+//!   3. **Kinematic warm start** ([`WarmStart::Kinematic`]): v₀ = (target − source)/(T Δt) of the nearest
+//!      lip landmark of the particle's own side, what a user with lip correspondences starts from; from
+//!      v₀ = 0 the (Gaussian-preconditioned, side-blind) steps stretch the body and never tear it.
+//!
+//!   The opening is parallel (±0.06 at the bottom too, not the book's ±0.015: the bottom of a book opening
+//!   is < 4 Δx and stays bridged) and the top edge drops (the rise of `register.md`, +0.04, would raise the
+//!   height 12 % and contradict (a)'s ≥ 5 % height reduction that (d) must show; with the top edge free the
+//!   soft square's height does not change within T: its P-wave reaches ≈ 5 Δx, the square is 40 Δx high).
 use crate::distance::Polyline;
 use crate::loss::{GroupTarget, LandmarkGroup, RegistrationLoss};
 use laparo_mpm::{box_lattice, GridSpec, Material, Model, Scene, Vector};
@@ -20,8 +38,8 @@ pub enum Case {
     Stretch,
     /// (b) 20 top-edge landmarks onto a circular arc of sagitta 0.08.
     Curve,
-    /// (c) rupture: each lip (top-edge half + its face of the cut) against its own polyline, opened like a
-    /// book (±0.06 and up 0.04 at the top, ±0.015 at the bottom).
+    /// (c) rupture: each lip (top-edge half + its face of the cut) against its own polyline, moved by
+    /// [`RUPTURE_OPENING`].
     Rupture,
     /// (d) (a)'s points plus (c)'s polylines.
     RuptureStretch,
@@ -41,12 +59,26 @@ impl Case {
     }
 }
 
-/// Opening of each lip at the top edge (x, outward) and its rise (y) (register.md §3: ±0.06, +0.04).
-pub const LIP_TOP: f64 = 0.06;
-/// Rise of the top edge of each lip.
-pub const LIP_UP: f64 = 0.04;
-/// Opening of each lip at the bottom edge (the cut opens like a book: linear in height in between).
-pub const LIP_BOTTOM: f64 = 0.015;
+/// The opening of the lips' targets, linear in height (a book when `bottom` < `top`): the particle of side
+/// sx (−1 left, +1 right) at height fraction s of the square moves by (sx (`bottom` + (`top` − `bottom`) s),
+/// `up` s).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct BookOpening {
+    /// Outward x displacement of each lip at the top edge.
+    pub top: f64,
+    /// Outward x displacement of each lip at the bottom edge.
+    pub bottom: f64,
+    /// Rise of the top edge (negative: a drop).
+    pub up: f64,
+}
+
+/// The book opening of the previous set-up: ±0.06 and up 0.04 at the top (`register.md` §3), ±0.015 at the
+/// bottom (no material of the threshold table tears it at its own speed).
+pub const BOOK_OPENING: BookOpening = BookOpening { top: 0.06, bottom: 0.015, up: 0.04 };
+
+/// The opening (c)/(d) use: each half moves ±0.06 at the top and at the bottom (the lips' faces end
+/// 2 × 0.06 + 1.5 Δx = 15.9 Δx apart), its top edge drops 0.03 (9 % of the height).
+pub const RUPTURE_OPENING: BookOpening = BookOpening { top: 0.06, bottom: 0.06, up: -0.03 };
 
 /// Two particles belong to the same body when closer than this (Δx): three rest spacings (Δx/2), so a
 /// body stays connected under stretches up to 3× and a separation counts only once the lips are more
@@ -56,18 +88,130 @@ pub const LINK_DX: f64 = 1.5;
 /// Particles per side of the square.
 pub const SIDE: usize = 80;
 
-/// The square scene (v₀ = 0).
+/// The material of the DiffTaichi 2D script `mpm2d_rods.py` (E 4.1, ν 0.49, ρ 1): the thesis' liver values;
+/// cases (a), (b).
+pub const DIFFTAICHI_MATERIAL: Material =
+    Material { model: Model::NeoHookean, youngs_modulus: 4.1, poisson_ratio: 0.49, density: 1.0 };
+
+/// The illustration material of cases (c), (d): E 1, ν 0.4, ρ 1 (see the module doc).
+pub const RUPTURE_MATERIAL: Material =
+    Material { model: Model::NeoHookean, youngs_modulus: 1.0, poisson_ratio: 0.4, density: 1.0 };
+
+/// Lattice columns per side between x = 0.5 and the lips' faces in cases (c), (d) (see the module doc).
+pub const KERF: usize = 1;
+
+/// The square scene with the DiffTaichi material (v₀ = 0).
 pub fn square_scene() -> Scene<2> {
+    square_scene_with(DIFFTAICHI_MATERIAL)
+}
+
+/// The square scene with another material (v₀ = 0; Δt 2e-4, T 200 whatever the material).
+pub fn square_scene_with(material: Material) -> Scene<2> {
     let grid = GridSpec::unit(120);
     let s = grid.dx / 2.0;
     let half = SIDE as f64 * s / 2.0;
     let lo = Vector::<2>::new(0.5 - half, 0.5 - half);
     let hi = Vector::<2>::new(0.5 + half, 0.5 + half);
     let pos = box_lattice(lo, hi, s);
-    let material = Material { model: Model::NeoHookean, youngs_modulus: 4.1, poisson_ratio: 0.49, density: 1.0 };
     let mut scene = Scene::new(pos, s * s, material, grid, 2e-4, 200);
     scene.mass_epsilon = 1e-10;
     scene
+}
+
+/// Lip side of particle `p` of [`square_scene`]: −1 left of the cut (x = 0.5), +1 right.
+pub fn side(p: usize) -> f64 {
+    if p / SIDE < SIDE / 2 {
+        -1.0
+    } else {
+        1.0
+    }
+}
+
+/// v₀ that carries every particle to its book-opened position ([`opened`], its own side) in T Δt if nothing
+/// resisted, times `k`: a velocity jump across the cut (the forward tear probe).
+pub fn book_opening_velocities(scene: &Scene<2>, opening: &BookOpening, k: f64) -> Vec<Vector<2>> {
+    let t = scene.steps as f64 * scene.dt;
+    (0..scene.n_particles()).map(|p| (opened(scene, p, side(p), opening) - scene.positions[p]) * (k / t)).collect()
+}
+
+/// Bodies of a final configuration of the square and the gap between the two largest along the cut.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Separation {
+    /// Body fractions of the particles, largest first.
+    pub bodies: Vec<f64>,
+    /// Smallest distance (Δx) between particles of the two largest bodies whose rest positions lie within
+    /// [`CUT_BAND_DX`] of the cut (x = 0.5), if there are two bodies.
+    pub gap_dx: Option<f64>,
+    /// Label of each particle: 0 = largest body, 1 = second, … (ties by first particle).
+    #[serde(skip)]
+    pub label: Vec<usize>,
+}
+
+/// Half-width (Δx, rest positions) of the band around the cut in which the gap is measured.
+pub const CUT_BAND_DX: f64 = 3.0;
+
+/// Bodies (flood fill at [`LINK_DX`]) of the final positions `x` of the square whose rest positions are `x0`.
+pub fn separation(x0: &[Vector<2>], x: &[Vector<2>], dx: f64) -> Separation {
+    let (raw, sizes) = components(x, LINK_DX * dx);
+    let mut order: Vec<usize> = (0..sizes.len()).collect();
+    order.sort_by(|&a, &b| sizes[b].cmp(&sizes[a]).then(a.cmp(&b)));
+    let mut rank = vec![0; sizes.len()];
+    for (r, &c) in order.iter().enumerate() {
+        rank[c] = r;
+    }
+    let label: Vec<usize> = raw.iter().map(|&c| rank[c]).collect();
+    let n = x.len() as f64;
+    let bodies = order.iter().map(|&c| sizes[c] as f64 / n).collect();
+    let gap_dx = (order.len() >= 2).then(|| {
+        let near = |b: usize| -> Vec<Vector<2>> {
+            (0..x.len())
+                .filter(|&p| label[p] == b && (x0[p][0] - 0.5).abs() <= CUT_BAND_DX * dx)
+                .map(|p| x[p])
+                .collect()
+        };
+        let (a, b) = (near(0), near(1));
+        if a.is_empty() || b.is_empty() {
+            return f64::INFINITY;
+        }
+        let tree = crate::distance::build_tree(&b);
+        a.iter()
+            .map(|p| tree.nearest_one::<kiddo::SquaredEuclidean>(&[p[0], p[1]]).distance.sqrt())
+            .fold(f64::INFINITY, f64::min)
+            / dx
+    });
+    Separation { bodies, gap_dx, label }
+}
+
+/// (c)'s rupture criterion: two bodies of > 40 % of the particles each, ≥ 2 Δx apart along the cut.
+pub fn ruptured(s: &Separation) -> bool {
+    s.bodies.len() >= 2 && s.bodies[1] > 0.4 && s.gap_dx.is_some_and(|g| g >= 2.0)
+}
+
+/// One forward tear probe: v₀ = [`book_opening_velocities`] × `k`, no optimisation.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TearProbe {
+    /// Opening speed factor.
+    pub k: f64,
+    /// Bodies and gap after T steps.
+    pub separation: Separation,
+    /// Gap between the two faces of the cut (the columns next to x = 0.5) at the top / bottom edge, Δx
+    /// (at k = 1 without resistance: (2 top + Δx/2)/Δx and (2 bottom + Δx/2)/Δx, 14.9 and 4.1 for
+    /// [`BOOK_OPENING`]).
+    pub lip_gap_dx: [f64; 2],
+    /// min J.
+    pub min_j: f64,
+}
+
+/// Run the forward tear probe on the square made of `material`.
+pub fn tear_probe(material: Material, opening: &BookOpening, k: f64) -> crate::Result<TearProbe> {
+    let mut scene = square_scene_with(material);
+    scene.velocities = book_opening_velocities(&scene, opening, k);
+    let fin = laparo_mpm::simulate(&scene)?.final_state;
+    let dx = scene.grid.dx;
+    let (m, top) = (SIDE / 2, SIDE - 1);
+    let gap = |j: usize| (fin.x[idx(m, j)][0] - fin.x[idx(m - 1, j)][0]) / dx;
+    let min_j = fin.f.iter().map(laparo_mpm::det).fold(f64::INFINITY, f64::min);
+    Ok(TearProbe { k, separation: separation(&scene.positions, &fin.x, dx), lip_gap_dx: [gap(top), gap(0)], min_j })
 }
 
 /// Particle index of lattice cell (i along x, j along y) (box_lattice: last axis fastest).
@@ -76,7 +220,7 @@ pub fn idx(i: usize, j: usize) -> usize {
 }
 
 /// Loss of a case on [`square_scene`].
-pub fn case_loss(scene: &Scene<2>, case: Case) -> crate::Result<RegistrationLoss<2>> {
+pub fn case_loss(scene: &Scene<2>, case: Case, setup: &CaseSetup) -> crate::Result<RegistrationLoss<2>> {
     let x = &scene.positions;
     let mid = SIDE / 2;
     let top = SIDE - 1;
@@ -99,15 +243,15 @@ pub fn case_loss(scene: &Scene<2>, case: Case) -> crate::Result<RegistrationLoss
         ]
     };
     let halves = || {
-        // each side: its top-edge half and its face of the cut (the lattice column next to x = 0.5),
-        // scored (closest point) against its own polyline: the same material curve opened like a book
-        lips()
+        // each side: its top-edge half and its face of the cut (`kerf` columns out from x = 0.5), scored
+        // (closest point) against its own polyline: the same material curve moved by `setup.opening`
+        lips(setup.kerf)
             .into_iter()
             .zip([-1.0, 1.0])
             .map(|((name, parts), sx)| {
-                let open = |p: usize| opened(scene, p, sx);
+                let open = |p: usize| opened(scene, p, sx, &setup.opening);
                 // the curve is straight on the top edge and on the cut face: three vertices
-                let corner = SIDE / 2;
+                let corner = SIDE / 2 - setup.kerf;
                 let verts = vec![open(parts[0]), open(parts[corner - 1]), open(*parts.last().unwrap())];
                 LandmarkGroup {
                     name: name.into(),
@@ -153,18 +297,18 @@ pub fn case_loss(scene: &Scene<2>, case: Case) -> crate::Result<RegistrationLoss
     Ok(RegistrationLoss::new(groups))
 }
 
-/// Rest position of particle `p` moved by the book opening of its lip (`sx` = −1 left, +1 right): at
-/// height fraction s, (sx (`LIP_BOTTOM` + (`LIP_TOP` − `LIP_BOTTOM`) s), `LIP_UP` s).
-pub fn opened(scene: &Scene<2>, p: usize, sx: f64) -> Vector<2> {
+/// Rest position of particle `p` moved by the book opening `o` of its lip (`sx` = −1 left, +1 right).
+pub fn opened(scene: &Scene<2>, p: usize, sx: f64, o: &BookOpening) -> Vector<2> {
     let x = &scene.positions;
     let (yb, yt) = (x[idx(0, 0)][1], x[idx(0, SIDE - 1)][1]);
     let s = (x[p][1] - yb) / (yt - yb);
-    x[p] + Vector::<2>::new(sx * (LIP_BOTTOM + (LIP_TOP - LIP_BOTTOM) * s), LIP_UP * s)
+    x[p] + Vector::<2>::new(sx * (o.bottom + (o.top - o.bottom) * s), o.up * s)
 }
 
-/// The two lips of the cut along x = 0.5, each as an ordered material curve: its top-edge half (outer
-/// corner → cut) then its face of the cut (the lattice column next to x = 0.5, top → bottom).
-pub fn lips() -> [(&'static str, Vec<usize>); 2] {
+/// The two lips of the cut along x = 0.5, each as an ordered material curve: its top-edge part (outer
+/// corner → cut) then its face of the cut (top → bottom): the lattice column next to x = 0.5 for `kerf` = 0,
+/// `kerf` columns further out otherwise (the columns in between belong to no lip).
+pub fn lips(kerf: usize) -> [(&'static str, Vec<usize>); 2] {
     let (mid, top) = (SIDE / 2, SIDE - 1);
     let side = |outer: usize, inner: usize| -> Vec<usize> {
         let mut v: Vec<usize> = if outer < inner {
@@ -175,7 +319,7 @@ pub fn lips() -> [(&'static str, Vec<usize>); 2] {
         v.extend((0..top).rev().map(|j| idx(inner, j)));
         v
     };
-    [("left lip", side(0, mid - 1)), ("right lip", side(SIDE - 1, mid))]
+    [("left lip", side(0, mid - 1 - kerf)), ("right lip", side(SIDE - 1, mid + kerf))]
 }
 
 /// Connected bodies of particles: flood fill linking particles closer than `link` (length units, k-d tree
@@ -210,11 +354,97 @@ pub fn components<const D: usize>(x: &[Vector<D>], link: f64) -> (Vec<usize>, Ve
     (label, sizes)
 }
 
+/// Starting v₀ of a Fig. 5.5 registration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WarmStart {
+    /// v₀ = 0 (the thesis).
+    Zero,
+    /// Kinematic: each particle takes (target − source)/(T Δt) of the nearest landmark of its own side of the
+    /// cut (x = 0.5), what a user with lip correspondences would start from ([`kinematic_warm_start`]).
+    Kinematic,
+}
+
+/// Landmark correspondences of a case: (particle, its corresponding target point): paired targets, and for
+/// the lips the book-opened rest position ([`opened`]) of each lip particle.
+pub fn correspondences(scene: &Scene<2>, case: Case, setup: &CaseSetup) -> crate::Result<Vec<(usize, Vector<2>)>> {
+    let loss = case_loss(scene, case, setup)?;
+    let mut out = Vec::new();
+    for g in &loss.groups {
+        match &g.target {
+            GroupTarget::Paired(t) => out.extend(g.particles.iter().copied().zip(t.iter().copied())),
+            GroupTarget::Shared(s) => match g.name.as_str() {
+                "left lip" => out.extend(g.particles.iter().map(|&p| (p, opened(scene, p, -1.0, &setup.opening)))),
+                "right lip" => out.extend(g.particles.iter().map(|&p| (p, opened(scene, p, 1.0, &setup.opening)))),
+                _ => out.extend(g.particles.iter().map(|&p| (p, s.closest(&scene.positions[p]).0))),
+            },
+        }
+    }
+    Ok(out)
+}
+
+/// The kinematic warm start of a case ([`WarmStart::Kinematic`]): each particle takes (y − x₀)/(T Δt) of the
+/// nearest landmark (rest positions; ties: first in loss order) on its own side of the cut, y being that
+/// landmark's corresponding target ([`correspondences`]).
+pub fn kinematic_warm_start(scene: &Scene<2>, case: Case, setup: &CaseSetup) -> crate::Result<Vec<Vector<2>>> {
+    let t = scene.steps as f64 * scene.dt;
+    let x = &scene.positions;
+    let lm = correspondences(scene, case, setup)?;
+    Ok((0..x.len())
+        .map(|p| {
+            let mut best = (f64::INFINITY, Vector::<2>::zeros());
+            for &(q, y) in lm.iter().filter(|(q, _)| side(*q) == side(p)) {
+                let d = (x[q] - x[p]).norm_squared();
+                if d < best.0 {
+                    best = (d, (y - x[q]) / t);
+                }
+            }
+            best.1
+        })
+        .collect())
+}
+
+/// Material, lips and starting point of a Fig. 5.5 run.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct CaseSetup {
+    /// Material of the square.
+    pub material: Material,
+    /// Starting v₀.
+    pub warm_start: WarmStart,
+    /// Targets of the lips (cases c, d).
+    pub opening: BookOpening,
+    /// Lattice columns between each lip's cut face and x = 0.5 (cases c, d; see [`lips`]).
+    pub kerf: usize,
+}
+
+impl CaseSetup {
+    /// The set-up of a case: (a), (b) the DiffTaichi material from v₀ = 0; (c), (d) [`RUPTURE_MATERIAL`],
+    /// [`RUPTURE_OPENING`], [`KERF`], kinematic warm start.
+    pub fn for_case(case: Case) -> Self {
+        match case {
+            Case::Stretch | Case::Curve => CaseSetup {
+                material: DIFFTAICHI_MATERIAL,
+                warm_start: WarmStart::Zero,
+                opening: RUPTURE_OPENING,
+                kerf: KERF,
+            },
+            Case::Rupture | Case::RuptureStretch => CaseSetup {
+                material: RUPTURE_MATERIAL,
+                warm_start: WarmStart::Kinematic,
+                opening: RUPTURE_OPENING,
+                kerf: KERF,
+            },
+        }
+    }
+}
+
 /// Figures of one Fig. 5.5 case after registration.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct CaseMetrics {
     /// Case label.
     pub case: String,
+    /// Material and warm start.
+    pub setup: CaseSetup,
     /// Mean landmark distance before / after (Δx).
     pub residual_dx: [f64; 2],
     /// Distance between the two side landmarks / between their targets (cases a, d).
@@ -222,31 +452,50 @@ pub struct CaseMetrics {
     /// Height of the particle column at mid-width after / at rest (for two bodies: each body at its own
     /// mid-width, averaged).
     pub mid_height_ratio: f64,
-    /// min det F.
+    /// min det F over all particles.
     pub min_j: f64,
-    /// Connected bodies (particles closer than [`LINK_DX`] Δx linked; flood fill over k-d tree radius queries), largest
-    /// first: particle fractions.
+    /// min det F over the (up to two) largest bodies (slivers left in the kerf excluded).
+    pub min_j_bodies: f64,
+    /// Connected bodies (particles closer than [`LINK_DX`] Δx linked; flood fill over k-d tree radius
+    /// queries), largest first: particle fractions.
     pub bodies: Vec<f64>,
-    /// Smallest particle-to-particle distance between the two largest bodies (Δx), if there are two.
+    /// Smallest distance between particles of the two largest bodies within [`CUT_BAND_DX`] of the cut (Δx),
+    /// if there are two.
     pub gap_dx: Option<f64>,
-    /// Iterations, simulations, wall time (s).
+    /// Iterations.
     pub iterations: usize,
     /// Simulations.
     pub simulations: usize,
     /// Wall time (s).
     pub seconds: f64,
+    /// Why the optimiser stopped.
+    pub stop_reason: String,
     /// Loss (mean landmark distance, Δx) per iteration.
     pub curve_dx: Vec<f64>,
 }
 
-/// Register one case and measure it. Returns the metrics and the final positions and J.
+/// Register one case with its set-up ([`CaseSetup::for_case`]) and measure it. Returns the metrics and the
+/// final positions and J.
 pub fn run_case(
     case: Case,
     cfg: &crate::optimize::OptimizerConfig,
 ) -> crate::Result<(CaseMetrics, Vec<Vector<2>>, Vec<f64>)> {
-    let scene = square_scene();
-    let loss = case_loss(&scene, case)?;
-    let r = crate::optimize::register(&scene, &loss, cfg, None, &mut |_, _| true)?;
+    run_case_with(case, &CaseSetup::for_case(case), cfg)
+}
+
+/// Register one case with a material and warm start and measure it.
+pub fn run_case_with(
+    case: Case,
+    setup: &CaseSetup,
+    cfg: &crate::optimize::OptimizerConfig,
+) -> crate::Result<(CaseMetrics, Vec<Vector<2>>, Vec<f64>)> {
+    let scene = square_scene_with(setup.material);
+    let loss = case_loss(&scene, case, setup)?;
+    let warm = match setup.warm_start {
+        WarmStart::Zero => None,
+        WarmStart::Kinematic => Some(kinematic_warm_start(&scene, case, setup)?),
+    };
+    let r = crate::optimize::register(&scene, &loss, cfg, warm.as_deref(), &mut |_, _| true)?;
     let dx = scene.grid.dx;
     let x = r.final_state.x.clone();
     let j: Vec<f64> = r.final_state.f.iter().map(laparo_mpm::det).collect();
@@ -268,43 +517,31 @@ pub fn run_case(
         }
         col.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - col.iter().cloned().fold(f64::INFINITY, f64::min)
     };
-    let (label, mut sizes) = components(&x, LINK_DX * dx);
-    let n = x.len() as f64;
-    let mut order: Vec<usize> = (0..sizes.len()).collect();
-    order.sort_by(|&a, &b| sizes[b].cmp(&sizes[a]).then(a.cmp(&b)));
+    let sep = separation(&scene.positions, &x, dx);
     let body = |c: usize, pts: &[Vector<2>]| -> Vec<Vector<2>> {
-        pts.iter().zip(&label).filter(|(_, &l)| l == c).map(|(p, _)| *p).collect()
-    };
-    let gap_dx = if order.len() >= 2 {
-        let (a, b) = (order[0], order[1]);
-        let pb = body(b, &x);
-        let tree = crate::distance::build_tree(&pb);
-        let g = body(a, &x)
-            .iter()
-            .map(|p| tree.nearest_one::<kiddo::SquaredEuclidean>(&[p[0], p[1]]).distance.sqrt())
-            .fold(f64::INFINITY, f64::min);
-        Some(g / dx)
-    } else {
-        None
+        pts.iter().zip(&sep.label).filter(|(_, &l)| l == c).map(|(p, _)| *p).collect()
     };
     // mid-width height of each of the (up to two) largest bodies, after / at rest, averaged
     let mid_height_ratio = {
-        let k = order.len().min(2);
-        order[..k].iter().map(|&c| height(&body(c, &x)) / height(&body(c, &scene.positions))).sum::<f64>() / k as f64
+        let k = sep.bodies.len().min(2);
+        (0..k).map(|c| height(&body(c, &x)) / height(&body(c, &scene.positions))).sum::<f64>() / k as f64
     };
-    sizes.sort_by(|a, b| b.cmp(a));
+    let min_j_bodies = (0..x.len()).filter(|&p| sep.label[p] < 2).map(|p| j[p]).fold(f64::INFINITY, f64::min);
     let last = r.history.last().cloned().unwrap_or_else(|| r.history[0].clone());
     let m = CaseMetrics {
         case: case.label().into(),
+        setup: *setup,
         residual_dx: [r.history[0].mean_distance / dx, last.mean_distance / dx],
         width_ratio,
         mid_height_ratio,
         min_j,
-        bodies: sizes.iter().map(|&s| s as f64 / n).collect(),
-        gap_dx,
+        min_j_bodies,
+        bodies: sep.bodies,
+        gap_dx: sep.gap_dx,
         iterations: last.iteration,
         simulations: last.evaluations,
         seconds: last.seconds,
+        stop_reason: r.stop_reason,
         curve_dx: r.history.iter().map(|h| h.mean_distance / dx).collect(),
     };
     Ok((m, x, j))
@@ -312,17 +549,19 @@ pub fn run_case(
 
 /// Target marks of a case (for drawing): paired target points, the opened lip curves (every other
 /// landmark's target), or the curve target sampled at the landmarks' closest points at rest.
-pub fn case_marks(scene: &Scene<2>, case: Case) -> crate::Result<Vec<Vector<2>>> {
-    let loss = case_loss(scene, case)?;
+pub fn case_marks(scene: &Scene<2>, case: Case, setup: &CaseSetup) -> crate::Result<Vec<Vector<2>>> {
+    let loss = case_loss(scene, case, setup)?;
     let mut out = Vec::new();
     for g in &loss.groups {
-        match &g.target {
-            GroupTarget::Paired(t) => out.extend(t.iter().copied()),
-            GroupTarget::Shared(s) => match g.name.as_str() {
-                "left lip" => out.extend(g.particles.iter().step_by(2).map(|&p| opened(scene, p, -1.0))),
-                "right lip" => out.extend(g.particles.iter().step_by(2).map(|&p| opened(scene, p, 1.0))),
-                _ => out.extend(g.particles.iter().map(|&p| s.closest(&scene.positions[p]).0)),
-            },
+        match (&g.target, g.name.as_str()) {
+            (GroupTarget::Paired(t), _) => out.extend(t.iter().copied()),
+            (_, "left lip") => {
+                out.extend(g.particles.iter().step_by(2).map(|&p| opened(scene, p, -1.0, &setup.opening)))
+            }
+            (_, "right lip") => {
+                out.extend(g.particles.iter().step_by(2).map(|&p| opened(scene, p, 1.0, &setup.opening)))
+            }
+            (GroupTarget::Shared(s), _) => out.extend(g.particles.iter().map(|&p| s.closest(&scene.positions[p]).0)),
         }
     }
     Ok(out)

@@ -58,10 +58,12 @@ fn optimizer_kind(s: &str) -> Result<OptimizerKind> {
 pub fn fig55_figures(out: &std::path::Path, cfg: &OptimizerConfig) -> Result<Vec<laparo_register::fig55::CaseMetrics>> {
     use laparo_register::fig55::*;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let scene = square_scene();
     let mut all = Vec::new();
     for case in Case::ALL {
-        let marks = case_marks(&scene, case)?;
+        // (a), (b): the DiffTaichi material; (c), (d): the rupture material, kerf and kinematic warm start
+        let setup = CaseSetup::for_case(case);
+        let scene = square_scene_with(setup.material);
+        let marks = case_marks(&scene, case, &setup)?;
         let ones = vec![1.0; scene.n_particles()];
         laparo_core::io::write_png(
             out.join(format!("{}_before.png", case.label())),
@@ -245,8 +247,10 @@ pub fn run(a: RegisterArgs) -> Result<()> {
             let cfg = OptimizerConfig { kind, iterations, ..base };
             for m in fig55_figures(&out, &cfg)? {
                 println!(
-                    "{}: residual {:.3} -> {:.3} dx, width/target {}, mid-height ratio {:.3}, min J {:.3}, bodies {:?}, gap {} dx, {} it, {:.1} s",
+                    "{}: E {} nu {}, residual {:.3} -> {:.3} dx, width/target {}, mid-height ratio {:.3}, min J {:.3}, bodies {:?}, gap {} dx, {} it, {:.1} s",
                     m.case,
+                    m.setup.material.youngs_modulus,
+                    m.setup.material.poisson_ratio,
                     m.residual_dx[0],
                     m.residual_dx[1],
                     m.width_ratio.map_or("-".into(), |w| format!("{w:.4}")),
