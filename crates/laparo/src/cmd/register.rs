@@ -46,10 +46,19 @@ pub enum RegisterSub {
 
 fn optimizer_kind(s: &str) -> Result<OptimizerKind> {
     Ok(match s {
-        "lbfgs" => OptimizerKind::Lbfgs,
+        "lbfgs" | "tear" => OptimizerKind::Lbfgs,
         "adam" => OptimizerKind::Adam,
         "thesis-gd" => OptimizerKind::ThesisGd,
-        o => bail!("--optimizer {o}: expected lbfgs, adam or thesis-gd"),
+        o => bail!("--optimizer {o}: expected lbfgs, tear, adam or thesis-gd"),
+    })
+}
+
+/// The preset an `--optimizer` name starts from.
+fn optimizer_base(s: &str) -> Result<OptimizerConfig> {
+    Ok(match s {
+        "thesis-gd" => OptimizerConfig::thesis(),
+        "tear" => OptimizerConfig::tear(),
+        other => OptimizerConfig { kind: optimizer_kind(other)?, ..OptimizerConfig::default() },
     })
 }
 
@@ -108,7 +117,9 @@ pub struct RunArgs {
     /// Grid cell (mm).
     #[arg(long)]
     pub dx_mm: Option<f64>,
-    /// Optimiser: lbfgs (default, preconditioned), adam, thesis-gd.
+    /// Optimiser: lbfgs (default, preconditioned), tear (L-BFGS preset for targets that tear neighbouring
+    /// particles apart: unsmoothed, strong Wolfe line search, distance-smoothing continuation), adam,
+    /// thesis-gd.
     #[arg(long, default_value = "lbfgs")]
     pub optimizer: String,
     /// Maximum iterations (thesis-gd: 500 by default).
@@ -147,12 +158,13 @@ pub struct RunArgs {
     /// Also identify E (poorly identifiable from one snapshot; see the crate README).
     #[arg(long)]
     pub joint_e: bool,
-    /// Gaussian preconditioner σ (grid cells).
-    #[arg(long, default_value_t = 2.0)]
-    pub smoothing_dx: f64,
-    /// Largest landmark displacement per step (grid cells).
-    #[arg(long, default_value_t = 0.5)]
-    pub max_step_dx: f64,
+    /// Gaussian preconditioner σ (grid cells; default: the optimiser's, 2 for lbfgs, 0 for tear).
+    #[arg(long)]
+    pub smoothing_dx: Option<f64>,
+    /// Largest landmark displacement per step (grid cells; default: the optimiser's, 0.5 for lbfgs, 16 for
+    /// tear).
+    #[arg(long)]
+    pub max_step_dx: Option<f64>,
     /// Stop when the mean landmark distance is at most this (mm).
     #[arg(long, default_value_t = 0.0)]
     pub target_mean_mm: f64,
@@ -274,13 +286,15 @@ fn deformable(a: RunArgs) -> Result<()> {
     let lm_path = need(&a.landmarks, "landmarks")?;
     let tg_path = need(&a.target, "target")?;
     let out = need(&a.out, "out")?;
-    let kind = optimizer_kind(&a.optimizer)?;
-    let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
+    let base = optimizer_base(&a.optimizer)?;
     let optimizer = OptimizerConfig {
-        kind,
         iterations: a.iterations.unwrap_or(base.iterations),
-        smoothing_dx: if kind == OptimizerKind::ThesisGd { 0.0 } else { a.smoothing_dx },
-        max_step_dx: a.max_step_dx,
+        smoothing_dx: if base.kind == OptimizerKind::ThesisGd {
+            0.0
+        } else {
+            a.smoothing_dx.unwrap_or(base.smoothing_dx)
+        },
+        max_step_dx: a.max_step_dx.unwrap_or(base.max_step_dx),
         target_mean_distance: a.target_mean_mm,
         joint_youngs_modulus: a.joint_e,
         ..base
