@@ -121,7 +121,11 @@ def test_self_rectify_reduces_vertical_offsets():
     pr = np.c_[r["points_right"][inl], np.ones(inl.sum())] @ hr.T
     dy = pr[:, 1] / pr[:, 2] - pl[:, 1] / pl[:, 2]
     assert np.median(np.abs(dy)) < 0.5
-    assert r["left"].shape == left.shape and r["valid_left"].dtype == np.bool_
+    # the canvas holds both rectified images whole: at least the input size, the size reported
+    cw, ch = info["rectified_size"]
+    assert r["left"].shape[:2] == (ch, cw) == r["right"].shape[:2] and r["valid_left"].dtype == np.bool_
+    assert cw >= left.shape[1] and ch >= left.shape[0]
+    assert r["valid_left"].sum() >= 0.99 * left.shape[0] * left.shape[1]
     # Given points instead of SIFT: same result.
     r2 = S.self_rectify(left, right, points_left=r["points_left"], points_right=r["points_right"])
     assert r2["rectification"] == info

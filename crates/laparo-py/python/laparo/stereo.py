@@ -134,7 +134,8 @@ def self_rectify(
 
     Returns ``rectification`` (``h_left``, ``h_right`` raw → rectified, ``fundamental``,
     ``focal_px``, Euler angles, ``inliers``, ``dy_raw`` / ``dy_rectified`` statistics, …),
-    the rectified ``left``/``right`` images with ``valid_left``/``valid_right`` and the points.
+    the rectified ``left``/``right`` images (on the canvas ``rectification["rectified_size"]`` =
+    (width, height), which holds both whole) with ``valid_left``/``valid_right`` and the points.
     Raises ``ValueError`` when the pair cannot be rectified (too few inliers, large rotations)."""
     return _laparo.stereo_self_rectify(
         left, right, points_left, points_right, method, float(threshold_px), int(min_inliers), int(seed)

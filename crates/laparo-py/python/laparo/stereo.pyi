@@ -69,6 +69,7 @@ def self_rectify(left: np.ndarray, right: np.ndarray, points_left: Optional[np.n
 
     Returns ``rectification`` (``h_left``, ``h_right`` raw → rectified, ``fundamental``,
     ``focal_px``, Euler angles, ``inliers``, ``dy_raw`` / ``dy_rectified`` statistics, …),
-    the rectified ``left``/``right`` images with ``valid_left``/``valid_right`` and the points.
+    the rectified ``left``/``right`` images (on the canvas ``rectification["rectified_size"]`` =
+    (width, height), which holds both whole) with ``valid_left``/``valid_right`` and the points.
     Raises ``ValueError`` when the pair cannot be rectified (too few inliers, large rotations)."""
     ...
