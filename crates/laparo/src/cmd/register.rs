@@ -38,27 +38,20 @@ pub enum RegisterSub {
         /// Iterations per case.
         #[arg(long, default_value_t = 50)]
         iterations: usize,
-        /// Optimiser: lbfgs, adam, thesis-gd.
+        /// Optimiser: lbfgs, tear, adam, thesis-gd (as `laparo register --optimizer`).
         #[arg(long, default_value = "lbfgs")]
         optimizer: String,
     },
 }
 
-fn optimizer_kind(s: &str) -> Result<OptimizerKind> {
-    Ok(match s {
-        "lbfgs" | "tear" => OptimizerKind::Lbfgs,
-        "adam" => OptimizerKind::Adam,
-        "thesis-gd" => OptimizerKind::ThesisGd,
-        o => bail!("--optimizer {o}: expected lbfgs, tear, adam or thesis-gd"),
-    })
-}
-
 /// The preset an `--optimizer` name starts from.
 fn optimizer_base(s: &str) -> Result<OptimizerConfig> {
     Ok(match s {
-        "thesis-gd" => OptimizerConfig::thesis(),
+        "lbfgs" => OptimizerConfig::default(),
         "tear" => OptimizerConfig::tear(),
-        other => OptimizerConfig { kind: optimizer_kind(other)?, ..OptimizerConfig::default() },
+        "adam" => OptimizerConfig { kind: OptimizerKind::Adam, ..OptimizerConfig::default() },
+        "thesis-gd" => OptimizerConfig::thesis(),
+        o => bail!("--optimizer {o}: expected lbfgs, tear, adam or thesis-gd"),
     })
 }
 
@@ -253,10 +246,7 @@ pub fn run(a: RegisterArgs) -> Result<()> {
         Some(RegisterSub::SynthTargets(s)) => synth(s),
         Some(RegisterSub::Benchmark(b)) => crate::cmd::register_benchmark::run(*b),
         Some(RegisterSub::Fig55 { out, iterations, optimizer }) => {
-            let kind = optimizer_kind(&optimizer)?;
-            let base =
-                if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
-            let cfg = OptimizerConfig { kind, iterations, ..base };
+            let cfg = OptimizerConfig { iterations, ..optimizer_base(&optimizer)? };
             for m in fig55_figures(&out, &cfg)? {
                 println!(
                     "{}: E {} nu {}, residual {:.3} -> {:.3} dx, width/target {}, mid-height ratio {:.3}, min J {:.3}, bodies {:?}, gap {} dx, {} it, {:.1} s",
