@@ -9,7 +9,8 @@
 //! (x·1280/741, y·1024/500: an axis scaling keeps rows rows), 1,500 of them + 500 random
 //! outliers as matches; timed: matches → rectifying homographies, and that plus warping two
 //! 1280×1024 RGB images; (3) end to end from images (issue 14's ≤ 100 ms per pair): keypoint
-//! matches (`fast` = ORB + NCC/LK refinement, `sift`), fit, warps, timed separately, on the real
+//! matches (`fast` = ORB + NCC/LK refinement, `sift`), fit, warps (RGB bilinear, as the peer; and
+//! the grey bicubic pair the matcher warps, `MATCH_INTERP`), timed separately, on the real
 //! raw SCARED ds1-3 pair and on the perturbed Motorcycle pair resampled to 1280×1024 (bilinear;
 //! its exact correspondences scaled the same way evaluate the |dy|); the peer runs ORB +
 //! BFMatcher + findFundamentalMat + stereoRectifyUncalibrated + warpPerspective on the same files.
@@ -21,7 +22,7 @@ use laparo_features::ransac::{find_fundamental, find_homography, RansacParams};
 use laparo_stereo::augment::{augment_stereo, GtRule, StereoSample};
 use laparo_stereo::self_rectify::{
     exact_correspondences, fast_detect, fast_match_stage, fast_matches_with, fast_refine, feature_matches,
-    perturbation, self_rectify, DyStats, FastParams, FeatureKind, SelfRectifyOptions,
+    perturbation, self_rectify, DyStats, FastParams, FeatureKind, SelfRectifyOptions, MATCH_INTERP,
 };
 use nalgebra::{Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -269,11 +270,23 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
                 let t_warp = time_min_median(runs, || {
                     rect.rectify_images(l, r).expect("same size");
                 });
+                // what the matcher warps: the grey pair, bicubic (MATCH_INTERP)
+                let grey = |img: &Image<u8>| {
+                    Image::from_vec(img.width, img.height, 1, laparo_stereo::sgm::to_gray_u8(img)).expect("grey")
+                };
+                let t_warp_match = time_min_median(runs, || {
+                    rect.rectify_images_with(&grey(l), &grey(r), MATCH_INTERP).expect("same size");
+                });
                 let cpu0 = proc_cpu_ms();
                 let t_total = time_min_median(runs, || {
                     let (ml, mr) = matches(l, r).expect("matches");
                     let rect = self_rectify(&ml, &mr, size, &o).expect("fits");
                     rect.rectify_images(l, r).expect("same size");
+                });
+                let t_total_match = time_min_median(runs, || {
+                    let (ml, mr) = matches(l, r).expect("matches");
+                    let rect = self_rectify(&ml, &mr, size, &o).expect("fits");
+                    rect.rectify_images_with(&grey(l), &grey(r), MATCH_INTERP).expect("same size");
                 });
                 // process CPU time (user + system, all threads) per pair over the warm-up + timed calls
                 v["cpu_ms_total_per_pair"] = serde_json::json!((proc_cpu_ms() - cpu0) / (runs + 1) as f64);
@@ -286,7 +299,9 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
                     ("refine", t_ref),
                     ("fit", t_fit),
                     ("warps", t_warp),
+                    ("warps_grey_bicubic", t_warp_match),
                     ("total", t_total),
+                    ("total_grey_bicubic", t_total_match),
                 ] {
                     v[format!("ms_{k}_min")] = serde_json::json!(t.0);
                     v[format!("ms_{k}_median")] = serde_json::json!(t.1);
@@ -364,6 +379,13 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
             "self-rectify {name} 1280x1024, {} threads, fast: TOTAL {:.1} ms min ({:.1} median) = detect {:.1} + match {:.1} + refine {:.1} + fit {:.1} + warps {:.1} (part mins){}",
             a.threads, ms("total"), f["ms_total_median"].as_f64().unwrap_or(f64::NAN), ms("detect"), ms("match"), ms("refine"), ms("fit"), ms("warps"),
             peer.map(|p| format!("; OpenCV {p:.1} ms, ratio {:.2}", ms("total") / p)).unwrap_or_default()
+        );
+        eprintln!(
+            "  as the matcher rectifies (grey pair, bicubic): TOTAL {:.1} ms min ({:.1} median), warps {:.1} ms{}",
+            ms("total_grey_bicubic"),
+            f["ms_total_grey_bicubic_median"].as_f64().unwrap_or(f64::NAN),
+            ms("warps_grey_bicubic"),
+            peer.map(|p| format!("; ratio to OpenCV {:.2}", ms("total_grey_bicubic") / p)).unwrap_or_default()
         );
         eprintln!("  CPU time per pair (user + sys, all threads): laparo {:.1} ms, OpenCV {peer_cpu:.1} ms", cpu(f));
     }

@@ -261,11 +261,23 @@ impl SelfRectification {
         Ok((d, dy))
     }
 
-    /// Warp a raw image pair to the rectified canvas (`rectified_size`; bilinear, laparo-core's sampler).
+    /// Warp a raw image pair to the rectified canvas (`rectified_size`; bilinear, laparo-core's
+    /// sampler, as OpenCV's `warpPerspective` with `INTER_LINEAR`): for display and saving.
     pub fn rectify_images<T: Texel + Default>(
         &self,
         left: &Image<T>,
         right: &Image<T>,
+    ) -> Result<(Rectified<T>, Rectified<T>), StereoError> {
+        self.rectify_images_with(left, right, Interp::Bilinear)
+    }
+
+    /// [`Self::rectify_images`] with a chosen interpolation. The matcher
+    /// ([`match_self_rectified_with`]) warps its grey inputs bicubically ([`MATCH_INTERP`]).
+    pub fn rectify_images_with<T: Texel + Default>(
+        &self,
+        left: &Image<T>,
+        right: &Image<T>,
+        interp: Interp,
     ) -> Result<(Rectified<T>, Rectified<T>), StereoError> {
         let (w, h) = self.size;
         let (rw, rh) = self.rectified_size;
@@ -279,11 +291,17 @@ impl SelfRectification {
         }
         let il = self.h_left().try_inverse().ok_or_else(|| invalid("h_left", "singular"))?;
         let ir = self.h_right().try_inverse().ok_or_else(|| invalid("h_right", "singular"))?;
-        let l = remap::warp_homography(left, &rows(&il), rw, rh, Interp::Bilinear, T::default())?;
-        let r = remap::warp_homography(right, &rows(&ir), rw, rh, Interp::Bilinear, T::default())?;
+        let l = remap::warp_homography(left, &rows(&il), rw, rh, interp, T::default())?;
+        let r = remap::warp_homography(right, &rows(&ir), rw, rh, interp, T::default())?;
         Ok((l, r))
     }
 }
+
+/// The interpolation of the matcher's rectification warps: Keys bicubic. A CATS-perturbed pair has
+/// already been resampled once; a second bilinear pass blurs the texture census compares, and
+/// costs 3–8 % EPE against bicubic on the Middlebury CATS pairs (BENCHMARKS.md, issue 14, stop 25).
+/// Grey `u8` bicubic has a fused AVX2 path in laparo-core (as fast as bilinear).
+pub const MATCH_INTERP: Interp = Interp::Bicubic;
 
 /// A disparity map sampled at (x, y) by the core's edge-aware lookup
 /// (`laparo_core::remap::sample_smooth`, span 1 px): bilinear when the four surrounding samples are
@@ -1008,9 +1026,10 @@ pub struct SelfRectifiedMatch {
     pub rectified_range_px: (i32, i32),
     /// The median disparity shift of the rectification (px), see [`rectified_disparity_shift`].
     pub median_disparity_shift_px: f64,
-    /// The rectified left image.
+    /// The rectified left image (input channels, bilinear, for display; the matcher used a bicubic
+    /// grey warp, [`MATCH_INTERP`]).
     pub left_rectified: Image<u8>,
-    /// The rectified right image.
+    /// The rectified right image (as `left_rectified`).
     pub right_rectified: Image<u8>,
     /// The disparity on the rectified pair.
     pub disparity_rectified: Image<f32>,
@@ -1057,10 +1076,15 @@ pub fn match_self_rectified_with(
         sr.rectified_size = size2;
         (lo - mid, hi - mid)
     };
-    let ((l, ml), (r, mr)) = sr.rectify_images(left, right)?;
+    // the matcher warps the grey images bicubically (MATCH_INTERP); the images returned for display
+    // keep their channels (bilinear, as `rectify_images`)
+    let grey = |img: &Image<u8>| Image::from_vec(w, h, 1, crate::sgm::to_gray_u8(img));
+    let (gl, gr) = (grey(left)?, grey(right)?);
+    let ((lg, ml), (rg, mr)) = sr.rectify_images_with(&gl, &gr, MATCH_INTERP)?;
+    let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
     // SGM sees the canvas outside each raw image as the row's nearest image pixel, not as black:
     // a black wedge has census codes that match each other and pulls paths astray near it
-    let (lm_, rm_) = (extend_rows(&l, &ml), extend_rows(&r, &mr));
+    let (lm_, rm_) = (extend_rows(&lg, &ml), extend_rows(&rg, &mr));
     let o = crate::sgm::match_pair(&lm_, &rm_, &crate::sgm::SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
     let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
     let hl = sr.h_left();

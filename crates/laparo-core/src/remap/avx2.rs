@@ -3,7 +3,9 @@
 //! - `bilerp4`: one RGB(A) u8 pixel at once (SSE2, part of the x86-64 baseline);
 //! - `homography_bilinear_rgb`: fused homography + bilinear RGB u8 rows, 8 pixels per step
 //!   (AVX2 gathers, chosen at run time);
-//! - `homography_nearest_f32`: fused homography + nearest 1-channel f32 rows (AVX2).
+//! - `homography_nearest_f32`: fused homography + nearest 1-channel f32 rows (AVX2);
+//! - `homography_bicubic_gray`: fused homography + bicubic grey u8 rows (AVX2: one 32-bit gather
+//!   holds a source row's 4 taps).
 //!
 //! Nothing here needs AVX-512.
 use std::arch::x86_64::*;
@@ -342,4 +344,120 @@ unsafe fn lerp_pd(a: __m256d, b: __m256d, t: __m256d) -> __m256d {
 #[inline(always)]
 pub unsafe fn bilerp_pd(p00: __m256d, p10: __m256d, p01: __m256d, p11: __m256d, ax: __m256d, ay: __m256d) -> __m256d {
     lerp_pd(lerp_pd(p00, p10, ax), lerp_pd(p01, p11, ax), ay)
+}
+
+/// Keys' weights (a = −½) of 4 f64 lanes, the operations of `kernel::cubic_weights` in the same
+/// order, rounded to f32 (as `f64 as f32`).
+#[inline(always)]
+unsafe fn cubic_weights_pd(t: __m256d) -> [__m128; 4] {
+    let s = _mm256_set1_pd;
+    let (m, a) = (_mm256_mul_pd, _mm256_add_pd);
+    let sub = _mm256_sub_pd;
+    let w0 = m(sub(m(a(m(s(-0.5), t), s(1.0)), t), s(0.5)), t);
+    let w1 = a(m(m(sub(m(s(1.5), t), s(2.5)), t), t), s(1.0));
+    let w2 = m(a(m(a(m(s(-1.5), t), s(2.0)), t), s(0.5)), t);
+    let w3 = m(m(sub(m(s(0.5), t), s(0.5)), t), t);
+    [_mm256_cvtpd_ps(w0), _mm256_cvtpd_ps(w1), _mm256_cvtpd_ps(w2), _mm256_cvtpd_ps(w3)]
+}
+
+/// The 4 weights of 8 f32 lanes (fraction t = s − ⌊s⌋ in f64, exact).
+#[inline(always)]
+unsafe fn cubic_weights_8(s: __m256, i: __m256i) -> [__m256; 4] {
+    let lo = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(s)), _mm256_cvtepi32_pd(_mm256_castsi256_si128(i)));
+    let hi = _mm256_sub_pd(
+        _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(s)),
+        _mm256_cvtepi32_pd(_mm256_extracti128_si256::<1>(i)),
+    );
+    let (l, h) = (cubic_weights_pd(lo), cubic_weights_pd(hi));
+    [0, 1, 2, 3].map(|k| _mm256_set_m128(h[k], l[k]))
+}
+
+/// Fused homography + bicubic 1-channel u8 row, 8 pixels per step: blocks whose 8 source
+/// positions all have their 4×4 neighbourhood inside the image gather one 32-bit word (the 4 taps)
+/// per source row; the others, and the tail, take the scalar kernel. Bitwise equal to
+/// `homography_row` + `kernel::bicubic_row::<u8, 1>`. Writes every element of `orow` and `mrow`.
+///
+/// # Safety
+/// AVX2 must be available; `data.len() == w * h < i32::MAX`, `w, h >= 1`, `orow.len() == mrow.len()`.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn homography_bicubic_gray(
+    a: [f32; 3],
+    c: [f32; 3],
+    data: &[u8],
+    w: usize,
+    h: usize,
+    fill: u8,
+    orow: &mut [MaybeUninit<u8>],
+    mrow: &mut [MaybeUninit<bool>],
+) {
+    let n = orow.len().min(mrow.len());
+    let (optr, mptr, dptr) = (orow.as_mut_ptr() as *mut u8, mrow.as_mut_ptr() as *mut u8, data.as_ptr() as *const i32);
+    let (one, wm3, hm3) = (_mm256_set1_epi32(1), _mm256_set1_epi32(w as i32 - 3), _mm256_set1_epi32(h as i32 - 3));
+    let (zero, eps, half) = (_mm256_setzero_ps(), _mm256_set1_ps(1e-12), _mm256_set1_ps(0.5));
+    let (wi, ff) = (_mm256_set1_epi32(w as i32), _mm256_set1_epi32(0xff));
+    // Scalar block of m pixels from x: the coordinates of `homography_row`, the scalar kernel.
+    let mut scalar = |x: usize, m: usize| {
+        let (mut sx, mut sy) = ([0f32; 8], [0f32; 8]);
+        for k in 0..m {
+            (sx[k], sy[k]) = super::kernel::homography_px(a, c, (x + k) as i32 as f32);
+        }
+        let (mut o, mut mk) = ([0u8; 8], [false; 8]);
+        super::kernel::bicubic_row::<u8, 1>(data, w, h, 1, fill, &sx[..m], &sy[..m], &mut o[..m], &mut mk[..m]);
+        for k in 0..m {
+            orow[x + k].write(o[k]);
+            mrow[x + k].write(mk[k]);
+        }
+    };
+    let mut x = 0;
+    while x + 8 <= n {
+        let (sx, sy, den) = coords(a, c, x);
+        // interior: s >= 1 (so ⌊s⌋ >= 1; also not NaN), ⌊s⌋ <= size − 3, denominator > 1e-12
+        let (ix, iy) = (_mm256_cvttps_epi32(sx), _mm256_cvttps_epi32(sy));
+        let ge = _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GE_OQ>(sx, _mm256_set1_ps(1.0)),
+            _mm256_cmp_ps::<_CMP_GE_OQ>(sy, _mm256_set1_ps(1.0)),
+        );
+        let ok = _mm256_and_ps(ge, _mm256_cmp_ps::<_CMP_GT_OQ>(den, eps));
+        // cvtt of a too-large or NaN lane gives i32::MIN: excluded by `ge`/`le` together
+        let le = _mm256_andnot_si256(
+            _mm256_or_si256(_mm256_cmpgt_epi32(ix, wm3), _mm256_cmpgt_epi32(iy, hm3)),
+            _mm256_set1_epi32(-1),
+        );
+        let ok = _mm256_and_si256(_mm256_castps_si256(ok), le);
+        if _mm256_movemask_ps(_mm256_castsi256_ps(ok)) != 0xff {
+            scalar(x, 8);
+            x += 8;
+            continue;
+        }
+        let wx = cubic_weights_8(sx, ix);
+        let wy = cubic_weights_8(sy, iy);
+        // byte offset of the first tap of source row ⌊y⌋ − 1
+        let mut off = _mm256_sub_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_sub_epi32(iy, one), wi), ix), one);
+        let mut v = zero;
+        for wyj in wy {
+            // SAFETY: off + 3 <= (⌊y⌋ + 2) w + ⌊x⌋ + 2 <= w h − 1 for interior lanes.
+            let g = _mm256_i32gather_epi32::<1>(dptr, off);
+            let p = |k: i32| _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srlv_epi32(g, _mm256_set1_epi32(8 * k)), ff));
+            let r = _mm256_add_ps(zero, _mm256_mul_ps(wx[0], p(0)));
+            let r = _mm256_add_ps(r, _mm256_mul_ps(wx[1], p(1)));
+            let r = _mm256_add_ps(r, _mm256_mul_ps(wx[2], p(2)));
+            let r = _mm256_add_ps(r, _mm256_mul_ps(wx[3], p(3)));
+            v = _mm256_add_ps(v, _mm256_mul_ps(wyj, r));
+            off = _mm256_add_epi32(off, wi);
+        }
+        // (v + 0.5) truncated, saturated to [0, 255] (as `f32 as u8`)
+        let i = _mm256_cvttps_epi32(_mm256_add_ps(v, half));
+        let p16 = _mm256_packs_epi32(i, i);
+        let p8 = _mm256_packus_epi16(p16, p16);
+        let lo = _mm256_cvtsi256_si32(p8) as u32;
+        let hi = _mm256_extract_epi32::<4>(p8) as u32;
+        // SAFETY: x + 8 <= n; the mask bytes are 1 (valid bools).
+        std::ptr::write_unaligned(optr.add(x) as *mut u64, (lo as u64) | ((hi as u64) << 32));
+        std::ptr::write_unaligned(mptr.add(x) as *mut u64, SPREAD[0xff]);
+        x += 8;
+    }
+    if x < n {
+        scalar(x, n - x);
+    }
 }

@@ -177,6 +177,9 @@ pub fn cubic_weights(t: f64) -> [f64; 4] {
 
 /// Bicubic sampling of one output row (`C` = 0: run-time `src_c` channels), the contract of
 /// [`super`]: valid domain [0, w−1]×[0, h−1], edge pixels replicated, zero weights skipped.
+/// Integer texels whose 4×4 neighbourhood lies inside the image take an unclamped path that adds
+/// every tap in the same order (a zero weight adds ±0 to a finite sum: the same value); float
+/// texels and border pixels take [`bicubic_px_generic`].
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn bicubic_row<T: Texel, const C: usize>(
@@ -196,13 +199,6 @@ pub fn bicubic_row<T: Texel, const C: usize>(
         c > 0 && sx.len() >= n && sy.len() >= n && orow.len() == n * c && data.len() == w * h * c && w > 0 && h > 0
     );
     let (xmax, ymax) = ((w - 1) as f32, (h - 1) as f32);
-    let taps = |f: f32, size: usize| -> ([usize; 4], [T::Acc; 4]) {
-        // f >= 0: truncation is floor.
-        let i1 = (f as i32 as usize).min(size - 1);
-        let wt = cubic_weights(f as f64 - i1 as f64).map(T::Acc::from_f64);
-        let idx = [i1.saturating_sub(1), i1, (i1 + 1).min(size - 1), (i1 + 2).min(size - 1)];
-        (idx, wt)
-    };
     for x in 0..n {
         let (fx, fy) = (sx[x], sy[x]);
         let o = &mut orow[x * c..x * c + c];
@@ -211,33 +207,80 @@ pub fn bicubic_row<T: Texel, const C: usize>(
             mrow[x] = false;
             continue;
         }
-        let (ix, wx) = taps(fx, w);
-        let (iy, wy) = taps(fy, h);
-        let mut ok = true;
-        for ch in 0..c {
-            let mut v = T::Acc::ZERO;
-            for j in 0..4 {
-                if wy[j] == T::Acc::ZERO {
-                    continue;
+        // f >= 0: truncation is floor.
+        let (i1, j1) = (fx as usize, fy as usize);
+        if !T::FLOAT && i1 >= 1 && i1 + 2 < w && j1 >= 1 && j1 + 2 < h {
+            let wx = cubic_weights(fx as f64 - i1 as f64).map(T::Acc::from_f64);
+            let wy = cubic_weights(fy as f64 - j1 as f64).map(T::Acc::from_f64);
+            for (ch, out) in o.iter_mut().enumerate() {
+                let mut v = T::Acc::ZERO;
+                for (j, &wyj) in wy.iter().enumerate() {
+                    let b = ((j1 + j - 1) * w + i1 - 1) * c + ch;
+                    let p = &data[b..=b + 3 * c];
+                    let r = T::Acc::ZERO
+                        + wx[0] * p[0].to_acc()
+                        + wx[1] * p[c].to_acc()
+                        + wx[2] * p[2 * c].to_acc()
+                        + wx[3] * p[3 * c].to_acc();
+                    v = v + wyj * r;
                 }
-                let row = iy[j] * w;
-                let mut r = T::Acc::ZERO;
-                for i in 0..4 {
-                    if wx[i] != T::Acc::ZERO {
-                        r = r + wx[i] * data[(row + ix[i]) * c + ch].to_acc();
-                    }
-                }
-                v = v + wy[j] * r;
+                *out = T::from_acc(v);
             }
-            let t = T::from_acc(v);
-            ok &= t.is_finite();
-            o[ch] = t;
+            mrow[x] = true;
+            continue;
         }
-        if !ok {
-            o.fill(fill);
-        }
-        mrow[x] = ok;
+        mrow[x] = bicubic_px_generic::<T, C>(data, w, h, c, fill, fx, fy, o);
     }
+}
+
+/// One bicubic output pixel at (fx, fy) ∈ [0, w−1]×[0, h−1] with clamped taps and zero weights
+/// skipped (every texel type, every position); writes `fill` and returns false when a channel is
+/// not finite.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn bicubic_px_generic<T: Texel, const C: usize>(
+    data: &[T],
+    w: usize,
+    h: usize,
+    c: usize,
+    fill: T,
+    fx: f32,
+    fy: f32,
+    o: &mut [T],
+) -> bool {
+    let taps = |f: f32, size: usize| -> ([usize; 4], [T::Acc; 4]) {
+        // f >= 0: truncation is floor.
+        let i1 = (f as i32 as usize).min(size - 1);
+        let wt = cubic_weights(f as f64 - i1 as f64).map(T::Acc::from_f64);
+        let idx = [i1.saturating_sub(1), i1, (i1 + 1).min(size - 1), (i1 + 2).min(size - 1)];
+        (idx, wt)
+    };
+    let (ix, wx) = taps(fx, w);
+    let (iy, wy) = taps(fy, h);
+    let mut ok = true;
+    for ch in 0..c {
+        let mut v = T::Acc::ZERO;
+        for j in 0..4 {
+            if wy[j] == T::Acc::ZERO {
+                continue;
+            }
+            let row = iy[j] * w;
+            let mut r = T::Acc::ZERO;
+            for i in 0..4 {
+                if wx[i] != T::Acc::ZERO {
+                    r = r + wx[i] * data[(row + ix[i]) * c + ch].to_acc();
+                }
+            }
+            v = v + wy[j] * r;
+        }
+        let t = T::from_acc(v);
+        ok &= t.is_finite();
+        o[ch] = t;
+    }
+    if !ok {
+        o.fill(fill);
+    }
+    ok
 }
 
 /// Nearest-neighbour sampling of one output row (`C` = 0: run-time `src_c` channels): the source

@@ -36,8 +36,8 @@
 //!
 //! # Speed
 //! Rows run in parallel (rayon); results do not depend on the thread count. On x86-64, RGB(A)
-//! `u8` bilinear pixels use SSE2 (baseline), and homography warps of RGB `u8` (bilinear) and
-//! 1-channel `f32` (nearest) use fused AVX2 row kernels chosen at run time. Every SIMD path is
+//! `u8` bilinear pixels use SSE2 (baseline), and homography warps of RGB `u8` (bilinear), grey
+//! `u8` (bicubic) and 1-channel `f32` (nearest) use fused AVX2 row kernels chosen at run time. Every SIMD path is
 //! bitwise equal to the scalar path (tests compare them); nothing needs AVX-512.
 //!
 //! ```
@@ -85,7 +85,8 @@ pub enum Interp {
     Bilinear,
     /// Bicubic convolution (Keys, a = −½; 4×4 neighbours, edge pixels replicated): keeps the
     /// fine texture that bilinear averaging blurs at sub-pixel offsets (keypoint detectors on
-    /// resampled images, the CPC warp). Scalar only.
+    /// resampled images, the CPC warp, the self-rectified matcher). Grey `u8` homography warps
+    /// have a fused AVX2 path.
     Bicubic,
 }
 
@@ -206,6 +207,16 @@ impl Texel for u8 {
             {
                 // SAFETY: AVX2 checked; sizes checked; gathers are masked to in-bounds lanes.
                 unsafe { avx2::homography_bilinear_rgb(a, c, &src.data, src.width, src.height, fill, orow, mrow) };
+                return true;
+            }
+            if interp == Interp::Bicubic
+                && src.channels == 1
+                && src.data.len() < i32::MAX as usize
+                && orow.len() == mrow.len()
+                && avx2::available()
+            {
+                // SAFETY: AVX2 checked; sizes checked; gathers only for lanes whose 4×4 taps are inside.
+                unsafe { avx2::homography_bicubic_gray(a, c, &src.data, src.width, src.height, fill, orow, mrow) };
                 return true;
             }
         }
