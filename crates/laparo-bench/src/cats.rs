@@ -1,5 +1,6 @@
-//! `laparo-bench cats`: CATS warp timings (RGB u8 bilinear, f32 nearest) on the same input and
-//! homography as `../shared/bench/warp_ref.py`, optionally running that OpenCV peer in the same
+//! `laparo-bench cats`: CATS warp timings (RGB u8 bilinear, f32 nearest; grey u8 bicubic, the
+//! self-rectified matcher's warp) on the same input and homography as `../shared/bench/warp_ref.py`,
+//! optionally running that OpenCV peer (and `scripts/warp_grey_cubic_opencv.py`) in the same
 //! session (formerly `laparo cats bench`).
 use crate::timing::time_min_median;
 use anyhow::{bail, Context, Result};
@@ -33,6 +34,9 @@ pub struct BenchArgs {
     /// The peer script.
     #[arg(long, default_value = "../shared/bench/warp_ref.py")]
     pub peer_script: PathBuf,
+    /// The grey bicubic peer script (cv2.warpPerspective INTER_CUBIC, same homography).
+    #[arg(long, default_value = "scripts/warp_grey_cubic_opencv.py")]
+    pub grey_peer_script: PathBuf,
 }
 
 fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
@@ -98,20 +102,36 @@ pub fn run(a: BenchArgs) -> Result<()> {
             .collect(),
     )?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build()?;
-    let (rgb, f32n) = pool.install(|| -> Result<_> {
+    let grey = Image::from_vec(a.width, a.height, 1, laparo_stereo::sgm::to_gray_u8(&img))?;
+    let h_inv = rows(&map.h.try_inverse().context("the CATS homography is singular")?);
+    let (rgb, f32n, gc) = pool.install(|| -> Result<_> {
         let rgb = time_min_median(a.runs, || {
             std::hint::black_box(map.warp_bilinear_u8(&img).expect("sizes match"));
         });
         let f32n = time_min_median(a.runs, || {
             std::hint::black_box(map.warp_nearest_f32(&fmap, f32::INFINITY).expect("sizes match"));
         });
-        Ok((rgb, f32n))
+        let gc = time_min_median(a.runs, || {
+            std::hint::black_box(
+                laparo_core::remap::warp_homography(
+                    &grey,
+                    &h_inv,
+                    a.width,
+                    a.height,
+                    laparo_core::remap::Interp::Bicubic,
+                    0u8,
+                )
+                .expect("sizes match"),
+            );
+        });
+        Ok((rgb, f32n, gc))
     })?;
     let mut out = serde_json::json!({
         "laparo": env!("CARGO_PKG_VERSION"), "threads": a.threads, "size": [a.width, a.height],
         "H": rows(&map.h),
         "rgb_u8_bilinear": {"min_ms": rgb.0, "median_ms": rgb.1},
         "f32_nearest": {"min_ms": f32n.0, "median_ms": f32n.1},
+        "grey_u8_bicubic": {"min_ms": gc.0, "median_ms": gc.1},
     });
     if let Some(py) = &a.peer_python {
         let o = std::process::Command::new(py)
@@ -127,9 +147,22 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let peer: serde_json::Value = serde_json::from_slice(&o.stdout).context("parsing the peer's JSON")?;
         let ratio = |key: &str, ours: f64| peer[key]["min_ms"].as_f64().map(|p| p / ours);
         out["opencv"] = peer.clone();
+        let o2 = std::process::Command::new(py)
+            .arg(&a.grey_peer_script)
+            .arg(&a.image)
+            .args(["--width", &a.width.to_string(), "--height", &a.height.to_string()])
+            .args(["--runs", &a.runs.to_string(), "--threads", &a.threads.to_string()])
+            .output()
+            .with_context(|| format!("running {} {}", py.display(), a.grey_peer_script.display()))?;
+        if !o2.status.success() {
+            bail!("grey peer script failed: {}", String::from_utf8_lossy(&o2.stderr));
+        }
+        let peer2: serde_json::Value = serde_json::from_slice(&o2.stdout).context("parsing the grey peer's JSON")?;
+        out["opencv_grey_bicubic"] = peer2.clone();
         out["speedup_vs_opencv_min"] = serde_json::json!({
             "rgb_u8_bilinear": ratio("rgb_u8_bilinear", rgb.0),
             "f32_nearest": ratio("f32_nearest", f32n.0),
+            "grey_u8_bicubic": peer2["grey_u8_bicubic"]["min_ms"].as_f64().map(|p| p / gc.0),
         });
         // Same homography on both sides (the peer prints its H).
         if let Some(ph) = peer["H"].as_array() {
