@@ -997,23 +997,6 @@ pub fn rectified_disparity_shift(sr: &SelfRectification, pl: &[[f64; 2]], pr: &[
     }
 }
 
-/// A copy of `img` where the pixels outside `mask` take the value of the nearest in-mask pixel of
-/// their row (rows without one are left as they are).
-fn extend_rows<T: Texel>(img: &Image<T>, mask: &Mask) -> Image<T> {
-    let mut out = img.clone();
-    let (w, c) = (img.width, img.channels);
-    out.data.par_chunks_mut(w * c).zip(mask.data.par_chunks(w)).for_each(|(row, m)| {
-        let (Some(first), Some(last)) = (m.iter().position(|&v| v), m.iter().rposition(|&v| v)) else { return };
-        for x in (0..first).chain(last + 1..w) {
-            let src = if x < first { first } else { last };
-            for ch in 0..c {
-                row[x * c + ch] = row[src * c + ch];
-            }
-        }
-    });
-    out
-}
-
 /// Everything [`match_self_rectified`] computes.
 pub struct SelfRectifiedMatch {
     /// Disparity (d = x_L − x_R, +inf invalid), vertical offset and confidence in the raw left frame.
@@ -1084,7 +1067,7 @@ pub fn match_self_rectified_with(
     let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
     // SGM sees the canvas outside each raw image as the row's nearest image pixel, not as black:
     // a black wedge has census codes that match each other and pulls paths astray near it
-    let (lm_, rm_) = (extend_rows(&lg, &ml), extend_rows(&rg, &mr));
+    let (lm_, rm_) = (crate::sgm::masked::extend_rows(&lg, &ml), crate::sgm::masked::extend_rows(&rg, &mr));
     let o = crate::sgm::match_pair(&lm_, &rm_, &crate::sgm::SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
     let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
     let hl = sr.h_left();

@@ -384,7 +384,7 @@ fn epe_rows() -> Option<Vec<EpeRow>> {
 /// Issue 14's "EPE within 15 % of matching the unperturbed pair", on the same scene points (see
 /// [`epe_rows`]), for both ways of giving every pixel a disparity: the background fill applied
 /// afterwards in the raw left frame (stop 24's definition) and the matcher's own hole filling
-/// (`fill_holes`, in each pipeline's matching frame). Measured 2026-12-04 (stop 25: grey bicubic
+/// (`fill_holes`, in each pipeline's matching frame). Measured 2026-12-03 (stop 25: grey bicubic
 /// rectification warps): filled afterwards 1.032 (zero perturbation), 1.113, 1.120, 1.110, 1.142,
 /// 1.134, 1.081, 1.114, 1.122 (mean 1.108); hole filling 1.033, 1.115, 1.106, 1.109, 1.133, 1.130,
 /// 1.086, 1.118, 1.149 (mean 1.109); on the pixels both leave valid 1.00–1.09. Bilinear RGB warps

@@ -3,7 +3,7 @@
 //!
 //! Stages, one per file: [`cost`] (9×7 census, Hamming, vertical tolerance), [`aggregate`]
 //! (4 or 8 paths, eq. 13–14), [`select`] (winner-takes-all, uniqueness, parabola sub-pixel),
-//! [`lr_check`], [`speckle`], [`fill`]. Any integer range `[d_min, d_max)` of either sign; cells
+//! [`lr_check`], [`speckle`], [`fill`]; [`masked`] for warped pairs with canvas outside the images. Any integer range `[d_min, d_max)` of either sign; cells
 //! whose right pixel is outside the image get a neutral cost, so there are no invalid border
 //! strips. Invalid pixels are +∞. The AVX2 kernels (run-time detected) and the portable
 //! kernels give identical bits, and the work split never depends on the thread count, so the
@@ -18,6 +18,7 @@ pub mod aggregate;
 pub mod cost;
 pub mod fill;
 pub mod lr_check;
+pub mod masked;
 mod pool;
 pub mod select;
 pub mod speckle;

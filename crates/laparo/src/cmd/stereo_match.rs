@@ -253,10 +253,11 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
             }
             let opts = RectifyOptions { alpha: a.alpha, align_principal_points: !a.keep_offset };
             let rect = Rectification::new(c, opts).context("cannot rectify with this calibration")?;
-            let (l, _) = rect.rectify_image(Side::Left, &left)?;
-            let (r, _) = rect.rectify_image(Side::Right, &right)?;
+            let (l, ml) = rect.rectify_image(Side::Left, &left)?;
+            let (r, mr) = rect.rectify_image(Side::Right, &right)?;
             laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
-            let o = match_pair(&l, &r, &p)?;
+            // the canvas outside each image (α > 0) is neither matched nor matched against
+            let o = laparo_stereo::sgm::masked::match_masked(&l, &r, &ml, &mr, &p)?;
             (o, Some(rect.geometry()), Some(rect))
         }
         None => {
