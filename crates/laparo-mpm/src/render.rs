@@ -178,7 +178,24 @@ pub fn plot_loss_curve(
             .x_label_area_size(35)
             .y_label_area_size(70)
             .build_cartesian_2d(0f64..(n - 1) as f64, (lo * 0.9..hi * 1.1).log_scale())?;
-        chart.configure_mesh().x_desc("iteration").y_desc("loss").draw()?;
+        // three significant digits (plotters' own log-axis labels print binary round-off such as
+        // 0.30000000000000004), no minor grid lines
+        let label = |v: &f64| {
+            if *v >= 0.01 && *v < 1e4 {
+                let s = format!("{:.3}", v);
+                s.trim_end_matches('0').trim_end_matches('.').to_string()
+            } else {
+                format!("{v:.1e}")
+            }
+        };
+        chart
+            .configure_mesh()
+            .x_desc("iteration")
+            .y_desc("loss")
+            .y_labels(8)
+            .y_label_formatter(&label)
+            .light_line_style(TRANSPARENT)
+            .draw()?;
         chart.draw_series(LineSeries::new(losses.iter().enumerate().map(|(i, l)| (i as f64, *l)), &BLUE))?;
         chart.draw_series(losses.iter().enumerate().map(|(i, l)| Circle::new((i as f64, *l), 3, BLUE.filled())))?;
         Ok(())
