@@ -12,12 +12,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use std::path::PathBuf;
 
-fn optimizer_kind(s: &str) -> PyResult<OptimizerKind> {
-    Ok(match s {
-        "lbfgs" => OptimizerKind::Lbfgs,
-        "adam" => OptimizerKind::Adam,
-        "thesis-gd" => OptimizerKind::ThesisGd,
-        o => return Err(bad("optimizer", format!("{o:?}: expected lbfgs, adam or thesis-gd"))),
+/// The preset of an optimiser name (`laparo_register::optimize::OptimizerConfig::preset`).
+fn optimizer_preset(s: &str) -> PyResult<OptimizerConfig> {
+    OptimizerConfig::preset(s).ok_or_else(|| {
+        bad("optimizer", format!("{s:?}: expected one of {}", laparo_register::optimize::PRESET_NAMES.join(", ")))
     })
 }
 
@@ -167,8 +165,8 @@ fn configs(
     steps: usize,
     dt_s: Option<f64>,
     joint_e: bool,
-    smoothing_dx: f64,
-    max_step_dx: f64,
+    smoothing_dx: Option<f64>,
+    max_step_dx: Option<f64>,
     target_mean_mm: f64,
     memory_gb: Option<f64>,
 ) -> PyResult<(OrganConfig, OptimizerConfig)> {
@@ -177,21 +175,20 @@ fn configs(
         ("youngs_modulus_kpa", youngs_modulus_kpa),
         ("poisson_ratio", poisson_ratio),
         ("density_kg_m3", density_kg_m3),
-        ("smoothing_dx", smoothing_dx),
-        ("max_step_dx", max_step_dx),
+        ("smoothing_dx", smoothing_dx.unwrap_or(0.0)),
+        ("max_step_dx", max_step_dx.unwrap_or(1.0)),
         ("target_mean_mm", target_mean_mm),
     ] {
         if !v.is_finite() {
             return Err(bad(name, format!("{v} is not finite")));
         }
     }
-    let kind = optimizer_kind(optimizer)?;
-    let base = if kind == OptimizerKind::ThesisGd { OptimizerConfig::thesis() } else { OptimizerConfig::default() };
+    let base = optimizer_preset(optimizer)?;
+    let kind = base.kind;
     let opt = OptimizerConfig {
-        kind,
         iterations: iterations.unwrap_or(base.iterations),
-        smoothing_dx: if kind == OptimizerKind::ThesisGd { 0.0 } else { smoothing_dx },
-        max_step_dx,
+        smoothing_dx: if kind == OptimizerKind::ThesisGd { 0.0 } else { smoothing_dx.unwrap_or(base.smoothing_dx) },
+        max_step_dx: max_step_dx.unwrap_or(base.max_step_dx),
         target_mean_distance: target_mean_mm,
         joint_youngs_modulus: joint_e,
         ..base
@@ -215,7 +212,7 @@ fn configs(
 /// `out` (particles, surfaces, deformed meshes, overlay, loss curve, report.json, checkpoint).
 /// Returns report.json as a dict.
 #[pyfunction]
-#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = 2.0, max_step_dx = 0.5, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None))]
+#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_run<'py>(
     py: Python<'py>,
@@ -238,8 +235,8 @@ pub fn register_run<'py>(
     dt_s: Option<f64>,
     region_weight: f64,
     joint_e: bool,
-    smoothing_dx: f64,
-    max_step_dx: f64,
+    smoothing_dx: Option<f64>,
+    max_step_dx: Option<f64>,
     target_mean_mm: f64,
     resume: bool,
     checkpoint_every: usize,
@@ -296,7 +293,7 @@ pub fn register_run<'py>(
 /// and rest particle positions (model mm), v₀ (mm/s), J = det F, the iteration history, the
 /// residuals before/after and the set-up (Δx, Δt, grid, offset).
 #[pyfunction]
-#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = 2.0, max_step_dx = 0.5, target_mean_mm = 0.0, memory_gb = None))]
+#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_arrays<'py>(
     py: Python<'py>,
@@ -316,8 +313,8 @@ pub fn register_arrays<'py>(
     dt_s: Option<f64>,
     region_weight: f64,
     joint_e: bool,
-    smoothing_dx: f64,
-    max_step_dx: f64,
+    smoothing_dx: Option<f64>,
+    max_step_dx: Option<f64>,
     target_mean_mm: f64,
     memory_gb: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {

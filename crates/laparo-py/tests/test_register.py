@@ -92,6 +92,21 @@ def test_registration_moves_landmarks_towards_targets(job):
     assert again["mean_distance_mm"][1] == pytest.approx(after, rel=1e-9)
 
 
+def test_tear_preset_equals_cli(cli, job):
+    """optimizer="tear" (and the preset's σ / step cap when not given) is the CLI's --optimizer tear."""
+    cli("register", "--organ", job / "organ.obj", "--landmarks", job / "L.json", "--target", job / "T.json",
+        "--out", job / "cli", "--optimizer", "tear", *CLI_OPTS)
+    ref = read_particles_ply(job / "cli" / "particles_registered.ply")
+    got = R.register(LANDMARKS, py_targets(), organ=job / "organ.obj", optimizer="tear", **OPTS)
+    np.testing.assert_array_equal(got["positions"], ref[:, :3])
+    # the explicit defaults of the lbfgs preset differ from tear's (σ 2 Δx vs 0): a different run
+    other = R.register(LANDMARKS, py_targets(), organ=job / "organ.obj", optimizer="tear", smoothing_dx=2.0,
+                       max_step_dx=0.5, **OPTS)
+    assert not np.array_equal(other["positions"], got["positions"])
+    with pytest.raises(ValueError, match="lbfgs, tear, adam, thesis-gd"):
+        R.register(LANDMARKS, TARGETS, organ=job / "organ.obj", optimizer="sgd")
+
+
 def test_register_errors_name_the_argument(job):
     with pytest.raises(ValueError, match="optimizer"):
         R.register(LANDMARKS, TARGETS, organ=job / "organ.obj", optimizer="sgd")

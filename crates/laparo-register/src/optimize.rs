@@ -82,6 +82,9 @@ pub enum LineSearch {
     StrongWolfe,
 }
 
+/// The names [`OptimizerConfig::preset`] accepts.
+pub const PRESET_NAMES: [&str; 4] = ["lbfgs", "tear", "adam", "thesis-gd"];
+
 impl Default for OptimizerConfig {
     fn default() -> Self {
         OptimizerConfig {
@@ -124,6 +127,18 @@ impl OptimizerConfig {
             epsilon_ratio: 0.5,
             ..Default::default()
         }
+    }
+    /// The preset of an optimiser name, as `laparo register --optimizer` and the Python package take
+    /// it: `lbfgs` ([`Default`]), `tear` ([`Self::tear`]), `adam` (the default settings with Adam) or
+    /// `thesis-gd` ([`Self::thesis`]); `None` for any other name (see [`PRESET_NAMES`]).
+    pub fn preset(name: &str) -> Option<Self> {
+        Some(match name {
+            "lbfgs" => Self::default(),
+            "tear" => Self::tear(),
+            "adam" => OptimizerConfig { kind: OptimizerKind::Adam, ..Self::default() },
+            "thesis-gd" => Self::thesis(),
+            _ => return None,
+        })
     }
 }
 

@@ -119,8 +119,8 @@ def register_run(
     optimizer: str = "lbfgs", iterations: Optional[int] = None, roi: Optional[str] = None,
     tumour: Optional[_Path] = None, image: Optional[_Path] = None, camera: Optional[_Path] = None,
     youngs_modulus_kpa: float = 4.1, poisson_ratio: float = 0.49, density_kg_m3: float = 1000.0, steps: int = 200,
-    dt_s: Optional[float] = None, region_weight: float = 0.0, joint_e: bool = False, smoothing_dx: float = 2.0,
-    max_step_dx: float = 0.5, target_mean_mm: float = 0.0, resume: bool = False, checkpoint_every: int = 5,
+    dt_s: Optional[float] = None, region_weight: float = 0.0, joint_e: bool = False, smoothing_dx: Optional[float] = None,
+    max_step_dx: Optional[float] = None, target_mean_mm: float = 0.0, resume: bool = False, checkpoint_every: int = 5,
     memory_gb: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 def register_arrays(
@@ -128,7 +128,7 @@ def register_arrays(
     spacing_mm: float = 3.0, dx_mm: Optional[float] = None, optimizer: str = "lbfgs", iterations: Optional[int] = None,
     roi: Optional[str] = None, youngs_modulus_kpa: float = 4.1, poisson_ratio: float = 0.49,
     density_kg_m3: float = 1000.0, steps: int = 200, dt_s: Optional[float] = None, region_weight: float = 0.0,
-    joint_e: bool = False, smoothing_dx: float = 2.0, max_step_dx: float = 0.5, target_mean_mm: float = 0.0,
+    joint_e: bool = False, smoothing_dx: Optional[float] = None, max_step_dx: Optional[float] = None, target_mean_mm: float = 0.0,
     memory_gb: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 

@@ -36,6 +36,10 @@ def _points(p: Any, what: str) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def _opt_float(v: Optional[float]) -> Optional[float]:
+    return None if v is None else float(v)
+
+
 def _landmarks(lm: Landmarks) -> Any:
     if _is_path(lm):
         return os.fspath(lm)
@@ -80,8 +84,8 @@ def register(
     dt_s: Optional[float] = None,
     region_weight: float = 0.0,
     joint_e: bool = False,
-    smoothing_dx: float = 2.0,
-    max_step_dx: float = 0.5,
+    smoothing_dx: Optional[float] = None,
+    max_step_dx: Optional[float] = None,
     target_mean_mm: float = 0.0,
     memory_gb: Optional[float] = None,
 ) -> Dict[str, Any]:
@@ -92,7 +96,9 @@ def register(
     options are those of ``laparo register`` (grid cell ``dx_mm`` = 2 × spacing by default; Δt
     from the CFL condition unless ``dt_s``; ``roi`` = ``"ball:x,y,z,r"`` or
     ``"box:x0,y0,z0,x1,y1,z1"`` mm, its boundary particles fixed; ``optimizer`` = ``lbfgs``,
-    ``adam`` or ``thesis-gd``).
+    ``tear`` (unsmoothed, strong Wolfe, distance continuation: targets that pull neighbouring
+    particles apart), ``adam`` or ``thesis-gd``; ``smoothing_dx`` and ``max_step_dx`` default to
+    the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``).
 
     Returns ``positions`` (registered particles, N×3 mm, model coordinates), ``rest_positions``,
     ``velocities`` (v₀, mm/s), ``final_velocities``, ``j`` (det F), ``history`` (per iteration:
@@ -103,8 +109,8 @@ def register(
     return _laparo.register_arrays(
         _landmarks(landmarks), _targets(targets), None if organ is None else os.fspath(organ), particles,
         float(spacing_mm), dx_mm, optimizer, iterations, roi, float(youngs_modulus_kpa), float(poisson_ratio),
-        float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), float(smoothing_dx),
-        float(max_step_dx), float(target_mean_mm), memory_gb,
+        float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
+        _opt_float(max_step_dx), float(target_mean_mm), memory_gb,
     )
 
 
@@ -128,8 +134,8 @@ def run(
     dt_s: Optional[float] = None,
     region_weight: float = 0.0,
     joint_e: bool = False,
-    smoothing_dx: float = 2.0,
-    max_step_dx: float = 0.5,
+    smoothing_dx: Optional[float] = None,
+    max_step_dx: Optional[float] = None,
     target_mean_mm: float = 0.0,
     resume: bool = False,
     checkpoint_every: int = 5,
@@ -144,6 +150,6 @@ def run(
     return _laparo.register_run(
         os.fspath(organ), _landmarks(landmarks), _targets(targets), os.fspath(out), float(spacing_mm), dx_mm, optimizer,
         iterations, roi, p(tumour), p(image), p(camera), float(youngs_modulus_kpa), float(poisson_ratio),
-        float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), float(smoothing_dx),
-        float(max_step_dx), float(target_mean_mm), bool(resume), int(checkpoint_every), memory_gb,
+        float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
+        _opt_float(max_step_dx), float(target_mean_mm), bool(resume), int(checkpoint_every), memory_gb,
     )

@@ -46,12 +46,8 @@ pub enum RegisterSub {
 
 /// The preset an `--optimizer` name starts from.
 fn optimizer_base(s: &str) -> Result<OptimizerConfig> {
-    Ok(match s {
-        "lbfgs" => OptimizerConfig::default(),
-        "tear" => OptimizerConfig::tear(),
-        "adam" => OptimizerConfig { kind: OptimizerKind::Adam, ..OptimizerConfig::default() },
-        "thesis-gd" => OptimizerConfig::thesis(),
-        o => bail!("--optimizer {o}: expected lbfgs, tear, adam or thesis-gd"),
+    OptimizerConfig::preset(s).with_context(|| {
+        format!("--optimizer {s}: expected one of {}", laparo_register::optimize::PRESET_NAMES.join(", "))
     })
 }
 
