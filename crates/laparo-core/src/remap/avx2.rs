@@ -393,7 +393,8 @@ pub unsafe fn homography_bicubic_gray(
 ) {
     let n = orow.len().min(mrow.len());
     let (optr, mptr, dptr) = (orow.as_mut_ptr() as *mut u8, mrow.as_mut_ptr() as *mut u8, data.as_ptr() as *const i32);
-    let (one, wm3, hm3) = (_mm256_set1_epi32(1), _mm256_set1_epi32(w as i32 - 3), _mm256_set1_epi32(h as i32 - 3));
+    let one = _mm256_set1_epi32(1);
+    let (wm2, hm2) = (_mm256_set1_ps(w as f32 - 2.0), _mm256_set1_ps(h as f32 - 2.0));
     let (zero, eps, half) = (_mm256_setzero_ps(), _mm256_set1_ps(1e-12), _mm256_set1_ps(0.5));
     let (wi, ff) = (_mm256_set1_epi32(w as i32), _mm256_set1_epi32(0xff));
     // Scalar block of m pixels from x: the coordinates of `homography_row`, the scalar kernel.
@@ -412,24 +413,19 @@ pub unsafe fn homography_bicubic_gray(
     let mut x = 0;
     while x + 8 <= n {
         let (sx, sy, den) = coords(a, c, x);
-        // interior: s >= 1 (so ⌊s⌋ >= 1; also not NaN), ⌊s⌋ <= size − 3, denominator > 1e-12
-        let (ix, iy) = (_mm256_cvttps_epi32(sx), _mm256_cvttps_epi32(sy));
-        let ge = _mm256_and_ps(
-            _mm256_cmp_ps::<_CMP_GE_OQ>(sx, _mm256_set1_ps(1.0)),
-            _mm256_cmp_ps::<_CMP_GE_OQ>(sy, _mm256_set1_ps(1.0)),
-        );
-        let ok = _mm256_and_ps(ge, _mm256_cmp_ps::<_CMP_GT_OQ>(den, eps));
-        // cvtt of a too-large or NaN lane gives i32::MIN: excluded by `ge`/`le` together
-        let le = _mm256_andnot_si256(
-            _mm256_or_si256(_mm256_cmpgt_epi32(ix, wm3), _mm256_cmpgt_epi32(iy, hm3)),
-            _mm256_set1_epi32(-1),
-        );
-        let ok = _mm256_and_si256(_mm256_castps_si256(ok), le);
+        // interior: 1 <= s < size − 2 (so 1 <= ⌊s⌋ <= size − 3; NaN fails), denominator > 1e-12; the
+        // float tests come first, so ⌊s⌋ is only taken of in-range lanes
+        let inside = |v: __m256, hi: __m256| {
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(v, _mm256_set1_ps(1.0)), _mm256_cmp_ps::<_CMP_LT_OQ>(v, hi))
+        };
+        let ok = _mm256_and_ps(_mm256_and_ps(inside(sx, wm2), inside(sy, hm2)), _mm256_cmp_ps::<_CMP_GT_OQ>(den, eps));
+        let ok = _mm256_castps_si256(ok);
         if _mm256_movemask_ps(_mm256_castsi256_ps(ok)) != 0xff {
             scalar(x, 8);
             x += 8;
             continue;
         }
+        let (ix, iy) = (_mm256_cvttps_epi32(sx), _mm256_cvttps_epi32(sy));
         let wx = cubic_weights_8(sx, ix);
         let wy = cubic_weights_8(sy, iy);
         // byte offset of the first tap of source row ⌊y⌋ − 1

@@ -453,6 +453,14 @@ fn bicubic_interior_path_equals_the_generic_rule() {
             assert!(check(&a, &h_inv) > iw * ih / 3);
             assert!(check(&b, &h_inv) > iw * ih / 3);
         }
+        // source positions beyond the image and beyond i32 (the SIMD path must leave them to the
+        // scalar rule, which rejects them): x_s = 4e8 x, and a row whose x_s passes 2^31 only at its end
+        for h_inv in
+            [[[4e8, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [[1.0, 0.0, 3.0], [0.0, 1.0, 2.0], [-0.02, 0.0, 1.0]]]
+        {
+            check(&a, &h_inv);
+            check(&b, &h_inv);
+        }
     }
 }
 
