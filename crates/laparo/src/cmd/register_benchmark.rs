@@ -270,7 +270,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         let centre = crack.iter().sum::<Vector3<f64>>() / crack.len().max(1) as f64;
         let roi = choose_roi(x, &u, centre, 50.0, 120.0, 6.0, 0.5);
         println!(
-            "{name}: {} cut nodes, lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm, min J {:.3} ({:.1} s); ROI {}",
+            "{name}: {} nodes after the cut (crack nodes duplicated), lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm, min J {:.3} ({:.1} s); ROI {}",
             x.len(),
             rep.max_gap_mm,
             rep.pressure_kpa,
