@@ -134,35 +134,29 @@ pub fn run(a: BenchArgs) -> Result<()> {
         "grey_u8_bicubic": {"min_ms": gc.0, "median_ms": gc.1},
     });
     if let Some(py) = &a.peer_python {
-        let o = std::process::Command::new(py)
-            .arg(&a.peer_script)
-            .arg(&a.image)
-            .args(["--width", &a.width.to_string(), "--height", &a.height.to_string()])
-            .args(["--runs", &a.runs.to_string(), "--threads", &a.threads.to_string()])
-            .output()
-            .with_context(|| format!("running {} {}", py.display(), a.peer_script.display()))?;
-        if !o.status.success() {
-            bail!("peer script failed: {}", String::from_utf8_lossy(&o.stderr));
-        }
-        let peer: serde_json::Value = serde_json::from_slice(&o.stdout).context("parsing the peer's JSON")?;
-        let ratio = |key: &str, ours: f64| peer[key]["min_ms"].as_f64().map(|p| p / ours);
+        // both peer scripts take the image, size, runs and threads and print JSON
+        let run_peer = |script: &PathBuf| -> Result<serde_json::Value> {
+            let o = std::process::Command::new(py)
+                .arg(script)
+                .arg(&a.image)
+                .args(["--width", &a.width.to_string(), "--height", &a.height.to_string()])
+                .args(["--runs", &a.runs.to_string(), "--threads", &a.threads.to_string()])
+                .output()
+                .with_context(|| format!("running {} {}", py.display(), script.display()))?;
+            if !o.status.success() {
+                bail!("peer script {} failed: {}", script.display(), String::from_utf8_lossy(&o.stderr));
+            }
+            serde_json::from_slice(&o.stdout).with_context(|| format!("parsing the JSON of {}", script.display()))
+        };
+        let peer = run_peer(&a.peer_script)?;
+        let peer2 = run_peer(&a.grey_peer_script)?;
+        let ratio = |p: &serde_json::Value, key: &str, ours: f64| p[key]["min_ms"].as_f64().map(|p| p / ours);
         out["opencv"] = peer.clone();
-        let o2 = std::process::Command::new(py)
-            .arg(&a.grey_peer_script)
-            .arg(&a.image)
-            .args(["--width", &a.width.to_string(), "--height", &a.height.to_string()])
-            .args(["--runs", &a.runs.to_string(), "--threads", &a.threads.to_string()])
-            .output()
-            .with_context(|| format!("running {} {}", py.display(), a.grey_peer_script.display()))?;
-        if !o2.status.success() {
-            bail!("grey peer script failed: {}", String::from_utf8_lossy(&o2.stderr));
-        }
-        let peer2: serde_json::Value = serde_json::from_slice(&o2.stdout).context("parsing the grey peer's JSON")?;
         out["opencv_grey_bicubic"] = peer2.clone();
         out["speedup_vs_opencv_min"] = serde_json::json!({
-            "rgb_u8_bilinear": ratio("rgb_u8_bilinear", rgb.0),
-            "f32_nearest": ratio("f32_nearest", f32n.0),
-            "grey_u8_bicubic": peer2["grey_u8_bicubic"]["min_ms"].as_f64().map(|p| p / gc.0),
+            "rgb_u8_bilinear": ratio(&peer, "rgb_u8_bilinear", rgb.0),
+            "f32_nearest": ratio(&peer, "f32_nearest", f32n.0),
+            "grey_u8_bicubic": ratio(&peer2, "grey_u8_bicubic", gc.0),
         });
         // Same homography on both sides (the peer prints its H).
         if let Some(ph) = peer["H"].as_array() {

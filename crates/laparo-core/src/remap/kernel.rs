@@ -229,7 +229,7 @@ pub fn bicubic_row<T: Texel, const C: usize>(
             mrow[x] = true;
             continue;
         }
-        mrow[x] = bicubic_px_generic::<T, C>(data, w, h, c, fill, fx, fy, o);
+        mrow[x] = bicubic_px_generic(data, w, h, c, fill, fx, fy, o);
     }
 }
 
@@ -238,7 +238,7 @@ pub fn bicubic_row<T: Texel, const C: usize>(
 /// not finite.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub fn bicubic_px_generic<T: Texel, const C: usize>(
+pub fn bicubic_px_generic<T: Texel>(
     data: &[T],
     w: usize,
     h: usize,

@@ -54,7 +54,7 @@ pub fn match_masked(
     }
     let (l, r) = rayon::join(|| extend_rows(left, mask_left), || extend_rows(right, mask_right));
     let mut o = match_pair(&l, &r, p)?;
-    let dy = o.dy.as_ref().map(|d| d.data.clone());
+    let dy = o.dy.as_ref().map(|d| &d.data);
     let inside = |i: usize| -> bool {
         let (x, y) = (i % w, i / w);
         let d = o.disparity.data[i] as f64;
