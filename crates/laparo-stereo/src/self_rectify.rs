@@ -300,7 +300,7 @@ impl SelfRectification {
 /// The interpolation of the matcher's rectification warps: Keys bicubic. A CATS-perturbed pair has
 /// already been resampled once; a second bilinear pass blurs the texture census compares, and
 /// costs 3–8 % EPE against bicubic on the Middlebury CATS pairs (BENCHMARKS.md, issue 14, stop 25).
-/// Grey `u8` bicubic has a fused AVX2 path in laparo-core (as fast as bilinear).
+/// Grey `u8` bicubic has a fused AVX2 path in laparo-core (1.04–1.07× OpenCV's `INTER_CUBIC`).
 pub const MATCH_INTERP: Interp = Interp::Bicubic;
 
 /// A disparity map sampled at (x, y) by the core's edge-aware lookup
