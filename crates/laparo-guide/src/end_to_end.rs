@@ -9,7 +9,7 @@ use crate::pipeline::{self, GuideConfig, GuideReport, Route, StageRecord};
 use crate::scenario::{self, ScenarioConfig};
 use laparo_core::atomic::write_atomic;
 use laparo_fem::mesh::{
-    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, ScenarioFrame,
+    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, ScenarioFrame,
     TetraParams,
 };
 use laparo_register::benchmark::build::{drop_detached_fragments, fem_ground_truth, GroundTruthConfig};
@@ -133,12 +133,13 @@ pub fn fem_incision(
     std::fs::create_dir_all(dir).map_err(|e| laparo_core::CoreError::io(dir, e))?;
     let surface = laparo_core::mesh::read_mesh(organ)?;
     let name = organ.display().to_string();
-    let (mesh, quality) = tetrahedralize_surface(surface, &name, &TetraParams { edge_mm, ..Default::default() })
-        .map_err(|e| stage_err(&name, e.to_string()))?;
+    let (mesh, quality) =
+        tetrahedralize_surface(surface.clone(), &name, &TetraParams { edge_mm, ..Default::default() })
+            .map_err(|e| stage_err(&name, e.to_string()))?;
     let frame = ScenarioFrame::default();
     let mut scn = match incision {
-        "non-anatomical" => non_anatomical(&mesh, &frame, &NonAnatomicalParams::default()),
-        "anatomical" => anatomical(&mesh, &frame, &AnatomicalParams::default()),
+        "non-anatomical" => non_anatomical_on(&mesh, &surface, &frame, &NonAnatomicalParams::default()),
+        "anatomical" => anatomical_on(&mesh, &surface, &frame, &AnatomicalParams::default()),
         o => return Err(stage_err("incision", format!("{o:?}: expected non-anatomical or anatomical"))),
     }
     .map_err(|e| stage_err(&name, e.to_string()))?;

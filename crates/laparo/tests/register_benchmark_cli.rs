@@ -110,4 +110,25 @@ fn bad_input_is_named() {
     );
     assert!(!ok && err.contains("--methods") && err.contains("magic"), "{err}");
     assert!(!err.contains("panicked"));
+    // a mesh too coarse to resolve the incision: refused before any FEM solve, naming --edge-mm
+    if let Some(l) = liver() {
+        let (ok, _, err) = laparo(
+            &[
+                "register",
+                "benchmark",
+                "--quick",
+                "--edge-mm",
+                "30",
+                "--methods",
+                "none",
+                "--liver",
+                l.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            dir.path(),
+        );
+        assert!(!ok && err.contains("--edge-mm 30") && err.contains("does not resolve"), "{err}");
+        assert!(!err.contains("panicked"));
+    }
 }

@@ -17,7 +17,7 @@ pub mod tetra;
 pub use geom::{check_closed, Surface};
 pub use incision::{cut, Blade, CutMesh, Landmark, Landmarks};
 pub use scenario::{
-    anatomical, anterior_from_vertices, fixed_posterior_nodes, non_anatomical, AnatomicalParams, NonAnatomicalParams,
-    Scenario, ScenarioFrame, Sphere, P2ILF_ANTERIOR, P2ILF_CONTOUR_VERTICES,
+    anatomical, anatomical_on, anterior_from_vertices, fixed_posterior_nodes, non_anatomical, non_anatomical_on,
+    AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame, Sphere, P2ILF_ANTERIOR, P2ILF_CONTOUR_VERTICES,
 };
 pub use tetra::{quality_report, tetrahedralize, tetrahedralize_surface, Percentile, QualityReport, TetraParams};

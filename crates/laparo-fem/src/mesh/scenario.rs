@@ -303,7 +303,21 @@ fn blade_distance(blade: &Blade, p: &V3) -> f64 {
 /// on the in-plane direction u (the coordinate axis least aligned with n, made orthogonal), its
 /// angle set so that the traced polyline is `length_mm` long; each mouth point is swept to the
 /// point `depth_mm` under it (along −n) at radius r + margin.
+///
+/// The blade is traced on the tet mesh's own boundary; [`non_anatomical_on`] traces it on the organ's input
+/// surface instead, so that every mesh of one organ gets the same cut.
 pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalParams) -> Result<Scenario> {
+    non_anatomical_on(mesh, &outer(mesh), frame, p)
+}
+
+/// Scenario (i) with the blade traced on `surface` (the organ's closed input surface, mm) and cut into `mesh`:
+/// the same blade for every mesh of that surface, which a mesh-convergence study needs.
+pub fn non_anatomical_on(
+    mesh: &TetMesh,
+    surface: &TriMesh,
+    frame: &ScenarioFrame,
+    p: &NonAnatomicalParams,
+) -> Result<Scenario> {
     let a = check_frame(frame)?;
     for (name, v) in [
         ("tumour_radius_mm", p.tumour_radius_mm),
@@ -319,9 +333,9 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
     if !(0.0..80.0).contains(&p.wedge_deg) {
         return Err(FemError::param("wedge_deg", p.wedge_deg, "must be in [0, 80) deg"));
     }
-    let surf = outer(mesh);
-    let far = 2.0 * bbox_diag(mesh);
-    let (entry_point, n) = tumour_entry(&surf, &a, p.tumour_depth_mm)?;
+    let surf = surface;
+    let far = 2.0 * bbox_diag(mesh).max(surface.bounding_box().map(|(lo, hi)| (hi - lo).norm()).unwrap_or(0.0));
+    let (entry_point, n) = tumour_entry(surf, &a, p.tumour_depth_mm)?;
     let centre = entry_point - n * p.tumour_depth_mm;
     let e =
         (0..3).map(|k| V3::ith(k, 1.0)).min_by(|x, y| x.dot(&n).abs().total_cmp(&y.dot(&n).abs())).unwrap_or(V3::x());
@@ -334,7 +348,7 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
             .map(|i| {
                 let phi = -half + 2.0 * half * i as f64 / (frame.samples - 1) as f64;
                 let q = entry_point + (u * phi.cos() + w * phi.sin()) * r_top;
-                surface_along(&surf, &q, &n, far).ok_or_else(|| {
+                surface_along(surf, &q, &n, far).ok_or_else(|| {
                     FemError::bad(
                         "non-anatomical scenario",
                         format!("the mouth circle leaves the organ at angle {phi:.3} rad"),
@@ -379,7 +393,19 @@ pub fn non_anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &NonAnatomicalPa
 /// (cast along −a) of a segment through P along `a × normal`, scaled to `length_mm` of traced
 /// length; each mouth point is swept along −a by `depth_fraction` × the local thickness (distance
 /// along −a to where that ray leaves the organ).
+///
+/// [`anatomical_on`] traces the blade on the organ's input surface instead of the mesh boundary.
 pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -> Result<Scenario> {
+    anatomical_on(mesh, &outer(mesh), frame, p)
+}
+
+/// Scenario (ii) with the blade traced on `surface` (the organ's closed input surface, mm) and cut into `mesh`.
+pub fn anatomical_on(
+    mesh: &TetMesh,
+    surface: &TriMesh,
+    frame: &ScenarioFrame,
+    p: &AnatomicalParams,
+) -> Result<Scenario> {
     let a = check_frame(frame)?;
     if !(p.length_mm.is_finite() && p.length_mm > 0.0) {
         return Err(FemError::param("length_mm", p.length_mm, "must be a positive length in mm"));
@@ -387,9 +413,9 @@ pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -
     if !(p.depth_fraction > 0.0 && p.depth_fraction < 1.0) {
         return Err(FemError::param("depth_fraction", p.depth_fraction, "must be in (0, 1)"));
     }
-    let surf = outer(mesh);
-    let far = 2.0 * bbox_diag(mesh);
-    let (entry_point, _) = entry(&surf, &a, far)?;
+    let surf = surface;
+    let far = 2.0 * bbox_diag(mesh).max(surface.bounding_box().map(|(lo, hi)| (hi - lo).norm()).unwrap_or(0.0));
+    let (entry_point, _) = entry(surf, &a, far)?;
     // Major principal axis of the tet volume (volume-weighted tet centroids).
     let mut vol = 0.0;
     let mut mean = V3::zeros();
@@ -421,7 +447,7 @@ pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -
         (0..frame.samples)
             .map(|i| {
                 let s = -half + 2.0 * half * i as f64 / (frame.samples - 1) as f64;
-                surface_along(&surf, &(entry_point + t * s), &a, far).ok_or_else(|| {
+                surface_along(surf, &(entry_point + t * s), &a, far).ok_or_else(|| {
                     FemError::bad(
                         "anatomical scenario",
                         format!("the cut line leaves the organ at {s:.1} mm from the entry point"),
@@ -436,7 +462,7 @@ pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -
     for (i, q) in mouth.iter().enumerate() {
         // Thickness: from q (just inside) along −a to the next crossing.
         let o = q - a * 1e-6;
-        let hits = ray_hits(&surf, &o, &(-a));
+        let hits = ray_hits(surf, &o, &(-a));
         let th = hits.into_iter().find(|&t| t > 1e-3).ok_or_else(|| {
             FemError::bad("anatomical scenario", format!("no exit along −anterior from mouth point {i}"))
         })?;

@@ -85,6 +85,9 @@ pub struct GroundTruthReport {
     /// Accepted solve: element evaluation and assembly (s).
     #[serde(default)]
     pub assembly_s: f64,
+    /// Accepted solve: the mouth's opening profile along lip A (mm), see [`lip_opening_profile_mm`].
+    #[serde(default)]
+    pub lip_opening_mm: Vec<f64>,
 }
 
 /// Largest distance between the deformed copies of each duplicated crack node (mm).
@@ -100,6 +103,88 @@ pub fn max_gap_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> f64 {
         }
     }
     gap
+}
+
+/// Opening of the incision mouth: for each lip-A node whose node also has a copy on lip B, the distance
+/// between the two deformed copies (mm), in lip-A order (zero at the crack ends, the opening profile).
+pub fn lip_opening_profile_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> Vec<f64> {
+    let on_b: std::collections::HashMap<usize, usize> =
+        cut.lips[1].iter().map(|&i| (cut.original_node[i], i)).collect();
+    cut.lips[0]
+        .iter()
+        .filter_map(|&i| on_b.get(&cut.original_node[i]).map(|&j| (deformed[i] - deformed[j]).norm()))
+        .collect()
+}
+
+/// How finely a mesh resolves the blade: the crack it cut against the blade it was cut with.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct CrackResolution {
+    /// Area of the crack faces of side A and B (mm²).
+    pub crack_area_mm2: [f64; 2],
+    /// Area of the blade inside the organ's input surface (mm²), sampled at 78 points per blade triangle.
+    pub blade_area_inside_mm2: f64,
+    /// Crack nodes split into two copies (the nodes that can open).
+    pub duplicated_nodes: usize,
+    /// Lip nodes with a copy on both lips (samples of the mouth's opening profile).
+    pub lip_pairs: usize,
+}
+
+impl CrackResolution {
+    /// The crack of `scn` against its blade inside `organ` (the surface the blade was traced on).
+    pub fn of(scn: &Scenario, organ: &laparo_fem::mesh::Surface) -> Self {
+        let x = &scn.cut.mesh.vertices;
+        let area = |f: &[usize; 3]| 0.5 * (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).norm();
+        let crack_area_mm2 = [0, 1].map(|k| scn.cut.crack_faces[k].iter().map(area).sum::<f64>());
+        let bs = scn.blade.surface();
+        const N: usize = 12;
+        let mut inside = 0.0;
+        for f in &bs.faces {
+            let q = f.map(|k| bs.vertices[k]);
+            let a = 0.5 * (q[1] - q[0]).cross(&(q[2] - q[0])).norm();
+            let (mut hit, mut all) = (0usize, 0usize);
+            for i in 0..N {
+                for j in 0..N - i {
+                    let (u, v) = ((i as f64 + 1.0 / 3.0) / N as f64, (j as f64 + 1.0 / 3.0) / N as f64);
+                    all += 1;
+                    if organ.contains(&(q[0] + (q[1] - q[0]) * u + (q[2] - q[0]) * v)) {
+                        hit += 1;
+                    }
+                }
+            }
+            inside += a * hit as f64 / all as f64;
+        }
+        let mut seen = std::collections::HashSet::new();
+        let duplicated_nodes = scn.cut.original_node.iter().filter(|&&o| !seen.insert(o)).count();
+        let rest = &scn.cut.mesh.vertices;
+        let lip_pairs = lip_opening_profile_mm(&scn.cut, rest).len();
+        CrackResolution { crack_area_mm2, blade_area_inside_mm2: inside, duplicated_nodes, lip_pairs }
+    }
+
+    /// Smaller crack side over the blade area inside the organ.
+    pub fn area_fraction(&self) -> f64 {
+        self.crack_area_mm2[0].min(self.crack_area_mm2[1]) / self.blade_area_inside_mm2.max(1e-12)
+    }
+
+    /// Error (naming `edge_mm`) when the crack covers less than `min_fraction` of the blade inside the organ
+    /// or the mouth has fewer than `min_lip_pairs` samples: the mesh is too coarse for the incision.
+    pub fn check(&self, edge_mm: f64, min_fraction: f64, min_lip_pairs: usize) -> Result<()> {
+        if self.area_fraction() < min_fraction || self.lip_pairs < min_lip_pairs {
+            return Err(RegisterError::param(
+                "edge_mm",
+                edge_mm,
+                format!(
+                    "the mesh does not resolve the incision: its crack covers {:.0} / {:.0} mm² of the blade inside \
+                     the organ ({:.0} %, need ≥ {:.0} %) with {} lip samples (need ≥ {min_lip_pairs}); use smaller tets",
+                    self.crack_area_mm2[0].min(self.crack_area_mm2[1]),
+                    self.blade_area_inside_mm2,
+                    100.0 * self.area_fraction(),
+                    100.0 * min_fraction,
+                    self.lip_pairs
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Pressure `p` (kPa) on every crack face, pushing each lip away from the other: traction −p n with n the
@@ -194,6 +279,8 @@ pub fn fem_ground_truth(
         ));
     }
     let u = sol.vertex_displacements().to_vec();
+    let deformed: Vec<Vector3<f64>> = x0.iter().zip(&u).map(|(a, b)| a + b).collect();
+    let lip_opening_mm = lip_opening_profile_mm(&scn.cut, &deformed);
     // far field: nodes farther than 60 mm from every crack node
     let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x0[i]).collect();
     let d = super::tre::distance_to_nearest(x0, &crack)?;
@@ -218,6 +305,7 @@ pub fn fem_ground_truth(
         pcg_iterations: sol.timings.pcg_iterations,
         solve_s: sol.timings.solve_s,
         assembly_s: sol.timings.assembly_s,
+        lip_opening_mm,
     };
     Ok((u, report))
 }

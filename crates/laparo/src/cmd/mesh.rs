@@ -3,8 +3,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
 use laparo_core::mesh::{read_mesh, read_msh, read_vtk, write_msh, write_vtk, TetMesh};
 use laparo_fem::mesh::{
-    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame,
-    TetraParams,
+    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
+    ScenarioFrame, TetraParams,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -56,6 +56,10 @@ pub enum MeshCmd {
         /// Anterior axis "x,y,z" (default: the P2ILF liver's, from its falciform-ligament contour).
         #[arg(long)]
         anterior: Option<String>,
+        /// Organ surface (.obj/.ply/.stl/.off, mm) to trace the blade on, e.g. the one `--mesh` was made from:
+        /// every mesh of one surface then gets the same cut (default: the tet mesh's own boundary).
+        #[arg(long)]
+        surface: Option<PathBuf>,
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
@@ -67,7 +71,9 @@ pub fn run(c: MeshCmd) -> Result<()> {
         MeshCmd::Tetra { surface, edge_mm, min_dihedral_deg, out, report } => {
             tetra_cmd(&surface, edge_mm, min_dihedral_deg, &out, report.as_deref())
         }
-        MeshCmd::Incision { mesh, scenario, anterior, out } => incision_cmd(&mesh, scenario, anterior.as_deref(), &out),
+        MeshCmd::Incision { mesh, scenario, anterior, surface, out } => {
+            incision_cmd(&mesh, scenario, anterior.as_deref(), surface.as_deref(), &out)
+        }
     }
 }
 
@@ -142,7 +148,13 @@ fn v3(v: &V3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
-fn incision_cmd(mesh_path: &Path, kind: ScenarioKind, anterior: Option<&str>, out: &Path) -> Result<()> {
+fn incision_cmd(
+    mesh_path: &Path,
+    kind: ScenarioKind,
+    anterior: Option<&str>,
+    surface: Option<&Path>,
+    out: &Path,
+) -> Result<()> {
     let t0 = Instant::now();
     let mut mesh = read_tets(mesh_path)?;
     mesh.orient_positive();
@@ -150,14 +162,22 @@ fn incision_cmd(mesh_path: &Path, kind: ScenarioKind, anterior: Option<&str>, ou
     if let Some(a) = anterior {
         frame.anterior = parse_axis(a)?;
     }
+    let organ = match surface {
+        Some(p) => {
+            let s = read_mesh(p)?;
+            laparo_fem::mesh::check_closed(&s, &p.display().to_string())?;
+            s
+        }
+        None => mesh.boundary(),
+    };
     let (sc, params) = match kind {
         ScenarioKind::NonAnatomical => {
             let p = NonAnatomicalParams::default();
-            (non_anatomical(&mesh, &frame, &p), serde_json::to_value(&p)?)
+            (non_anatomical_on(&mesh, &organ, &frame, &p), serde_json::to_value(&p)?)
         }
         ScenarioKind::Anatomical => {
             let p = AnatomicalParams::default();
-            (anatomical(&mesh, &frame, &p), serde_json::to_value(&p)?)
+            (anatomical_on(&mesh, &organ, &frame, &p), serde_json::to_value(&p)?)
         }
     };
     let sc = sc.with_context(|| format!("cutting {}", mesh_path.display()))?;

@@ -7,12 +7,12 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::mesh::{write_vtk_fields, VtkField, VtkValues};
 use laparo_fem::mesh::{
-    anatomical, non_anatomical, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame,
-    TetraParams,
+    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
+    ScenarioFrame, TetraParams,
 };
 use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig};
 use laparo_register::benchmark::build::{
-    case_from, choose_roi, fem_ground_truth, GroundTruthConfig, GroundTruthReport,
+    case_from, choose_roi, fem_ground_truth, CrackResolution, GroundTruthConfig, GroundTruthReport,
 };
 use laparo_register::benchmark::figures::{write_distance_plot, write_tre_map, SurfaceView};
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
@@ -207,6 +207,11 @@ fn incision_centre(c: &laparo_register::benchmark::BenchmarkCase) -> Vector3<f64
     ids.iter().map(|&i| c.rest[i]).sum::<Vector3<f64>>() / ids.len().max(1) as f64
 }
 
+/// The crack must cover this fraction of the blade inside the organ ...
+const MIN_CRACK_AREA_FRACTION: f64 = 0.6;
+/// ... and the mouth this many lip samples, else the mesh is too coarse for the incision.
+const MIN_LIP_SAMPLES: usize = 5;
+
 pub fn run(a: BenchmarkArgs) -> Result<()> {
     let quick = a.quick;
     let scenario = a.scenario.clone().unwrap_or_else(|| if quick { "non-anatomical".into() } else { "all".into() });
@@ -230,7 +235,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     let surface = laparo_core::mesh::read_mesh(&liver)?;
     let t0 = std::time::Instant::now();
     let (mesh, quality) = tetrahedralize_surface(
-        surface,
+        surface.clone(),
         &liver.display().to_string(),
         &TetraParams { edge_mm: edge, ..Default::default() },
     )?;
@@ -242,21 +247,26 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         quality.nodes, quality.tets, quality.min_dihedral_deg
     );
     let frame = ScenarioFrame::default();
+    let organ = laparo_fem::mesh::Surface::new(surface.clone(), &liver.display().to_string())?;
     let mut cases = Vec::new();
     let mut gt_reports = Vec::new();
     for name in &scenarios {
         let dir = a.out.join(name);
         std::fs::create_dir_all(&dir)?;
         let scn = if *name == "anatomical" {
-            anatomical(&mesh, &frame, &AnatomicalParams::default())?
+            anatomical_on(&mesh, &surface, &frame, &AnatomicalParams::default())?
         } else {
-            non_anatomical(&mesh, &frame, &NonAnatomicalParams::default())?
+            non_anatomical_on(&mesh, &surface, &frame, &NonAnatomicalParams::default())?
         };
         let mut scn = scn;
         let dropped = laparo_register::benchmark::build::drop_detached_fragments(&mut scn);
         if dropped > 0 {
             eprintln!("{name}: the blade cut a fragment of {dropped} nodes free of the organ: removed (resected)");
         }
+        let resolution = CrackResolution::of(&scn, &organ);
+        resolution
+            .check(edge, MIN_CRACK_AREA_FRACTION, MIN_LIP_SAMPLES)
+            .with_context(|| format!("--edge-mm {edge}: the {name} incision"))?;
         let mut gcfg = GroundTruthConfig::for_scenario(name);
         if let Some(s) = a.fem_steps {
             gcfg.steps = s;
@@ -319,7 +329,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             };
             d.write(&dir.join("deformation"))?;
         }
-        gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped}));
+        gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped, "crack_resolution": resolution}));
         cases.push(case);
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
