@@ -474,7 +474,9 @@ pub fn back_project_polyline(
 }
 
 /// Stage 4: lift image points to 3D through a depth map (median of the valid depths within
-/// `radius` px, widened up to 4 × `radius` where there is none).
+/// `radius` px, widened up to 4 × `radius` where there is none). Points with no depth even then (the
+/// lip hidden in the opened crack, whose walls one camera sees) are left out; returns the lifted points
+/// and how many were left out, and fails when fewer than half (or fewer than 2) lift.
 pub fn lift_polyline(
     p: &[[f64; 2]],
     depth: &Image<f64>,
@@ -482,12 +484,11 @@ pub fn lift_polyline(
     radius: i64,
     stage: &str,
     input: &str,
-) -> Result<Vec<Vector3<f64>>> {
-    p.iter()
+) -> Result<(Vec<Vector3<f64>>, usize)> {
+    let lifted: Vec<Option<Vector3<f64>>> = p
+        .iter()
         .map(|q| {
             let (x0, y0) = (q[0].round() as i64, q[1].round() as i64);
-            // the window widens (×2, up to 4 × radius) where the lip itself has no depth: the opened
-            // crack's walls are seen by one camera only
             let mut zs = Vec::new();
             let mut r = radius.max(1);
             while zs.is_empty() && r <= 4 * radius.max(1) {
@@ -504,17 +505,27 @@ pub fn lift_polyline(
                 }
                 r *= 2;
             }
-            if zs.is_empty() {
-                return Err(bad(
-                    stage,
-                    input,
-                    format!("no depth within {} px of ({:.1}, {:.1}) px", 4 * radius.max(1), q[0], q[1]),
-                ));
-            }
-            let z = laparo_core::stats::median(&mut zs);
-            Ok(view.backproject(q[0], q[1], z))
+            (!zs.is_empty()).then(|| view.backproject(q[0], q[1], laparo_core::stats::median(&mut zs)))
         })
-        .collect()
+        .collect();
+    let missing: Vec<usize> = lifted.iter().enumerate().filter(|(_, z)| z.is_none()).map(|(i, _)| i).collect();
+    let kept: Vec<Vector3<f64>> = lifted.into_iter().flatten().collect();
+    if kept.len() < 2 || 2 * kept.len() < p.len() {
+        let first = missing.first().map(|&i| p[i]).unwrap_or([f64::NAN; 2]);
+        return Err(bad(
+            stage,
+            input,
+            format!(
+                "only {} of {} points have a depth within {} px (first without: ({:.1}, {:.1}) px)",
+                kept.len(),
+                p.len(),
+                4 * radius.max(1),
+                first[0],
+                first[1]
+            ),
+        ));
+    }
+    Ok((kept, missing.len()))
 }
 
 /// Silhouette of a mesh in a view.
@@ -780,10 +791,13 @@ pub fn run(
     // ---- stage 4: targets
     let t0 = Instant::now();
     let mut targets = Vec::new();
+    let mut without_depth = Vec::new();
     let mut img = present_img.clone();
     for (i, lip) in lips.lips_px.iter().enumerate() {
         let lr = resample(lip, cfg.landmark_step_px);
-        targets.push(lift_polyline(&lr, present_depth, &view, 2, "targets", &lips_path.display().to_string())?);
+        let (t, missing) = lift_polyline(&lr, present_depth, &view, 2, "targets", &lips_path.display().to_string())?;
+        targets.push(t);
+        without_depth.push(missing);
         draw_polyline(&mut img, lip, if i == 0 { [0, 255, 255] } else { [255, 0, 255] });
     }
     laparo_core::io::write_png(out.join("lips_present.png"), &img)?;
@@ -814,7 +828,7 @@ pub fn run(
         StageRecord {
             name: "target lips".into(),
             seconds: t0.elapsed().as_secs_f64(),
-            metrics: serde_json::json!({"points_per_lip": targets.iter().map(|s| s.len()).collect::<Vec<_>>(), "mean_distance_to_true_lip_mm": lip_err}),
+            metrics: serde_json::json!({"points_per_lip": targets.iter().map(|s| s.len()).collect::<Vec<_>>(), "points_without_depth": without_depth, "mean_distance_to_true_lip_mm": lip_err}),
             outputs: vec!["lips_present.png".into(), "target_lips.ply".into()],
         },
         &mut stages,

@@ -90,15 +90,17 @@ pub struct GroundTruthReport {
     pub lip_opening_mm: Vec<f64>,
 }
 
-/// Largest distance between the deformed copies of each duplicated crack node (mm).
+/// Largest distance between two deformed copies of one duplicated crack node (mm), over all pairs of copies.
 pub fn max_gap_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> f64 {
-    let mut first: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
-    let mut gap = 0.0f64;
+    let mut copies: std::collections::HashMap<usize, Vec<usize>> = std::collections::HashMap::new();
     for (i, &o) in cut.original_node.iter().enumerate() {
-        match first.get(&o) {
-            Some(&j) => gap = gap.max((deformed[i] - deformed[j]).norm()),
-            None => {
-                first.insert(o, i);
+        copies.entry(o).or_default().push(i);
+    }
+    let mut gap = 0.0f64;
+    for c in copies.values().filter(|c| c.len() > 1) {
+        for (k, &i) in c.iter().enumerate() {
+            for &j in &c[k + 1..] {
+                gap = gap.max((deformed[i] - deformed[j]).norm());
             }
         }
     }
