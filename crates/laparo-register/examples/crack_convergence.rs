@@ -1,0 +1,132 @@
+//! Mesh convergence of the incision ground truth (thesis §5.4.2; not run in CI): one tetrahedron edge,
+//! one scenario, one fixed crack pressure, so runs at several edges compare the same load.
+//!
+//! `cargo run --release -p laparo-register --example crack_convergence -- EDGE_MM non-anatomical|anatomical
+//!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER]`
+//!
+//! Prints the crack's resolution (`CrackResolution`: crack area against the blade's area inside the
+//! organ, duplicated nodes, lip pairs) and, when PRESSURE_KPA > 0, the FEM at that pressure: the max
+//! gap and its 50/90/99th percentiles over all crack node pairs, the mouth's opening profile along
+//! the lip, and the largest displacement farther than 40/60/80 mm from the crack. The blade is traced
+//! on the input surface (`non_anatomical_on` / `anatomical_on`), so every edge gets the same cut.
+use laparo_fem::material::NeoHookean;
+use laparo_fem::mesh::{
+    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, ScenarioFrame,
+    Surface, TetraParams,
+};
+use laparo_fem::solid::{solve, FaceTraction, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
+use laparo_register::benchmark::build::{drop_detached_fragments, lip_opening_profile_mm, max_gap_mm, CrackResolution};
+use laparo_register::benchmark::tre::distance_to_nearest;
+use nalgebra::Vector3;
+use std::collections::HashMap;
+use std::error::Error;
+
+const P2ILF: &str = "../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj";
+
+fn parsed<T: std::str::FromStr>(args: &[String], i: usize, name: &str, default: T) -> Result<T, String> {
+    match args.get(i) {
+        None => Ok(default),
+        Some(s) => s.parse().map_err(|_| format!("{name}: cannot parse {s:?}")),
+    }
+}
+
+fn main() -> Result<(), Box<dyn Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 2 {
+        return Err("usage: crack_convergence EDGE_MM non-anatomical|anatomical [PRESSURE_KPA] [STEPS] \
+                    [FIXED_FRACTION] [LIVER]"
+            .into());
+    }
+    let edge_mm: f64 = parsed(&args, 0, "EDGE_MM", 0.0)?;
+    let scenario = args[1].as_str();
+    let pressure_kpa: f64 = parsed(&args, 2, "PRESSURE_KPA", 0.0)?;
+    let steps: usize = parsed(&args, 3, "STEPS", 8)?;
+    let mut frame = ScenarioFrame::default();
+    frame.fixed_fraction = parsed(&args, 4, "FIXED_FRACTION", frame.fixed_fraction)?;
+    let liver = args.get(5).map(String::as_str).unwrap_or(P2ILF);
+
+    let surface = laparo_core::mesh::read_mesh(liver)?;
+    let organ = Surface::new(surface.clone(), liver)?;
+    let params = TetraParams { edge_mm, ..Default::default() };
+    let (mesh, quality) = tetrahedralize_surface(surface.clone(), liver, &params)?;
+    let mut scn = match scenario {
+        "anatomical" => anatomical_on(&mesh, &surface, &frame, &AnatomicalParams::default())?,
+        "non-anatomical" => non_anatomical_on(&mesh, &surface, &frame, &NonAnatomicalParams::default())?,
+        other => return Err(format!("scenario {other:?}: expected non-anatomical or anatomical").into()),
+    };
+    let dropped = drop_detached_fragments(&mut scn);
+    let res = CrackResolution::of(&scn, &organ);
+    println!(
+        "edge {edge_mm} mm, {scenario}: {} nodes, {} tets, {dropped} fragment nodes dropped, fixed {}; crack {:.0} / {:.0} mm² \
+         of {:.0} mm² blade inside ({:.2}), {} duplicated nodes, {} lip pairs",
+        quality.nodes,
+        quality.tets,
+        scn.fixed_nodes.len(),
+        res.crack_area_mm2[0],
+        res.crack_area_mm2[1],
+        res.blade_area_inside_mm2,
+        res.area_fraction(),
+        res.duplicated_nodes,
+        res.lip_pairs
+    );
+    if pressure_kpa <= 0.0 {
+        return Ok(());
+    }
+
+    let x = &scn.cut.mesh.vertices;
+    let material = NeoHookean::from_young_poisson(4.1, 0.49)?;
+    let m10 = Tet10Mesh::from_linear(&scn.cut.mesh)?;
+    let fixed = SolidProblem::fixed_vertices(&m10, &scn.fixed_nodes)?;
+    let face_tractions = scn
+        .cut
+        .crack_faces
+        .iter()
+        .flatten()
+        .map(|f| {
+            let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).normalize();
+            FaceTraction { face: *f, traction_kpa: -n * pressure_kpa }
+        })
+        .collect();
+    let loads = Loads { face_tractions, ..Default::default() };
+    let problem = SolidProblem::new(m10, material, &fixed, &loads, Quadrature::Degree2)?;
+    let t0 = std::time::Instant::now();
+    let sol = solve(&problem, &SolverSettings { steps, rel_tol: 1e-8, ..Default::default() })?;
+    let u = sol.vertex_displacements();
+    let deformed: Vec<Vector3<f64>> = x.iter().zip(u).map(|(a, b)| a + b).collect();
+
+    // Gaps of every pair of copies of one original crack node.
+    let mut copies: HashMap<usize, Vec<usize>> = HashMap::new();
+    for (i, &o) in scn.cut.original_node.iter().enumerate() {
+        copies.entry(o).or_default().push(i);
+    }
+    let mut gaps: Vec<f64> = copies
+        .values()
+        .flat_map(|c| {
+            let d = &deformed;
+            c.iter().enumerate().flat_map(move |(k, &i)| c[k + 1..].iter().map(move |&j| (d[i] - d[j]).norm()))
+        })
+        .collect();
+    gaps.sort_by(f64::total_cmp);
+    let pct = |q: f64| gaps.get(((gaps.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(0.0);
+    let profile: Vec<String> = lip_opening_profile_mm(&scn.cut, &deformed).iter().map(|g| format!("{g:.1}")).collect();
+    let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
+    let distance = distance_to_nearest(x, &crack)?;
+    let far = |r: f64| u.iter().zip(&distance).filter(|(_, &d)| d > r).map(|(u, _)| u.norm()).fold(0.0, f64::max);
+    println!(
+        "{pressure_kpa} kPa, {steps} steps: {:.0} s; max gap {:.2} mm; {} crack pairs: p50 {:.2} p90 {:.2} p99 {:.2} mm; \
+         lip opening [{}] mm; |u| beyond 40/60/80 mm: {:.2} / {:.2} / {:.2} mm; max |u| {:.2} mm, min J {:.3}",
+        t0.elapsed().as_secs_f64(),
+        max_gap_mm(&scn.cut, &deformed),
+        gaps.len(),
+        pct(0.5),
+        pct(0.9),
+        pct(0.99),
+        profile.join(", "),
+        far(40.0),
+        far(60.0),
+        far(80.0),
+        sol.max_displacement_mm,
+        sol.min_j
+    );
+    Ok(())
+}
