@@ -14,8 +14,10 @@ use laparo_fem::mesh::{
     anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, ScenarioFrame,
     Surface, TetraParams,
 };
-use laparo_fem::solid::{solve, FaceTraction, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
-use laparo_register::benchmark::build::{drop_detached_fragments, lip_opening_profile_mm, max_gap_mm, CrackResolution};
+use laparo_fem::solid::{solve, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
+use laparo_register::benchmark::build::{
+    crack_pressure, drop_detached_fragments, lip_opening_profile_mm, max_gap_mm, CrackResolution,
+};
 use laparo_register::benchmark::tre::distance_to_nearest;
 use nalgebra::Vector3;
 use std::collections::HashMap;
@@ -77,16 +79,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let material = NeoHookean::from_young_poisson(4.1, 0.49)?;
     let m10 = Tet10Mesh::from_linear(&scn.cut.mesh)?;
     let fixed = SolidProblem::fixed_vertices(&m10, &scn.fixed_nodes)?;
-    let face_tractions = scn
-        .cut
-        .crack_faces
-        .iter()
-        .flatten()
-        .map(|f| {
-            let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).normalize();
-            FaceTraction { face: *f, traction_kpa: -n * pressure_kpa }
-        })
-        .collect();
+    let face_tractions = crack_pressure(&scn.cut, pressure_kpa);
     let loads = Loads { face_tractions, ..Default::default() };
     let problem = SolidProblem::new(m10, material, &fixed, &loads, Quadrature::Degree2)?;
     let t0 = std::time::Instant::now();

@@ -191,7 +191,7 @@ impl CrackResolution {
 
 /// Pressure `p` (kPa) on every crack face, pushing each lip away from the other: traction −p n with n the
 /// face's outward normal (from its own side into the gap). Equal and opposite on the two lips.
-fn crack_pressure(cut: &CutMesh, p: f64) -> Vec<FaceTraction> {
+pub fn crack_pressure(cut: &CutMesh, p: f64) -> Vec<FaceTraction> {
     let x = &cut.mesh.vertices;
     cut.crack_faces
         .iter()
