@@ -16,11 +16,10 @@ use laparo_fem::mesh::{
 };
 use laparo_fem::solid::{solve, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use laparo_register::benchmark::build::{
-    crack_pressure, drop_detached_fragments, lip_opening_profile_mm, max_gap_mm, CrackResolution,
+    crack_pair_gaps_mm, crack_pressure, distance_to_crack_mm, drop_detached_fragments, lip_opening_profile_mm,
+    max_gap_mm, CrackResolution,
 };
-use laparo_register::benchmark::tre::distance_to_nearest;
 use nalgebra::Vector3;
-use std::collections::HashMap;
 use std::error::Error;
 
 const P2ILF: &str = "../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj";
@@ -87,23 +86,11 @@ fn main() -> Result<(), Box<dyn Error>> {
     let u = sol.vertex_displacements();
     let deformed: Vec<Vector3<f64>> = x.iter().zip(u).map(|(a, b)| a + b).collect();
 
-    // Gaps of every pair of copies of one original crack node.
-    let mut copies: HashMap<usize, Vec<usize>> = HashMap::new();
-    for (i, &o) in scn.cut.original_node.iter().enumerate() {
-        copies.entry(o).or_default().push(i);
-    }
-    let mut gaps: Vec<f64> = copies
-        .values()
-        .flat_map(|c| {
-            let d = &deformed;
-            c.iter().enumerate().flat_map(move |(k, &i)| c[k + 1..].iter().map(move |&j| (d[i] - d[j]).norm()))
-        })
-        .collect();
+    let mut gaps = crack_pair_gaps_mm(&scn.cut, &deformed);
     gaps.sort_by(f64::total_cmp);
     let pct = |q: f64| gaps.get(((gaps.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(0.0);
     let profile: Vec<String> = lip_opening_profile_mm(&scn.cut, &deformed).iter().map(|g| format!("{g:.1}")).collect();
-    let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
-    let distance = distance_to_nearest(x, &crack)?;
+    let distance = distance_to_crack_mm(&scn.cut)?;
     let far = |r: f64| u.iter().zip(&distance).filter(|(_, &d)| d > r).map(|(u, _)| u.norm()).fold(0.0, f64::max);
     println!(
         "{pressure_kpa} kPa, {steps} steps: {:.0} s; max gap {:.2} mm; {} crack pairs: p50 {:.2} p90 {:.2} p99 {:.2} mm; \

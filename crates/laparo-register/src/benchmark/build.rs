@@ -90,21 +90,33 @@ pub struct GroundTruthReport {
     pub lip_opening_mm: Vec<f64>,
 }
 
-/// Largest distance between two deformed copies of one duplicated crack node (mm), over all pairs of copies.
-pub fn max_gap_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> f64 {
+/// Distance between every two deformed copies of one duplicated crack node (mm), unordered.
+pub fn crack_pair_gaps_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> Vec<f64> {
     let mut copies: std::collections::HashMap<usize, Vec<usize>> = std::collections::HashMap::new();
     for (i, &o) in cut.original_node.iter().enumerate() {
         copies.entry(o).or_default().push(i);
     }
-    let mut gap = 0.0f64;
+    let mut gaps = Vec::new();
     for c in copies.values().filter(|c| c.len() > 1) {
         for (k, &i) in c.iter().enumerate() {
             for &j in &c[k + 1..] {
-                gap = gap.max((deformed[i] - deformed[j]).norm());
+                gaps.push((deformed[i] - deformed[j]).norm());
             }
         }
     }
-    gap
+    gaps
+}
+
+/// Largest distance between two deformed copies of one duplicated crack node (mm), over all pairs of copies.
+pub fn max_gap_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> f64 {
+    crack_pair_gaps_mm(cut, deformed).into_iter().fold(0.0, f64::max)
+}
+
+/// Rest distance of every node of the cut mesh to the nearest crack-face node (mm): the far-field measure.
+pub fn distance_to_crack_mm(cut: &CutMesh) -> Result<Vec<f64>> {
+    let x = &cut.mesh.vertices;
+    let crack: Vec<Vector3<f64>> = cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
+    super::tre::distance_to_nearest(x, &crack)
 }
 
 /// Opening of the incision mouth: for each lip-A node whose node also has a copy on lip B, the distance
@@ -284,8 +296,7 @@ pub fn fem_ground_truth(
     let deformed: Vec<Vector3<f64>> = x0.iter().zip(&u).map(|(a, b)| a + b).collect();
     let lip_opening_mm = lip_opening_profile_mm(&scn.cut, &deformed);
     // far field: nodes farther than 60 mm from every crack node
-    let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x0[i]).collect();
-    let d = super::tre::distance_to_nearest(x0, &crack)?;
+    let d = distance_to_crack_mm(&scn.cut)?;
     let far = u.iter().zip(&d).filter(|(_, &d)| d > 60.0).map(|(u, _)| u.norm()).fold(0.0, f64::max);
     let report = GroundTruthReport {
         pressure_kpa: p,
