@@ -194,6 +194,44 @@ impl Organ {
     }
 }
 
+impl OrganConfig {
+    /// The Neo-Hookean material of this set-up (density in kg/mm³, E in kPa: the solver's units).
+    fn material(&self) -> Material {
+        Material {
+            model: Model::NeoHookean,
+            youngs_modulus: self.youngs_modulus_kpa,
+            poisson_ratio: self.poisson_ratio,
+            density: self.density_kg_m3 * 1e-9,
+        }
+    }
+
+    /// The time step Δt (s) the simulation uses: `dt_s` when given (refused above `cfl_limit`), else
+    /// `cfl_safety` Δx / c with c the P-wave speed.
+    pub fn time_step_s(&self) -> Result<f64> {
+        let dx = check_config(self)?;
+        let material = self.material();
+        material.validate()?;
+        match self.dt_s {
+            Some(dt) => {
+                let c = material.p_wave_speed() * dt / dx;
+                if !(dt > 0.0) || c > self.cfl_limit {
+                    return Err(RegisterError::param(
+                        "dt_s",
+                        dt,
+                        format!(
+                            "CFL violated: c Δt / Δx = {c:.3} > {} (c = {:.0} mm/s, Δx = {dx} mm)",
+                            self.cfl_limit,
+                            material.p_wave_speed()
+                        ),
+                    ));
+                }
+                Ok(dt)
+            }
+            None => Ok(cfl_dt(&material, dx, self.cfl_safety)),
+        }
+    }
+}
+
 fn available_memory() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
@@ -315,32 +353,10 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
     let n_grid = (extent / dx).ceil() as usize + 1;
     let offset = Vector::<3>::repeat(margin) - lo;
     let positions: Vec<Vector<3>> = points.iter().map(|p| p + offset).collect();
-    let material = Material {
-        model: Model::NeoHookean,
-        youngs_modulus: cfg.youngs_modulus_kpa,
-        poisson_ratio: cfg.poisson_ratio,
-        density: cfg.density_kg_m3 * 1e-9,
-    };
+    let material = cfg.material();
     material.validate()?;
     let grid = GridSpec { n_grid, dx };
-    let dt = match cfg.dt_s {
-        Some(dt) => {
-            let c = material.p_wave_speed() * dt / dx;
-            if !(dt > 0.0) || c > cfg.cfl_limit {
-                return Err(RegisterError::param(
-                    "dt_s",
-                    dt,
-                    format!(
-                        "CFL violated: c Δt / Δx = {c:.3} > {} (c = {:.0} mm/s, Δx = {dx} mm)",
-                        cfg.cfl_limit,
-                        material.p_wave_speed()
-                    ),
-                ));
-            }
-            dt
-        }
-        None => cfl_dt(&material, dx, cfg.cfl_safety),
-    };
+    let dt = cfg.time_step_s()?;
     let vol = cfg.spacing_mm.powi(3);
     let mut scene = Scene::new(positions, vol, material, grid, dt, cfg.steps);
     scene.cfl_limit = cfg.cfl_limit;

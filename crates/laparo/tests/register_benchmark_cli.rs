@@ -78,6 +78,17 @@ fn quick_tier_end_to_end_and_resume() {
     let (ok, _, err) = laparo(&args, dir.path());
     assert!(ok, "{err}");
     assert_eq!(std::fs::read_to_string(out.join("table51.md")).unwrap(), before);
+    // the sensitivity sweeps add one row per setting (14 RODS-MPM, 3 LDDMM widths) and Fig. 5.9
+    let sweeps: Vec<&str> = args.iter().copied().chain(["--sweeps"]).collect();
+    let (ok, stdout, err) = laparo(&sweeps, dir.path());
+    assert!(ok, "{err}");
+    for m in ["RODS-MPM E×0.25 (Δt ", "RODS-MPM ν 0.3", "RODS-MPM T 120", "LDDMM σ 40"] {
+        assert!(stdout.contains(&format!("| {m}")), "{m} row missing:\n{stdout}");
+    }
+    let cells: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table51.json")).unwrap()).unwrap();
+    assert_eq!(cells.as_array().unwrap().len(), 6 * 6 + 18, "the main table and 18 sweep settings");
+    assert!(out.join("non-anatomical/fig59_sensitivity.png").exists());
 }
 
 #[test]

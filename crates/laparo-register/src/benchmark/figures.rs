@@ -216,6 +216,138 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
     .map_err(|e| RegisterError::bad(path.display().to_string(), e.to_string()))
 }
 
+/// One setting of a Fig. 5.9 sweep: the value and the TRE it gave (mm).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepPoint {
+    /// The setting's value (in the panel's unit).
+    pub value: f64,
+    /// Mean TRE over all volume nodes (mm).
+    pub mean_mm: f64,
+    /// Mean TRE within 5 mm of the nearest incision landmark (the first Fig. 5.8 bin, mm).
+    pub near_mm: f64,
+}
+
+/// One panel of Fig. 5.9: RODS-MPM's TRE as one setting varies, the others at their defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepPanel {
+    /// Axis label with its unit (e.g. `particle spacing [mm]`).
+    pub parameter: String,
+    /// The default value (marked on the axis).
+    pub default_value: f64,
+    /// Plot the values on a log axis (the E × 0.25…10 sweep).
+    pub log_x: bool,
+    /// The settings, the default among them.
+    pub points: Vec<SweepPoint>,
+}
+
+/// Fig. 5.9: one panel per swept setting, RODS-MPM's all-node and near-incision (0–5 mm) mean TRE against the
+/// setting, the default circled, and `reference` (a baseline's name, all-node and near TRE) as dashed lines.
+pub fn write_sweep_plot(
+    path: &Path,
+    panels: &[SweepPanel],
+    reference: Option<(&str, f64, f64)>,
+    title: &str,
+) -> Result<()> {
+    use plotters::prelude::*;
+    let bad = |m: String| RegisterError::bad(path.display().to_string(), m);
+    if panels.is_empty() || panels.iter().any(|p| p.points.is_empty()) {
+        return Err(bad("no sweep results to plot".into()));
+    }
+    if panels.iter().any(|p| p.log_x && p.points.iter().any(|q| q.value <= 0.0)) {
+        return Err(bad("a log-axis sweep holds a value ≤ 0".into()));
+    }
+    let finite = |v: f64| v.is_finite();
+    let ymax = panels
+        .iter()
+        .flat_map(|p| p.points.iter().flat_map(|q| [q.mean_mm, q.near_mm]))
+        .chain(reference.iter().flat_map(|r| [r.1, r.2]))
+        .filter(|v| finite(*v))
+        .fold(0.0f64, f64::max)
+        .max(1e-3)
+        * 1.15;
+    let (mean_col, near_col) = (RGBColor(31, 119, 180), RGBColor(214, 39, 40));
+    let cols = panels.len().min(3);
+    let rows = panels.len().div_ceil(cols);
+    laparo_core::plot::draw_png(path, 420 * cols as u32, 330 * rows as u32 + 40, |root| {
+        let root = root.titled(title, ("DejaVu Sans", 20)).map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((rows, cols));
+        for (k, (p, area)) in panels.iter().zip(areas.iter()).enumerate() {
+            let tx = |v: f64| if p.log_x { v.log10() } else { v };
+            let xs: Vec<f64> = p.points.iter().map(|q| tx(q.value)).chain([tx(p.default_value)]).collect();
+            let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+            let pad = ((hi - lo) * 0.08).max(1e-3);
+            let mut chart = ChartBuilder::on(area)
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(50)
+                .build_cartesian_2d((lo - pad)..(hi + pad), 0.0..ymax)
+                .map_err(|e| e.to_string())?;
+            let log_x = p.log_x;
+            chart
+                .configure_mesh()
+                .x_labels(6)
+                .x_label_formatter(&move |x| if log_x { format!("{:.2}", 10f64.powf(*x)) } else { format!("{x:.2}") })
+                .x_desc(p.parameter.clone())
+                .y_desc("mean TRE [mm]")
+                .draw()
+                .map_err(|e| e.to_string())?;
+            let mut pts: Vec<&SweepPoint> = p.points.iter().collect();
+            pts.sort_by(|a, b| a.value.total_cmp(&b.value));
+            for (col, pick, label) in [
+                (mean_col, (|q: &SweepPoint| q.mean_mm) as fn(&SweepPoint) -> f64, "RODS-MPM, all nodes"),
+                (near_col, |q: &SweepPoint| q.near_mm, "RODS-MPM, 0–5 mm"),
+            ] {
+                let line: Vec<(f64, f64)> =
+                    pts.iter().filter(|q| finite(pick(q))).map(|q| (tx(q.value), pick(q))).collect();
+                let s =
+                    chart.draw_series(LineSeries::new(line.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
+                if k == 0 {
+                    s.label(label)
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(2)));
+                }
+                chart.draw_series(line.iter().map(|&q| Circle::new(q, 3, col.filled()))).map_err(|e| e.to_string())?;
+                let d: Vec<(f64, f64)> =
+                    line.iter().copied().filter(|q| (q.0 - tx(p.default_value)).abs() < 1e-9).collect();
+                chart
+                    .draw_series(d.iter().map(|&q| Circle::new(q, 7, BLACK.stroke_width(2))))
+                    .map_err(|e| e.to_string())?;
+            }
+            if let Some((name, mean, near)) = reference {
+                for (col, v, what) in [(mean_col, mean, "all nodes"), (near_col, near, "0–5 mm")] {
+                    if !finite(v) {
+                        continue;
+                    }
+                    let s = chart
+                        .draw_series(DashedLineSeries::new(
+                            vec![(lo - pad, v), (hi + pad, v)],
+                            6,
+                            4,
+                            col.stroke_width(1),
+                        ))
+                        .map_err(|e| e.to_string())?;
+                    if k == 0 {
+                        let label = format!("{name}, {what}");
+                        s.label(label)
+                            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(1)));
+                    }
+                }
+            }
+            if k == 0 {
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .label_font(("DejaVu Sans", 11))
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        Ok(())
+    })
+    .map_err(|e| RegisterError::bad(path.display().to_string(), e.to_string()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -246,5 +378,34 @@ mod tests {
         // from the other side the far square (value 0) is in front
         let img = render_scalar_surface(&v, &f, &vals, (0.0, 1.0, Colormap::Gray), &view(1.0));
         assert_eq!(img.pixel(32, 32)[0], 0);
+    }
+
+    #[test]
+    fn sweep_plot_has_one_panel_per_setting_and_refuses_bad_sweeps() {
+        let pt = |value: f64, mean_mm: f64, near_mm: f64| SweepPoint { value, mean_mm, near_mm };
+        let panel = |parameter: &str, log_x: bool, values: &[f64]| SweepPanel {
+            parameter: parameter.into(),
+            default_value: values[0],
+            log_x,
+            points: values.iter().map(|&v| pt(v, 0.2 + 0.01 * v, 2.0 + 0.1 * v)).collect(),
+        };
+        let panels = vec![
+            panel("E factor", true, &[1.0, 0.25, 10.0]),
+            panel("ν", false, &[0.49, 0.3]),
+            panel("spacing [mm]", false, &[3.0, 4.5]),
+            panel("Δx [mm]", false, &[6.0, 9.0]),
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("fig59.png");
+        write_sweep_plot(&path, &panels, Some(("François et al.", 0.28, 2.16)), "sweep").unwrap();
+        let img = laparo_core::io::read_image(&path).unwrap();
+        // four panels: three columns, two rows, 40 px for the title
+        assert_eq!((img.width, img.height), (3 * 420, 2 * 330 + 40));
+        std::fs::copy(&path, "/tmp/fig59_test.png").ok();
+        let err = write_sweep_plot(&path, &[], None, "x").unwrap_err().to_string();
+        assert!(err.contains("no sweep results"), "{err}");
+        let neg = vec![panel("E factor", true, &[1.0, -1.0])];
+        let err = write_sweep_plot(&path, &neg, None, "x").unwrap_err().to_string();
+        assert!(err.contains("log-axis"), "{err}");
     }
 }

@@ -307,9 +307,12 @@ pub struct RodsMethod {
     pub optimizer: OptimizerConfig,
 }
 
+/// The name RODS-MPM's rows carry in the benchmark's tables.
+pub const RODS_MPM_NAME: &str = "RODS-MPM";
+
 impl super::case::Method for RodsMethod {
     fn name(&self) -> String {
-        "RODS-MPM".into()
+        RODS_MPM_NAME.into()
     }
     fn register(
         &self,

@@ -14,11 +14,13 @@ use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig
 use laparo_register::benchmark::build::{
     case_from, choose_roi, fem_ground_truth, CrackResolution, GroundTruthConfig, GroundTruthReport,
 };
-use laparo_register::benchmark::figures::{write_distance_plot, write_tre_map, SurfaceView};
+use laparo_register::benchmark::figures::{
+    write_distance_plot, write_sweep_plot, write_tre_map, SurfaceView, SweepPanel, SweepPoint,
+};
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
 use laparo_register::benchmark::{
     aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, ResultStore,
-    RodsMethod,
+    RodsMethod, RODS_MPM_NAME,
 };
 use laparo_register::optimize::OptimizerConfig;
 use laparo_register::organ::OrganConfig;
@@ -145,41 +147,122 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     Ok(out)
 }
 
-/// Sensitivity sweeps (Fig. 5.9) as extra named methods.
-fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Vec<Box<dyn Method>> {
+/// Fig. 5.9 panels: axis label and whether the axis is logarithmic; a sweep setting names its panel by index.
+const SWEEP_PANELS: [(&str, bool); 5] = [
+    ("E / 4.1 kPa (Young's modulus factor)", true),
+    ("Poisson ratio ν", false),
+    ("particle spacing [mm]", false),
+    ("grid cell Δx [mm]", false),
+    ("horizon T [steps]", false),
+];
+
+/// One sweep setting: the method, and for RODS-MPM settings the panel and value it plots at.
+struct SweepSetting {
+    method: Box<dyn Method>,
+    panel: Option<(usize, f64)>,
+}
+
+/// Sensitivity sweeps (Fig. 5.9) as extra named methods, and the default value of every panel.
+fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [f64; 5])> {
     let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
     let steps = a.steps.unwrap_or(if quick { 60 } else { 200 });
     let optimizer =
         OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
     let base = OrganConfig { spacing_mm: spacing, steps, ..Default::default() };
-    let mut out: Vec<Box<dyn Method>> = Vec::new();
-    let mut rods = |name: String, organ: OrganConfig| {
-        out.push(
-            Box::new(NamedRods { name, inner: RodsMethod { organ, optimizer: optimizer.clone() } }) as Box<dyn Method>
-        )
+    let defaults = [1.0, base.poisson_ratio, spacing, base.dx_mm.unwrap_or(2.0 * spacing), steps as f64];
+    let mut out: Vec<SweepSetting> = Vec::new();
+    let mut rods = |name: String, organ: OrganConfig, panel: usize, value: f64| {
+        out.push(SweepSetting {
+            method: Box::new(NamedRods { name, inner: RodsMethod { organ, optimizer: optimizer.clone() } }),
+            panel: Some((panel, value)),
+        })
     };
-    for f in [0.25, 0.5, 2.0, 3.0, 10.0] {
-        rods(format!("RODS-MPM E×{f}"), OrganConfig { youngs_modulus_kpa: 4.1 * f, ..base.clone() });
+    // With Δt from the CFL condition the registered shape does not depend on E at all (E × f with Δt / √f
+    // and v₀ × √f is the same motion, and nothing else sets a time scale), so the E sweep holds Δt (and the
+    // physical horizon T Δt) at the value the stiffest setting needs, E × 1 included.
+    let e_factors = [0.25, 0.5, 1.0, 2.0, 3.0, 10.0];
+    let stiffest = OrganConfig { youngs_modulus_kpa: base.youngs_modulus_kpa * 10.0, ..base.clone() };
+    let dt_s = stiffest.time_step_s().context("the E sweep's time step")?;
+    for f in e_factors {
+        let organ = OrganConfig { youngs_modulus_kpa: base.youngs_modulus_kpa * f, dt_s: Some(dt_s), ..base.clone() };
+        rods(format!("RODS-MPM E×{f} (Δt {:.2e} s)", dt_s), organ, 0, f);
     }
     for nu in [0.3, 0.4, 0.45] {
-        rods(format!("RODS-MPM ν {nu}"), OrganConfig { poisson_ratio: nu, ..base.clone() });
+        rods(format!("RODS-MPM ν {nu}"), OrganConfig { poisson_ratio: nu, ..base.clone() }, 1, nu);
     }
     for s in [1.5 * spacing, 0.75 * spacing] {
-        rods(format!("RODS-MPM spacing {s:.2} mm"), OrganConfig { spacing_mm: s, ..base.clone() });
+        rods(format!("RODS-MPM spacing {s:.2} mm"), OrganConfig { spacing_mm: s, ..base.clone() }, 2, s);
     }
     for g in [1.5, 3.0] {
-        rods(format!("RODS-MPM Δx {:.1} mm", g * spacing), OrganConfig { dx_mm: Some(g * spacing), ..base.clone() });
+        let dx = g * spacing;
+        rods(format!("RODS-MPM Δx {dx:.1} mm"), OrganConfig { dx_mm: Some(dx), ..base.clone() }, 3, dx);
     }
     for t in [steps / 2, 2 * steps] {
-        rods(format!("RODS-MPM T {t}"), OrganConfig { steps: t, ..base.clone() });
+        rods(format!("RODS-MPM T {t}"), OrganConfig { steps: t, ..base.clone() }, 4, t as f64);
     }
     for s in [10.0, 30.0, 40.0] {
-        out.push(Box::new(BaselineMethod {
-            name: format!("LDDMM σ {s}"),
-            baseline: Baseline::Lddmm(LddmmConfig { sigma_mm: s, ..Default::default() }),
-        }));
+        out.push(SweepSetting {
+            method: Box::new(BaselineMethod {
+                name: format!("LDDMM σ {s}"),
+                baseline: Baseline::Lddmm(LddmmConfig { sigma_mm: s, ..Default::default() }),
+            }),
+            panel: None,
+        });
     }
-    out
+    Ok((out, defaults))
+}
+
+/// Fig. 5.9 for one scenario from the pooled cells: every panel's settings plus the default RODS-MPM run
+/// (when it ran), and the registration baseline with the lowest all-node mean as the dashed reference.
+fn write_fig59(
+    path: &Path,
+    scenario: &str,
+    cells: &[laparo_register::benchmark::Cell],
+    settings: &[SweepSetting],
+    defaults: &[f64; 5],
+    column: Column,
+    baselines: &[String],
+) -> Result<()> {
+    let cell = |m: &str| cells.iter().find(|c| c.scenario == scenario && c.column == column && c.method == m);
+    let point = |c: &laparo_register::benchmark::Cell, value: f64| SweepPoint {
+        value,
+        mean_mm: c.mean_mm,
+        near_mm: c.bin_means_mm.first().copied().unwrap_or(f64::NAN),
+    };
+    let base = cell(RODS_MPM_NAME);
+    let panels: Vec<SweepPanel> = SWEEP_PANELS
+        .iter()
+        .enumerate()
+        .map(|(k, &(label, log_x))| {
+            let mut points: Vec<SweepPoint> = settings
+                .iter()
+                .filter_map(|s| match s.panel {
+                    Some((p, v)) if p == k => cell(&s.method.name()).map(|c| point(c, v)),
+                    _ => None,
+                })
+                .collect();
+            if !points.iter().any(|p| p.value == defaults[k]) {
+                points.extend(base.map(|c| point(c, defaults[k])));
+            }
+            SweepPanel { parameter: label.to_string(), default_value: defaults[k], log_x, points }
+        })
+        .filter(|p| !p.points.is_empty())
+        .collect();
+    if panels.is_empty() {
+        return Ok(());
+    }
+    let reference = cells
+        .iter()
+        .filter(|c| c.scenario == scenario && c.column == column)
+        .filter(|c| baselines.contains(&c.method))
+        .min_by(|a, b| a.mean_mm.total_cmp(&b.mean_mm));
+    write_sweep_plot(
+        path,
+        &panels,
+        reference.map(|c| (c.method.as_str(), c.mean_mm, c.bin_means_mm.first().copied().unwrap_or(f64::NAN))),
+        &format!("{scenario}: RODS-MPM sensitivity (Fig. 5.9, {} landmarks, noiseless)", column.landmarks),
+    )
+    .with_context(|| format!("writing {}", path.display()))
 }
 
 /// RODS-MPM under another name (sweeps).
@@ -395,10 +478,13 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             }
         }
     };
+    let sweeps = sweep_methods(&a, quick)?;
+    // the registration baselines (not RODS-MPM, not the rest mesh): Fig. 5.9's reference is the best of them
+    let baselines: Vec<String> =
+        refs.iter().map(|m| m.name()).filter(|n| n != RODS_MPM_NAME && !n.starts_with("none")).collect();
     let mut results = run_protocol(&cases, &refs, &columns, n_seeds, &store, &mut on_event)?;
     if a.sweeps {
-        let sw = sweep_methods(&a, quick);
-        let srefs: Vec<&dyn Method> = sw.iter().map(|m| m.as_ref()).collect();
+        let srefs: Vec<&dyn Method> = sweeps.0.iter().map(|s| s.method.as_ref()).collect();
         results.extend(run_protocol(&cases, &srefs, &[map_column], 1, &store, &mut on_event)?);
     }
     pb.finish_and_clear();
@@ -421,6 +507,10 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             &main,
             &format!("{name}: TRE vs distance to the incision (50 landmarks)"),
         )?;
+        if a.sweeps {
+            let fig = a.out.join(name).join("fig59_sensitivity.png");
+            write_fig59(&fig, name, &cells, &sweeps.0, &sweeps.1, map_column, &baselines)?;
+        }
     }
     print!("{md}");
     println!(
