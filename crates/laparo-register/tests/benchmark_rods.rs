@@ -76,3 +76,36 @@ fn landmarks_pull_the_box_and_the_far_end_stays() {
     let edge_move = (out.nodes[edge] - nodes[edge]).norm();
     assert!(edge_move < 0.3 * up, "near the fixed ROI boundary: {edge_move} vs {up}");
 }
+
+/// With Δt from the CFL condition (Δt ∝ 1/√E) nothing but E sets a time scale, so scaling E by f and the
+/// optimiser's velocities by √f is the same motion: the registered nodes must not depend on E (this is why
+/// the Fig. 5.9 E sweep holds Δt fixed), and at a fixed Δt they must.
+#[test]
+fn the_registered_shape_is_invariant_to_e_under_the_cfl_step_and_not_at_a_fixed_step() {
+    let (nodes, tets) = box_mesh(4, 2, 2, 5.0); // 20 × 10 × 10 mm
+    let side = vec![0u8; nodes.len()];
+    let groups = vec![SideGroup {
+        name: "top".into(),
+        sources: vec![(Vector3::new(5.0, 5.0, 10.0), 0), (Vector3::new(10.0, 5.0, 10.0), 0)],
+        target: vec![Vector3::new(4.0, 5.0, 12.0), Vector3::new(11.0, 5.0, 12.0)],
+    }];
+    let run = |youngs_modulus_kpa: f64, dt_s: Option<f64>| {
+        let organ = OrganConfig { spacing_mm: 2.5, steps: 30, youngs_modulus_kpa, dt_s, ..Default::default() };
+        let optimizer = OptimizerConfig { iterations: 4, ..Default::default() };
+        let problem =
+            RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, groups: groups.clone(), organ, optimizer };
+        run_rods(&problem, &mut |_| {}).unwrap()
+    };
+    let soft = run(4.1, None);
+    let stiff = run(4.1 * 9.0, None);
+    let moved = soft.nodes.iter().zip(&nodes).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(moved > 0.3, "the registration moves the box: {moved} mm");
+    let diff = soft.nodes.iter().zip(&stiff.nodes).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(diff < 1e-9 * moved.max(1.0), "E × 9 under the CFL step: largest node difference {diff} mm");
+    // the same two moduli at one Δt (the stiff one's CFL step) give different shapes
+    let dt =
+        OrganConfig { spacing_mm: 2.5, youngs_modulus_kpa: 4.1 * 9.0, ..Default::default() }.time_step_s().unwrap();
+    let soft_fixed = run(4.1, Some(dt));
+    let diff = soft_fixed.nodes.iter().zip(&stiff.nodes).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(diff > 1e-3, "at a fixed Δt E matters: largest node difference {diff} mm");
+}
