@@ -58,7 +58,8 @@ fn landmarks_pull_the_box_and_the_far_end_stays() {
     let roi = Some(Roi::Ball { center: [7.5, 10.0, 20.0], radius_mm: 28.0 });
     let organ = OrganConfig { spacing_mm: 2.5, steps: 60, roi, ..Default::default() };
     let optimizer = OptimizerConfig { iterations: 15, ..Default::default() };
-    let problem = RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, groups, organ, optimizer };
+    let problem =
+        RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, fixed_nodes: &[], groups, organ, optimizer };
     let out = run_rods(&problem, &mut |_| {}).unwrap();
     assert_eq!(out.nodes.len(), nodes.len());
     assert!(out.particles > 100);
@@ -92,8 +93,15 @@ fn the_registered_shape_is_invariant_to_e_under_the_cfl_step_and_not_at_a_fixed_
     let run = |youngs_modulus_kpa: f64, dt_s: Option<f64>| {
         let organ = OrganConfig { spacing_mm: 2.5, steps: 30, youngs_modulus_kpa, dt_s, ..Default::default() };
         let optimizer = OptimizerConfig { iterations: 4, ..Default::default() };
-        let problem =
-            RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, groups: groups.clone(), organ, optimizer };
+        let problem = RodsProblem {
+            nodes: &nodes,
+            tets: &tets,
+            node_side: &side,
+            fixed_nodes: &[],
+            groups: groups.clone(),
+            organ,
+            optimizer,
+        };
         run_rods(&problem, &mut |_| {}).unwrap()
     };
     let soft = run(4.1, None);
@@ -108,4 +116,53 @@ fn the_registered_shape_is_invariant_to_e_under_the_cfl_step_and_not_at_a_fixed_
     let soft_fixed = run(4.1, Some(dt));
     let diff = soft_fixed.nodes.iter().zip(&stiff.nodes).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(diff > 1e-3, "at a fixed Δt E matters: largest node difference {diff} mm");
+}
+
+/// The ground truth's fixed nodes hold RODS-MPM's particles too: with the far end fixed and no region of
+/// interest, the far end stays at rest while the landmarks are still reached; without it the free box drifts.
+#[test]
+fn fixed_nodes_hold_their_particles() {
+    let (nodes, tets) = box_mesh(8, 2, 2, 5.0); // 40 × 10 × 10 mm
+    let side = vec![0u8; nodes.len()];
+    let fixed: Vec<usize> = (0..nodes.len()).filter(|&i| nodes[i][0] >= 30.0 - 1e-9).collect();
+    let groups = vec![SideGroup {
+        name: "top".into(),
+        sources: vec![(Vector3::new(5.0, 5.0, 10.0), 0), (Vector3::new(10.0, 5.0, 10.0), 0)],
+        target: vec![Vector3::new(4.0, 5.0, 13.0), Vector3::new(11.0, 5.0, 13.0)],
+    }];
+    let run = |fixed_nodes: &[usize]| {
+        let organ = OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() };
+        let optimizer = OptimizerConfig { iterations: 8, ..Default::default() };
+        let problem = RodsProblem {
+            nodes: &nodes,
+            tets: &tets,
+            node_side: &side,
+            fixed_nodes,
+            groups: groups.clone(),
+            organ,
+            optimizer,
+        };
+        run_rods(&problem, &mut |_| {}).unwrap()
+    };
+    let held = run(&fixed);
+    assert!(held.notes.iter().any(|n| n.contains("particles held in the fixed region")), "{:?}", held.notes);
+    let [before, after] = held.landmark_distance_mm;
+    assert!(after < 0.6 * before, "the landmarks are still reached: {before} → {after}");
+    let far = nodes.iter().position(|p| (p - Vector3::new(40.0, 10.0, 10.0)).norm() < 1e-9).unwrap();
+    assert!((held.nodes[far] - nodes[far]).norm() < 1e-9, "a node inside the fixed region stays at rest");
+    let free = run(&[]);
+    let drift = (free.nodes[far] - nodes[far]).norm();
+    assert!(drift > 1e-3, "without the fixed region the far end moves: {drift} mm");
+    // a bad fixed node is named
+    let problem = RodsProblem {
+        nodes: &nodes,
+        tets: &tets,
+        node_side: &side,
+        fixed_nodes: &[nodes.len()],
+        groups: groups.clone(),
+        organ: OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() },
+        optimizer: OptimizerConfig::default(),
+    };
+    let err = run_rods(&problem, &mut |_| {}).unwrap_err().to_string();
+    assert!(err.contains("fixed nodes"), "{err}");
 }

@@ -36,6 +36,9 @@ pub struct RodsProblem<'a> {
     pub tets: &'a [[usize; 4]],
     /// Incision side of every node: 0 away from the crack, 1 or 2 for the copies of a duplicated crack node.
     pub node_side: &'a [u8],
+    /// Nodes held fixed (the ground truth's attached region): a particle whose interpolated fixed
+    /// indicator (barycentric in its tetrahedron) is ≥ 1/2 is held at rest. Empty = none.
+    pub fixed_nodes: &'a [usize],
     /// Landmark groups.
     pub groups: Vec<SideGroup>,
     /// Organ set-up (spacing, ROI, material, horizon).
@@ -124,9 +127,21 @@ pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord
     }
     let points: Vec<Vector3<f64>> = samples.iter().map(|(x, _)| *x).collect();
     let side: Vec<u8> = samples.iter().map(|&(_, t)| tside[t]).collect();
-    let organ = organ_from_points(points.clone(), &problem.organ, "benchmark mesh")?;
+    let mut organ = organ_from_points(points.clone(), &problem.organ, "benchmark mesh")?;
     debug_assert_eq!(organ.scene.n_particles(), points.len());
     let mut notes = organ.warnings.clone();
+    let held = fixed_particles(problem, &samples)?;
+    if held.iter().any(|&h| h) {
+        if organ.scene.fixed.is_empty() {
+            organ.scene.fixed = vec![false; points.len()];
+        }
+        let before = organ.scene.fixed.iter().filter(|&&f| f).count();
+        for (f, h) in organ.scene.fixed.iter_mut().zip(&held) {
+            *f |= *h;
+        }
+        let added = organ.scene.fixed.iter().filter(|&&f| f).count() - before;
+        notes.push(format!("{added} particles held in the fixed region"));
+    }
     // landmark particles: nearest particle of the landmark's own side (side 0 landmarks: any particle)
     let trees: Vec<Option<(crate::distance::Tree<3>, Vec<usize>)>> = (0..3u8)
         .map(|sd| {
@@ -188,6 +203,33 @@ pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord
         iterations: reg.history.last().map(|r| r.iteration).unwrap_or(0),
         notes,
     })
+}
+
+/// Per lattice sample, whether the fixed-node indicator interpolated in its tetrahedron is ≥ 1/2.
+fn fixed_particles(problem: &RodsProblem, samples: &[(Vector3<f64>, usize)]) -> Result<Vec<bool>> {
+    if problem.fixed_nodes.is_empty() {
+        return Ok(vec![false; samples.len()]);
+    }
+    let n = problem.nodes.len();
+    let mut ind = vec![0.0; n];
+    for &i in problem.fixed_nodes {
+        if i >= n {
+            return Err(RegisterError::bad("fixed nodes", format!("node {i} of {n}")));
+        }
+        ind[i] = 1.0;
+    }
+    Ok(samples
+        .iter()
+        .map(|(x, t)| {
+            let p = problem.tets[*t].map(|i| problem.nodes[i]);
+            let m = nalgebra::Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+            // sampled tetrahedra are invertible (sample_lattice skips the others)
+            let l = m.try_inverse().map(|mi| mi * (x - p[0])).unwrap_or_default();
+            let w = [1.0 - l.sum(), l[0], l[1], l[2]];
+            let f: f64 = problem.tets[*t].iter().zip(w).map(|(&i, w)| w * ind[i]).sum();
+            f >= 0.5
+        })
+        .collect())
 }
 
 /// Node positions from the registered particles (see the module docs).
@@ -298,7 +340,8 @@ mod tests {
 }
 
 /// RODS-MPM as a benchmark [`Method`](super::case::Method): each lip's landmarks form one group scored
-/// against that lip's target polyline; the case's region of interest overrides `organ.roi`.
+/// against that lip's target polyline; the case's region of interest overrides `organ.roi`, and the case's
+/// fixed nodes (known to every method) hold the particles of that region at rest.
 #[derive(Clone, Debug)]
 pub struct RodsMethod {
     /// Organ set-up (spacing, material, horizon).
@@ -335,6 +378,7 @@ impl super::case::Method for RodsMethod {
             nodes: &case.rest,
             tets: &case.tets,
             node_side: &case.node_side,
+            fixed_nodes: &case.fixed,
             groups,
             organ,
             optimizer: self.optimizer.clone(),
