@@ -45,7 +45,7 @@ pub enum RegisterSub {
 }
 
 /// The preset an `--optimizer` name starts from.
-fn optimizer_base(s: &str) -> Result<OptimizerConfig> {
+pub(crate) fn optimizer_base(s: &str) -> Result<OptimizerConfig> {
     OptimizerConfig::preset(s).with_context(|| {
         format!("--optimizer {s}: expected one of {}", laparo_register::optimize::PRESET_NAMES.join(", "))
     })

@@ -59,6 +59,10 @@ pub struct BenchmarkArgs {
     /// RODS-MPM optimiser iterations; default 60 (quick 8).
     #[arg(long)]
     pub iterations: Option<usize>,
+    /// RODS-MPM optimiser preset: lbfgs (smoothed L-BFGS), tear (unsmoothed, for targets that pull
+    /// neighbouring particles apart), adam or thesis-gd (as `laparo register --optimizer`).
+    #[arg(long, default_value = "lbfgs")]
+    pub optimizer: String,
     /// RODS-MPM horizon T (steps); default 200 (quick 60).
     #[arg(long)]
     pub steps: Option<usize>,
@@ -115,6 +119,12 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
     Ok((u, report))
 }
 
+/// RODS-MPM's optimiser: the `--optimizer` preset with `--iterations` (default 60, quick 8).
+fn rods_optimizer(a: &BenchmarkArgs, quick: bool) -> Result<OptimizerConfig> {
+    let preset = crate::cmd::register::optimizer_base(&a.optimizer)?;
+    Ok(OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..preset })
+}
+
 fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
     let organ = OrganConfig {
@@ -122,8 +132,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
         steps: a.steps.unwrap_or(if quick { 60 } else { 200 }),
         ..Default::default()
     };
-    let optimizer =
-        OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
+    let optimizer = rods_optimizer(a, quick)?;
     let mut out: Vec<Box<dyn Method>> = Vec::new();
     for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
         let b = |name: &str, baseline| Box::new(BaselineMethod { name: name.into(), baseline }) as Box<dyn Method>;
@@ -166,8 +175,7 @@ struct SweepSetting {
 fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [f64; 5])> {
     let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
     let steps = a.steps.unwrap_or(if quick { 60 } else { 200 });
-    let optimizer =
-        OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..Default::default() };
+    let optimizer = rods_optimizer(a, quick)?;
     let base = OrganConfig { spacing_mm: spacing, steps, ..Default::default() };
     let defaults = [1.0, base.poisson_ratio, spacing, base.dx_mm.unwrap_or(2.0 * spacing), steps as f64];
     let mut out: Vec<SweepSetting> = Vec::new();
