@@ -353,10 +353,9 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
     let n_grid = (extent / dx).ceil() as usize + 1;
     let offset = Vector::<3>::repeat(margin) - lo;
     let positions: Vec<Vector<3>> = points.iter().map(|p| p + offset).collect();
+    let dt = cfg.time_step_s()?; // validates the material
     let material = cfg.material();
-    material.validate()?;
     let grid = GridSpec { n_grid, dx };
-    let dt = cfg.time_step_s()?;
     let vol = cfg.spacing_mm.powi(3);
     let mut scene = Scene::new(positions, vol, material, grid, dt, cfg.steps);
     scene.cfl_limit = cfg.cfl_limit;
