@@ -69,6 +69,11 @@ pub struct OptimizerConfig {
     pub epsilon_ratio: f64,
     /// Strong Wolfe curvature constant c₂ (0.9: quasi-Newton; smaller: closer to an exact line search).
     pub wolfe_c2: f64,
+    /// Least-action prior κ (0 = off, the thesis: no regulariser): adds
+    /// κ · mean_p |v₀,p T Δt|² / (2 Δx) over the free particles to eq. 5.10, the initial kinetic energy
+    /// written as the ballistic displacement v₀ T Δt (length units). Among the initial velocities that
+    /// bring the landmarks equally close it prefers the one that moves the least tissue.
+    pub kinetic_weight: f64,
 }
 
 /// Line search along an L-BFGS direction.
@@ -103,6 +108,7 @@ impl Default for OptimizerConfig {
             line_search: LineSearch::Backtracking,
             epsilon_ratio: 0.0,
             wolfe_c2: 0.9,
+            kinetic_weight: 0.0,
         }
     }
 }
@@ -198,6 +204,8 @@ struct Problem<'a, const D: usize> {
     warm: Vec<Vector<D>>,
     e0: f64,
     joint: bool,
+    /// Least-action prior κ ([`OptimizerConfig::kinetic_weight`]).
+    kinetic: f64,
     ws: GradientWorkspace<D>,
     evaluations: usize,
 }
@@ -230,11 +238,12 @@ impl<const D: usize> Problem<'_, D> {
         if self.joint {
             self.scene.material.youngs_modulus = self.e0 * x[self.n() * D].exp();
         }
-        let g = simulate_with_gradient_in(&mut self.ws, &self.scene, &self.loss)?;
+        let mut g = simulate_with_gradient_in(&mut self.ws, &self.scene, &self.loss)?;
         self.evaluations += 1;
         if !g.loss.is_finite() {
             return Err(RegisterError::bad("registration", "the loss became non-finite (simulation unstable)"));
         }
+        let prior = self.kinetic_prior(&mut g.d_velocities);
         let gv = match &self.smoother {
             Some(s) => s.apply(&g.d_velocities),
             None => g.d_velocities.clone(),
@@ -249,7 +258,27 @@ impl<const D: usize> Problem<'_, D> {
             let mut scratch = vec![Vector::<D>::zeros(); self.n()];
             self.user.value_and_gradient(&g.final_state.x, &mut scratch)
         };
-        Ok(Eval { loss: g.loss, reported, grad, state: g.final_state })
+        Ok(Eval { loss: g.loss + prior, reported, grad, state: g.final_state })
+    }
+    /// The least-action prior κ Σ_free |v₀ T Δt|² / (2 n_free Δx) at the scene's v₀, its gradient added to
+    /// `grad_v` (∂/∂v₀ = κ (T Δt)² v₀ / (n_free Δx)).
+    fn kinetic_prior(&self, grad_v: &mut [Vector<D>]) -> f64 {
+        if !(self.kinetic > 0.0) {
+            return 0.0;
+        }
+        let t = self.scene.steps as f64 * self.scene.dt;
+        let free: Vec<usize> = (0..self.n()).filter(|&p| !self.scene.fixed.get(p).copied().unwrap_or(false)).collect();
+        if free.is_empty() {
+            return 0.0;
+        }
+        let c = self.kinetic / (free.len() as f64 * self.scene.grid.dx);
+        let mut sum = 0.0;
+        for &p in &free {
+            let v = self.scene.velocities[p];
+            sum += (v * t).norm_squared();
+            grad_v[p] += v * (c * t * t);
+        }
+        0.5 * c * sum
     }
     /// Largest landmark displacement |Δv|·T·Δt of a parameter step.
     fn step_length(&self, dx: &[f64]) -> f64 {
@@ -290,6 +319,7 @@ pub fn register<const D: usize>(
     check("max_step_dx", cfg.max_step_dx, cfg.max_step_dx > 0.0)?;
     check("smoothing_dx", cfg.smoothing_dx, cfg.smoothing_dx >= 0.0)?;
     check("thesis_decay", cfg.thesis_decay, cfg.thesis_decay > 0.0 && cfg.thesis_decay < 1.0)?;
+    check("kinetic_weight", cfg.kinetic_weight, cfg.kinetic_weight >= 0.0 && cfg.kinetic_weight.is_finite())?;
     let thesis = cfg.kind == OptimizerKind::ThesisGd;
     let warm: Vec<Vector<D>> = match warm {
         Some(w) if w.len() == n => w.to_vec(),
@@ -310,6 +340,7 @@ pub fn register<const D: usize>(
         warm,
         e0: scene.material.youngs_modulus,
         joint,
+        kinetic: cfg.kinetic_weight,
         ws: GradientWorkspace::new(),
         evaluations: 0,
     };
@@ -356,8 +387,11 @@ pub fn register<const D: usize>(
             break;
         }
         if history.len() > cfg.patience && cfg.patience > 0 {
-            let old = history[history.len() - 1 - cfg.patience].loss;
-            if old - cur.reported <= cfg.rel_tol * old.abs() {
+            // with the least-action prior the objective, not eq. 5.10 alone, must keep falling
+            let prior = cfg.kinetic_weight > 0.0;
+            let r = &history[history.len() - 1 - cfg.patience];
+            let (old, now) = if prior { (r.objective, cur.loss) } else { (r.loss, cur.reported) };
+            if old - now <= cfg.rel_tol * old.abs() {
                 stop_reason = format!("relative decrease below {} over {} iterations", cfg.rel_tol, cfg.patience);
                 break;
             }

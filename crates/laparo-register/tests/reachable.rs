@@ -93,3 +93,39 @@ fn reachable_targets_thesis_gd_runs() {
     );
     assert!(last.mean_distance < r.history[0].mean_distance, "thesis GD must decrease the loss");
 }
+
+/// The least-action prior (`kinetic_weight` κ): the objective the optimiser reports is eq. 5.10 plus
+/// κ · mean |v₀ T Δt|² / (2 Δx), recomputed here from the returned v₀; and the prior buys a v₀ of lower
+/// kinetic energy than the unregularised run of the same length.
+#[test]
+fn kinetic_prior_is_the_stated_term_and_lowers_the_kinetic_energy() {
+    let (scene, loss) = reachable_problem();
+    let dx = scene.grid.dx;
+    let t = scene.steps as f64 * scene.dt;
+    let energy = |v: &[Vector<2>]| v.iter().map(|v| (v * t).norm_squared()).sum::<f64>() / v.len() as f64;
+    let plain = OptimizerConfig { iterations: 8, ..Default::default() };
+    let r0 = register(&scene, &loss, &plain, None, &mut |_, _| true).unwrap();
+    let kappa = 5.0;
+    let cfg = OptimizerConfig { kinetic_weight: kappa, ..plain.clone() };
+    let r = register(&scene, &loss, &cfg, None, &mut |_, _| true).unwrap();
+    let last = r.history.last().unwrap();
+    let prior = kappa * energy(&r.velocities) / (2.0 * dx);
+    assert!(prior > 0.0);
+    assert!(
+        (last.objective - (last.loss + prior)).abs() <= 1e-12 * last.objective.abs().max(1.0),
+        "objective {} vs eq. 5.10 {} + prior {prior}",
+        last.objective,
+        last.loss
+    );
+    // the plain run reports the bare eq. 5.10
+    let l0 = r0.history.last().unwrap();
+    assert_eq!(l0.objective, l0.loss);
+    let (e0, e1) = (energy(&r0.velocities), energy(&r.velocities));
+    eprintln!("mean |v0 T dt|^2: plain {e0:.4e}, kappa {kappa}: {e1:.4e}; eq. 5.10 {:.4} vs {:.4}", l0.loss, last.loss);
+    assert!(e1 < e0, "the prior must lower the kinetic energy: {e1} vs {e0}");
+    // a negative weight is refused, naming the parameter
+    let bad = OptimizerConfig { kinetic_weight: -1.0, ..plain };
+    let Err(err) = register(&scene, &loss, &bad, None, &mut |_, _| true) else { panic!("κ < 0 accepted") };
+    let err = err.to_string();
+    assert!(err.contains("kinetic_weight"), "{err}");
+}

@@ -63,6 +63,10 @@ pub struct BenchmarkArgs {
     /// neighbouring particles apart), adam or thesis-gd (as `laparo register --optimizer`).
     #[arg(long, default_value = "lbfgs")]
     pub optimizer: String,
+    /// RODS-MPM least-action prior κ (default 0: the thesis' unregularised loss): adds
+    /// κ · mean |v₀ T Δt|² / (2 Δx) over the free particles to eq. 5.10.
+    #[arg(long, default_value_t = 0.0)]
+    pub kinetic_weight: f64,
     /// RODS-MPM region of interest: a ball of this radius (mm) around the crack, its boundary particles
     /// fixed, whatever the ground truth moves there (reported); default: the smallest ball from 50 to
     /// 120 mm whose boundary moves < 0.5 mm in the ground truth, else the whole organ.
@@ -127,7 +131,14 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
 /// RODS-MPM's optimiser: the `--optimizer` preset with `--iterations` (default 60, quick 8).
 fn rods_optimizer(a: &BenchmarkArgs, quick: bool) -> Result<OptimizerConfig> {
     let preset = crate::cmd::register::optimizer_base(&a.optimizer)?;
-    Ok(OptimizerConfig { iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }), ..preset })
+    if !(a.kinetic_weight >= 0.0 && a.kinetic_weight.is_finite()) {
+        anyhow::bail!("--kinetic-weight {}: must be finite and >= 0", a.kinetic_weight);
+    }
+    Ok(OptimizerConfig {
+        iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }),
+        kinetic_weight: a.kinetic_weight,
+        ..preset
+    })
 }
 
 fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
