@@ -166,3 +166,38 @@ fn fixed_nodes_hold_their_particles() {
     let err = run_rods(&problem, &mut |_| {}).unwrap_err().to_string();
     assert!(err.contains("fixed nodes"), "{err}");
 }
+
+/// The ballistic oracle (v₀ = u_GT / (T Δt)) on a ground truth that is a rigid translation: a stress-free
+/// motion MLS-MPM carries exactly, so every node lands on its ground-truth position to round-off; on a
+/// ground truth that stretches the box it does not (elasticity pulls back), which is what the oracle
+/// measures. The dense oracle on the translation gets its landmarks closer than the ballistic guess on
+/// the stretch. A ground truth of the wrong length is refused.
+#[test]
+fn rods_oracles_carry_a_rigid_translation_exactly() {
+    use laparo_register::benchmark::rods::{run_rods_oracle, OracleMode};
+    let (nodes, tets) = box_mesh(4, 3, 3, 5.0); // 20 × 15 × 15 mm
+    let side = vec![0u8; nodes.len()];
+    let shift = Vector3::new(1.5, -0.8, 0.6);
+    let truth: Vec<Vector3<f64>> = nodes.iter().map(|p| p + shift).collect();
+    let groups = vec![SideGroup {
+        name: "lm".into(),
+        sources: vec![(Vector3::new(10.0, 7.5, 15.0), 0)],
+        target: vec![Vector3::new(10.0, 7.5, 15.0) + shift],
+    }];
+    let organ = OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() };
+    let optimizer = OptimizerConfig { iterations: 5, ..Default::default() };
+    let problem =
+        RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, fixed_nodes: &[], groups, organ, optimizer };
+    let out = run_rods_oracle(&problem, &truth, OracleMode::Ballistic).unwrap();
+    let err = out.nodes.iter().zip(&truth).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(err < 1e-9, "a rigid translation is carried exactly: max node error {err} mm");
+    assert!(out.landmark_distance_mm[1] < 1e-9);
+    // a stretch along x (10 %): the ballistic guess falls short of it
+    let stretch: Vec<Vector3<f64>> = nodes.iter().map(|p| p + Vector3::new(0.1 * (p[0] - 10.0), 0.0, 0.0)).collect();
+    let s = run_rods_oracle(&problem, &stretch, OracleMode::Ballistic).unwrap();
+    let serr = s.nodes.iter().zip(&stretch).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(serr > 1e-3, "elasticity resists the stretch: max node error {serr} mm");
+    let d = run_rods_oracle(&problem, &truth, OracleMode::Dense).unwrap();
+    assert!(d.nodes.iter().zip(&truth).all(|(a, b)| (a - b).norm() < 0.5), "dense targets follow the translation");
+    assert!(run_rods_oracle(&problem, &truth[1..], OracleMode::Ballistic).is_err());
+}

@@ -106,8 +106,18 @@ pub fn tet_sides(tets: &[[usize; 4]], node_side: &[u8]) -> Vec<u8> {
     tets.iter().map(|t| t.iter().map(|&i| node_side[i]).max().unwrap_or(0)).collect()
 }
 
-/// Register `problem` with RODS-MPM; `progress` sees every accepted iteration.
-pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord)) -> Result<RodsOutput> {
+/// A RODS-MPM problem made ready to simulate: the organ's particles (simulation frame: model mm +
+/// `organ.offset`), their rest positions, incision sides and tetrahedra, and the landmark loss.
+struct Prepared {
+    organ: crate::organ::Organ,
+    points: Vec<Vector3<f64>>,
+    side: Vec<u8>,
+    samples: Vec<(Vector3<f64>, usize)>,
+    loss: RegistrationLoss<3>,
+    notes: Vec<String>,
+}
+
+fn prepare(problem: &RodsProblem) -> Result<Prepared> {
     let n = problem.nodes.len();
     if problem.node_side.len() != n {
         return Err(RegisterError::bad("node sides", format!("{} sides for {n} nodes", problem.node_side.len())));
@@ -186,6 +196,13 @@ pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord
             horizon.p_reach_mm
         ));
     }
+    Ok(Prepared { organ, points, side, samples, loss, notes })
+}
+
+/// Register `problem` with RODS-MPM; `progress` sees every accepted iteration.
+pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord)) -> Result<RodsOutput> {
+    let Prepared { organ, points, side, loss, mut notes, .. } = prepare(problem)?;
+    let off = organ.offset;
     let before = loss.mean_distance(&organ.scene.positions);
     let mut obs = |r: &IterationRecord, _: &[Vector3<f64>]| {
         progress(r);
@@ -203,6 +220,79 @@ pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord
         iterations: reg.history.last().map(|r| r.iteration).unwrap_or(0),
         notes,
     })
+}
+
+/// What a RODS-MPM oracle may see of the ground truth (a diagnostic of the simulator, not a method).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OracleMode {
+    /// v₀ = u_GT / (T Δt) at every particle (ground-truth displacement interpolated in the particle's
+    /// tetrahedron, so each lip takes its own side's copy), one forward run: the ballistic guess.
+    Ballistic,
+    /// RODS-MPM's optimiser with every free particle a landmark paired to its ground-truth position (eq.
+    /// 5.10 over all particles): how close an MLS-MPM trajectory from rest can come to the ground truth
+    /// on this grid when nothing is under-determined.
+    Dense,
+}
+
+/// Run a RODS-MPM oracle on `problem` against the ground-truth node positions `truth` (mm): the lip
+/// landmarks of `problem` are only scored, never used. Isolates what the simulator can represent
+/// (grid coupling across the unopened crack, horizon) from what sparse landmarks determine.
+pub fn run_rods_oracle(problem: &RodsProblem, truth: &[Vector3<f64>], mode: OracleMode) -> Result<RodsOutput> {
+    if truth.len() != problem.nodes.len() {
+        return Err(RegisterError::bad(
+            "ground truth",
+            format!("{} positions for {} nodes", truth.len(), problem.nodes.len()),
+        ));
+    }
+    let Prepared { mut organ, points, side, samples, loss, mut notes } = prepare(problem)?;
+    let off = organ.offset;
+    // ground-truth displacement at every particle, barycentric in its tetrahedron
+    let u: Vec<Vector3<f64>> = samples
+        .iter()
+        .map(|(x, t)| {
+            let tet = problem.tets[*t];
+            let p = tet.map(|i| problem.nodes[i]);
+            let m = nalgebra::Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+            let l = m.try_inverse().map(|mi| mi * (x - p[0])).unwrap_or_default();
+            let w = [1.0 - l.sum(), l[0], l[1], l[2]];
+            tet.iter().zip(w).map(|(&i, w)| (truth[i] - problem.nodes[i]) * w).sum()
+        })
+        .collect();
+    let held = |p: usize| organ.scene.fixed.get(p).copied().unwrap_or(false);
+    let before = loss.mean_distance(&organ.scene.positions);
+    let (final_x, iterations) = match mode {
+        OracleMode::Ballistic => {
+            let t = organ.scene.steps as f64 * organ.scene.dt;
+            organ.scene.velocities =
+                (0..points.len()).map(|p| if held(p) { Vector3::zeros() } else { u[p] / t }).collect();
+            let sim = laparo_mpm::simulate(&organ.scene)?;
+            notes.push("oracle: ballistic v₀ = u_GT / (T Δt)".into());
+            (sim.final_state.x, 0)
+        }
+        OracleMode::Dense => {
+            let particles: Vec<usize> = (0..points.len()).filter(|&p| !held(p)).collect();
+            let targets = particles.iter().map(|&p| points[p] + u[p] + off).collect();
+            let dense = RegistrationLoss::new(vec![LandmarkGroup {
+                name: "every particle".into(),
+                particles,
+                target: GroupTarget::Paired(targets),
+                weight: 1.0,
+            }]);
+            let reg = register(&organ.scene, &dense, &problem.optimizer, None, &mut |_, _| true)?;
+            notes.push(format!(
+                "oracle: dense targets, mean particle distance {:.3} → {:.3} mm ({})",
+                dense.mean_distance(&organ.scene.positions),
+                dense.mean_distance(&reg.final_state.x),
+                reg.stop_reason
+            ));
+            let it = reg.history.last().map(|r| r.iteration).unwrap_or(0);
+            (reg.final_state.x, it)
+        }
+    };
+    let after = loss.mean_distance(&final_x);
+    let deformed: Vec<Vector3<f64>> = final_x.iter().map(|p| p - off).collect();
+    let nodes = transfer_nodes(problem, &points, &side, &deformed, &mut notes)?;
+    Ok(RodsOutput { nodes, particles: points.len(), landmark_distance_mm: [before, after], iterations, notes })
 }
 
 /// Per lattice sample, whether the fixed-node indicator interpolated in its tetrahedron is ≥ 1/2.
@@ -384,6 +474,57 @@ impl super::case::Method for RodsMethod {
             optimizer: self.optimizer.clone(),
         };
         let out = run_rods(&problem, &mut |_| {})?;
+        let mut notes = out.notes;
+        notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
+        Ok(super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes })
+    }
+}
+
+/// A RODS-MPM oracle as a benchmark [`Method`](super::case::Method) (`laparo register benchmark --methods
+/// rods-ballistic,rods-dense`): a diagnostic that reads the case's ground truth, never a registration
+/// method; its rows say what the simulator can represent, not what RODS-MPM achieves.
+#[derive(Clone, Debug)]
+pub struct RodsOracle {
+    /// The RODS-MPM set-up it diagnoses.
+    pub inner: RodsMethod,
+    /// What it may see.
+    pub mode: OracleMode,
+}
+
+impl super::case::Method for RodsOracle {
+    fn name(&self) -> String {
+        match self.mode {
+            OracleMode::Ballistic => "RODS-MPM oracle (ballistic v0)".into(),
+            OracleMode::Dense => "RODS-MPM oracle (dense targets)".into(),
+        }
+    }
+    fn register(
+        &self,
+        case: &super::case::BenchmarkCase,
+        landmarks: &[super::case::LandmarkSet],
+    ) -> Result<super::case::MethodOutput> {
+        let groups = landmarks
+            .iter()
+            .map(|l| SideGroup {
+                name: l.name.clone(),
+                sources: l.sources.iter().map(|s| (*s, l.side)).collect(),
+                target: l.targets.clone(),
+            })
+            .collect();
+        let mut organ = self.inner.organ.clone();
+        if case.roi.is_some() {
+            organ.roi = case.roi;
+        }
+        let problem = RodsProblem {
+            nodes: &case.rest,
+            tets: &case.tets,
+            node_side: &case.node_side,
+            fixed_nodes: &case.fixed,
+            groups,
+            organ,
+            optimizer: self.inner.optimizer.clone(),
+        };
+        let out = run_rods_oracle(&problem, &case.ground_truth, self.mode)?;
         let mut notes = out.notes;
         notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
         Ok(super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes })

@@ -19,8 +19,8 @@ use laparo_register::benchmark::figures::{
 };
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
 use laparo_register::benchmark::{
-    aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, ResultStore,
-    RodsMethod, RODS_MPM_NAME,
+    aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, OracleMode,
+    ResultStore, RodsMethod, RODS_MPM_NAME,
 };
 use laparo_register::optimize::OptimizerConfig;
 use laparo_register::organ::OrganConfig;
@@ -50,7 +50,8 @@ pub struct BenchmarkArgs {
     #[arg(long)]
     pub seeds: Option<usize>,
     /// Methods, comma separated, among none (the rest mesh: the error of not registering), arap, drbc,
-    /// francois, lddmm, rods.
+    /// francois, lddmm, rods; and the diagnostics rods-ballistic, rods-dense (RODS-MPM oracles that read
+    /// the ground truth: what the simulator can represent, not a registration method).
     #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods")]
     pub methods: String,
     /// RODS-MPM particle spacing (mm); default 3 (quick 6).
@@ -63,6 +64,12 @@ pub struct BenchmarkArgs {
     /// neighbouring particles apart), adam or thesis-gd (as `laparo register --optimizer`).
     #[arg(long, default_value = "lbfgs")]
     pub optimizer: String,
+    /// RODS-MPM's Poisson ratio (default 0.49, the ground truth's; the Fig. 5.9 ν panel sweeps it).
+    #[arg(long, default_value_t = 0.49)]
+    pub poisson_ratio: f64,
+    /// RODS-MPM grid cell Δx (mm); default 2 × the particle spacing.
+    #[arg(long)]
+    pub dx_mm: Option<f64>,
     /// RODS-MPM least-action prior κ (default 0: the thesis' unregularised loss): adds
     /// κ · mean |v₀ T Δt|² / (2 Δx) over the free particles to eq. 5.10.
     #[arg(long, default_value_t = 0.0)]
@@ -146,8 +153,11 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     let organ = OrganConfig {
         spacing_mm: spacing,
         steps: a.steps.unwrap_or(if quick { 60 } else { 200 }),
+        poisson_ratio: a.poisson_ratio,
+        dx_mm: a.dx_mm,
         ..Default::default()
     };
+    organ.time_step_s().context("RODS-MPM's set-up (--spacing-mm, --dx-mm, --poisson-ratio, --steps)")?;
     let optimizer = rods_optimizer(a, quick)?;
     let mut out: Vec<Box<dyn Method>> = Vec::new();
     for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
@@ -155,6 +165,11 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
         out.push(match m.as_str() {
             // per-element rotations (libigl's tet default): cotangent spokes are unreliable on obtuse tets
             "arap" => b("ARAP", Baseline::Arap(ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })),
+            // diagnostics that read the ground truth (not registration methods: see RodsOracle)
+            "rods-ballistic" | "rods-dense" => Box::new(laparo_register::benchmark::rods::RodsOracle {
+                inner: RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() },
+                mode: if m == "rods-ballistic" { OracleMode::Ballistic } else { OracleMode::Dense },
+            }),
             "none" => Box::new(laparo_register::benchmark::methods::NoRegistration),
             "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
             "francois" => b(
@@ -163,7 +178,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             ),
             "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
             "rods" | "rods-mpm" => Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() }),
-            o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods)"),
+            o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods, rods-ballistic, rods-dense)"),
         });
     }
     if out.is_empty() {
@@ -509,7 +524,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     let sweeps = sweep_methods(&a, quick)?;
     // the registration baselines (not RODS-MPM, not the rest mesh): Fig. 5.9's reference is the best of them
     let baselines: Vec<String> =
-        refs.iter().map(|m| m.name()).filter(|n| n != RODS_MPM_NAME && !n.starts_with("none")).collect();
+        refs.iter().map(|m| m.name()).filter(|n| !n.starts_with(RODS_MPM_NAME) && !n.starts_with("none")).collect();
     let mut results = run_protocol(&cases, &refs, &columns, n_seeds, &store, &mut on_event)?;
     if a.sweeps {
         let srefs: Vec<&dyn Method> = sweeps.0.iter().map(|s| s.method.as_ref()).collect();
