@@ -188,16 +188,19 @@ fn rods_oracles_carry_a_rigid_translation_exactly() {
     let optimizer = OptimizerConfig { iterations: 5, ..Default::default() };
     let problem =
         RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, fixed_nodes: &[], groups, organ, optimizer };
-    let out = run_rods_oracle(&problem, &truth, OracleMode::Ballistic).unwrap();
+    let out = run_rods_oracle(&problem, &truth, OracleMode::Ballistic, 0.0).unwrap();
     let err = out.nodes.iter().zip(&truth).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(err < 1e-9, "a rigid translation is carried exactly: max node error {err} mm");
     assert!(out.landmark_distance_mm[1] < 1e-9);
     // a stretch along x (10 %): the ballistic guess falls short of it
     let stretch: Vec<Vector3<f64>> = nodes.iter().map(|p| p + Vector3::new(0.1 * (p[0] - 10.0), 0.0, 0.0)).collect();
-    let s = run_rods_oracle(&problem, &stretch, OracleMode::Ballistic).unwrap();
+    let s = run_rods_oracle(&problem, &stretch, OracleMode::Ballistic, 0.0).unwrap();
     let serr = s.nodes.iter().zip(&stretch).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(serr > 1e-3, "elasticity resists the stretch: max node error {serr} mm");
-    let d = run_rods_oracle(&problem, &truth, OracleMode::Dense).unwrap();
+    let d = run_rods_oracle(&problem, &truth, OracleMode::Dense, 0.0).unwrap();
     assert!(d.nodes.iter().zip(&truth).all(|(a, b)| (a - b).norm() < 0.5), "dense targets follow the translation");
-    assert!(run_rods_oracle(&problem, &truth[1..], OracleMode::Ballistic).is_err());
+    assert!(run_rods_oracle(&problem, &truth[1..], OracleMode::Ballistic, 0.0).is_err());
+    // a kerf needs a crack: this box has none, and the error names the parameter
+    let Err(e) = run_rods_oracle(&problem, &truth, OracleMode::Ballistic, 5.0) else { panic!("kerf without a crack") };
+    assert!(e.to_string().contains("kerf_mm"), "{e}");
 }

@@ -117,7 +117,7 @@ struct Prepared {
     notes: Vec<String>,
 }
 
-fn prepare(problem: &RodsProblem) -> Result<Prepared> {
+fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
     let n = problem.nodes.len();
     if problem.node_side.len() != n {
         return Err(RegisterError::bad("node sides", format!("{} sides for {n} nodes", problem.node_side.len())));
@@ -132,6 +132,16 @@ fn prepare(problem: &RodsProblem) -> Result<Prepared> {
     if let Some(roi) = &problem.organ.roi {
         samples.retain(|(x, _)| roi.inside(x));
     }
+    let mut kerf_removed = 0;
+    if kerf_mm > 0.0 {
+        let crack = crack_surface(problem);
+        if crate::distance::ClosestPoint::len(&crack) == 0 {
+            return Err(RegisterError::param("kerf_mm", kerf_mm, "the mesh has no crack faces to cut a kerf along"));
+        }
+        let before = samples.len();
+        samples.retain(|(x, _)| (crate::distance::ClosestPoint::closest(&crack, x).0 - x).norm() > 0.5 * kerf_mm);
+        kerf_removed = before - samples.len();
+    }
     if samples.len() < 8 {
         return Err(RegisterError::param("spacing_mm", s, format!("only {} particles inside the mesh", samples.len())));
     }
@@ -140,6 +150,12 @@ fn prepare(problem: &RodsProblem) -> Result<Prepared> {
     let mut organ = organ_from_points(points.clone(), &problem.organ, "benchmark mesh")?;
     debug_assert_eq!(organ.scene.n_particles(), points.len());
     let mut notes = organ.warnings.clone();
+    if kerf_mm > 0.0 {
+        notes.push(format!(
+            "kerf {kerf_mm} mm: {kerf_removed} particles within {} mm of the crack removed",
+            0.5 * kerf_mm
+        ));
+    }
     let held = fixed_particles(problem, &samples)?;
     if held.iter().any(|&h| h) {
         if organ.scene.fixed.is_empty() {
@@ -201,7 +217,7 @@ fn prepare(problem: &RodsProblem) -> Result<Prepared> {
 
 /// Register `problem` with RODS-MPM; `progress` sees every accepted iteration.
 pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord)) -> Result<RodsOutput> {
-    let Prepared { organ, points, side, loss, mut notes, .. } = prepare(problem)?;
+    let Prepared { organ, points, side, loss, mut notes, .. } = prepare(problem, 0.0)?;
     let off = organ.offset;
     let before = loss.mean_distance(&organ.scene.positions);
     let mut obs = |r: &IterationRecord, _: &[Vector3<f64>]| {
@@ -212,7 +228,7 @@ pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord
     let after = loss.mean_distance(&reg.final_state.x);
     notes.push(format!("optimiser: {}", reg.stop_reason));
     let deformed: Vec<Vector3<f64>> = reg.final_state.x.iter().map(|p| p - off).collect();
-    let nodes = transfer_nodes(problem, &points, &side, &deformed, &mut notes)?;
+    let nodes = transfer_nodes(problem, &points, &side, &deformed, 0.0, &mut notes)?;
     Ok(RodsOutput {
         nodes,
         particles: points.len(),
@@ -237,14 +253,24 @@ pub enum OracleMode {
 /// Run a RODS-MPM oracle on `problem` against the ground-truth node positions `truth` (mm): the lip
 /// landmarks of `problem` are only scored, never used. Isolates what the simulator can represent
 /// (grid coupling across the unopened crack, horizon) from what sparse landmarks determine.
-pub fn run_rods_oracle(problem: &RodsProblem, truth: &[Vector3<f64>], mode: OracleMode) -> Result<RodsOutput> {
+/// `kerf_mm` > 0 first removes the particles within `kerf_mm / 2` of the ground truth's crack faces (a cut
+/// of that width the simulator can see; 0 = the uncut particle set RODS-MPM simulates).
+pub fn run_rods_oracle(
+    problem: &RodsProblem,
+    truth: &[Vector3<f64>],
+    mode: OracleMode,
+    kerf_mm: f64,
+) -> Result<RodsOutput> {
     if truth.len() != problem.nodes.len() {
         return Err(RegisterError::bad(
             "ground truth",
             format!("{} positions for {} nodes", truth.len(), problem.nodes.len()),
         ));
     }
-    let Prepared { mut organ, points, side, samples, loss, mut notes } = prepare(problem)?;
+    if !(kerf_mm >= 0.0 && kerf_mm.is_finite()) {
+        return Err(RegisterError::param("kerf_mm", kerf_mm, "must be finite and >= 0"));
+    }
+    let Prepared { mut organ, points, side, samples, loss, mut notes } = prepare(problem, kerf_mm)?;
     let off = organ.offset;
     // ground-truth displacement at every particle, barycentric in its tetrahedron
     let u: Vec<Vector3<f64>> = samples
@@ -291,8 +317,22 @@ pub fn run_rods_oracle(problem: &RodsProblem, truth: &[Vector3<f64>], mode: Orac
     };
     let after = loss.mean_distance(&final_x);
     let deformed: Vec<Vector3<f64>> = final_x.iter().map(|p| p - off).collect();
-    let nodes = transfer_nodes(problem, &points, &side, &deformed, &mut notes)?;
+    let nodes = transfer_nodes(problem, &points, &side, &deformed, kerf_mm, &mut notes)?;
     Ok(RodsOutput { nodes, particles: points.len(), landmark_distance_mm: [before, after], iterations, notes })
+}
+
+/// The crack faces of a cut mesh: tetrahedron faces whose three nodes are all duplicated crack copies.
+fn crack_surface(problem: &RodsProblem) -> crate::distance::TriangleSurface {
+    let mut faces = Vec::new();
+    for t in problem.tets {
+        for skip in 0..4 {
+            let f: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| t[k]).collect();
+            if f.iter().all(|&i| problem.node_side[i] != 0) {
+                faces.push([f[0], f[1], f[2]]);
+            }
+        }
+    }
+    crate::distance::TriangleSurface::new(problem.nodes.to_vec(), faces)
 }
 
 /// Per lattice sample, whether the fixed-node indicator interpolated in its tetrahedron is ≥ 1/2.
@@ -328,9 +368,12 @@ fn transfer_nodes(
     rest: &[Vector3<f64>],
     side: &[u8],
     deformed: &[Vector3<f64>],
+    kerf_mm: f64,
     notes: &mut Vec<String>,
 ) -> Result<Vec<Vector3<f64>>> {
     let s = problem.organ.spacing_mm;
+    // a crack node's own-side particles: within 2.5 spacings, beyond the kerf when particles were removed
+    let reach = 2.5 * s + 0.5 * kerf_mm;
     let transfer = Transfer::new(rest, s)?;
     let tree = build_tree(rest);
     let mut extrapolated = 0usize;
@@ -344,7 +387,7 @@ fn transfer_nodes(
         }
         let sd = problem.node_side[i];
         if sd != 0 {
-            let near = tree.within::<SquaredEuclidean>(&[x[0], x[1], x[2]], (2.5 * s).powi(2));
+            let near = tree.within::<SquaredEuclidean>(&[x[0], x[1], x[2]], reach.powi(2));
             let own: Vec<usize> = near.iter().map(|n| n.item as usize).filter(|&p| side[p] == sd).collect();
             if let Some(p) = affine_fit(x, &own, rest, deformed) {
                 out.push(p);
@@ -489,13 +532,16 @@ pub struct RodsOracle {
     pub inner: RodsMethod,
     /// What it may see.
     pub mode: OracleMode,
+    /// Width (mm) of a kerf cut out of the particles along the ground truth's crack (0 = none).
+    pub kerf_mm: f64,
 }
 
 impl super::case::Method for RodsOracle {
     fn name(&self) -> String {
+        let kerf = if self.kerf_mm > 0.0 { format!(", kerf {} mm", self.kerf_mm) } else { String::new() };
         match self.mode {
-            OracleMode::Ballistic => "RODS-MPM oracle (ballistic v0)".into(),
-            OracleMode::Dense => "RODS-MPM oracle (dense targets)".into(),
+            OracleMode::Ballistic => format!("RODS-MPM oracle (ballistic v0{kerf})"),
+            OracleMode::Dense => format!("RODS-MPM oracle (dense targets{kerf})"),
         }
     }
     fn register(
@@ -524,7 +570,7 @@ impl super::case::Method for RodsOracle {
             organ,
             optimizer: self.inner.optimizer.clone(),
         };
-        let out = run_rods_oracle(&problem, &case.ground_truth, self.mode)?;
+        let out = run_rods_oracle(&problem, &case.ground_truth, self.mode, self.kerf_mm)?;
         let mut notes = out.notes;
         notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
         Ok(super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes })

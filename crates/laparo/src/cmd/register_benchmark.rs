@@ -70,6 +70,10 @@ pub struct BenchmarkArgs {
     /// RODS-MPM grid cell Δx (mm); default 2 × the particle spacing.
     #[arg(long)]
     pub dx_mm: Option<f64>,
+    /// The oracles (rods-ballistic, rods-dense) first remove the particles within half this width (mm) of the
+    /// ground truth's crack faces: a kerf the simulator can see (0 = none).
+    #[arg(long, default_value_t = 0.0)]
+    pub oracle_kerf_mm: f64,
     /// RODS-MPM least-action prior κ (default 0: the thesis' unregularised loss): adds
     /// κ · mean |v₀ T Δt|² / (2 Δx) over the free particles to eq. 5.10.
     #[arg(long, default_value_t = 0.0)]
@@ -138,6 +142,9 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
 /// RODS-MPM's optimiser: the `--optimizer` preset with `--iterations` (default 60, quick 8).
 fn rods_optimizer(a: &BenchmarkArgs, quick: bool) -> Result<OptimizerConfig> {
     let preset = crate::cmd::register::optimizer_base(&a.optimizer)?;
+    if !(a.oracle_kerf_mm >= 0.0 && a.oracle_kerf_mm.is_finite()) {
+        anyhow::bail!("--oracle-kerf-mm {}: must be finite and >= 0", a.oracle_kerf_mm);
+    }
     if !(a.kinetic_weight >= 0.0 && a.kinetic_weight.is_finite()) {
         anyhow::bail!("--kinetic-weight {}: must be finite and >= 0", a.kinetic_weight);
     }
@@ -169,6 +176,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             "rods-ballistic" | "rods-dense" => Box::new(laparo_register::benchmark::rods::RodsOracle {
                 inner: RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() },
                 mode: if m == "rods-ballistic" { OracleMode::Ballistic } else { OracleMode::Dense },
+                kerf_mm: a.oracle_kerf_mm,
             }),
             "none" => Box::new(laparo_register::benchmark::methods::NoRegistration),
             "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
