@@ -486,15 +486,14 @@ pub struct RodsMethod {
 /// The name RODS-MPM's rows carry in the benchmark's tables.
 pub const RODS_MPM_NAME: &str = "RODS-MPM";
 
-impl super::case::Method for RodsMethod {
-    fn name(&self) -> String {
-        RODS_MPM_NAME.into()
-    }
-    fn register(
+impl RodsMethod {
+    /// The problem of one benchmark run: each lip's landmarks form one group scored against that lip's
+    /// target polyline; the case's region of interest overrides `organ.roi`.
+    fn problem<'a>(
         &self,
-        case: &super::case::BenchmarkCase,
+        case: &'a super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
-    ) -> Result<super::case::MethodOutput> {
+    ) -> RodsProblem<'a> {
         let groups = landmarks
             .iter()
             .map(|l| SideGroup {
@@ -507,7 +506,7 @@ impl super::case::Method for RodsMethod {
         if case.roi.is_some() {
             organ.roi = case.roi;
         }
-        let problem = RodsProblem {
+        RodsProblem {
             nodes: &case.rest,
             tets: &case.tets,
             node_side: &case.node_side,
@@ -515,11 +514,27 @@ impl super::case::Method for RodsMethod {
             groups,
             organ,
             optimizer: self.optimizer.clone(),
-        };
-        let out = run_rods(&problem, &mut |_| {})?;
-        let mut notes = out.notes;
-        notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
-        Ok(super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes })
+        }
+    }
+}
+
+/// A benchmark method output from a RODS-MPM run.
+fn method_output(out: RodsOutput) -> super::case::MethodOutput {
+    let mut notes = out.notes;
+    notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
+    super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes }
+}
+
+impl super::case::Method for RodsMethod {
+    fn name(&self) -> String {
+        RODS_MPM_NAME.into()
+    }
+    fn register(
+        &self,
+        case: &super::case::BenchmarkCase,
+        landmarks: &[super::case::LandmarkSet],
+    ) -> Result<super::case::MethodOutput> {
+        Ok(method_output(run_rods(&self.problem(case, landmarks), &mut |_| {})?))
     }
 }
 
@@ -549,30 +564,7 @@ impl super::case::Method for RodsOracle {
         case: &super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<super::case::MethodOutput> {
-        let groups = landmarks
-            .iter()
-            .map(|l| SideGroup {
-                name: l.name.clone(),
-                sources: l.sources.iter().map(|s| (*s, l.side)).collect(),
-                target: l.targets.clone(),
-            })
-            .collect();
-        let mut organ = self.inner.organ.clone();
-        if case.roi.is_some() {
-            organ.roi = case.roi;
-        }
-        let problem = RodsProblem {
-            nodes: &case.rest,
-            tets: &case.tets,
-            node_side: &case.node_side,
-            fixed_nodes: &case.fixed,
-            groups,
-            organ,
-            optimizer: self.inner.optimizer.clone(),
-        };
-        let out = run_rods_oracle(&problem, &case.ground_truth, self.mode, self.kerf_mm)?;
-        let mut notes = out.notes;
-        notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
-        Ok(super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes })
+        let problem = self.inner.problem(case, landmarks);
+        Ok(method_output(run_rods_oracle(&problem, &case.ground_truth, self.mode, self.kerf_mm)?))
     }
 }
