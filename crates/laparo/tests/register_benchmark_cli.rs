@@ -89,6 +89,17 @@ fn quick_tier_end_to_end_and_resume() {
         serde_json::from_str(&std::fs::read_to_string(out.join("table51.json")).unwrap()).unwrap();
     assert_eq!(cells.as_array().unwrap().len(), 6 * 6 + 18, "the main table and 18 sweep settings");
     assert!(out.join("non-anatomical/fig59_sensitivity.png").exists());
+    // the ballistic oracle (a diagnostic reading the ground truth) runs on the stored ground truth; with a
+    // kerf it names itself; a negative kerf is refused naming the option
+    let oracle: Vec<&str> =
+        args.iter().copied().chain(["--methods", "rods-ballistic", "--oracle-kerf-mm", "24"]).collect();
+    let (ok, stdout, err) = laparo(&oracle, dir.path());
+    assert!(ok, "{err}");
+    assert!(stdout.contains("| RODS-MPM oracle (ballistic v0, kerf 24 mm) |"), "{stdout}");
+    let bad: Vec<&str> =
+        args.iter().copied().chain(["--methods", "rods-ballistic", "--oracle-kerf-mm", "-1"]).collect();
+    let (ok, _, err) = laparo(&bad, dir.path());
+    assert!(!ok && err.contains("--oracle-kerf-mm"), "{err}");
 }
 
 #[test]
