@@ -96,8 +96,7 @@ fn quick_tier_end_to_end_and_resume() {
     let (ok, stdout, err) = laparo(&oracle, dir.path());
     assert!(ok, "{err}");
     assert!(stdout.contains("| RODS-MPM oracle (ballistic v0, kerf 24 mm) |"), "{stdout}");
-    let bad: Vec<&str> =
-        args.iter().copied().chain(["--methods", "rods-ballistic", "--oracle-kerf-mm", "-1"]).collect();
+    let bad: Vec<&str> = args.iter().copied().chain(["--methods", "rods-ballistic", "--oracle-kerf-mm=-1"]).collect();
     let (ok, _, err) = laparo(&bad, dir.path());
     assert!(!ok && err.contains("--oracle-kerf-mm"), "{err}");
 }
