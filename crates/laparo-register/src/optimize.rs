@@ -267,16 +267,18 @@ impl<const D: usize> Problem<'_, D> {
             return 0.0;
         }
         let t = self.scene.steps as f64 * self.scene.dt;
-        let free: Vec<usize> = (0..self.n()).filter(|&p| !self.scene.fixed.get(p).copied().unwrap_or(false)).collect();
-        if free.is_empty() {
+        let free = |p: usize| !self.scene.fixed.get(p).copied().unwrap_or(false);
+        let n_free = (0..self.n()).filter(|&p| free(p)).count();
+        if n_free == 0 {
             return 0.0;
         }
-        let c = self.kinetic / (free.len() as f64 * self.scene.grid.dx);
+        let c = self.kinetic / (n_free as f64 * self.scene.grid.dx);
         let mut sum = 0.0;
-        for &p in &free {
-            let v = self.scene.velocities[p];
-            sum += (v * t).norm_squared();
-            grad_v[p] += v * (c * t * t);
+        for (p, (v, g)) in self.scene.velocities.iter().zip(grad_v.iter_mut()).enumerate() {
+            if free(p) {
+                sum += (v * t).norm_squared();
+                *g += v * (c * t * t);
+            }
         }
         0.5 * c * sum
     }

@@ -273,17 +273,8 @@ pub fn run_rods_oracle(
     let Prepared { mut organ, points, side, samples, loss, mut notes } = prepare(problem, kerf_mm)?;
     let off = organ.offset;
     // ground-truth displacement at every particle, barycentric in its tetrahedron
-    let u: Vec<Vector3<f64>> = samples
-        .iter()
-        .map(|(x, t)| {
-            let tet = problem.tets[*t];
-            let p = tet.map(|i| problem.nodes[i]);
-            let m = nalgebra::Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
-            let l = m.try_inverse().map(|mi| mi * (x - p[0])).unwrap_or_default();
-            let w = [1.0 - l.sum(), l[0], l[1], l[2]];
-            tet.iter().zip(w).map(|(&i, w)| (truth[i] - problem.nodes[i]) * w).sum()
-        })
-        .collect();
+    let u: Vec<Vector3<f64>> =
+        samples.iter().map(|(x, t)| interpolate(problem, x, *t, |i| truth[i] - problem.nodes[i])).collect();
     let held = |p: usize| organ.scene.fixed.get(p).copied().unwrap_or(false);
     let before = loss.mean_distance(&organ.scene.positions);
     let (final_x, iterations) = match mode {
@@ -335,6 +326,20 @@ fn crack_surface(problem: &RodsProblem) -> crate::distance::TriangleSurface {
     crate::distance::TriangleSurface::new(problem.nodes.to_vec(), faces)
 }
 
+/// A nodal field `f` interpolated at `x` by its barycentric coordinates in tetrahedron `t` (sampled
+/// tetrahedra are invertible: `sample_lattice` skips the others).
+fn interpolate<T>(problem: &RodsProblem, x: &Vector3<f64>, t: usize, f: impl Fn(usize) -> T) -> T
+where
+    T: std::ops::Mul<f64, Output = T> + std::iter::Sum<T>,
+{
+    let tet = problem.tets[t];
+    let p = tet.map(|i| problem.nodes[i]);
+    let m = nalgebra::Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+    let l = m.try_inverse().map(|mi| mi * (x - p[0])).unwrap_or_default();
+    let w = [1.0 - l.sum(), l[0], l[1], l[2]];
+    tet.iter().zip(w).map(|(&i, w)| f(i) * w).sum()
+}
+
 /// Per lattice sample, whether the fixed-node indicator interpolated in its tetrahedron is ≥ 1/2.
 fn fixed_particles(problem: &RodsProblem, samples: &[(Vector3<f64>, usize)]) -> Result<Vec<bool>> {
     if problem.fixed_nodes.is_empty() {
@@ -348,18 +353,7 @@ fn fixed_particles(problem: &RodsProblem, samples: &[(Vector3<f64>, usize)]) -> 
         }
         ind[i] = 1.0;
     }
-    Ok(samples
-        .iter()
-        .map(|(x, t)| {
-            let p = problem.tets[*t].map(|i| problem.nodes[i]);
-            let m = nalgebra::Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
-            // sampled tetrahedra are invertible (sample_lattice skips the others)
-            let l = m.try_inverse().map(|mi| mi * (x - p[0])).unwrap_or_default();
-            let w = [1.0 - l.sum(), l[0], l[1], l[2]];
-            let f: f64 = problem.tets[*t].iter().zip(w).map(|(&i, w)| w * ind[i]).sum();
-            f >= 0.5
-        })
-        .collect())
+    Ok(samples.iter().map(|(x, t)| interpolate(problem, x, *t, |i| ind[i]) >= 0.5).collect())
 }
 
 /// Node positions from the registered particles (see the module docs).

@@ -65,8 +65,8 @@ pub struct BenchmarkArgs {
     #[arg(long, default_value = "lbfgs")]
     pub optimizer: String,
     /// RODS-MPM's Poisson ratio (default 0.49, the ground truth's; the Fig. 5.9 ν panel sweeps it).
-    #[arg(long, default_value_t = 0.49)]
-    pub poisson_ratio: f64,
+    #[arg(long)]
+    pub poisson_ratio: Option<f64>,
     /// RODS-MPM grid cell Δx (mm); default 2 × the particle spacing.
     #[arg(long)]
     pub dx_mm: Option<f64>,
@@ -142,11 +142,8 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
 /// RODS-MPM's optimiser: the `--optimizer` preset with `--iterations` (default 60, quick 8).
 fn rods_optimizer(a: &BenchmarkArgs, quick: bool) -> Result<OptimizerConfig> {
     let preset = crate::cmd::register::optimizer_base(&a.optimizer)?;
-    if !(a.oracle_kerf_mm >= 0.0 && a.oracle_kerf_mm.is_finite()) {
-        anyhow::bail!("--oracle-kerf-mm {}: must be finite and >= 0", a.oracle_kerf_mm);
-    }
     if !(a.kinetic_weight >= 0.0 && a.kinetic_weight.is_finite()) {
-        anyhow::bail!("--kinetic-weight {}: must be finite and >= 0", a.kinetic_weight);
+        bail!("--kinetic-weight {}: must be finite and >= 0", a.kinetic_weight);
     }
     Ok(OptimizerConfig {
         iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }),
@@ -160,11 +157,14 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     let organ = OrganConfig {
         spacing_mm: spacing,
         steps: a.steps.unwrap_or(if quick { 60 } else { 200 }),
-        poisson_ratio: a.poisson_ratio,
         dx_mm: a.dx_mm,
         ..Default::default()
     };
+    let organ = OrganConfig { poisson_ratio: a.poisson_ratio.unwrap_or(organ.poisson_ratio), ..organ };
     organ.time_step_s().context("RODS-MPM's set-up (--spacing-mm, --dx-mm, --poisson-ratio, --steps)")?;
+    if !(a.oracle_kerf_mm >= 0.0 && a.oracle_kerf_mm.is_finite()) {
+        bail!("--oracle-kerf-mm {}: must be finite and >= 0", a.oracle_kerf_mm);
+    }
     let optimizer = rods_optimizer(a, quick)?;
     let mut out: Vec<Box<dyn Method>> = Vec::new();
     for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
