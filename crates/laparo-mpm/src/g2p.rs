@@ -2,11 +2,11 @@
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{node_at, prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slot, node_at, prefetch, SparseGrid, SyncPtr};
 use crate::stencil::{base_of, bspline, for_stencil};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// v_p = Σ_i w_ip v_i, C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
+/// v_p = Σ_i w_ip v_i (from the particle's field of each node on a two-field grid), C_p = 4/Δx² Σ_i w_ip v_i (x_i − x_p)ᵀ, x_p ← x_p + Δt v_p. Fixed particles keep
 /// their position (v = 0, C = 0). Also writes the block key of every new position into `keys_next`
 /// (for the next step's [`SparseGrid::build_from_keys`], computed here in parallel while x_p is at
 /// hand). Errors when a particle state becomes non-finite.
@@ -29,7 +29,8 @@ pub fn gather<const D: usize>(
     let cn_ptr = SyncPtr(c_next.as_mut_ptr());
     let key_ptr = SyncPtr(keys_next.as_mut_ptr());
     let bad = AtomicUsize::new(usize::MAX);
-    assert_eq!(grid.vel.len(), grid.n_nodes());
+    assert_eq!(grid.vel.len(), grid.n_slots());
+    let side = &grid.side[..];
     let n = x.len();
     grid.for_each_particle(|p, nbr| {
         // The outputs are checkpoint memory not touched since the previous iteration: ask for the
@@ -51,11 +52,12 @@ pub fn gather<const D: usize>(
         let base = base_of(&x[p], inv_dx);
         let (fx, w, _) = bspline(&x[p], &base, inv_dx);
         let st = nbr.nodes(&base);
+        let label = scene.crack_label(p);
         // v' = Σ w v_i; C' = 4/Δx Σ w v_i (o − fx)ᵀ = 4/Δx Σ_d (Σ_o (o − fx_d) S_d[o]) e_dᵀ with
         // S_d[o] = Σ_{nodes with o_d = o} w v_i.
         let mut sums = [[Vector::<D>::zeros(); 3]; D];
         for_stencil::<D>(&w, |k, o, weight| {
-            let gw = node_at(&grid.vel, st[k] as usize) * weight;
+            let gw = node_at(&grid.vel, field_slot(side, st[k] as usize, label)) * weight;
             for d in 0..D {
                 sums[d][o[d]] += gw;
             }

@@ -1,4 +1,5 @@
-//! Grid update: node velocity v_i = (m v)_i / (m_i + ε), gravity, domain walls.
+//! Grid update: node velocity v_i = (m v)_i / (m_i + ε), gravity, domain walls (every field of a
+//! two-field grid alike).
 use crate::linalg::Vector;
 use crate::scene::{Scene, WallKind};
 use crate::sparse_grid::{block_nodes, SparseGrid};
@@ -16,6 +17,8 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
     let nn = block_nodes(D);
     let SparseGrid { blocks, mass, mom, vel, wall_mask, .. } = grid;
     let blocks = &*blocks;
+    // A two-field grid holds the second field's blocks after the first's, in the same order.
+    let nb = blocks.len();
     vel.par_chunks_mut(nn)
         .zip(wall_mask.par_chunks_mut(nn))
         .zip(mass.par_chunks(nn).zip(mom.par_chunks(nn)))
@@ -23,6 +26,7 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
         .with_min_len(16)
         .for_each(|(b, ((vel, mask), (mass, mom)))| {
             // Blocks away from the wall layers (most of them) skip the per-node wall tests.
+            let b = b % nb;
             let interior = walls == WallKind::None
                 || blocks[b].iter().all(|&c| {
                     let lo = c as usize * crate::sparse_grid::BLOCK;

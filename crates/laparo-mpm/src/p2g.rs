@@ -5,7 +5,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slot, prefetch, SparseGrid, SyncPtr};
 use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil};
 use rayon::prelude::*;
 
@@ -97,7 +97,36 @@ pub fn stress<const D: usize, M: ConstitutiveModel<D>>(
     Ok(())
 }
 
-/// Second half of P2G (eq. 5.6), the coloured scatter: m_i += w_ip m_p,
+/// Node sides of a two-field grid (see [`Scene::crack_side`]): side_i = Σ_p w_ip m_p side_p over the
+/// particles with a side, scattered colour by colour (deterministic). No-op on a one-field grid.
+pub fn crack_sides<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>, x: &[Vector<D>]) {
+    if grid.side.is_empty() {
+        return;
+    }
+    let inv_dx = 1.0 / scene.grid.dx;
+    let side = SyncPtr(grid.side.as_mut_ptr());
+    let g = &*grid;
+    g.for_each_coloured(
+        |_| {},
+        |p, nbr| {
+            let label = scene.crack_label(p);
+            if label == 0.0 {
+                return;
+            }
+            let base = base_of(&x[p], inv_dx);
+            let (_, w, _) = bspline(&x[p], &base, inv_dx);
+            let st = nbr.nodes(&base);
+            let ml = scene.masses[p] * label;
+            for_stencil::<D>(&w, |k, _, weight| {
+                // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
+                unsafe { *side.at(st[k] as usize) += weight * ml };
+            });
+        },
+    );
+}
+
+/// Second half of P2G (eq. 5.6), the coloured scatter (into the particle's field of each node on a
+/// two-field grid, after [`crack_sides`]): m_i += w_ip m_p,
 /// (m v)_i += w_ip (m_p v_p + Δt f_p + A_p (x_i − x_p)) with A_p from [`stress`].
 pub fn scatter<const D: usize>(
     grid: &mut SparseGrid<D>,
@@ -111,6 +140,7 @@ pub fn scatter<const D: usize>(
     let mass = SyncPtr(grid.mass.as_mut_ptr());
     let mom = SyncPtr(grid.mom.as_mut_ptr());
     let g = &*grid;
+    let side = &g.side[..];
     let pre = |q: usize| {
         prefetch(&x[q]);
         prefetch(&v[q]);
@@ -125,10 +155,11 @@ pub fn scatter<const D: usize>(
             mv += scene.external_forces[p] * scene.dt;
         }
         let st = nbr.nodes(&base);
+        let label = scene.crack_label(p);
         // mv + A (o − fx) Δx per node from per-axis terms.
         let terms = affine_terms(&mv, &affine[p], &fx, dx);
         for_stencil::<D>(&w, |k, o, weight| {
-            let i = st[k] as usize;
+            let i = field_slot(side, st[k] as usize, label);
             let q = affine_at(&terms, o);
             // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
             unsafe {

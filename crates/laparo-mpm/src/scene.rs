@@ -112,6 +112,12 @@ pub struct Scene<const D: usize> {
     pub fixed: Vec<bool>,
     /// Constant external force per particle (force units), spread to the grid; empty = none.
     pub external_forces: Vec<Vector<D>>,
+    /// Side of a pre-existing crack per particle (−1, 0 or +1; empty = no crack): the **two-field
+    /// grid** (CRAMP, Nairn 2003; cf. CPIC, Hu et al. 2018). Each node takes the sign of Σ_p w_ip m_p
+    /// side_p as its own side; a particle of the other side scatters to and gathers from a second
+    /// velocity field of that node, so the two lips of a zero-thickness cut move independently while
+    /// side-0 particles (beyond the crack front, or far from it) couple both sides as usual.
+    pub crack_side: Vec<i8>,
     /// Time step Δt.
     pub dt: f64,
     /// Horizon T (number of steps).
@@ -148,6 +154,7 @@ impl<const D: usize> Scene<D> {
             gravity: Vector::<D>::zeros(),
             fixed: Vec::new(),
             external_forces: Vec::new(),
+            crack_side: Vec::new(),
             dt,
             steps,
             mass_epsilon: 0.0,
@@ -184,6 +191,13 @@ impl<const D: usize> Scene<D> {
         len("volumes", self.volumes.len(), false)?;
         len("fixed", self.fixed.len(), true)?;
         len("external_forces", self.external_forces.len(), true)?;
+        len("crack_side", self.crack_side.len(), true)?;
+        if let Some(p) = self.crack_side.iter().position(|s| !(-1..=1).contains(s)) {
+            return Err(MpmError::InvalidScene(format!(
+                "particle {p}: crack_side {} must be -1, 0 or +1",
+                self.crack_side[p]
+            )));
+        }
         if self.grid.n_grid < 4 || !(self.grid.dx > 0.0 && self.grid.dx.is_finite()) {
             return Err(MpmError::InvalidScene(format!(
                 "grid needs n_grid >= 4 and dx > 0 (got n_grid = {}, dx = {})",
@@ -254,6 +268,16 @@ impl<const D: usize> Scene<D> {
 
     pub(crate) fn is_fixed(&self, p: usize) -> bool {
         !self.fixed.is_empty() && self.fixed[p]
+    }
+
+    /// Crack side of particle p as f64 (0 without a crack).
+    #[inline(always)]
+    pub(crate) fn crack_label(&self, p: usize) -> f64 {
+        if self.crack_side.is_empty() {
+            0.0
+        } else {
+            self.crack_side[p] as f64
+        }
     }
 }
 

@@ -85,7 +85,9 @@ pub(crate) struct Stepper<const D: usize> {
 
 impl<const D: usize> Stepper<D> {
     pub fn new(scene: &Scene<D>) -> Self {
-        Stepper { grid: SparseGrid::new(scene.grid), affine: Vec::new(), keys: Vec::new(), keys_valid: false }
+        let mut grid = SparseGrid::new(scene.grid);
+        grid.two_field = !scene.crack_side.is_empty();
+        Stepper { grid, affine: Vec::new(), keys: Vec::new(), keys_valid: false }
     }
 
     /// One full step `cur` → `next`: sparse-grid build (in parallel with the F update and stress of
@@ -114,6 +116,7 @@ impl<const D: usize> Stepper<D> {
         );
         built?;
         stressed?;
+        p2g::crack_sides(grid, scene, &cur.x);
         p2g::scatter(grid, scene, &cur.x, &cur.v, affine);
         grid_update::update(grid, scene);
         keys.resize(n, 0);

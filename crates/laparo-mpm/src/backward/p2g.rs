@@ -10,7 +10,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::linalg::{Matrix, Vector};
 use crate::p2g::stress_scale;
 use crate::scene::Scene;
-use crate::sparse_grid::{node_at, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slot, node_at, SparseGrid, SyncPtr};
 use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad};
 
 /// Adjoint arrays of the particle state, updated in place by [`p2g_adjoint`] from those of the
@@ -55,7 +55,8 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
     let (xb_ptr, vb_ptr, cb_ptr) =
         (SyncPtr(out.x.as_mut_ptr()), SyncPtr(out.v.as_mut_ptr()), SyncPtr(out.c.as_mut_ptr()));
     let (fb_ptr, lm_ptr) = (SyncPtr(out.f.as_mut_ptr()), SyncPtr(out.lame.as_mut_ptr()));
-    assert_eq!(node_bar.len(), grid.n_nodes());
+    assert_eq!(node_bar.len(), grid.n_slots());
+    let side = &grid.side[..];
     grid.for_each_particle(|p, nbr| {
         let m = scene.masses[p];
         // The stencil is set up inside `body`, after τ (whose ln J is a libm call that would force
@@ -69,6 +70,7 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
                 mv += scene.external_forces[p] * dt;
             }
             let st = nbr.nodes(&base);
+            let label = scene.crack_label(p);
             let a = tau * scale + c[p] * m;
             // mv + A dpos_i from per-axis terms; Σ w p̄_i and Σ w p̄_i dpos_iᵀ from the per-axis
             // sums S_d[o] = Σ_{nodes with o_d = o} w p̄_i.
@@ -76,8 +78,7 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
             let mut sums = [[Vector::<D>::zeros(); 3]; D];
             let mut fxb = Vector::<D>::zeros();
             for_stencil::<D>(&w, |k, o, weight| {
-                let i = st[k] as usize;
-                let nb = node_at(node_bar, i);
+                let nb = node_at(node_bar, field_slot(side, st[k] as usize, label));
                 let pb = nb.mom;
                 let wpb = pb * weight;
                 for d in 0..D {

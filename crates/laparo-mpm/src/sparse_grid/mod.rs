@@ -20,7 +20,7 @@ mod raw;
 mod tests;
 mod traverse;
 
-pub(crate) use raw::{node_at, prefetch, SyncPtr};
+pub(crate) use raw::{field_slot, node_at, prefetch, SyncPtr};
 
 use crate::error::MpmError;
 use crate::grid_spec::GridSpec;
@@ -74,6 +74,13 @@ pub struct SparseGrid<const D: usize> {
     pub vel: Vec<Vector<D>>,
     /// Per node: which velocity components the wall condition zeroed (bit d), for the adjoint.
     pub wall_mask: Vec<u8>,
+    /// Two-field grid (a scene with `crack_side`): per node Σ_p w_ip m_p side_p, whose sign is the
+    /// node's own side; empty on a one-field grid. With two fields, `mass`, `mom`, `vel` and
+    /// `wall_mask` hold 2 × `side.len()` slots: node i's own field at i, its second field (the
+    /// particles of the other side) at i + `side.len()`.
+    pub side: Vec<f64>,
+    /// Whether [`Self::build_from_keys`] allocates the second field.
+    pub two_field: bool,
     counts: Vec<u32>,
     distinct: Vec<u32>,
 }
@@ -182,6 +189,8 @@ impl<const D: usize> SparseGrid<D> {
             mom: Vec::new(),
             vel: Vec::new(),
             wall_mask: Vec::new(),
+            side: Vec::new(),
+            two_field: false,
             counts: vec![0; blocks_per_axis.pow(D as u32)],
             distinct: Vec::new(),
         }
@@ -193,8 +202,8 @@ impl<const D: usize> SparseGrid<D> {
         &self.spec
     }
 
-    /// Number of allocated nodes.
-    pub fn n_nodes(&self) -> usize {
+    /// Number of node slots: the allocated nodes × the number of fields.
+    pub fn n_slots(&self) -> usize {
         self.mass.len()
     }
 
@@ -338,6 +347,11 @@ impl<const D: usize> SparseGrid<D> {
         }
         self.colour_tasks();
         let nodes = self.blocks.len() * nn as usize;
+        self.side.clear();
+        if self.two_field {
+            self.side.resize(nodes, 0.0);
+        }
+        let nodes = if self.two_field { 2 * nodes } else { nodes };
         self.mass.clear();
         self.mass.resize(nodes, 0.0);
         self.mom.clear();
@@ -377,6 +391,7 @@ impl<const D: usize> SparseGrid<D> {
         std::mem::swap(&mut self.mass, &mut cp.mass);
         std::mem::swap(&mut self.vel, &mut cp.vel);
         std::mem::swap(&mut self.wall_mask, &mut cp.wall_mask);
+        std::mem::swap(&mut self.side, &mut cp.side);
     }
 }
 
@@ -402,4 +417,6 @@ pub struct GridCheckpoint<const D: usize> {
     pub vel: Vec<Vector<D>>,
     /// Wall masks.
     pub wall_mask: Vec<u8>,
+    /// Node sides of a two-field grid (empty otherwise).
+    pub side: Vec<f64>,
 }

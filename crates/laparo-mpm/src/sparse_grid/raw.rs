@@ -1,13 +1,29 @@
 //! Unchecked node access, prefetch hints and the shared pointer of the colour-partitioned scatters.
 
 /// `nodes[i]` for a stencil node index `i` from [`BlockNbr::nodes`] of a grid with `nodes.len()` =
-/// [`SparseGrid::n_nodes`] (checked once by the caller): in bounds by construction of the grid, so
+/// [`SparseGrid::n_slots`] (checked once by the caller): in bounds by construction of the grid, so
 /// the per-node bounds check is spared (still checked in debug builds).
 #[inline(always)]
 pub(crate) fn node_at<T>(nodes: &[T], i: usize) -> &T {
     debug_assert!(i < nodes.len());
     // SAFETY: see above; block neighbour slots are active blocks, local offsets < 4^D.
     unsafe { nodes.get_unchecked(i) }
+}
+
+/// Slot of stencil node `i` for a particle of crack side `label` (eq. of the two-field grid, see
+/// [`crate::Scene::crack_side`]): the node's second field (i + side.len()) when the particle is on the
+/// other side of the node, else i. A node whose side sum is exactly 0 (on the crack, both lips equal)
+/// keeps side +1 in its own field and side −1 in the second. `side` is empty on a one-field grid
+/// (then `label` is 0).
+#[inline(always)]
+pub(crate) fn field_slot(side: &[f64], i: usize, label: f64) -> usize {
+    if label != 0.0 {
+        let s = *node_at(side, i);
+        if s * label < 0.0 || (s == 0.0 && label < 0.0) {
+            return i + side.len();
+        }
+    }
+    i
 }
 
 /// Hint the CPU to load the cache line at `r` (no effect on results; a no-op off x86-64). `r` is only

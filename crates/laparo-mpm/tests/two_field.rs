@@ -1,0 +1,230 @@
+//! The two-field grid of a pre-existing crack (`Scene::crack_side`): exact separation of the two lips
+//! (by hand: rigid translations), unchanged results without a labelled particle, exact momentum
+//! conservation, the crack front still coupling both sides, and the adjoint against central finite
+//! differences.
+use laparo_mpm::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A block of particles (spacing Δx/2) centred at 0.5 with `cells` cells per axis, E 3, ν 0.3.
+fn block<const D: usize>(n_grid: usize, cells: [f64; D], steps: usize) -> Scene<D> {
+    let grid = GridSpec::unit(n_grid);
+    let dx = grid.dx;
+    let c = Vector::<D>::from_element(0.5);
+    let half = Vector::<D>::from_fn(|d, _| cells[d] * dx / 2.0);
+    let pos = box_lattice(c - half, c + half, dx / 2.0);
+    let material = Material { model: Model::NeoHookean, youngs_modulus: 3.0, poisson_ratio: 0.3, density: 1.0 };
+    let dt = cfl_dt(&material, dx, 0.25);
+    let mut s = Scene::new(pos, (dx / 2.0).powi(D as i32), material, grid, dt, steps);
+    s.boundary.walls = WallKind::None;
+    s
+}
+
+/// Side −1 left of x = `xc`, +1 right of it, for particles with `in_crack(x)`; 0 elsewhere.
+fn label<const D: usize>(scene: &mut Scene<D>, xc: f64, in_crack: impl Fn(&Vector<D>) -> bool) {
+    scene.crack_side = scene
+        .positions
+        .iter()
+        .map(|x| if !in_crack(x) { 0 } else if x[0] < xc { -1 } else { 1 })
+        .collect();
+}
+
+/// Two lips cut through the whole block, moving apart at ±v: every particle translates rigidly
+/// (no stress arises: C stays 0 and F = I), x_T = x₀ ± v T Δt exactly. The one-field grid couples
+/// them across the shared nodes instead.
+fn lips_separate<const D: usize>() {
+    let mut scene = block::<D>(32, [6.0; D], 40);
+    let v = 0.3;
+    for p in 0..scene.n_particles() {
+        scene.velocities[p][0] = if scene.positions[p][0] < 0.5 { -v } else { v };
+    }
+    let one = simulate(&scene).unwrap().final_state;
+    label(&mut scene, 0.5, |_| true);
+    let two = simulate(&scene).unwrap().final_state;
+    let t = scene.steps as f64 * scene.dt;
+    let mut max_err = 0.0f64;
+    let mut max_one = 0.0f64;
+    for p in 0..scene.n_particles() {
+        let mut want = scene.positions[p];
+        want[0] += scene.velocities[p][0] * t;
+        max_err = max_err.max((two.x[p] - want).norm());
+        max_one = max_one.max((one.x[p] - want).norm());
+        assert!((two.f[p] - Matrix::<D>::identity()).norm() < 1e-12, "{D}D particle {p}: F = I");
+    }
+    assert!(max_err < 1e-12, "{D}D two-field: max deviation from the rigid translations {max_err:e}");
+    // the one-field grid averages the lips' velocities on shared nodes: they do not translate freely
+    assert!(max_one > 0.1 * v * t, "{D}D one-field deviation {max_one:e} vs opening {:e}", v * t);
+}
+
+#[test]
+fn cut_lips_translate_apart_exactly_2d() {
+    lips_separate::<2>();
+}
+
+#[test]
+fn cut_lips_translate_apart_exactly_3d() {
+    lips_separate::<3>();
+}
+
+/// All labels 0 (a crack that is nowhere): the same trajectory, bit for bit, as no crack at all.
+#[test]
+fn unlabelled_crack_changes_nothing() {
+    let mut scene = block::<3>(24, [5.0, 4.0, 4.0], 30);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for p in 0..scene.n_particles() {
+        scene.velocities[p] = Vector::<3>::from_fn(|_, _| rng.gen_range(-0.5..0.5));
+    }
+    let a = simulate(&scene).unwrap().final_state;
+    scene.crack_side = vec![0; scene.n_particles()];
+    let b = simulate(&scene).unwrap().final_state;
+    assert_eq!(a.x, b.x);
+    assert_eq!(a.f, b.f);
+}
+
+/// Each particle scatters to exactly one field of each node and gathers from the same one: linear
+/// momentum is conserved to round-off with a half-cut, elastically loaded block.
+#[test]
+fn two_field_conserves_linear_momentum() {
+    let mut scene = block::<2>(32, [8.0, 8.0], 120);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for p in 0..scene.n_particles() {
+        let x = scene.positions[p];
+        scene.velocities[p] = Vector::<2>::new(3.0 * (x[0] - 0.5) + 0.1, -(x[0] - 0.5))
+            + Vector::<2>::from_fn(|_, _| rng.gen_range(-0.2..0.2));
+    }
+    label(&mut scene, 0.5, |x| x[1] > 0.5);
+    let d0 = diagnostics(&scene, &ParticleState::initial(&scene));
+    let mut drift = 0.0f64;
+    simulate_observed(&scene, |_, st| {
+        let d = diagnostics(&scene, st);
+        for k in 0..3 {
+            drift = drift.max((d.linear_momentum[k] - d0.linear_momentum[k]).abs());
+        }
+        Ok(())
+    })
+    .unwrap();
+    let p0 = d0.linear_momentum.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    assert!(drift < 1e-13 * p0.max(1e-3), "linear momentum drift {drift:e} (|P| {p0:e})");
+}
+
+/// A crack through the top half only, lips pulled apart: the cut half opens (its lips separate by
+/// nearly the imposed opening) while the uncut half ahead of the crack front holds together.
+#[test]
+fn crack_front_keeps_the_uncut_part_together() {
+    let mut scene = block::<2>(48, [12.0, 12.0], 60);
+    let v = 0.4;
+    for p in 0..scene.n_particles() {
+        let x = scene.positions[p];
+        if x[1] > 0.5 {
+            scene.velocities[p][0] = if x[0] < 0.5 { -v } else { v };
+        }
+    }
+    label(&mut scene, 0.5, |x| x[1] > 0.5);
+    let fin = simulate(&scene).unwrap().final_state;
+    // mean x-gap between the particle columns on each side of x = 0.5, in a row band
+    let gap = |lo: f64, hi: f64, x: &[Vector<2>]| {
+        let (mut l, mut nl, mut r, mut nr) = (0.0, 0, 0.0, 0);
+        for p in 0..scene.n_particles() {
+            let x0 = scene.positions[p];
+            if x0[1] > lo && x0[1] < hi && (x0[0] - 0.5).abs() < 0.5 * scene.grid.dx {
+                if x0[0] < 0.5 {
+                    l += x[p][0];
+                    nl += 1;
+                } else {
+                    r += x[p][0];
+                    nr += 1;
+                }
+            }
+        }
+        r / nr as f64 - l / nl as f64
+    };
+    let rest_top = gap(0.6, 0.7, &scene.positions);
+    let open_top = gap(0.6, 0.7, &fin.x) - rest_top;
+    let open_bottom = gap(0.3, 0.4, &fin.x) - gap(0.3, 0.4, &scene.positions);
+    let imposed = 2.0 * v * scene.steps as f64 * scene.dt;
+    assert!(open_top > 0.5 * imposed, "cut half opens: {open_top:e} of {imposed:e}");
+    assert!(open_bottom < 0.1 * open_top, "uncut half stays closed: {open_bottom:e} vs {open_top:e}");
+}
+
+fn stretch_loss<const D: usize>(scene: &Scene<D>, seed: u64) -> LandmarkLoss<D> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let n = scene.n_particles();
+    let indices: Vec<usize> = (0..20).map(|_| rng.gen_range(0..n)).collect();
+    let targets =
+        indices.iter().map(|&p| scene.positions[p] + Vector::<D>::from_fn(|_, _| rng.gen_range(-0.05..0.05))).collect();
+    LandmarkLoss { indices, targets }
+}
+
+fn loss_of<const D: usize>(scene: &Scene<D>, loss: &LandmarkLoss<D>) -> f64 {
+    let fin = simulate(scene).unwrap().final_state;
+    let mut g = vec![Vector::<D>::zeros(); fin.x.len()];
+    loss.evaluate(scene.steps, &fin.x, &mut g)
+}
+
+/// ∂L/∂v₀, ∂L/∂x₀ and ∂L/∂E through the two-field grid against central differences (the node sides
+/// are constant under the small perturbations, so L is smooth there).
+fn gradient_check<const D: usize>(n_grid: usize, cells: [f64; D], steps: usize, seed: u64) {
+    let mut scene = block::<D>(n_grid, cells, steps);
+    scene.mass_epsilon = 1e-10;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    for p in 0..scene.n_particles() {
+        let x = scene.positions[p];
+        let mut v = Vector::<D>::from_fn(|_, _| 0.05 * rng.gen_range(-1.0..1.0));
+        v[0] += if x[0] < 0.5 + 0.5 * scene.grid.dx { -1.0 } else { 1.0 } * if x[1] > 0.5 { 1.0 } else { 0.2 };
+        v[1] += 2.0 * (x[0] - 0.5);
+        scene.velocities[p] = v;
+    }
+    // the crack between two particle columns and midway between two node planes: no node side sum is
+    // near 0, so the partition of the fields does not change under the perturbations
+    let xc = 0.5 + 0.5 * scene.grid.dx;
+    label(&mut scene, xc, |x| x[1] > 0.5);
+    let loss = stretch_loss(&scene, seed + 1);
+    let g = simulate_with_gradient(&scene, &loss).unwrap();
+    assert!((g.loss - loss_of(&scene, &loss)).abs() < 1e-14);
+    let n = scene.n_particles();
+    let rel = |fd: f64, ad: f64| (fd - ad).abs() / fd.abs().max(ad.abs()).max(1e-300);
+    let dir: Vec<Vector<D>> = (0..n).map(|_| Vector::<D>::from_fn(|_, _| rng.gen_range(-1.0..1.0))).collect();
+    for (what, h) in [("v0", 1e-5), ("x0", 1e-8)] {
+        let (mut sp, mut sm) = (scene.clone(), scene.clone());
+        for (p, d) in dir.iter().enumerate() {
+            if what == "v0" {
+                sp.velocities[p] += d * h;
+                sm.velocities[p] -= d * h;
+            } else {
+                sp.positions[p] += d * h;
+                sm.positions[p] -= d * h;
+            }
+        }
+        let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
+        let grad = if what == "v0" { &g.d_velocities } else { &g.d_positions };
+        let ad: f64 = (0..n).map(|p| grad[p].dot(&dir[p])).sum();
+        assert!(rel(fd, ad) < 1e-5, "{D}D d/d{what}: fd {fd:.12e} adjoint {ad:.12e}");
+    }
+    let h = 1e-5 * scene.material.youngs_modulus;
+    let (mut sp, mut sm) = (scene.clone(), scene.clone());
+    sp.material.youngs_modulus += h;
+    sm.material.youngs_modulus -= h;
+    let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
+    assert!(rel(fd, g.d_youngs_modulus) < 1e-5, "{D}D dE: fd {fd:.12e} adjoint {:.12e}", g.d_youngs_modulus);
+}
+
+#[test]
+fn two_field_gradient_check_2d() {
+    gradient_check::<2>(32, [8.0, 6.0], 40, 21);
+}
+
+#[test]
+fn two_field_gradient_check_3d() {
+    gradient_check::<3>(24, [5.0, 4.0, 4.0], 30, 22);
+}
+
+#[test]
+fn bad_crack_side_is_refused() {
+    let mut scene = block::<2>(32, [4.0, 4.0], 2);
+    scene.crack_side = vec![0; 3];
+    let e = simulate(&scene).unwrap_err().to_string();
+    assert!(e.contains("crack_side"), "{e}");
+    scene.crack_side = vec![2; scene.n_particles()];
+    let e = simulate(&scene).unwrap_err().to_string();
+    assert!(e.contains("crack_side") && e.contains("-1, 0 or +1"), "{e}");
+}
