@@ -25,7 +25,15 @@ fn label<const D: usize>(scene: &mut Scene<D>, xc: f64, in_crack: impl Fn(&Vecto
     scene.crack_side = scene
         .positions
         .iter()
-        .map(|x| if !in_crack(x) { 0 } else if x[0] < xc { -1 } else { 1 })
+        .map(|x| {
+            if !in_crack(x) {
+                0
+            } else if x[0] < xc {
+                -1
+            } else {
+                1
+            }
+        })
         .collect();
 }
 

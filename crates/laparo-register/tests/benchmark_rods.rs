@@ -58,8 +58,16 @@ fn landmarks_pull_the_box_and_the_far_end_stays() {
     let roi = Some(Roi::Ball { center: [7.5, 10.0, 20.0], radius_mm: 28.0 });
     let organ = OrganConfig { spacing_mm: 2.5, steps: 60, roi, ..Default::default() };
     let optimizer = OptimizerConfig { iterations: 15, ..Default::default() };
-    let problem =
-        RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, fixed_nodes: &[], groups, organ, optimizer };
+    let problem = RodsProblem {
+        nodes: &nodes,
+        tets: &tets,
+        node_side: &side,
+        fixed_nodes: &[],
+        groups,
+        organ,
+        optimizer,
+        crack: None,
+    };
     let out = run_rods(&problem, &mut |_| {}).unwrap();
     assert_eq!(out.nodes.len(), nodes.len());
     assert!(out.particles > 100);
@@ -101,6 +109,7 @@ fn the_registered_shape_is_invariant_to_e_under_the_cfl_step_and_not_at_a_fixed_
             groups: groups.clone(),
             organ,
             optimizer,
+            crack: None,
         };
         run_rods(&problem, &mut |_| {}).unwrap()
     };
@@ -141,6 +150,7 @@ fn fixed_nodes_hold_their_particles() {
             groups: groups.clone(),
             organ,
             optimizer,
+            crack: None,
         };
         run_rods(&problem, &mut |_| {}).unwrap()
     };
@@ -162,6 +172,7 @@ fn fixed_nodes_hold_their_particles() {
         groups: groups.clone(),
         organ: OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() },
         optimizer: OptimizerConfig::default(),
+        crack: None,
     };
     let err = run_rods(&problem, &mut |_| {}).unwrap_err().to_string();
     assert!(err.contains("fixed nodes"), "{err}");
@@ -186,8 +197,16 @@ fn rods_oracles_carry_a_rigid_translation_exactly() {
     }];
     let organ = OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() };
     let optimizer = OptimizerConfig { iterations: 5, ..Default::default() };
-    let problem =
-        RodsProblem { nodes: &nodes, tets: &tets, node_side: &side, fixed_nodes: &[], groups, organ, optimizer };
+    let problem = RodsProblem {
+        nodes: &nodes,
+        tets: &tets,
+        node_side: &side,
+        fixed_nodes: &[],
+        groups,
+        organ,
+        optimizer,
+        crack: None,
+    };
     let out = run_rods_oracle(&problem, &truth, OracleMode::Ballistic, 0.0).unwrap();
     let err = out.nodes.iter().zip(&truth).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(err < 1e-9, "a rigid translation is carried exactly: max node error {err} mm");
@@ -203,4 +222,104 @@ fn rods_oracles_carry_a_rigid_translation_exactly() {
     // a kerf needs a crack: this box has none, and the error names the parameter
     let Err(e) = run_rods_oracle(&problem, &truth, OracleMode::Ballistic, 5.0) else { panic!("kerf without a crack") };
     assert!(e.to_string().contains("kerf_mm"), "{e}");
+}
+
+/// A box split through x = 10 mm (crack nodes duplicated: side 1 left, side 2 right) whose ground truth
+/// translates the two halves 1.5 mm apart. With the two-field grid along the crack plane the ballistic
+/// oracle carries the opening exactly (every node to round-off, both lips included); the one-field grid
+/// of the thesis averages the lips' velocities on the nodes they share and cannot.
+#[test]
+fn two_field_grid_opens_a_zero_thickness_cut_exactly() {
+    use laparo_register::benchmark::rods::{run_rods_oracle, CrackSurface, OracleMode};
+    let (mut nodes, mut tets) = box_mesh(4, 3, 3, 5.0); // 20 × 15 × 15 mm
+    let mut side = vec![0u8; nodes.len()];
+    let on_crack: Vec<usize> = (0..nodes.len()).filter(|&i| (nodes[i][0] - 10.0).abs() < 1e-9).collect();
+    let mut copy = std::collections::HashMap::new();
+    for &i in &on_crack {
+        side[i] = 1;
+        copy.insert(i, nodes.len());
+        nodes.push(nodes[i]);
+        side.push(2);
+    }
+    for t in tets.iter_mut() {
+        let cx = t.iter().map(|&i| nodes[i][0]).sum::<f64>() / 4.0;
+        if cx > 10.0 {
+            for i in t.iter_mut() {
+                if let Some(&j) = copy.get(i) {
+                    *i = j;
+                }
+            }
+        }
+    }
+    let a = 0.75;
+    let truth: Vec<Vector3<f64>> = (0..nodes.len())
+        .map(|i| {
+            let right = nodes[i][0] > 10.0 + 1e-9 || side[i] == 2;
+            nodes[i] + Vector3::new(if right { a } else { -a }, 0.0, 0.0)
+        })
+        .collect();
+    let groups = vec![SideGroup {
+        name: "lm".into(),
+        sources: vec![(Vector3::new(15.0, 7.5, 15.0), 0)],
+        target: vec![Vector3::new(15.0 + a, 7.5, 15.0)],
+    }];
+    let crack = CrackSurface {
+        vertices: vec![
+            Vector3::new(10.0, -1.0, -1.0),
+            Vector3::new(10.0, 16.0, -1.0),
+            Vector3::new(10.0, 16.0, 16.0),
+            Vector3::new(10.0, -1.0, 16.0),
+        ],
+        faces: vec![[0, 1, 2], [0, 2, 3]],
+        band_mm: None,
+    };
+    let problem = |crack: Option<CrackSurface>| RodsProblem {
+        nodes: &nodes,
+        tets: &tets,
+        node_side: &side,
+        fixed_nodes: &[],
+        groups: groups.clone(),
+        organ: OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() },
+        optimizer: OptimizerConfig::default(),
+        crack,
+    };
+    let max_err = |out: &laparo_register::benchmark::rods::RodsOutput| {
+        out.nodes.iter().zip(&truth).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max)
+    };
+    let two = run_rods_oracle(&problem(Some(crack.clone())), &truth, OracleMode::Ballistic, 0.0).unwrap();
+    assert!(two.notes.iter().any(|n| n.starts_with("two-field grid")), "{:?}", two.notes);
+    assert!(max_err(&two) < 1e-9, "two-field: max node error {} mm", max_err(&two));
+    let one = run_rods_oracle(&problem(None), &truth, OracleMode::Ballistic, 0.0).unwrap();
+    assert!(max_err(&one) > 0.1 * a, "one-field: max node error {} mm", max_err(&one));
+    // a crack face that names a missing vertex is refused
+    let bad = CrackSurface { faces: vec![[0, 1, 7]], ..crack };
+    let err = run_rods_oracle(&problem(Some(bad)), &truth, OracleMode::Ballistic, 0.0).unwrap_err().to_string();
+    assert!(err.contains("crack surface"), "{err}");
+}
+
+/// Crack sides by hand on the square crack z = 0, x, y ∈ [0, 10] mm (normal +z).
+#[test]
+fn crack_sides_by_hand() {
+    use laparo_register::benchmark::rods::{crack_sides, CrackSurface};
+    let crack = CrackSurface {
+        vertices: vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(10.0, 0.0, 0.0),
+            Vector3::new(10.0, 10.0, 0.0),
+            Vector3::new(0.0, 10.0, 0.0),
+        ],
+        faces: vec![[0, 1, 2], [0, 2, 3]],
+        band_mm: None,
+    };
+    let pts = [
+        Vector3::new(5.0, 5.0, 2.0),  // above: +1
+        Vector3::new(5.0, 5.0, -2.0), // below: −1
+        Vector3::new(5.0, 5.0, 9.0),  // beyond the 8 mm band: 0
+        Vector3::new(14.0, 5.0, 0.5), // ahead of the crack front (offset ≈ in-plane): 0
+        Vector3::new(11.0, 5.0, 3.0), // past the edge but within 60° of the normal (atan(1/3) = 18°): +1
+        Vector3::new(5.0, 5.0, 0.0),  // on the crack: judged by its inside point (below): −1
+    ];
+    let inside = [pts[0], pts[1], pts[2], pts[3], pts[4], Vector3::new(5.0, 5.0, -1.0)];
+    assert_eq!(crack_sides(&pts, &inside, &crack, 8.0).unwrap(), vec![1, -1, 0, 0, 1, -1]);
+    assert!(crack_sides(&pts, &inside, &crack, 0.0).unwrap_err().to_string().contains("band"));
 }

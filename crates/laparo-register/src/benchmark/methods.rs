@@ -108,6 +108,28 @@ fn outward_normals(mesh: &TetMesh, points: &[Vector3<f64>]) -> Vec<Vector3<f64>>
         .collect()
 }
 
+/// The cut a method may assume (François et al., and RODS-MPM's two-field grid): the blade is the first
+/// lip's source polyline, swept inward along the uncut surface's −n to `depth_mm` (the true depth is not
+/// known intraoperatively). The result's tetrahedra are the uncut mesh's, in the same order.
+pub fn assumed_cut(
+    uncut: &TetMesh,
+    landmarks: &[LandmarkSet],
+    depth_mm: f64,
+) -> Result<laparo_fem::mesh::incision::CutMesh> {
+    if !(depth_mm > 0.0 && depth_mm.is_finite()) {
+        return Err(RegisterError::param("assumed cut depth (mm)", depth_mm, "must be finite and > 0"));
+    }
+    let mouth: Vec<Vector3<f64>> = landmarks.first().map(|l| l.sources.clone()).unwrap_or_default();
+    let normals = outward_normals(uncut, &mouth);
+    let blade = Blade {
+        mouth: mouth.clone(),
+        directions: normals.iter().map(|n| -n).collect(),
+        depths: vec![depth_mm; mouth.len()],
+        overshoot_mm: 5.0,
+    };
+    cut(uncut, &blade).map_err(|e| RegisterError::bad("assumed cut of the source mesh", e.to_string()))
+}
+
 impl Method for BaselineMethod {
     fn name(&self) -> String {
         self.name.clone()
@@ -119,17 +141,7 @@ impl Method for BaselineMethod {
         let mut notes = Vec::new();
         let (mesh, to_case): (TetMesh, Vec<usize>) = match &self.baseline {
             Baseline::Francois { assumed_depth_mm, .. } => {
-                // the blade: the lip-1 source polyline, swept inward along −n to the assumed depth
-                let mouth: Vec<Vector3<f64>> = landmarks.first().map(|l| l.sources.clone()).unwrap_or_default();
-                let normals = outward_normals(&uncut, &mouth);
-                let blade = Blade {
-                    mouth: mouth.clone(),
-                    directions: normals.iter().map(|n| -n).collect(),
-                    depths: vec![*assumed_depth_mm; mouth.len()],
-                    overshoot_mm: 5.0,
-                };
-                let f = cut(&uncut, &blade)
-                    .map_err(|e| RegisterError::bad("François et al.: cutting the source mesh", e.to_string()))?;
+                let f = assumed_cut(&uncut, landmarks, *assumed_depth_mm)?;
                 // case node i sits at corner (t, k): François' copy is f.mesh.tets[t][k]
                 let to_case = corners(case).iter().map(|&(t, k)| f.mesh.tets[t][k]).collect();
                 notes.push(format!(

@@ -45,6 +45,67 @@ pub struct RodsProblem<'a> {
     pub organ: OrganConfig,
     /// Optimiser.
     pub optimizer: OptimizerConfig,
+    /// A crack the simulation separates along with laparo-mpm's two-field grid (`Scene::crack_side`);
+    /// None = the one-field MLS-MPM of the thesis.
+    pub crack: Option<CrackSurface>,
+}
+
+/// A crack surface for the two-field grid: particles within `band_mm` of it whose offset from their
+/// closest crack point lies within 60° of that face's normal take side ±1 (+1 on the normal's side),
+/// the others (beyond the crack front, or far) side 0.
+#[derive(Clone, Debug)]
+pub struct CrackSurface {
+    /// Vertices (mm, model frame).
+    pub vertices: Vec<Vector3<f64>>,
+    /// Triangles, wound so that their normals point from side −1 to side +1.
+    pub faces: Vec<[usize; 3]>,
+    /// Labelling band (mm); None = 3 Δx of the simulation grid.
+    pub band_mm: Option<f64>,
+}
+
+/// Crack side (−1, 0, +1) of each point (see [`CrackSurface`]); a point on the surface itself (closer
+/// than 1e-6 mm) is judged by its `inside` point (e.g. the centroid of the tetrahedron it was sampled in).
+pub fn crack_sides(
+    points: &[Vector3<f64>],
+    inside: &[Vector3<f64>],
+    crack: &CrackSurface,
+    band_mm: f64,
+) -> Result<Vec<i8>> {
+    if crack.faces.is_empty() {
+        return Err(RegisterError::bad("crack surface", "no triangle"));
+    }
+    if !(band_mm > 0.0 && band_mm.is_finite()) {
+        return Err(RegisterError::param("crack band (mm)", band_mm, "must be finite and > 0"));
+    }
+    if let Some(f) = crack.faces.iter().find(|f| f.iter().any(|&i| i >= crack.vertices.len())) {
+        return Err(RegisterError::bad("crack surface", format!("face {f:?} of {} vertices", crack.vertices.len())));
+    }
+    let surface = crate::distance::TriangleSurface::new(crack.vertices.clone(), crack.faces.clone());
+    let normal = |k: usize| {
+        let q = crack.faces[k].map(|i| crack.vertices[i]);
+        (q[1] - q[0]).cross(&(q[2] - q[0])).try_normalize(0.0)
+    };
+    Ok(points
+        .iter()
+        .zip(inside)
+        .map(|(x, y)| {
+            use crate::distance::ClosestPoint;
+            let (c, k) = surface.closest(x);
+            let mut d = x - c;
+            if d.norm() > band_mm {
+                return 0;
+            }
+            if d.norm() < 1e-6 {
+                let (c2, _) = surface.closest(y);
+                d = y - c2;
+            }
+            match normal(k) {
+                Some(n) if d.dot(&n) > 0.5 * d.norm() => 1,
+                Some(n) if d.dot(&n) < -0.5 * d.norm() => -1,
+                _ => 0,
+            }
+        })
+        .collect())
 }
 
 /// The registered node positions and how the run went.
@@ -150,6 +211,22 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
     let mut organ = organ_from_points(points.clone(), &problem.organ, "benchmark mesh")?;
     debug_assert_eq!(organ.scene.n_particles(), points.len());
     let mut notes = organ.warnings.clone();
+    if let Some(crack) = &problem.crack {
+        let band = crack.band_mm.unwrap_or(3.0 * organ.scene.grid.dx);
+        let centroids: Vec<Vector3<f64>> = samples
+            .iter()
+            .map(|(_, t)| problem.tets[*t].iter().map(|&i| problem.nodes[i]).sum::<Vector3<f64>>() / 4.0)
+            .collect();
+        let sides = crack_sides(&points, &centroids, crack, band)?;
+        let count = |v: i8| sides.iter().filter(|&&s| s == v).count();
+        notes.push(format!(
+            "two-field grid: {} particles on side -1, {} on side +1 (band {band:.1} mm, {} crack faces)",
+            count(-1),
+            count(1),
+            crack.faces.len()
+        ));
+        organ.scene.crack_side = sides;
+    }
     if kerf_mm > 0.0 {
         notes.push(format!(
             "kerf {kerf_mm} mm: {kerf_removed} particles within {} mm of the crack removed",
@@ -248,6 +325,9 @@ pub enum OracleMode {
     /// 5.10 over all particles): how close an MLS-MPM trajectory from rest can come to the ground truth
     /// on this grid when nothing is under-determined.
     Dense,
+    /// No simulation: every particle placed at its ground-truth position, then read back to the nodes —
+    /// the error floor of the particle-to-node transfer itself.
+    Readback,
 }
 
 /// Run a RODS-MPM oracle on `problem` against the ground-truth node positions `truth` (mm): the lip
@@ -285,6 +365,10 @@ pub fn run_rods_oracle(
             let sim = laparo_mpm::simulate(&organ.scene)?;
             notes.push("oracle: ballistic v₀ = u_GT / (T Δt)".into());
             (sim.final_state.x, 0)
+        }
+        OracleMode::Readback => {
+            notes.push("oracle: particles at their ground-truth positions, no simulation".into());
+            (points.iter().zip(&u).map(|(x, u)| x + u + off).collect(), 0)
         }
         OracleMode::Dense => {
             let particles: Vec<usize> = (0..points.len()).filter(|&p| !held(p)).collect();
@@ -475,6 +559,9 @@ pub struct RodsMethod {
     pub organ: OrganConfig,
     /// Optimiser.
     pub optimizer: OptimizerConfig,
+    /// Simulate with laparo-mpm's two-field grid along the cut François et al. assume (the first lip's
+    /// source polyline swept inward to this depth, mm); None = the thesis' one-field MLS-MPM.
+    pub two_field_depth_mm: Option<f64>,
 }
 
 /// The name RODS-MPM's rows carry in the benchmark's tables.
@@ -487,7 +574,16 @@ impl RodsMethod {
         &self,
         case: &'a super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
-    ) -> RodsProblem<'a> {
+    ) -> Result<RodsProblem<'a>> {
+        let crack = match self.two_field_depth_mm {
+            Some(depth) => {
+                let (nodes, tets, _) = case.uncut();
+                let uncut = laparo_core::mesh::TetMesh { vertices: nodes, tets };
+                let f = super::methods::assumed_cut(&uncut, landmarks, depth)?;
+                Some(CrackSurface { vertices: f.mesh.vertices, faces: f.crack_faces[0].clone(), band_mm: None })
+            }
+            None => None,
+        };
         let groups = landmarks
             .iter()
             .map(|l| SideGroup {
@@ -500,7 +596,7 @@ impl RodsMethod {
         if case.roi.is_some() {
             organ.roi = case.roi;
         }
-        RodsProblem {
+        Ok(RodsProblem {
             nodes: &case.rest,
             tets: &case.tets,
             node_side: &case.node_side,
@@ -508,7 +604,8 @@ impl RodsMethod {
             groups,
             organ,
             optimizer: self.optimizer.clone(),
-        }
+            crack,
+        })
     }
 }
 
@@ -521,14 +618,17 @@ fn method_output(out: RodsOutput) -> super::case::MethodOutput {
 
 impl super::case::Method for RodsMethod {
     fn name(&self) -> String {
-        RODS_MPM_NAME.into()
+        match self.two_field_depth_mm {
+            Some(d) => format!("{RODS_MPM_NAME} two-field (cut {d} mm)"),
+            None => RODS_MPM_NAME.into(),
+        }
     }
     fn register(
         &self,
         case: &super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<super::case::MethodOutput> {
-        Ok(method_output(run_rods(&self.problem(case, landmarks), &mut |_| {})?))
+        Ok(method_output(run_rods(&self.problem(case, landmarks)?, &mut |_| {})?))
     }
 }
 
@@ -548,9 +648,14 @@ pub struct RodsOracle {
 impl super::case::Method for RodsOracle {
     fn name(&self) -> String {
         let kerf = if self.kerf_mm > 0.0 { format!(", kerf {} mm", self.kerf_mm) } else { String::new() };
+        let grid = match self.inner.two_field_depth_mm {
+            Some(d) => format!(", two-field cut {d} mm"),
+            None => String::new(),
+        };
         match self.mode {
-            OracleMode::Ballistic => format!("RODS-MPM oracle (ballistic v0{kerf})"),
-            OracleMode::Dense => format!("RODS-MPM oracle (dense targets{kerf})"),
+            OracleMode::Ballistic => format!("RODS-MPM oracle (ballistic v0{kerf}{grid})"),
+            OracleMode::Dense => format!("RODS-MPM oracle (dense targets{kerf}{grid})"),
+            OracleMode::Readback => format!("RODS-MPM oracle (read-back of u_GT{kerf})"),
         }
     }
     fn register(
@@ -558,7 +663,7 @@ impl super::case::Method for RodsOracle {
         case: &super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<super::case::MethodOutput> {
-        let problem = self.inner.problem(case, landmarks);
+        let problem = self.inner.problem(case, landmarks)?;
         Ok(method_output(run_rods_oracle(&problem, &case.ground_truth, self.mode, self.kerf_mm)?))
     }
 }

@@ -50,8 +50,11 @@ pub struct BenchmarkArgs {
     #[arg(long)]
     pub seeds: Option<usize>,
     /// Methods, comma separated, among none (the rest mesh: the error of not registering), arap, drbc,
-    /// francois, lddmm, rods; and the diagnostics rods-ballistic, rods-dense (RODS-MPM oracles that read
-    /// the ground truth: what the simulator can represent, not a registration method).
+    /// francois, lddmm, rods, rods-two-field (RODS-MPM on laparo-mpm's two-field grid along the cut
+    /// François et al. assume: --francois-depth-mm); and the diagnostics rods-ballistic, rods-dense
+    /// (RODS-MPM oracles that read the ground truth: what the simulator can represent, not a registration
+    /// method; with the suffix -two-field, on the two-field grid), rods-readback (no simulation: the
+    /// ground truth read back from the particles to the nodes, the transfer's error floor).
     #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods")]
     pub methods: String,
     /// RODS-MPM particle spacing (mm); default 3 (quick 6).
@@ -173,11 +176,21 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             // per-element rotations (libigl's tet default): cotangent spokes are unreliable on obtuse tets
             "arap" => b("ARAP", Baseline::Arap(ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })),
             // diagnostics that read the ground truth (not registration methods: see RodsOracle)
-            "rods-ballistic" | "rods-dense" => Box::new(laparo_register::benchmark::rods::RodsOracle {
-                inner: RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() },
-                mode: if m == "rods-ballistic" { OracleMode::Ballistic } else { OracleMode::Dense },
-                kerf_mm: a.oracle_kerf_mm,
-            }),
+            "rods-ballistic" | "rods-dense" | "rods-ballistic-two-field" | "rods-dense-two-field" | "rods-readback" => {
+                Box::new(laparo_register::benchmark::rods::RodsOracle {
+                    inner: RodsMethod {
+                        organ: organ.clone(),
+                        optimizer: optimizer.clone(),
+                        two_field_depth_mm: m.ends_with("-two-field").then_some(a.francois_depth_mm),
+                    },
+                    mode: match m.as_str() {
+                        "rods-readback" => OracleMode::Readback,
+                        m if m.starts_with("rods-ballistic") => OracleMode::Ballistic,
+                        _ => OracleMode::Dense,
+                    },
+                    kerf_mm: a.oracle_kerf_mm,
+                })
+            }
             "none" => Box::new(laparo_register::benchmark::methods::NoRegistration),
             "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
             "francois" => b(
@@ -185,8 +198,16 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                 Baseline::Francois { drbc: DrbcConfig::default(), assumed_depth_mm: a.francois_depth_mm },
             ),
             "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
-            "rods" | "rods-mpm" => Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone() }),
-            o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods, rods-ballistic, rods-dense)"),
+            "rods" | "rods-mpm" => {
+                Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field_depth_mm: None })
+            }
+            // laparo-mpm's two-field grid along the cut François et al. assume (same blade, same depth)
+            "rods-two-field" => Box::new(RodsMethod {
+                organ: organ.clone(),
+                optimizer: optimizer.clone(),
+                two_field_depth_mm: Some(a.francois_depth_mm),
+            }),
+            o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback)"),
         });
     }
     if out.is_empty() {
@@ -220,7 +241,10 @@ fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [
     let mut out: Vec<SweepSetting> = Vec::new();
     let mut rods = |name: String, organ: OrganConfig, panel: usize, value: f64| {
         out.push(SweepSetting {
-            method: Box::new(NamedRods { name, inner: RodsMethod { organ, optimizer: optimizer.clone() } }),
+            method: Box::new(NamedRods {
+                name,
+                inner: RodsMethod { organ, optimizer: optimizer.clone(), two_field_depth_mm: None },
+            }),
             panel: Some((panel, value)),
         })
     };
