@@ -19,7 +19,7 @@ pub use case::{
     column_landmarks, run_protocol, score, BenchmarkCase, LandmarkSet, MaterialPoint, Method, MethodOutput, RunEvent,
 };
 pub use protocol::{noisy_targets, table51_columns, Column};
-pub use rods::{OracleMode, RodsMethod, RodsOracle, RODS_MPM_NAME};
+pub use rods::{OracleMode, RodsMethod, RodsOracle, TwoField, RODS_MPM_NAME};
 pub use store::{ResultStore, RunKey, RunResult};
 pub use table::{aggregate, table_csv, table_json, table_markdown, Cell};
 pub use tre::{binned, distance_to_nearest, node_errors, BinStats, Stats, DISTANCE_BIN_EDGES_MM};

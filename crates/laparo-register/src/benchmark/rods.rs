@@ -559,9 +559,71 @@ pub struct RodsMethod {
     pub organ: OrganConfig,
     /// Optimiser.
     pub optimizer: OptimizerConfig,
-    /// Simulate with laparo-mpm's two-field grid along the cut François et al. assume (the first lip's
-    /// source polyline swept inward to this depth, mm); None = the thesis' one-field MLS-MPM.
-    pub two_field_depth_mm: Option<f64>,
+    /// Simulate with laparo-mpm's two-field grid along a known crack; None = the thesis' one-field MLS-MPM.
+    pub two_field: Option<TwoField>,
+}
+
+/// Which crack RODS-MPM's two-field grid separates along.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TwoField {
+    /// The cut François et al. assume: the first lip's source polyline swept inward to this depth (mm).
+    AssumedCut {
+        /// Depth (mm).
+        depth_mm: f64,
+    },
+    /// The ground truth's own crack faces (a diagnostic: the crack's extent is not known intraoperatively).
+    TrueCrack,
+}
+
+/// The crack faces of side 1 of a cut mesh, wound outward from their tetrahedron (towards side 2): the
+/// boundary faces that coincide with another boundary face (the two lips of a crack at rest), including
+/// those on the crack front (whose front nodes are not duplicated), kept from the tetrahedron that holds
+/// a side-1 node.
+pub fn true_crack(nodes: &[Vector3<f64>], tets: &[[usize; 4]], node_side: &[u8]) -> CrackSurface {
+    let mut count: HashMap<[usize; 3], usize> = HashMap::new();
+    let face = |t: &[usize; 4], skip: usize| -> [usize; 3] {
+        let f: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| t[k]).collect();
+        [f[0], f[1], f[2]]
+    };
+    let sorted = |mut f: [usize; 3]| {
+        f.sort_unstable();
+        f
+    };
+    for t in tets {
+        for skip in 0..4 {
+            *count.entry(sorted(face(t, skip))).or_default() += 1;
+        }
+    }
+    // boundary faces keyed by their vertex positions (bit patterns: the lips' copies are exact)
+    let pos_key = |f: &[usize; 3]| {
+        let mut k: Vec<[u64; 3]> = f.iter().map(|&i| nodes[i].map(f64::to_bits).into()).collect();
+        k.sort_unstable();
+        k
+    };
+    let mut by_pos: HashMap<Vec<[u64; 3]>, usize> = HashMap::new();
+    for t in tets {
+        for skip in 0..4 {
+            let f = face(t, skip);
+            if count[&sorted(f)] == 1 {
+                *by_pos.entry(pos_key(&f)).or_default() += 1;
+            }
+        }
+    }
+    let mut faces = Vec::new();
+    for t in tets {
+        if !t.iter().any(|&i| node_side[i] == 1) {
+            continue;
+        }
+        for skip in 0..4 {
+            let f = face(t, skip);
+            if count[&sorted(f)] == 1 && by_pos[&pos_key(&f)] == 2 {
+                let (a, b, c) = (nodes[f[0]], nodes[f[1]], nodes[f[2]]);
+                let out = (b - a).cross(&(c - a)).dot(&(a - nodes[t[skip]])) > 0.0;
+                faces.push(if out { f } else { [f[0], f[2], f[1]] });
+            }
+        }
+    }
+    CrackSurface { vertices: nodes.to_vec(), faces, band_mm: None }
 }
 
 /// The name RODS-MPM's rows carry in the benchmark's tables.
@@ -575,13 +637,14 @@ impl RodsMethod {
         case: &'a super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<RodsProblem<'a>> {
-        let crack = match self.two_field_depth_mm {
-            Some(depth) => {
+        let crack = match self.two_field {
+            Some(TwoField::AssumedCut { depth_mm }) => {
                 let (nodes, tets, _) = case.uncut();
                 let uncut = laparo_core::mesh::TetMesh { vertices: nodes, tets };
-                let f = super::methods::assumed_cut(&uncut, landmarks, depth)?;
+                let f = super::methods::assumed_cut(&uncut, landmarks, depth_mm)?;
                 Some(CrackSurface { vertices: f.mesh.vertices, faces: f.crack_faces[0].clone(), band_mm: None })
             }
+            Some(TwoField::TrueCrack) => Some(true_crack(&case.rest, &case.tets, &case.node_side)),
             None => None,
         };
         let groups = landmarks
@@ -609,6 +672,15 @@ impl RodsMethod {
     }
 }
 
+/// The name suffix of a two-field run (empty for the one-field grid).
+fn two_field_label(t: Option<TwoField>, sep: &str) -> String {
+    match t {
+        Some(TwoField::AssumedCut { depth_mm }) => format!("{sep}two-field (cut {depth_mm} mm)"),
+        Some(TwoField::TrueCrack) => format!("{sep}two-field (true crack)"),
+        None => String::new(),
+    }
+}
+
 /// A benchmark method output from a RODS-MPM run.
 fn method_output(out: RodsOutput) -> super::case::MethodOutput {
     let mut notes = out.notes;
@@ -618,10 +690,7 @@ fn method_output(out: RodsOutput) -> super::case::MethodOutput {
 
 impl super::case::Method for RodsMethod {
     fn name(&self) -> String {
-        match self.two_field_depth_mm {
-            Some(d) => format!("{RODS_MPM_NAME} two-field (cut {d} mm)"),
-            None => RODS_MPM_NAME.into(),
-        }
+        format!("{RODS_MPM_NAME}{}", two_field_label(self.two_field, " "))
     }
     fn register(
         &self,
@@ -648,10 +717,7 @@ pub struct RodsOracle {
 impl super::case::Method for RodsOracle {
     fn name(&self) -> String {
         let kerf = if self.kerf_mm > 0.0 { format!(", kerf {} mm", self.kerf_mm) } else { String::new() };
-        let grid = match self.inner.two_field_depth_mm {
-            Some(d) => format!(", two-field cut {d} mm"),
-            None => String::new(),
-        };
+        let grid = two_field_label(self.inner.two_field, ", ");
         match self.mode {
             OracleMode::Ballistic => format!("RODS-MPM oracle (ballistic v0{kerf}{grid})"),
             OracleMode::Dense => format!("RODS-MPM oracle (dense targets{kerf}{grid})"),

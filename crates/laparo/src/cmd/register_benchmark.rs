@@ -20,7 +20,7 @@ use laparo_register::benchmark::figures::{
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
 use laparo_register::benchmark::{
     aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, OracleMode,
-    ResultStore, RodsMethod, RODS_MPM_NAME,
+    ResultStore, RodsMethod, TwoField, RODS_MPM_NAME,
 };
 use laparo_register::optimize::OptimizerConfig;
 use laparo_register::organ::OrganConfig;
@@ -89,6 +89,10 @@ pub struct BenchmarkArgs {
     /// RODS-MPM horizon T (steps); default 200 (quick 60).
     #[arg(long)]
     pub steps: Option<usize>,
+    /// The crack of the two-field methods: assumed (François et al.'s cut, --francois-depth-mm) or true (the
+    /// ground truth's crack faces: a diagnostic, the crack's extent is not known intraoperatively).
+    #[arg(long, default_value = "assumed")]
+    pub two_field_crack: String,
     /// François et al.: assumed cut depth (mm) under the source lip polyline.
     #[arg(long, default_value_t = 20.0)]
     pub francois_depth_mm: f64,
@@ -181,7 +185,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                     inner: RodsMethod {
                         organ: organ.clone(),
                         optimizer: optimizer.clone(),
-                        two_field_depth_mm: m.ends_with("-two-field").then_some(a.francois_depth_mm),
+                        two_field: m.ends_with("-two-field").then(|| two_field(a)).transpose()?,
                     },
                     mode: match m.as_str() {
                         "rods-readback" => OracleMode::Readback,
@@ -199,13 +203,13 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             ),
             "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
             "rods" | "rods-mpm" => {
-                Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field_depth_mm: None })
+                Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None })
             }
             // laparo-mpm's two-field grid along the cut François et al. assume (same blade, same depth)
             "rods-two-field" => Box::new(RodsMethod {
                 organ: organ.clone(),
                 optimizer: optimizer.clone(),
-                two_field_depth_mm: Some(a.francois_depth_mm),
+                two_field: Some(two_field(a)?),
             }),
             o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback)"),
         });
@@ -231,6 +235,15 @@ struct SweepSetting {
     panel: Option<(usize, f64)>,
 }
 
+/// The crack of the two-field methods (`--two-field-crack`).
+fn two_field(a: &BenchmarkArgs) -> Result<TwoField> {
+    match a.two_field_crack.as_str() {
+        "assumed" => Ok(TwoField::AssumedCut { depth_mm: a.francois_depth_mm }),
+        "true" => Ok(TwoField::TrueCrack),
+        o => bail!("--two-field-crack: {o:?} is neither assumed nor true"),
+    }
+}
+
 /// Sensitivity sweeps (Fig. 5.9) as extra named methods, and the default value of every panel.
 fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [f64; 5])> {
     let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
@@ -243,7 +256,7 @@ fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [
         out.push(SweepSetting {
             method: Box::new(NamedRods {
                 name,
-                inner: RodsMethod { organ, optimizer: optimizer.clone(), two_field_depth_mm: None },
+                inner: RodsMethod { organ, optimizer: optimizer.clone(), two_field: None },
             }),
             panel: Some((panel, value)),
         })
