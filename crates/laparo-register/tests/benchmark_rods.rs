@@ -291,6 +291,16 @@ fn two_field_grid_opens_a_zero_thickness_cut_exactly() {
     assert!(max_err(&two) < 1e-9, "two-field: max node error {} mm", max_err(&two));
     let one = run_rods_oracle(&problem(None), &truth, OracleMode::Ballistic, 0.0).unwrap();
     assert!(max_err(&one) > 0.1 * a, "one-field: max node error {} mm", max_err(&one));
+    // the true crack of the split mesh: the 3 × 3 squares of x = 10 mm, two triangles each, normals +x
+    let found = laparo_register::benchmark::rods::true_crack(&nodes, &tets, &side);
+    assert_eq!(found.faces.len(), 18);
+    for f in &found.faces {
+        let [p, q, r] = f.map(|i| found.vertices[i]);
+        let n = (q - p).cross(&(r - p)).normalize();
+        assert!((n - Vector3::x()).norm() < 1e-12 && (p[0] - 10.0).abs() < 1e-12, "face {f:?}: normal {n:?}");
+    }
+    let exact = run_rods_oracle(&problem(Some(found)), &truth, OracleMode::Ballistic, 0.0).unwrap();
+    assert!(max_err(&exact) < 1e-9, "two-field on the true crack: {} mm", max_err(&exact));
     // a crack face that names a missing vertex is refused
     let bad = CrackSurface { faces: vec![[0, 1, 7]], ..crack };
     let err = run_rods_oracle(&problem(Some(bad)), &truth, OracleMode::Ballistic, 0.0).unwrap_err().to_string();
