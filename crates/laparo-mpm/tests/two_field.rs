@@ -132,14 +132,13 @@ fn crack_front_keeps_the_uncut_part_together() {
     // mean x-gap between the particle columns on each side of x = 0.5, in a row band
     let gap = |lo: f64, hi: f64, x: &[Vector<2>]| {
         let (mut l, mut nl, mut r, mut nr) = (0.0, 0, 0.0, 0);
-        for p in 0..scene.n_particles() {
-            let x0 = scene.positions[p];
+        for (x0, xp) in scene.positions.iter().zip(x) {
             if x0[1] > lo && x0[1] < hi && (x0[0] - 0.5).abs() < 0.5 * scene.grid.dx {
                 if x0[0] < 0.5 {
-                    l += x[p][0];
+                    l += xp[0];
                     nl += 1;
                 } else {
-                    r += x[p][0];
+                    r += xp[0];
                     nr += 1;
                 }
             }
