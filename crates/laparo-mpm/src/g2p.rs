@@ -2,7 +2,7 @@
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{field_slot, node_at, prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slots, node_at, prefetch, SparseGrid, SyncPtr};
 use crate::stencil::{base_of, bspline, for_stencil};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -51,13 +51,12 @@ pub fn gather<const D: usize>(
         }
         let base = base_of(&x[p], inv_dx);
         let (fx, w, _) = bspline(&x[p], &base, inv_dx);
-        let st = nbr.nodes(&base);
-        let label = scene.crack_label(p);
+        let st = field_slots(nbr.nodes(&base), side, scene.crack_label(p));
         // v' = Σ w v_i; C' = 4/Δx Σ w v_i (o − fx)ᵀ = 4/Δx Σ_d (Σ_o (o − fx_d) S_d[o]) e_dᵀ with
         // S_d[o] = Σ_{nodes with o_d = o} w v_i.
         let mut sums = [[Vector::<D>::zeros(); 3]; D];
         for_stencil::<D>(&w, |k, o, weight| {
-            let gw = node_at(&grid.vel, field_slot(side, st[k] as usize, label)) * weight;
+            let gw = node_at(&grid.vel, st[k] as usize) * weight;
             for d in 0..D {
                 sums[d][o[d]] += gw;
             }

@@ -5,7 +5,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::error::MpmError;
 use crate::linalg::{all_finite, Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{field_slot, prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slots, prefetch, SparseGrid, SyncPtr};
 use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil};
 use rayon::prelude::*;
 
@@ -154,12 +154,11 @@ pub fn scatter<const D: usize>(
         if !scene.external_forces.is_empty() {
             mv += scene.external_forces[p] * scene.dt;
         }
-        let st = nbr.nodes(&base);
-        let label = scene.crack_label(p);
+        let st = field_slots(nbr.nodes(&base), side, scene.crack_label(p));
         // mv + A (o − fx) Δx per node from per-axis terms.
         let terms = affine_terms(&mv, &affine[p], &fx, dx);
         for_stencil::<D>(&w, |k, o, weight| {
-            let i = field_slot(side, st[k] as usize, label);
+            let i = st[k] as usize;
             let q = affine_at(&terms, o);
             // SAFETY: same-colour tasks touch disjoint nodes (see sparse_grid).
             unsafe {

@@ -5,7 +5,7 @@
 //! w̄_i = v_i·u_i; f̄x = Σ_i w̄_i ∂w_i/∂fx − 4/Δx C̄'ᵀ v' (using Σ w_i v_i = v'); x̄ = x̄' + f̄x/Δx.
 use crate::linalg::{Matrix, Vector};
 use crate::scene::Scene;
-use crate::sparse_grid::{field_slot, node_at, prefetch, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slots, node_at, prefetch, SparseGrid, SyncPtr};
 use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad};
 
 /// Fills `vel_bar` (node-velocity adjoint, zeroed, one per node of `grid`) and `x_bar` (the G2P part
@@ -47,13 +47,12 @@ pub fn g2p_adjoint<const D: usize>(
         let cb4 = c_bar_next[p] * (4.0 * inv_dx);
         let base = base_of(&x[p], inv_dx);
         let (fx, w, dw) = bspline(&x[p], &base, inv_dx);
-        let st = nbr.nodes(&base);
-        let label = scene.crack_label(p);
+        let st = field_slots(nbr.nodes(&base), side, scene.crack_label(p));
         let mut fxb = -(cb4.transpose() * v_next[p]);
         // u_i = v̄' + 4/Δx C̄' (o_i − fx) from per-axis terms.
         let terms = affine_terms(&vb, &cb4, &fx, 1.0);
         for_stencil::<D>(&w, |k, o, weight| {
-            let i = field_slot(side, st[k] as usize, label);
+            let i = st[k] as usize;
             let u = affine_at(&terms, o);
             unsafe {
                 *vb_ptr.at(i) += u * weight;

@@ -10,7 +10,7 @@ use crate::constitutive::ConstitutiveModel;
 use crate::linalg::{Matrix, Vector};
 use crate::p2g::stress_scale;
 use crate::scene::Scene;
-use crate::sparse_grid::{field_slot, node_at, SparseGrid, SyncPtr};
+use crate::sparse_grid::{field_slots, node_at, SparseGrid, SyncPtr};
 use crate::stencil::{affine_at, affine_terms, base_of, bspline, for_stencil, weight_grad};
 
 /// Adjoint arrays of the particle state, updated in place by [`p2g_adjoint`] from those of the
@@ -69,8 +69,7 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
             if !scene.external_forces.is_empty() {
                 mv += scene.external_forces[p] * dt;
             }
-            let st = nbr.nodes(&base);
-            let label = scene.crack_label(p);
+            let st = field_slots(nbr.nodes(&base), side, scene.crack_label(p));
             let a = tau * scale + c[p] * m;
             // mv + A dpos_i from per-axis terms; Σ w p̄_i and Σ w p̄_i dpos_iᵀ from the per-axis
             // sums S_d[o] = Σ_{nodes with o_d = o} w p̄_i.
@@ -78,7 +77,7 @@ pub fn p2g_adjoint<const D: usize, M: ConstitutiveModel<D>>(
             let mut sums = [[Vector::<D>::zeros(); 3]; D];
             let mut fxb = Vector::<D>::zeros();
             for_stencil::<D>(&w, |k, o, weight| {
-                let nb = node_at(node_bar, field_slot(side, st[k] as usize, label));
+                let nb = node_at(node_bar, st[k] as usize);
                 let pb = nb.mom;
                 let wpb = pb * weight;
                 for d in 0..D {

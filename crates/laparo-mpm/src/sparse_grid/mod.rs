@@ -20,7 +20,7 @@ mod raw;
 mod tests;
 mod traverse;
 
-pub(crate) use raw::{field_slot, node_at, prefetch, SyncPtr};
+pub(crate) use raw::{field_slots, node_at, prefetch, SyncPtr};
 
 use crate::error::MpmError;
 use crate::grid_spec::GridSpec;

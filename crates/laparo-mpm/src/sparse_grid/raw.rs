@@ -26,6 +26,17 @@ pub(crate) fn field_slot(side: &[f64], i: usize, label: f64) -> usize {
     i
 }
 
+/// The stencil's node indices `st` mapped to the particle's slots ([`field_slot`]); unchanged (one
+/// branch per particle, not per node) for a particle without a crack side.
+#[inline(always)]
+pub(crate) fn field_slots(st: [u32; 27], side: &[f64], label: f64) -> [u32; 27] {
+    if label == 0.0 {
+        st
+    } else {
+        st.map(|i| field_slot(side, i as usize, label) as u32)
+    }
+}
+
 /// Hint the CPU to load the cache line at `r` (no effect on results; a no-op off x86-64). `r` is only
 /// an address: it is never dereferenced.
 #[inline(always)]

@@ -32,7 +32,20 @@ pub enum Baseline {
         drbc: DrbcConfig,
         /// Depth of the assumed cut (mm) below the lip polyline.
         assumed_depth_mm: f64,
+        /// Which way the assumed cut leaves the lip.
+        direction: CutDirection,
     },
+}
+
+/// Which way an assumed cut leaves the source lip polyline.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CutDirection {
+    /// Along the uncut surface's inward normal.
+    #[default]
+    SurfaceNormal,
+    /// Inward in the plane the lips open across: the inward normal with its components along the mean
+    /// separation of the two target lips and along the lip removed (the targets are every method's input).
+    LipSeparation,
 }
 
 /// A baseline with a display name (e.g. `LDDMM` or `LDDMM σ 30` in a width sweep).
@@ -109,21 +122,44 @@ fn outward_normals(mesh: &TetMesh, points: &[Vector3<f64>]) -> Vec<Vector3<f64>>
 }
 
 /// The cut a method may assume (François et al., and RODS-MPM's two-field grid): the blade is the first
-/// lip's source polyline, swept inward along the uncut surface's −n to `depth_mm` (the true depth is not
-/// known intraoperatively). The result's tetrahedra are the uncut mesh's, in the same order.
+/// lip's source polyline, swept inward (`direction`) to `depth_mm` (the true depth is not known
+/// intraoperatively). The result's tetrahedra are the uncut mesh's, in the same order.
 pub fn assumed_cut(
     uncut: &TetMesh,
     landmarks: &[LandmarkSet],
     depth_mm: f64,
+    direction: CutDirection,
 ) -> Result<laparo_fem::mesh::incision::CutMesh> {
     if !(depth_mm > 0.0 && depth_mm.is_finite()) {
         return Err(RegisterError::param("assumed cut depth (mm)", depth_mm, "must be finite and > 0"));
     }
     let mouth: Vec<Vector3<f64>> = landmarks.first().map(|l| l.sources.clone()).unwrap_or_default();
     let normals = outward_normals(uncut, &mouth);
+    let mut directions: Vec<Vector3<f64>> = normals.iter().map(|n| -n).collect();
+    if direction == CutDirection::LipSeparation {
+        let mean = |v: &[Vector3<f64>]| v.iter().sum::<Vector3<f64>>() / v.len().max(1) as f64;
+        let [a, b] = match landmarks {
+            [a, b, ..] if !a.targets.is_empty() && !b.targets.is_empty() => [a, b],
+            _ => return Err(RegisterError::bad("assumed cut", "the lip-separation direction needs two target lips")),
+        };
+        let sep = (mean(&b.targets) - mean(&a.targets))
+            .try_normalize(1e-9)
+            .ok_or_else(|| RegisterError::bad("assumed cut", "the two target lips coincide: no separation direction"))?;
+        let n = mouth.len();
+        for k in 0..n {
+            let t = (mouth[(k + 1).min(n - 1)] - mouth[k.saturating_sub(1)]).try_normalize(1e-12);
+            let mut d = directions[k] - sep * directions[k].dot(&sep);
+            if let Some(t) = t {
+                d -= t * d.dot(&t);
+            }
+            if let Some(d) = d.try_normalize(1e-6) {
+                directions[k] = d;
+            }
+        }
+    }
     let blade = Blade {
         mouth: mouth.clone(),
-        directions: normals.iter().map(|n| -n).collect(),
+        directions,
         depths: vec![depth_mm; mouth.len()],
         overshoot_mm: 5.0,
     };
@@ -140,8 +176,8 @@ impl Method for BaselineMethod {
         let uncut = TetMesh { vertices: nodes, tets };
         let mut notes = Vec::new();
         let (mesh, to_case): (TetMesh, Vec<usize>) = match &self.baseline {
-            Baseline::Francois { assumed_depth_mm, .. } => {
-                let f = assumed_cut(&uncut, landmarks, *assumed_depth_mm)?;
+            Baseline::Francois { assumed_depth_mm, direction, .. } => {
+                let f = assumed_cut(&uncut, landmarks, *assumed_depth_mm, *direction)?;
                 // case node i sits at corner (t, k): François' copy is f.mesh.tets[t][k]
                 let to_case = corners(case).iter().map(|&(t, k)| f.mesh.tets[t][k]).collect();
                 notes.push(format!(

@@ -570,6 +570,8 @@ pub enum TwoField {
     AssumedCut {
         /// Depth (mm).
         depth_mm: f64,
+        /// Which way it leaves the lip.
+        direction: super::methods::CutDirection,
     },
     /// The ground truth's own crack faces (a diagnostic: the crack's extent is not known intraoperatively).
     TrueCrack,
@@ -638,10 +640,10 @@ impl RodsMethod {
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<RodsProblem<'a>> {
         let crack = match self.two_field {
-            Some(TwoField::AssumedCut { depth_mm }) => {
+            Some(TwoField::AssumedCut { depth_mm, direction }) => {
                 let (nodes, tets, _) = case.uncut();
                 let uncut = laparo_core::mesh::TetMesh { vertices: nodes, tets };
-                let f = super::methods::assumed_cut(&uncut, landmarks, depth_mm)?;
+                let f = super::methods::assumed_cut(&uncut, landmarks, depth_mm, direction)?;
                 Some(CrackSurface { vertices: f.mesh.vertices, faces: f.crack_faces[0].clone(), band_mm: None })
             }
             Some(TwoField::TrueCrack) => Some(true_crack(&case.rest, &case.tets, &case.node_side)),
@@ -675,7 +677,10 @@ impl RodsMethod {
 /// The name suffix of a two-field run (empty for the one-field grid).
 fn two_field_label(t: Option<TwoField>, sep: &str) -> String {
     match t {
-        Some(TwoField::AssumedCut { depth_mm }) => format!("{sep}two-field (cut {depth_mm} mm)"),
+        Some(TwoField::AssumedCut { depth_mm, direction }) => match direction {
+            super::methods::CutDirection::SurfaceNormal => format!("{sep}two-field (cut {depth_mm} mm)"),
+            super::methods::CutDirection::LipSeparation => format!("{sep}two-field (cut {depth_mm} mm, lip plane)"),
+        },
         Some(TwoField::TrueCrack) => format!("{sep}two-field (true crack)"),
         None => String::new(),
     }

@@ -17,7 +17,7 @@ use laparo_register::benchmark::build::{
 use laparo_register::benchmark::figures::{
     write_distance_plot, write_sweep_plot, write_tre_map, SurfaceView, SweepPanel, SweepPoint,
 };
-use laparo_register::benchmark::methods::{Baseline, BaselineMethod};
+use laparo_register::benchmark::methods::{Baseline, BaselineMethod, CutDirection};
 use laparo_register::benchmark::{
     aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, OracleMode,
     ResultStore, RodsMethod, TwoField, RODS_MPM_NAME,
@@ -93,6 +93,10 @@ pub struct BenchmarkArgs {
     /// ground truth's crack faces: a diagnostic, the crack's extent is not known intraoperatively).
     #[arg(long, default_value = "assumed")]
     pub two_field_crack: String,
+    /// The assumed cut (François et al., rods-two-field) leaves the source lip along the surface's inward
+    /// normal (normal) or inward in the plane the target lips open across (separation).
+    #[arg(long, default_value = "normal")]
+    pub assumed_cut_direction: String,
     /// François et al.: assumed cut depth (mm) under the source lip polyline.
     #[arg(long, default_value_t = 20.0)]
     pub francois_depth_mm: f64,
@@ -199,7 +203,11 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
             "francois" => b(
                 "François et al.",
-                Baseline::Francois { drbc: DrbcConfig::default(), assumed_depth_mm: a.francois_depth_mm },
+                Baseline::Francois {
+                    drbc: DrbcConfig::default(),
+                    assumed_depth_mm: a.francois_depth_mm,
+                    direction: cut_direction(a)?,
+                },
             ),
             "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
             "rods" | "rods-mpm" => {
@@ -235,10 +243,19 @@ struct SweepSetting {
     panel: Option<(usize, f64)>,
 }
 
+/// `--assumed-cut-direction`.
+fn cut_direction(a: &BenchmarkArgs) -> Result<CutDirection> {
+    match a.assumed_cut_direction.as_str() {
+        "normal" => Ok(CutDirection::SurfaceNormal),
+        "separation" => Ok(CutDirection::LipSeparation),
+        o => bail!("--assumed-cut-direction: {o:?} is neither normal nor separation"),
+    }
+}
+
 /// The crack of the two-field methods (`--two-field-crack`).
 fn two_field(a: &BenchmarkArgs) -> Result<TwoField> {
     match a.two_field_crack.as_str() {
-        "assumed" => Ok(TwoField::AssumedCut { depth_mm: a.francois_depth_mm }),
+        "assumed" => Ok(TwoField::AssumedCut { depth_mm: a.francois_depth_mm, direction: cut_direction(a)? }),
         "true" => Ok(TwoField::TrueCrack),
         o => bail!("--two-field-crack: {o:?} is neither assumed nor true"),
     }
