@@ -142,9 +142,9 @@ pub fn assumed_cut(
             [a, b, ..] if !a.targets.is_empty() && !b.targets.is_empty() => [a, b],
             _ => return Err(RegisterError::bad("assumed cut", "the lip-separation direction needs two target lips")),
         };
-        let sep = (mean(&b.targets) - mean(&a.targets))
-            .try_normalize(1e-9)
-            .ok_or_else(|| RegisterError::bad("assumed cut", "the two target lips coincide: no separation direction"))?;
+        let sep = (mean(&b.targets) - mean(&a.targets)).try_normalize(1e-9).ok_or_else(|| {
+            RegisterError::bad("assumed cut", "the two target lips coincide: no separation direction")
+        })?;
         let n = mouth.len();
         for k in 0..n {
             let t = (mouth[(k + 1).min(n - 1)] - mouth[k.saturating_sub(1)]).try_normalize(1e-12);
@@ -157,12 +157,7 @@ pub fn assumed_cut(
             }
         }
     }
-    let blade = Blade {
-        mouth: mouth.clone(),
-        directions,
-        depths: vec![depth_mm; mouth.len()],
-        overshoot_mm: 5.0,
-    };
+    let blade = Blade { mouth: mouth.clone(), directions, depths: vec![depth_mm; mouth.len()], overshoot_mm: 5.0 };
     cut(uncut, &blade).map_err(|e| RegisterError::bad("assumed cut of the source mesh", e.to_string()))
 }
 
