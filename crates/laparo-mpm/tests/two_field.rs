@@ -1,7 +1,6 @@
 //! The two-field grid of a pre-existing crack (`Scene::crack_side`): exact separation of the two lips
 //! (by hand: rigid translations), unchanged results without a labelled particle, exact momentum
-//! conservation, the crack front still coupling both sides, and the adjoint against central finite
-//! differences.
+//! conservation and the crack front still coupling both sides (the adjoint: `gradient_check.rs`).
 use laparo_mpm::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -151,78 +150,6 @@ fn crack_front_keeps_the_uncut_part_together() {
     let imposed = 2.0 * v * scene.steps as f64 * scene.dt;
     assert!(open_top > 0.5 * imposed, "cut half opens: {open_top:e} of {imposed:e}");
     assert!(open_bottom < 0.1 * open_top, "uncut half stays closed: {open_bottom:e} vs {open_top:e}");
-}
-
-fn stretch_loss<const D: usize>(scene: &Scene<D>, seed: u64) -> LandmarkLoss<D> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let n = scene.n_particles();
-    let indices: Vec<usize> = (0..20).map(|_| rng.gen_range(0..n)).collect();
-    let targets =
-        indices.iter().map(|&p| scene.positions[p] + Vector::<D>::from_fn(|_, _| rng.gen_range(-0.05..0.05))).collect();
-    LandmarkLoss { indices, targets }
-}
-
-fn loss_of<const D: usize>(scene: &Scene<D>, loss: &LandmarkLoss<D>) -> f64 {
-    let fin = simulate(scene).unwrap().final_state;
-    let mut g = vec![Vector::<D>::zeros(); fin.x.len()];
-    loss.evaluate(scene.steps, &fin.x, &mut g)
-}
-
-/// ∂L/∂v₀, ∂L/∂x₀ and ∂L/∂E through the two-field grid against central differences (the node sides
-/// are constant under the small perturbations, so L is smooth there).
-fn gradient_check<const D: usize>(n_grid: usize, cells: [f64; D], steps: usize, seed: u64) {
-    let mut scene = block::<D>(n_grid, cells, steps);
-    scene.mass_epsilon = 1e-10;
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    for p in 0..scene.n_particles() {
-        let x = scene.positions[p];
-        let mut v = Vector::<D>::from_fn(|_, _| 0.05 * rng.gen_range(-1.0..1.0));
-        v[0] += if x[0] < 0.5 + 0.5 * scene.grid.dx { -1.0 } else { 1.0 } * if x[1] > 0.5 { 1.0 } else { 0.2 };
-        v[1] += 2.0 * (x[0] - 0.5);
-        scene.velocities[p] = v;
-    }
-    // the crack between two particle columns and midway between two node planes: no node side sum is
-    // near 0, so the partition of the fields does not change under the perturbations
-    let xc = 0.5 + 0.5 * scene.grid.dx;
-    label(&mut scene, xc, |x| x[1] > 0.5);
-    let loss = stretch_loss(&scene, seed + 1);
-    let g = simulate_with_gradient(&scene, &loss).unwrap();
-    assert!((g.loss - loss_of(&scene, &loss)).abs() < 1e-14);
-    let n = scene.n_particles();
-    let rel = |fd: f64, ad: f64| (fd - ad).abs() / fd.abs().max(ad.abs()).max(1e-300);
-    let dir: Vec<Vector<D>> = (0..n).map(|_| Vector::<D>::from_fn(|_, _| rng.gen_range(-1.0..1.0))).collect();
-    for (what, h) in [("v0", 1e-5), ("x0", 1e-8)] {
-        let (mut sp, mut sm) = (scene.clone(), scene.clone());
-        for (p, d) in dir.iter().enumerate() {
-            if what == "v0" {
-                sp.velocities[p] += d * h;
-                sm.velocities[p] -= d * h;
-            } else {
-                sp.positions[p] += d * h;
-                sm.positions[p] -= d * h;
-            }
-        }
-        let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
-        let grad = if what == "v0" { &g.d_velocities } else { &g.d_positions };
-        let ad: f64 = (0..n).map(|p| grad[p].dot(&dir[p])).sum();
-        assert!(rel(fd, ad) < 1e-5, "{D}D d/d{what}: fd {fd:.12e} adjoint {ad:.12e}");
-    }
-    let h = 1e-5 * scene.material.youngs_modulus;
-    let (mut sp, mut sm) = (scene.clone(), scene.clone());
-    sp.material.youngs_modulus += h;
-    sm.material.youngs_modulus -= h;
-    let fd = (loss_of(&sp, &loss) - loss_of(&sm, &loss)) / (2.0 * h);
-    assert!(rel(fd, g.d_youngs_modulus) < 1e-5, "{D}D dE: fd {fd:.12e} adjoint {:.12e}", g.d_youngs_modulus);
-}
-
-#[test]
-fn two_field_gradient_check_2d() {
-    gradient_check::<2>(32, [8.0, 6.0], 40, 21);
-}
-
-#[test]
-fn two_field_gradient_check_3d() {
-    gradient_check::<3>(24, [5.0, 4.0, 4.0], 30, 22);
 }
 
 #[test]

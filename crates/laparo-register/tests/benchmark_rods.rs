@@ -5,6 +5,18 @@ use laparo_register::optimize::OptimizerConfig;
 use laparo_register::organ::{OrganConfig, Roi};
 use nalgebra::Vector3;
 
+/// A one-field problem with no fixed node.
+fn free_problem<'a>(
+    nodes: &'a [Vector3<f64>],
+    tets: &'a [[usize; 4]],
+    side: &'a [u8],
+    groups: Vec<SideGroup>,
+    organ: OrganConfig,
+    optimizer: OptimizerConfig,
+) -> RodsProblem<'a> {
+    RodsProblem { nodes, tets, node_side: side, fixed_nodes: &[], groups, organ, optimizer, crack: None }
+}
+
 /// A box of nx×ny×nz cubes of edge h (mm), 6 tetrahedra per cube (Kuhn split).
 fn box_mesh(nx: usize, ny: usize, nz: usize, h: f64) -> (Vec<Vector3<f64>>, Vec<[usize; 4]>) {
     let id = |i: usize, j: usize, k: usize| (k * (ny + 1) + j) * (nx + 1) + i;
@@ -58,16 +70,7 @@ fn landmarks_pull_the_box_and_the_far_end_stays() {
     let roi = Some(Roi::Ball { center: [7.5, 10.0, 20.0], radius_mm: 28.0 });
     let organ = OrganConfig { spacing_mm: 2.5, steps: 60, roi, ..Default::default() };
     let optimizer = OptimizerConfig { iterations: 15, ..Default::default() };
-    let problem = RodsProblem {
-        nodes: &nodes,
-        tets: &tets,
-        node_side: &side,
-        fixed_nodes: &[],
-        groups,
-        organ,
-        optimizer,
-        crack: None,
-    };
+    let problem = free_problem(&nodes, &tets, &side, groups, organ, optimizer);
     let out = run_rods(&problem, &mut |_| {}).unwrap();
     assert_eq!(out.nodes.len(), nodes.len());
     assert!(out.particles > 100);
@@ -197,16 +200,7 @@ fn rods_oracles_carry_a_rigid_translation_exactly() {
     }];
     let organ = OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() };
     let optimizer = OptimizerConfig { iterations: 5, ..Default::default() };
-    let problem = RodsProblem {
-        nodes: &nodes,
-        tets: &tets,
-        node_side: &side,
-        fixed_nodes: &[],
-        groups,
-        organ,
-        optimizer,
-        crack: None,
-    };
+    let problem = free_problem(&nodes, &tets, &side, groups, organ, optimizer);
     let out = run_rods_oracle(&problem, &truth, OracleMode::Ballistic, 0.0).unwrap();
     let err = out.nodes.iter().zip(&truth).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(err < 1e-9, "a rigid translation is carried exactly: max node error {err} mm");
