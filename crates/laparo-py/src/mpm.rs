@@ -115,7 +115,7 @@ fn build<const D: usize>(
 impl PyMpmScene {
     /// Build a scene; see `laparo.mpm.Scene` for the parameters.
     #[new]
-    #[pyo3(signature = (positions, particle_volume, youngs_modulus, poisson_ratio, density = 1.0, n_grid = 64, dx = None, dt = 1e-4, steps = 100, velocities = None, model = "neo_hookean", walls = "sticky", wall_thickness = 3, gravity = None, fixed = None, external_forces = None))]
+    #[pyo3(signature = (positions, particle_volume, youngs_modulus, poisson_ratio, density = 1.0, n_grid = 64, dx = None, dt = 1e-4, steps = 100, velocities = None, model = "neo_hookean", walls = "sticky", wall_thickness = 3, gravity = None, fixed = None, external_forces = None, crack_side = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         positions: &Bound<'_, PyAny>,
@@ -134,6 +134,7 @@ impl PyMpmScene {
         gravity: Option<Vec<f64>>,
         fixed: Option<&Bound<'_, PyAny>>,
         external_forces: Option<&Bound<'_, PyAny>>,
+        crack_side: Option<Vec<i64>>,
     ) -> PyResult<Self> {
         guard(|| {
             let pa = f64_array(positions, "positions")?;
@@ -153,6 +154,16 @@ impl PyMpmScene {
                     }
                     a.data
                 }
+                None => Vec::new(),
+            };
+            let crack_side: Vec<i8> = match crack_side {
+                Some(c) if c.len() != n => {
+                    return Err(bad("crack_side", format!("expected {n} values (one per particle), got {}", c.len())))
+                }
+                Some(c) => match c.iter().position(|v| !(-1..=1).contains(v)) {
+                    Some(p) => return Err(bad("crack_side", format!("particle {p}: {} (must be -1, 0 or +1)", c[p]))),
+                    None => c.iter().map(|&v| v as i8).collect(),
+                },
                 None => Vec::new(),
             };
             for (name, v) in [("particle_volume", particle_volume), ("dt", dt), ("density", density)] {
@@ -181,6 +192,7 @@ impl PyMpmScene {
                 s.boundary = boundary;
                 s.fixed = fixed;
                 s.external_forces = fa.as_ref().map(vectors::<2>).unwrap_or_default();
+                s.crack_side = crack_side;
                 s.validate().map_err(|e| bad("scene", e))?;
                 AnyScene::D2(s)
             } else {
@@ -189,6 +201,7 @@ impl PyMpmScene {
                 s.boundary = boundary;
                 s.fixed = fixed;
                 s.external_forces = fa.as_ref().map(vectors::<3>).unwrap_or_default();
+                s.crack_side = crack_side;
                 s.validate().map_err(|e| bad("scene", e))?;
                 AnyScene::D3(s)
             };

@@ -25,7 +25,10 @@ Scene.__doc__ = """An MPM scene in 2D or 3D.
 Scene(positions (N, D) float64, particle_volume, youngs_modulus, poisson_ratio, density=1.0,
       n_grid=64, dx=None (1/n_grid: domain [0, 1]^D), dt=1e-4, steps=100, velocities=None,
       model="neo_hookean"|"fixed_corotated", walls="sticky"|"slip"|"none", wall_thickness=3,
-      gravity=None, fixed=None (N,) bool, external_forces=None (N, D))
+      gravity=None, fixed=None (N,) bool, external_forces=None (N, D), crack_side=None (N,) in {-1, 0, 1})
+
+``crack_side`` turns on the two-field grid of a pre-existing crack: particles of side −1 and +1 no longer
+share node velocities across it (the lips of a zero-thickness cut can separate); 0 = coupled as usual.
 
 Particle mass = density · particle_volume. ``with_state(velocities=, positions=,
 youngs_modulus=, poisson_ratio=)`` returns a modified copy; ``simulate()`` and
