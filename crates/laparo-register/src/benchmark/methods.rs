@@ -157,7 +157,7 @@ pub fn assumed_cut(
             }
         }
     }
-    let blade = Blade { mouth: mouth.clone(), directions, depths: vec![depth_mm; mouth.len()], overshoot_mm: 5.0 };
+    let blade = Blade { depths: vec![depth_mm; mouth.len()], mouth, directions, overshoot_mm: 5.0 };
     cut(uncut, &blade).map_err(|e| RegisterError::bad("assumed cut of the source mesh", e.to_string()))
 }
 

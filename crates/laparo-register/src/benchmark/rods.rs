@@ -195,7 +195,8 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
     }
     let mut kerf_removed = 0;
     if kerf_mm > 0.0 {
-        let crack = crack_surface(problem);
+        let c = true_crack(problem.nodes, problem.tets, problem.node_side);
+        let crack = crate::distance::TriangleSurface::new(c.vertices, c.faces);
         if crate::distance::ClosestPoint::len(&crack) == 0 {
             return Err(RegisterError::param("kerf_mm", kerf_mm, "the mesh has no crack faces to cut a kerf along"));
         }
@@ -394,20 +395,6 @@ pub fn run_rods_oracle(
     let deformed: Vec<Vector3<f64>> = final_x.iter().map(|p| p - off).collect();
     let nodes = transfer_nodes(problem, &points, &side, &deformed, kerf_mm, &mut notes)?;
     Ok(RodsOutput { nodes, particles: points.len(), landmark_distance_mm: [before, after], iterations, notes })
-}
-
-/// The crack faces of a cut mesh: tetrahedron faces whose three nodes are all duplicated crack copies.
-fn crack_surface(problem: &RodsProblem) -> crate::distance::TriangleSurface {
-    let mut faces = Vec::new();
-    for t in problem.tets {
-        for skip in 0..4 {
-            let f: Vec<usize> = (0..4).filter(|&k| k != skip).map(|k| t[k]).collect();
-            if f.iter().all(|&i| problem.node_side[i] != 0) {
-                faces.push([f[0], f[1], f[2]]);
-            }
-        }
-    }
-    crate::distance::TriangleSurface::new(problem.nodes.to_vec(), faces)
 }
 
 /// A nodal field `f` interpolated at `x` by its barycentric coordinates in tetrahedron `t` (sampled

@@ -213,7 +213,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             "rods" | "rods-mpm" => {
                 Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None })
             }
-            // laparo-mpm's two-field grid along the cut François et al. assume (same blade, same depth)
+            // laparo-mpm's two-field grid along the crack of --two-field-crack (assumed: François et al.'s cut)
             "rods-two-field" => Box::new(RodsMethod {
                 organ: organ.clone(),
                 optimizer: optimizer.clone(),
