@@ -77,7 +77,13 @@ fn quick_tier_end_to_end_and_resume() {
     let before = std::fs::read_to_string(out.join("table51.md")).unwrap();
     let (ok, _, err) = laparo(&args, dir.path());
     assert!(ok, "{err}");
+    assert!(!err.contains("solving again"), "the stored ground truth was not reused: {err}");
     assert_eq!(std::fs::read_to_string(out.join("table51.md")).unwrap(), before);
+    // a stored run made with other settings is never passed off as this one: refused, naming the file
+    let other: Vec<&str> = args.iter().copied().chain(["--methods", "rods", "--poisson-ratio", "0.45"]).collect();
+    let (ok, _, err) = laparo(&other, dir.path());
+    assert!(!ok && err.contains("other settings of RODS-MPM") && err.contains("seed0.json"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
     // the sensitivity sweeps add one row per setting (14 RODS-MPM, 3 LDDMM widths) and Fig. 5.9
     let sweeps: Vec<&str> = args.iter().copied().chain(["--sweeps"]).collect();
     let (ok, stdout, err) = laparo(&sweeps, dir.path());

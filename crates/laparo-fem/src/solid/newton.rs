@@ -445,15 +445,26 @@ pub struct FactorizationProfile {
     pub factor_nnz: usize,
     /// Ordering and symbolic analysis (s).
     pub symbolic_s: f64,
-    /// Numeric factorisation (s).
-    pub numeric_s: f64,
+    /// Numeric factorisation (s); `None` when only the symbolic analysis was asked for.
+    pub numeric_s: Option<f64>,
 }
 
-/// Factorise the tangent of `p` at rest once with `ordering` (to compare orderings on a mesh).
-pub fn factorization_profile(p: &SolidProblem, ordering: FillOrdering) -> Result<FactorizationProfile> {
+/// Factorise the tangent of `p` at rest once with `ordering` (to compare orderings on a mesh); with
+/// `numeric` false, only the ordering and symbolic analysis (the factor's size, hence its memory).
+pub fn factorization_profile(p: &SolidProblem, ordering: FillOrdering, numeric: bool) -> Result<FactorizationProfile> {
     let t0 = Instant::now();
     let sys = FreeSystem::new(p, ordering)?;
     let symbolic_s = t0.elapsed().as_secs_f64();
+    if !numeric {
+        return Ok(FactorizationProfile {
+            ordering,
+            free_dofs: sys.n,
+            tangent_nnz: sys.src.len(),
+            factor_nnz: sys.factor_nnz(),
+            symbolic_s,
+            numeric_s: None,
+        });
+    }
     let u = vec![0.0; 3 * p.mesh.n_nodes()];
     let a = p.assemble(&u, true).ok_or_else(|| FemError::Solver("the rest state has an inverted element".into()))?;
     let blocks = a.blocks.as_ref().ok_or_else(|| FemError::Solver("no tangent assembled".into()))?;
@@ -466,7 +477,7 @@ pub fn factorization_profile(p: &SolidProblem, ordering: FillOrdering) -> Result
         tangent_nnz: sys.src.len(),
         factor_nnz: sys.factor_nnz(),
         symbolic_s,
-        numeric_s: t.factorization_s,
+        numeric_s: Some(t.factorization_s),
     })
 }
 

@@ -2,7 +2,7 @@
 //! incision lips; landmarks sampled on the lips; the [`Method`] interface every registration method
 //! implements; scoring of one run; and the resumable protocol loop over methods × columns × seeds.
 use super::protocol::{noisy_targets, Column};
-use super::store::{ResultStore, RunKey, RunResult};
+use super::store::{Provenance, ResultStore, RunKey, RunResult};
 use super::tre::{binned, distance_to_nearest, node_errors, Stats, DISTANCE_BIN_EDGES_MM};
 use crate::error::{RegisterError, Result};
 use crate::organ::Roi;
@@ -66,11 +66,31 @@ pub struct MethodOutput {
 pub trait Method {
     /// Name in the tables (`ARAP`, `DRBC`, `Francois`, `LDDMM`, `RODS-MPM`).
     fn name(&self) -> String;
+    /// Every setting that changes the result, as text (a stored run is resumed only under the same settings).
+    fn settings(&self) -> String;
     /// Register the case's rest mesh to the landmark targets.
     fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput>;
 }
 
 impl BenchmarkCase {
+    /// A 64-bit FNV-1a fingerprint (hex) of everything a run reads from the case: scenario, rest nodes,
+    /// tetrahedra, node sides, ground truth, lips, fixed nodes and region of interest (coordinates bit-exact).
+    pub fn fingerprint(&self) -> String {
+        let mut b: Vec<u8> = self.scenario.as_bytes().to_vec();
+        for p in self.rest.iter().chain(&self.ground_truth) {
+            p.iter().for_each(|c| b.extend(c.to_bits().to_le_bytes()));
+        }
+        let lists =
+            [&self.tets.iter().flatten().copied().collect::<Vec<_>>(), &self.lips[0], &self.lips[1], &self.fixed];
+        for l in lists {
+            b.extend((l.len() as u64).to_le_bytes());
+            l.iter().for_each(|&i| b.extend((i as u64).to_le_bytes()));
+        }
+        b.extend(&self.node_side);
+        b.extend(format!("{:?}", self.roi).as_bytes());
+        laparo_core::atomic::fnv1a64_hex(&b)
+    }
+
     /// Check sizes and finiteness; a clear error naming the field.
     pub fn validate(&self) -> Result<()> {
         let n = self.rest.len();
@@ -166,6 +186,7 @@ pub fn score(
     landmarks: &[LandmarkSet],
     out: &MethodOutput,
     key: RunKey,
+    provenance: Provenance,
     seconds: f64,
 ) -> Result<RunResult> {
     let e = node_errors(&out.nodes, &case.ground_truth)?;
@@ -181,6 +202,7 @@ pub fn score(
         landmark_distance_mm: out.landmark_distance_mm,
         seconds,
         notes: out.notes.clone(),
+        provenance,
     })
 }
 
@@ -225,9 +247,12 @@ pub fn run_protocol(
     }
     let total = jobs.len();
     let mut results = Vec::with_capacity(total);
+    let fingerprints: Vec<String> = cases.iter().map(|c| c.fingerprint()).collect();
     for (done, (case, m, column, seed)) in jobs.into_iter().enumerate() {
         let key = RunKey { scenario: case.scenario.clone(), method: m.name(), column, seed };
-        if let Some(r) = store.load(&key)? {
+        let k = cases.iter().position(|c| std::ptr::eq(c, case)).unwrap_or(0);
+        let provenance = Provenance { case: fingerprints[k].clone(), settings: m.settings() };
+        if let Some(r) = store.load(&key, &provenance)? {
             progress(&RunEvent { done: done + 1, total, case, result: &r, registered: None });
             results.push(r);
             continue;
@@ -240,7 +265,7 @@ pub fn run_protocol(
                 e.to_string(),
             )
         })?;
-        let r = score(case, &lm, &out, key.clone(), t0.elapsed().as_secs_f64())?;
+        let r = score(case, &lm, &out, key.clone(), provenance, t0.elapsed().as_secs_f64())?;
         store.save(&r)?;
         progress(&RunEvent { done: done + 1, total, case, result: &r, registered: Some(&out.nodes) });
         results.push(r);
@@ -287,6 +312,9 @@ mod tests {
         fn name(&self) -> String {
             "identity".into()
         }
+        fn settings(&self) -> String {
+            String::new()
+        }
         fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
             Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: 0.0, notes: vec![] })
         }
@@ -295,6 +323,9 @@ mod tests {
     impl Method for Oracle {
         fn name(&self) -> String {
             "oracle".into()
+        }
+        fn settings(&self) -> String {
+            String::new()
         }
         fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
             Ok(MethodOutput { nodes: case.ground_truth.clone(), landmark_distance_mm: 0.0, notes: vec![] })
@@ -345,12 +376,19 @@ mod tests {
         assert_eq!((id.bins[2].stats.n, id.bins[2].stats.max), (3, 0.0));
         // resumed on a second call
         let mut resumed = 0;
-        run_protocol(&[c], &[&Identity, &Oracle], &cols, 2, &store, &mut |e| {
+        run_protocol(std::slice::from_ref(&c), &[&Identity, &Oracle], &cols, 2, &store, &mut |e| {
             resumed += e.registered.is_none() as usize
         })
         .unwrap();
         assert_eq!(resumed, 6);
         assert!(seen.iter().all(|s| !s.3) && seen.len() == 6 && seen[5].0 == 6);
+        // another ground truth (one node moved by 1e-9 mm) is another case: its stored runs are not reused
+        let mut other = c.clone();
+        other.ground_truth[6].x += 1e-9;
+        assert_ne!(other.fingerprint(), c.fingerprint());
+        assert_eq!(c.clone().fingerprint(), c.fingerprint());
+        let e = run_protocol(&[other], &[&Identity], &cols, 2, &store, &mut |_| {}).unwrap_err().to_string();
+        assert!(e.contains("another case") && e.contains("identity"), "{e}");
     }
 
     #[test]

@@ -165,6 +165,9 @@ impl Method for BaselineMethod {
     fn name(&self) -> String {
         self.name.clone()
     }
+    fn settings(&self) -> String {
+        format!("{:?}", self.baseline)
+    }
 
     fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput> {
         let (nodes, tets, map) = case.uncut();
@@ -215,6 +218,9 @@ pub struct NoRegistration;
 impl Method for NoRegistration {
     fn name(&self) -> String {
         "none (rest)".into()
+    }
+    fn settings(&self) -> String {
+        String::new()
     }
     fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput> {
         let (mut sum, mut n) = (0.0, 0usize);

@@ -684,6 +684,9 @@ impl super::case::Method for RodsMethod {
     fn name(&self) -> String {
         format!("{RODS_MPM_NAME}{}", two_field_label(self.two_field, " "))
     }
+    fn settings(&self) -> String {
+        format!("{self:?}")
+    }
     fn register(
         &self,
         case: &super::case::BenchmarkCase,
@@ -715,6 +718,9 @@ impl super::case::Method for RodsOracle {
             OracleMode::Dense => format!("RODS-MPM oracle (dense targets{kerf}{grid})"),
             OracleMode::Readback => format!("RODS-MPM oracle (read-back of u_GT{kerf})"),
         }
+    }
+    fn settings(&self) -> String {
+        format!("{self:?}")
     }
     fn register(
         &self,

@@ -45,6 +45,21 @@ pub struct RunResult {
     pub seconds: f64,
     /// Non-fatal findings of the method (horizon, convergence).
     pub notes: Vec<String>,
+    /// What the run was made from: a stored run is resumed only for the same case and method settings.
+    #[serde(default)]
+    pub provenance: Provenance,
+}
+
+/// The inputs of a run beyond its [`RunKey`]: the case (mesh, ground truth, lips, fixed region; see
+/// [`BenchmarkCase::fingerprint`](super::case::BenchmarkCase::fingerprint)) and the method's settings
+/// ([`Method::settings`](super::case::Method::settings)). Files written before it existed carry empty strings
+/// and are not resumed.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Provenance {
+    /// Fingerprint of the case (hex).
+    pub case: String,
+    /// The method's settings, as it describes them.
+    pub settings: String,
 }
 
 /// A folder of [`RunResult`] files: `<root>/<scenario>/<method>/<column>_seed<k>.json`.
@@ -63,9 +78,10 @@ impl ResultStore {
         self.root.join(sanitize(&key.scenario)).join(sanitize(&key.method)).join(format!("{}.json", key.stem()))
     }
 
-    /// The stored result of `key`, if a complete one exists (a file that does not parse, or belongs to another
-    /// key, is an error naming it: delete it to recompute).
-    pub fn load(&self, key: &RunKey) -> Result<Option<RunResult>> {
+    /// The stored result of `key`, if a complete one exists (a file that does not parse, belongs to another
+    /// key, or was made from another case or other method settings than `provenance`, is an error naming it
+    /// and what differs: delete it, or write to another folder, to recompute).
+    pub fn load(&self, key: &RunKey, provenance: &Provenance) -> Result<Option<RunResult>> {
         let p = self.path(key);
         if !p.exists() {
             return Ok(None);
@@ -77,6 +93,24 @@ impl ResultStore {
         })?;
         if &r.key != key {
             return Err(RegisterError::bad(p.display().to_string(), "holds the result of another run"));
+        }
+        if r.provenance.case != provenance.case {
+            return Err(RegisterError::bad(
+                p.display().to_string(),
+                format!(
+                    "was made on another case (mesh, ground truth or landmarks: fingerprint {:?}, now {:?}); delete it or write to another folder to recompute",
+                    r.provenance.case, provenance.case
+                ),
+            ));
+        }
+        if r.provenance.settings != provenance.settings {
+            return Err(RegisterError::bad(
+                p.display().to_string(),
+                format!(
+                    "was made with other settings of {} ({:?}, now {:?}); delete it or write to another folder to recompute",
+                    key.method, r.provenance.settings, provenance.settings
+                ),
+            ));
         }
         Ok(Some(r))
     }
@@ -152,6 +186,7 @@ mod tests {
             landmark_distance_mm: 0.5,
             seconds: 1.0,
             notes: vec![],
+            provenance: Provenance { case: "c1".into(), settings: format!("{method} defaults") },
         }
     }
 
@@ -160,10 +195,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let s = ResultStore::new(dir.path());
         let r = result("RODS-MPM", 5.0, 2, 1.5);
-        assert!(s.load(&r.key).unwrap().is_none());
+        assert!(s.load(&r.key, &r.provenance).unwrap().is_none());
         let p = s.save(&r).unwrap();
         assert!(p.ends_with("non-anatomical/RODS-MPM/lm50_sigma5_seed2.json"), "{}", p.display());
-        assert_eq!(s.load(&r.key).unwrap(), Some(r.clone()));
+        assert_eq!(s.load(&r.key, &r.provenance).unwrap(), Some(r.clone()));
         s.save(&result("ARAP", 0.0, 0, 2.0)).unwrap();
         let all = s.all().unwrap();
         assert_eq!(all.len(), 2);
@@ -177,11 +212,30 @@ mod tests {
         let r = result("DRBC", 0.0, 0, 1.0);
         let p = s.save(&r).unwrap();
         std::fs::write(&p, "{").unwrap();
-        let e = s.load(&r.key).unwrap_err().to_string();
+        let e = s.load(&r.key, &r.provenance).unwrap_err().to_string();
         assert!(e.contains("lm50_seed0.json") && e.contains("delete"), "{e}");
         let mut other = result("DRBC", 0.0, 0, 1.0);
         other.key.scenario = "anatomical".into();
         std::fs::write(&p, serde_json::to_string(&other).unwrap()).unwrap();
-        assert!(s.load(&r.key).unwrap_err().to_string().contains("another run"));
+        assert!(s.load(&r.key, &r.provenance).unwrap_err().to_string().contains("another run"));
+    }
+
+    #[test]
+    fn a_run_of_another_case_or_other_settings_is_not_resumed() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = ResultStore::new(dir.path());
+        let r = result("RODS-MPM", 0.0, 0, 1.0);
+        s.save(&r).unwrap();
+        let other_case = Provenance { case: "c2".into(), ..r.provenance.clone() };
+        let e = s.load(&r.key, &other_case).unwrap_err().to_string();
+        assert!(e.contains("another case") && e.contains("\"c1\"") && e.contains("\"c2\""), "{e}");
+        let other_settings = Provenance { settings: "RODS-MPM ν 0.3".into(), ..r.provenance.clone() };
+        let e = s.load(&r.key, &other_settings).unwrap_err().to_string();
+        assert!(e.contains("other settings of RODS-MPM") && e.contains("lm50_seed0.json"), "{e}");
+        // a file written before provenance existed (no such field) is not resumed either
+        let mut v = serde_json::to_value(&r).unwrap();
+        v.as_object_mut().unwrap().remove("provenance");
+        std::fs::write(s.path(&r.key), v.to_string()).unwrap();
+        assert!(s.load(&r.key, &r.provenance).is_err());
     }
 }

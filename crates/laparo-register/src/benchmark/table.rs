@@ -196,6 +196,7 @@ mod tests {
             landmark_distance_mm: 0.1,
             seconds: 2.0,
             notes: vec![],
+            provenance: Default::default(),
         }
     }
 

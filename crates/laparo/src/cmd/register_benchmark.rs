@@ -121,22 +121,38 @@ fn write_json(path: &Path, v: &impl serde::Serialize) -> Result<()> {
     Ok(())
 }
 
-/// Ground truth from `dir/ground_truth.json` when it exists for the same mesh, else solved and saved.
+/// Fingerprint of everything the FEM ground truth is solved from: the cut mesh, its crack faces (where the
+/// pressure acts), the fixed nodes and the solver configuration.
+fn ground_truth_inputs(scn: &Scenario, cfg: &GroundTruthConfig) -> String {
+    let mut b: Vec<u8> = format!("{cfg:?}").into_bytes();
+    scn.cut.mesh.vertices.iter().flat_map(|p| p.iter()).for_each(|c| b.extend(c.to_bits().to_le_bytes()));
+    let ids = scn.cut.mesh.tets.iter().flatten().chain(scn.cut.crack_faces.iter().flatten().flatten());
+    ids.chain(&scn.fixed_nodes).for_each(|&i| b.extend((i as u64).to_le_bytes()));
+    laparo_core::atomic::fnv1a64_hex(&b)
+}
+
+/// Ground truth from `dir/ground_truth.json` when it was solved from the same inputs ([`ground_truth_inputs`]),
+/// else solved and saved.
 fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
     let path = dir.join("ground_truth.json");
     let n = scn.cut.mesh.vertices.len();
+    let inputs = ground_truth_inputs(scn, cfg);
     if path.exists() {
         let v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
         let flat: Vec<f64> =
             v["displacement_mm"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
-        if flat.len() == 3 * n {
+        if flat.len() == 3 * n && v["inputs"].as_str() == Some(inputs.as_str()) {
             let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
             let report: GroundTruthReport =
                 serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
             return Ok((u, report));
         }
-        eprintln!("{}: for another mesh ({} values, {} nodes now): solving again", path.display(), flat.len(), 3 * n);
+        eprintln!(
+            "{}: solved from other inputs (mesh, crack, fixed region or FEM settings: {:?}, now {inputs:?}): solving again",
+            path.display(),
+            v["inputs"].as_str().unwrap_or("none recorded")
+        );
     }
     let pb = ProgressBar::new_spinner();
     pb.set_message(format!("{}: FEM ground truth (TET10 Neo-Hookean), calibrating the crack pressure", scn.name));
@@ -146,7 +162,7 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
     })?;
     pb.finish_and_clear();
     let flat: Vec<f64> = u.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
-    write_json(&path, &serde_json::json!({"report": report, "displacement_mm": flat}))?;
+    write_json(&path, &serde_json::json!({"inputs": inputs, "report": report, "displacement_mm": flat}))?;
     Ok((u, report))
 }
 
@@ -163,16 +179,23 @@ fn rods_optimizer(a: &BenchmarkArgs, quick: bool) -> Result<OptimizerConfig> {
     })
 }
 
-fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
-    let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
+/// RODS-MPM's organ set-up from `--spacing-mm`, `--steps`, `--dx-mm` and `--poisson-ratio` (the default run and
+/// the base every Fig. 5.9 sweep setting varies one parameter of).
+fn rods_organ(a: &BenchmarkArgs, quick: bool) -> Result<OrganConfig> {
+    let base = OrganConfig::default();
     let organ = OrganConfig {
-        spacing_mm: spacing,
+        spacing_mm: a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 }),
         steps: a.steps.unwrap_or(if quick { 60 } else { 200 }),
         dx_mm: a.dx_mm,
-        ..Default::default()
+        poisson_ratio: a.poisson_ratio.unwrap_or(base.poisson_ratio),
+        ..base
     };
-    let organ = OrganConfig { poisson_ratio: a.poisson_ratio.unwrap_or(organ.poisson_ratio), ..organ };
     organ.time_step_s().context("RODS-MPM's set-up (--spacing-mm, --dx-mm, --poisson-ratio, --steps)")?;
+    Ok(organ)
+}
+
+fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
+    let organ = rods_organ(a, quick)?;
     if !(a.oracle_kerf_mm >= 0.0 && a.oracle_kerf_mm.is_finite()) {
         bail!("--oracle-kerf-mm {}: must be finite and >= 0", a.oracle_kerf_mm);
     }
@@ -263,10 +286,9 @@ fn two_field(a: &BenchmarkArgs) -> Result<TwoField> {
 
 /// Sensitivity sweeps (Fig. 5.9) as extra named methods, and the default value of every panel.
 fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [f64; 5])> {
-    let spacing = a.spacing_mm.unwrap_or(if quick { 6.0 } else { 3.0 });
-    let steps = a.steps.unwrap_or(if quick { 60 } else { 200 });
+    let base = rods_organ(a, quick)?;
+    let (spacing, steps) = (base.spacing_mm, base.steps);
     let optimizer = rods_optimizer(a, quick)?;
-    let base = OrganConfig { spacing_mm: spacing, steps, ..Default::default() };
     let defaults = [1.0, base.poisson_ratio, spacing, base.dx_mm.unwrap_or(2.0 * spacing), steps as f64];
     let mut out: Vec<SweepSetting> = Vec::new();
     let mut rods = |name: String, organ: OrganConfig, panel: usize, value: f64| {
@@ -294,8 +316,8 @@ fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [
     for s in [1.5 * spacing, 0.75 * spacing] {
         rods(format!("RODS-MPM spacing {s:.2} mm"), OrganConfig { spacing_mm: s, ..base.clone() }, 2, s);
     }
-    for g in [1.5, 3.0] {
-        let dx = g * spacing;
+    for g in [0.75, 1.5] {
+        let dx = g * defaults[3];
         rods(format!("RODS-MPM Δx {dx:.1} mm"), OrganConfig { dx_mm: Some(dx), ..base.clone() }, 3, dx);
     }
     for t in [steps / 2, 2 * steps] {
@@ -375,6 +397,9 @@ struct NamedRods {
 impl Method for NamedRods {
     fn name(&self) -> String {
         self.name.clone()
+    }
+    fn settings(&self) -> String {
+        self.inner.settings()
     }
     fn register(
         &self,
