@@ -917,6 +917,7 @@ pub fn run(
         out: out.join("registration"),
         resume: false,
         checkpoint_every: 1000,
+        crack: None,
     };
     let mut surface_note = serde_json::Value::Null;
     let rep = match laparo_register::pipeline::run_job(&job, &mut |_| {}) {

@@ -43,6 +43,52 @@ fn points3(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<Vector<3>>> {
     Ok(a.data.chunks_exact(3).map(|p| Vector::<3>::new(p[0], p[1], p[2])).collect())
 }
 
+/// (F, 3) vertex indices (integers, or floats with no fraction) into `n` vertices; `what` names the owner.
+fn faces3(f: &Bound<'_, PyAny>, what: &str, n: usize) -> PyResult<Vec<[usize; 3]>> {
+    let a = with_f64(f, "faces", |s, d| Ok((s.to_vec(), d.to_vec()))).or_else(|_| {
+        let v: Vec<[usize; 3]> = f.extract().map_err(|_| bad("faces", "expected (F, 3) vertex indices"))?;
+        Ok::<_, PyErr>((vec![v.len(), 3], v.iter().flatten().map(|&x| x as f64).collect()))
+    })?;
+    if a.0.len() != 2 || a.0[1] != 3 {
+        return Err(bad("faces", format!("{what}: expected shape (F, 3), got {:?}", a.0)));
+    }
+    a.1.chunks_exact(3)
+        .map(|c| {
+            let ok = c.iter().all(|&v| v >= 0.0 && v.fract() == 0.0 && (v as usize) < n);
+            ok.then(|| [c[0] as usize, c[1] as usize, c[2] as usize])
+        })
+        .collect::<Option<_>>()
+        .ok_or_else(|| bad("faces", format!("{what}: indices must be in 0..{n}")))
+}
+
+/// `crack`: a mesh file or (vertices (N, 3) mm, faces (F, 3)), normals from side −1 to side +1; `crack_band_mm`
+/// the labelling band (default 3 grid cells).
+fn crack_from(
+    obj: Option<&Bound<'_, PyAny>>,
+    band_mm: Option<f64>,
+) -> PyResult<Option<laparo_register::crack::CrackSurface>> {
+    let Some(obj) = obj else {
+        return match band_mm {
+            Some(_) => Err(bad("crack_band_mm", "needs crack")),
+            None => Ok(None),
+        };
+    };
+    let (mesh, name) = if let Some(p) = as_path(obj) {
+        (laparo_core::mesh::read_mesh(&p).map_err(lib_err)?, format!("crack {}", p.display()))
+    } else {
+        let t = obj
+            .cast::<PyTuple>()
+            .map_err(|_| pyo3::exceptions::PyTypeError::new_err("crack: expected a path or (vertices, faces)"))?;
+        if t.len() != 2 {
+            return Err(bad("crack", "expected (vertices, faces)"));
+        }
+        let vertices = points3(&t.get_item(0)?, "crack vertices")?;
+        let faces = faces3(&t.get_item(1)?, "crack", vertices.len())?;
+        (laparo_core::mesh::TriMesh { vertices, faces }, "crack".to_string())
+    };
+    laparo_register::crack::CrackSurface::from_mesh(&mesh, &name, band_mm).map(Some).map_err(lib_err)
+}
+
 fn as_path(obj: &Bound<'_, PyAny>) -> Option<PathBuf> {
     obj.extract::<PathBuf>().ok()
 }
@@ -109,22 +155,7 @@ fn targets_from(obj: &Bound<'_, PyAny>, groups: &[SourceGroup]) -> PyResult<Vec<
             "polyline" => TargetSpec::Polyline(pts),
             "cloud" => TargetSpec::Cloud(pts),
             "surface" => {
-                let f = t.get_item(3)?;
-                let a = with_f64(&f, "faces", |s, d| Ok((s.to_vec(), d.to_vec()))).or_else(|_| {
-                    let v: Vec<[usize; 3]> = f.extract().map_err(|_| bad("faces", "expected (F, 3) vertex indices"))?;
-                    Ok::<_, PyErr>((vec![v.len(), 3], v.iter().flatten().map(|&x| x as f64).collect()))
-                })?;
-                if a.0.len() != 2 || a.0[1] != 3 {
-                    return Err(bad("faces", format!("target {name:?}: expected shape (F, 3), got {:?}", a.0)));
-                }
-                let faces: Vec<[usize; 3]> =
-                    a.1.chunks_exact(3)
-                        .map(|c| {
-                            let ok = c.iter().all(|&v| v >= 0.0 && v.fract() == 0.0 && (v as usize) < pts.len());
-                            ok.then(|| [c[0] as usize, c[1] as usize, c[2] as usize])
-                        })
-                        .collect::<Option<_>>()
-                        .ok_or_else(|| bad("faces", format!("target {name:?}: indices must be in 0..{}", pts.len())))?;
+                let faces = faces3(&t.get_item(3)?, &format!("target {name:?}"), pts.len())?;
                 TargetSpec::Surface(pts, faces)
             }
             k => return Err(bad("targets", format!("group {name:?}: kind {k:?} (points, polyline, cloud, surface)"))),
@@ -169,6 +200,7 @@ fn configs(
     max_step_dx: Option<f64>,
     target_mean_mm: f64,
     memory_gb: Option<f64>,
+    kinetic_weight: f64,
 ) -> PyResult<(OrganConfig, OptimizerConfig)> {
     for (name, v) in [
         ("spacing_mm", spacing_mm),
@@ -178,6 +210,7 @@ fn configs(
         ("smoothing_dx", smoothing_dx.unwrap_or(0.0)),
         ("max_step_dx", max_step_dx.unwrap_or(1.0)),
         ("target_mean_mm", target_mean_mm),
+        ("kinetic_weight", kinetic_weight),
     ] {
         if !v.is_finite() {
             return Err(bad(name, format!("{v} is not finite")));
@@ -191,6 +224,7 @@ fn configs(
         max_step_dx: max_step_dx.unwrap_or(base.max_step_dx),
         target_mean_distance: target_mean_mm,
         joint_youngs_modulus: joint_e,
+        kinetic_weight,
         ..base
     };
     let organ = OrganConfig {
@@ -212,7 +246,7 @@ fn configs(
 /// `out` (particles, surfaces, deformed meshes, overlay, loss curve, report.json, checkpoint).
 /// Returns report.json as a dict.
 #[pyfunction]
-#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None))]
+#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None, kinetic_weight = 0.0, crack = None, crack_band_mm = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_run<'py>(
     py: Python<'py>,
@@ -241,6 +275,9 @@ pub fn register_run<'py>(
     resume: bool,
     checkpoint_every: usize,
     memory_gb: Option<f64>,
+    kinetic_weight: f64,
+    crack: Option<&Bound<'py, PyAny>>,
+    crack_band_mm: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     guard(|| {
         let (organ_config, opt) = configs(
@@ -259,7 +296,9 @@ pub fn register_run<'py>(
             max_step_dx,
             target_mean_mm,
             memory_gb,
+            kinetic_weight,
         )?;
+        let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
             return Err(bad("region_weight", format!("{region_weight} (must be ≥ 0)")));
         }
@@ -282,6 +321,7 @@ pub fn register_run<'py>(
             out,
             resume,
             checkpoint_every,
+            crack,
         };
         let report = par(py, || run_job(&job, &mut |_| {})).map_err(lib_err)?;
         to_py(py, &report)
@@ -293,7 +333,7 @@ pub fn register_run<'py>(
 /// and rest particle positions (model mm), v₀ (mm/s), J = det F, the iteration history, the
 /// residuals before/after and the set-up (Δx, Δt, grid, offset).
 #[pyfunction]
-#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None))]
+#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None, kinetic_weight = 0.0, crack = None, crack_band_mm = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_arrays<'py>(
     py: Python<'py>,
@@ -317,6 +357,9 @@ pub fn register_arrays<'py>(
     max_step_dx: Option<f64>,
     target_mean_mm: f64,
     memory_gb: Option<f64>,
+    kinetic_weight: f64,
+    crack: Option<&Bound<'py, PyAny>>,
+    crack_band_mm: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guard(|| {
         let (organ_config, opt) = configs(
@@ -335,7 +378,9 @@ pub fn register_arrays<'py>(
             max_step_dx,
             target_mean_mm,
             memory_gb,
+            kinetic_weight,
         )?;
+        let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
             return Err(bad("region_weight", format!("{region_weight} (must be ≥ 0)")));
         }
@@ -359,14 +404,22 @@ pub fn register_arrays<'py>(
                 (None, Some(path)) => organ_from_mesh(path, &organ_config)?,
                 (None, None) => unreachable!("checked above"),
             };
+            let mut o = o;
+            let labels = match &crack {
+                Some(c) => {
+                    let rest = o.rest_model();
+                    Some(laparo_register::crack::label_organ(&mut o, c, &rest, &rest)?)
+                }
+                None => None,
+            };
             let loss = build_loss(&o, &groups, &tg, region_weight, "landmarks")?;
             let before = loss.residuals(&o.scene.positions);
             let reg = register(&o.scene, &loss, &opt, None, &mut |_, _| true)?;
             let after = loss.residuals(&reg.final_state.x);
-            Ok((o, reg, before, after))
+            Ok((o, reg, before, after, labels))
         })
         .map_err(lib_err)?;
-        let (o, reg, before, after) = res;
+        let (o, reg, before, after, labels) = res;
         let off = o.offset;
         let flat = |v: &[Vector<3>], shift: bool| -> Vec<f64> {
             v.iter()
@@ -399,6 +452,15 @@ pub fn register_arrays<'py>(
         d.set_item("steps", o.scene.steps)?;
         d.set_item("offset_mm", (off[0], off[1], off[2]))?;
         d.set_item("warnings", o.warnings.clone())?;
+        d.set_item("crack", to_py(py, &labels)?)?;
+        d.set_item(
+            "crack_side",
+            to_numpy(
+                py,
+                o.scene.crack_side.iter().map(|&c| c as i64).collect::<Vec<i64>>(),
+                &[o.scene.crack_side.len()],
+            )?,
+        )?;
         d.set_item("optimizer", to_py(py, &opt)?)?;
         d.set_item("organ_config", to_py(py, &organ_config)?)?;
         Ok(d)

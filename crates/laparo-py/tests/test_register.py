@@ -124,3 +124,42 @@ def test_register_errors_name_the_argument(job):
         R.register(LANDMARKS, py_targets(), organ=job / "organ.obj", spacing_mm=float("nan"))
     with pytest.raises((OSError, ValueError), match="missing.obj"):
         R.run(job / "missing.obj", job / "L.json", job / "T.json", job / "o", **OPTS)
+
+
+def test_crack_labels_sides_by_hand_and_lets_the_lips_separate(cli, job):
+    """A plane x = 20 mm (normal +x) across the box: the particles within the band are labelled by side
+    (counted here with numpy), and with both ends pulled apart the particles next to the plane jump across
+    it, where one field keeps them together; the CLI's --crack gives the same registration."""
+    lm = {"right": [[38.0, 12.0, 8.0], [38.0, 4.0, 8.0]], "left": [[2.0, 12.0, 8.0], [2.0, 4.0, 8.0]]}
+    tg = {"right": [[42.0, 12.0, 8.0], [42.0, 4.0, 8.0]], "left": [[-2.0, 12.0, 8.0], [-2.0, 4.0, 8.0]]}
+    plane = (np.array([[20.0, -5, -5], [20, 30, -5], [20, 30, 25], [20, -5, 25]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    opts = dict(OPTS, iterations=8)
+    one = R.register(lm, tg, organ=job / "organ.obj", **opts)
+    two = R.register(lm, tg, organ=job / "organ.obj", crack=plane, crack_band_mm=5.0, **opts)
+    rest = two["rest_positions"]
+    side = np.where(np.abs(rest[:, 0] - 20.0) <= 5.0, np.sign(rest[:, 0] - 20.0), 0).astype(np.int64)
+    np.testing.assert_array_equal(two["crack_side"], side)
+    assert two["crack"]["particles"] == [int((side == -1).sum()), int((side == 1).sum())]
+    assert one["crack"] is None and one["crack_side"].shape == (0,)
+
+    def jump(r):
+        u = r["positions"][:, 0] - r["rest_positions"][:, 0]
+        x = r["rest_positions"][:, 0]
+        return u[(x > 20) & (x < 24)].mean() - u[(x > 16) & (x < 20)].mean()
+
+    assert jump(two) > 2.0 and jump(two) > 3.0 * abs(jump(one)), (jump(one), jump(two))
+    # the CLI with the same crack as a file
+    (job / "crack.obj").write_text("".join(f"v {a} {b} {c}\n" for a, b, c in plane[0]) + "f 1 2 3\nf 1 3 4\n")
+    (job / "L5.json").write_text(json.dumps({"groups": [{"name": k, "points": v} for k, v in lm.items()]}))
+    (job / "T5.json").write_text(json.dumps({"groups": [{"name": k, "type": "points", "points": v} for k, v in tg.items()]}))
+    cli("register", "--organ", job / "organ.obj", "--landmarks", job / "L5.json", "--target", job / "T5.json",
+        "--out", job / "crack_cli", "--crack", job / "crack.obj", "--crack-band-mm", "5", *CLI_OPTS[:4], "--iterations", "8")
+    ref = read_particles_ply(job / "crack_cli" / "particles_registered.ply")
+    np.testing.assert_array_equal(two["positions"], ref[:, :3])
+    # bad crack inputs name the argument
+    with pytest.raises(ValueError, match="crack"):
+        R.register(lm, tg, organ=job / "organ.obj", crack=(plane[0], np.array([[0, 1, 9]])), **opts)
+    with pytest.raises(ValueError, match="misses the organ"):
+        R.register(lm, tg, organ=job / "organ.obj", crack=(plane[0] + [100.0, 0, 0], plane[1]), **opts)
+    with pytest.raises(ValueError, match="crack_band_mm"):
+        R.register(lm, tg, organ=job / "organ.obj", crack_band_mm=3.0, **opts)

@@ -40,6 +40,9 @@ pub struct Job {
     pub resume: bool,
     /// Checkpoint v₀ every this many iterations.
     pub checkpoint_every: usize,
+    /// A crack surface (mm, model frame) to simulate on laparo-mpm's two-field grid, so the lips on either
+    /// side can separate (an incision); None: one field, the thesis' RODS-MPM.
+    pub crack: Option<crate::crack::CrackSurface>,
 }
 
 /// `report.json`.
@@ -101,6 +104,8 @@ pub struct Report {
     pub organ_config: OrganConfig,
     /// Resumed from a checkpoint at this iteration.
     pub resumed_from: Option<usize>,
+    /// How the crack surface labelled the particles (two-field grid), if one was given.
+    pub crack: Option<crate::crack::CrackLabels>,
 }
 
 /// Peak resident set size (VmHWM) in MiB (Linux).
@@ -167,7 +172,14 @@ fn write_ply_particles(path: &Path, x: &[Vector<3>], v: &[Vector<3>], j: &[f64])
 pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<Report> {
     std::fs::create_dir_all(&job.out)
         .map_err(|e| RegisterError::bad(job.out.display().to_string(), format!("cannot create: {e}")))?;
-    let organ = organ_from_mesh(&job.organ, &job.organ_config)?;
+    let mut organ = organ_from_mesh(&job.organ, &job.organ_config)?;
+    let crack = match &job.crack {
+        Some(c) => {
+            let rest = organ.rest_model();
+            Some(crate::crack::label_organ(&mut organ, c, &rest, &rest)?)
+        }
+        None => None,
+    };
     let input = "landmarks";
     let loss = build_loss(&organ, &job.landmarks, &job.targets, job.region_weight, input)?;
     let horizon = organ.horizon(&loss.landmark_particles());
@@ -345,6 +357,7 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
         optimizer: job.optimizer.clone(),
         organ_config: job.organ_config.clone(),
         resumed_from,
+        crack,
     };
     let text = serde_json::to_string_pretty(&report).map_err(|e| RegisterError::bad("report.json", e.to_string()))?;
     write_atomic(&job.out.join("report.json"), text.as_bytes())?;

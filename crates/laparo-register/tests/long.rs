@@ -72,6 +72,7 @@ fn p2ilf_ridge_registration_3mm() {
         out: out.path().to_path_buf(),
         resume: false,
         checkpoint_every: 10,
+        crack: None,
     };
     let r =
         run_job(&job, &mut |it| eprintln!("it {} mean {:.3} mm ({:.0} s)", it.iteration, it.mean_distance, it.seconds))

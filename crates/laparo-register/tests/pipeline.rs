@@ -59,6 +59,7 @@ fn job(dir: &Path) -> Job {
         out: dir.join("out"),
         resume: false,
         checkpoint_every: 2,
+        crack: None,
     }
 }
 
@@ -136,4 +137,75 @@ fn bad_inputs_name_the_input() {
     )
     .unwrap();
     assert!(read_targets(&dir.path().join("T2.json"), &j.landmarks).unwrap_err().to_string().contains("T2.json"));
+}
+
+/// `--crack`: a plane across the middle of the box (x = 20 mm, normal +x) labels the particles within the band
+/// by side (counted by hand from the rest lattice), and with the two ends pulled apart the lips separate: the
+/// registered particles next to the crack jump across it, where one field keeps them together.
+#[test]
+fn a_crack_surface_lets_the_lips_separate() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut j = job(dir.path());
+    std::fs::write(
+        dir.path().join("L5.json"),
+        r#"{"groups": [{"name": "right", "points": [[39.0, 12.0, 8.0], [39.0, 4.0, 8.0], [39.0, 20.0, 8.0]]},
+                       {"name": "left", "points": [[1.0, 12.0, 8.0], [1.0, 4.0, 8.0], [1.0, 20.0, 8.0]]}]}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("T5.json"),
+        r#"{"groups": [{"name": "right", "type": "points", "points": [[43.0, 12.0, 8.0], [43.0, 4.0, 8.0], [43.0, 20.0, 8.0]]},
+                       {"name": "left", "type": "points", "points": [[-3.0, 12.0, 8.0], [-3.0, 4.0, 8.0], [-3.0, 20.0, 8.0]]}]}"#,
+    )
+    .unwrap();
+    j.landmarks = read_landmarks(&dir.path().join("L5.json")).unwrap();
+    j.targets = read_targets(&dir.path().join("T5.json"), &j.landmarks).unwrap();
+    (j.tumour, j.overlay, j.optimizer.iterations) = (None, None, 12);
+    let plane = laparo_core::mesh::TriMesh {
+        vertices: [[20.0, -5.0, -5.0], [20.0, 30.0, -5.0], [20.0, 30.0, 25.0], [20.0, -5.0, 25.0]]
+            .iter()
+            .map(|p| nalgebra::Vector3::new(p[0], p[1], p[2]))
+            .collect(),
+        faces: vec![[0, 1, 2], [0, 2, 3]], // normal +x: side +1 is x > 20
+    };
+    let crack = laparo_register::crack::CrackSurface::from_mesh(&plane, "plane", Some(5.0)).unwrap();
+    let gap = |out: &Path| -> f64 {
+        // mean x displacement of the particles within 2 mm right of the crack minus those within 2 mm left
+        let rest = laparo_core::mesh::read_ply(out.join("particles_rest.ply")).unwrap().vertices;
+        let reg = laparo_core::mesh::read_ply(out.join("particles_registered.ply")).unwrap().vertices;
+        let mean = |lo: f64, hi: f64| {
+            let d: Vec<f64> =
+                rest.iter().zip(&reg).filter(|(p, _)| p.x > lo && p.x < hi).map(|(p, q)| q.x - p.x).collect();
+            assert!(!d.is_empty());
+            d.iter().sum::<f64>() / d.len() as f64
+        };
+        mean(20.0, 22.0) - mean(18.0, 20.0)
+    };
+    let one = run_job(&j, &mut |_| {}).unwrap();
+    assert!(one.crack.is_none());
+    let gap_one = gap(&j.out);
+    j.crack = Some(crack.clone());
+    j.out = dir.path().join("out_crack");
+    let two = run_job(&j, &mut |_| {}).unwrap();
+    let labels = two.crack.unwrap();
+    // rest lattice x = 1, 3, …, 39 mm (20 × 12 × 8 particles): within 5 mm of x = 20 lie x = 15, 17, 19 (side −1)
+    // and 21, 23, 25 (side +1), 12 × 8 particles each
+    assert_eq!(labels.particles, [3 * 96, 3 * 96]);
+    assert_eq!((labels.band_mm, labels.faces), (5.0, 2));
+    let gap_two = gap(&j.out);
+    assert!(gap_two > 4.0 && gap_two > 3.0 * gap_one.abs(), "gap with crack {gap_two} mm, without {gap_one} mm");
+    // a crack surface that misses the organ is refused, naming it
+    let mut far = plane.clone();
+    far.vertices.iter_mut().for_each(|v| v.x += 100.0);
+    j.crack = Some(laparo_register::crack::CrackSurface::from_mesh(&far, "plane", None).unwrap());
+    let e = run_job(&j, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("crack surface") && e.contains("misses the organ"), "{e}");
+    // degenerate or empty surfaces are refused at the boundary
+    let flat = laparo_core::mesh::TriMesh { vertices: plane.vertices.clone(), faces: vec![[0, 1, 1]] };
+    assert!(laparo_register::crack::CrackSurface::from_mesh(&flat, "flat.ply", None)
+        .unwrap_err()
+        .to_string()
+        .contains("flat.ply"));
+    let none = laparo_core::mesh::TriMesh { vertices: vec![], faces: vec![] };
+    assert!(laparo_register::crack::CrackSurface::from_mesh(&none, "none.ply", None).is_err());
 }

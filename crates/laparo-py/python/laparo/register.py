@@ -67,6 +67,19 @@ def _targets(tg: Targets) -> Any:
     return out
 
 
+def _crack(crack):
+    """A crack surface as the extension takes it: a path, or (vertices float64 (N, 3), faces (F, 3))."""
+    if crack is None:
+        return None
+    if isinstance(crack, (str, os.PathLike)):
+        return os.fspath(crack)
+    try:
+        vertices, faces = crack
+    except (TypeError, ValueError):
+        raise TypeError("crack: expected a path or (vertices, faces)") from None
+    return (_points(vertices, "crack vertices"), np.ascontiguousarray(np.asarray(faces, dtype=np.float64)))
+
+
 def register(
     landmarks: Landmarks,
     targets: Targets,
@@ -88,6 +101,9 @@ def register(
     max_step_dx: Optional[float] = None,
     target_mean_mm: float = 0.0,
     memory_gb: Optional[float] = None,
+    kinetic_weight: float = 0.0,
+    crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]] = None,
+    crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]:
     """Register in memory (nothing is written).
 
@@ -98,7 +114,13 @@ def register(
     ``"box:x0,y0,z0,x1,y1,z1"`` mm, its boundary particles fixed; ``optimizer`` = ``lbfgs``,
     ``tear`` (unsmoothed, strong Wolfe, distance continuation: targets that pull neighbouring
     particles apart), ``adam`` or ``thesis-gd``; ``smoothing_dx`` and ``max_step_dx`` default to
-    the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``).
+    the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``;
+    ``kinetic_weight`` κ adds the least-action prior κ · mean |v₀ T Δt|² / (2 Δx) to eq. 5.10).
+
+    ``crack``: an incision the organ is cut along, as a triangle mesh file or (vertices (N, 3) mm, faces
+    (F, 3)) in the organ's frame, normals from one lip to the other. Particles within ``crack_band_mm``
+    (default 3 Δx) take side ±1 and get their own grid velocity field (laparo-mpm's two-field grid), so the
+    lips can separate; ``crack`` in the result gives the particle count per side, ``crack_side`` the labels.
 
     Returns ``positions`` (registered particles, N×3 mm, model coordinates), ``rest_positions``,
     ``velocities`` (v₀, mm/s), ``final_velocities``, ``j`` (det F), ``history`` (per iteration:
@@ -110,7 +132,8 @@ def register(
         _landmarks(landmarks), _targets(targets), None if organ is None else os.fspath(organ), particles,
         float(spacing_mm), dx_mm, optimizer, iterations, roi, float(youngs_modulus_kpa), float(poisson_ratio),
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
-        _opt_float(max_step_dx), float(target_mean_mm), memory_gb,
+        _opt_float(max_step_dx), float(target_mean_mm), memory_gb, float(kinetic_weight), _crack(crack),
+        _opt_float(crack_band_mm),
     )
 
 
@@ -140,6 +163,9 @@ def run(
     resume: bool = False,
     checkpoint_every: int = 5,
     memory_gb: Optional[float] = None,
+    kinetic_weight: float = 0.0,
+    crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]] = None,
+    crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]:
     """``laparo register --organ … --landmarks … --target … --out …``: writes
     particles_registered.ply, particles_rest.ply, surface_registered.ply, organ_deformed.obj
@@ -152,4 +178,5 @@ def run(
         iterations, roi, p(tumour), p(image), p(camera), float(youngs_modulus_kpa), float(poisson_ratio),
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
         _opt_float(max_step_dx), float(target_mean_mm), bool(resume), int(checkpoint_every), memory_gb,
+        float(kinetic_weight), _crack(crack), _opt_float(crack_band_mm),
     )

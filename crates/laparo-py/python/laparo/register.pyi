@@ -20,7 +20,7 @@ PathLike = Union[str, 'os.PathLike[str]']
 Landmarks = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
 Targets = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
 
-def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=..., particles: Optional[np.ndarray]=..., spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., memory_gb: Optional[float]=...) -> Dict[str, Any]:
+def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=..., particles: Optional[np.ndarray]=..., spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., memory_gb: Optional[float]=..., kinetic_weight: float=..., crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]]=..., crack_band_mm: Optional[float]=...) -> Dict[str, Any]:
     """Register in memory (nothing is written).
 
     The organ is a closed surface (OBJ/PLY/STL) or tetrahedral mesh (.msh/.vtk) file ``organ``,
@@ -30,7 +30,13 @@ def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=.
     ``"box:x0,y0,z0,x1,y1,z1"`` mm, its boundary particles fixed; ``optimizer`` = ``lbfgs``,
     ``tear`` (unsmoothed, strong Wolfe, distance continuation: targets that pull neighbouring
     particles apart), ``adam`` or ``thesis-gd``; ``smoothing_dx`` and ``max_step_dx`` default to
-    the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``).
+    the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``;
+    ``kinetic_weight`` κ adds the least-action prior κ · mean |v₀ T Δt|² / (2 Δx) to eq. 5.10).
+
+    ``crack``: an incision the organ is cut along, as a triangle mesh file or (vertices (N, 3) mm, faces
+    (F, 3)) in the organ's frame, normals from one lip to the other. Particles within ``crack_band_mm``
+    (default 3 Δx) take side ±1 and get their own grid velocity field (laparo-mpm's two-field grid), so the
+    lips can separate; ``crack`` in the result gives the particle count per side, ``crack_side`` the labels.
 
     Returns ``positions`` (registered particles, N×3 mm, model coordinates), ``rest_positions``,
     ``velocities`` (v₀, mm/s), ``final_velocities``, ``j`` (det F), ``history`` (per iteration:
@@ -40,7 +46,7 @@ def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=.
     """
     ...
 
-def run(organ: PathLike, landmarks: Landmarks, targets: Targets, out: PathLike, spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., tumour: Optional[PathLike]=..., image: Optional[PathLike]=..., camera: Optional[PathLike]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., resume: bool=..., checkpoint_every: int=..., memory_gb: Optional[float]=...) -> Dict[str, Any]:
+def run(organ: PathLike, landmarks: Landmarks, targets: Targets, out: PathLike, spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., tumour: Optional[PathLike]=..., image: Optional[PathLike]=..., camera: Optional[PathLike]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., resume: bool=..., checkpoint_every: int=..., memory_gb: Optional[float]=..., kinetic_weight: float=..., crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]]=..., crack_band_mm: Optional[float]=...) -> Dict[str, Any]:
     """``laparo register --organ … --landmarks … --target … --out …``: writes
     particles_registered.ply, particles_rest.ply, surface_registered.ply, organ_deformed.obj
     (surface organs), tumour_deformed.obj, overlay.png (``image`` + ``camera``), loss.csv,

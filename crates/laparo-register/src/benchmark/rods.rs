@@ -50,63 +50,7 @@ pub struct RodsProblem<'a> {
     pub crack: Option<CrackSurface>,
 }
 
-/// A crack surface for the two-field grid: particles within `band_mm` of it whose offset from their
-/// closest crack point lies within 60° of that face's normal take side ±1 (+1 on the normal's side),
-/// the others (beyond the crack front, or far) side 0.
-#[derive(Clone, Debug)]
-pub struct CrackSurface {
-    /// Vertices (mm, model frame).
-    pub vertices: Vec<Vector3<f64>>,
-    /// Triangles, wound so that their normals point from side −1 to side +1.
-    pub faces: Vec<[usize; 3]>,
-    /// Labelling band (mm); None = 3 Δx of the simulation grid.
-    pub band_mm: Option<f64>,
-}
-
-/// Crack side (−1, 0, +1) of each point (see [`CrackSurface`]); a point on the surface itself (closer
-/// than 1e-6 mm) is judged by its `inside` point (e.g. the centroid of the tetrahedron it was sampled in).
-pub fn crack_sides(
-    points: &[Vector3<f64>],
-    inside: &[Vector3<f64>],
-    crack: &CrackSurface,
-    band_mm: f64,
-) -> Result<Vec<i8>> {
-    if crack.faces.is_empty() {
-        return Err(RegisterError::bad("crack surface", "no triangle"));
-    }
-    if !(band_mm > 0.0 && band_mm.is_finite()) {
-        return Err(RegisterError::param("crack band (mm)", band_mm, "must be finite and > 0"));
-    }
-    if let Some(f) = crack.faces.iter().find(|f| f.iter().any(|&i| i >= crack.vertices.len())) {
-        return Err(RegisterError::bad("crack surface", format!("face {f:?} of {} vertices", crack.vertices.len())));
-    }
-    let surface = crate::distance::TriangleSurface::new(crack.vertices.clone(), crack.faces.clone());
-    let normal = |k: usize| {
-        let q = crack.faces[k].map(|i| crack.vertices[i]);
-        (q[1] - q[0]).cross(&(q[2] - q[0])).try_normalize(0.0)
-    };
-    Ok(points
-        .iter()
-        .zip(inside)
-        .map(|(x, y)| {
-            use crate::distance::ClosestPoint;
-            let (c, k) = surface.closest(x);
-            let mut d = x - c;
-            if d.norm() > band_mm {
-                return 0;
-            }
-            if d.norm() < 1e-6 {
-                let (c2, _) = surface.closest(y);
-                d = y - c2;
-            }
-            match normal(k) {
-                Some(n) if d.dot(&n) > 0.5 * d.norm() => 1,
-                Some(n) if d.dot(&n) < -0.5 * d.norm() => -1,
-                _ => 0,
-            }
-        })
-        .collect())
-}
+pub use crate::crack::{crack_sides, CrackSurface};
 
 /// The registered node positions and how the run went.
 #[derive(Clone, Debug)]
@@ -213,20 +157,11 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
     debug_assert_eq!(organ.scene.n_particles(), points.len());
     let mut notes = organ.warnings.clone();
     if let Some(crack) = &problem.crack {
-        let band = crack.band_mm.unwrap_or(3.0 * organ.scene.grid.dx);
         let centroids: Vec<Vector3<f64>> = samples
             .iter()
             .map(|(_, t)| problem.tets[*t].iter().map(|&i| problem.nodes[i]).sum::<Vector3<f64>>() / 4.0)
             .collect();
-        let sides = crack_sides(&points, &centroids, crack, band)?;
-        let count = |v: i8| sides.iter().filter(|&&s| s == v).count();
-        notes.push(format!(
-            "two-field grid: {} particles on side -1, {} on side +1 (band {band:.1} mm, {} crack faces)",
-            count(-1),
-            count(1),
-            crack.faces.len()
-        ));
-        organ.scene.crack_side = sides;
+        notes.push(crate::crack::label_organ(&mut organ, crack, &points, &centroids)?.note());
     }
     if kerf_mm > 0.0 {
         notes.push(format!(

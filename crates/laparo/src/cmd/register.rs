@@ -166,6 +166,18 @@ pub struct RunArgs {
     /// Memory available for the adjoint checkpoints (GB); default: MemAvailable.
     #[arg(long)]
     pub memory_gb: Option<f64>,
+    /// Least-action prior κ (default 0: the thesis' eq. 5.10 alone): adds κ · mean |v₀ T Δt|² / (2 Δx) over the
+    /// free particles, so motion the landmarks do not ask for costs something.
+    #[arg(long, default_value_t = 0.0)]
+    pub kinetic_weight: f64,
+    /// A crack surface (PLY/OBJ/STL triangles, mm, organ frame; normals from one lip to the other) along which
+    /// the organ is cut: particles on either side get their own grid velocity field (laparo-mpm's two-field
+    /// grid), so the lips can separate. Default: none (one field, the thesis' RODS-MPM).
+    #[arg(long)]
+    pub crack: Option<PathBuf>,
+    /// Particles within this distance (mm) of --crack are labelled by side; default 3 grid cells.
+    #[arg(long)]
+    pub crack_band_mm: Option<f64>,
 }
 
 /// `laparo register rigid`.
@@ -283,7 +295,20 @@ fn deformable(a: RunArgs) -> Result<()> {
         max_step_dx: a.max_step_dx.unwrap_or(base.max_step_dx),
         target_mean_distance: a.target_mean_mm,
         joint_youngs_modulus: a.joint_e,
+        kinetic_weight: a.kinetic_weight,
         ..base
+    };
+    let crack = match &a.crack {
+        Some(p) => {
+            let m = laparo_core::mesh::read_mesh(p).with_context(|| format!("--crack {}", p.display()))?;
+            Some(laparo_register::crack::CrackSurface::from_mesh(
+                &m,
+                &format!("--crack {}", p.display()),
+                a.crack_band_mm,
+            )?)
+        }
+        None if a.crack_band_mm.is_some() => bail!("--crack-band-mm needs --crack"),
+        None => None,
     };
     let organ_config = OrganConfig {
         spacing_mm: a.spacing_mm,
@@ -316,6 +341,7 @@ fn deformable(a: RunArgs) -> Result<()> {
         out: out.clone(),
         resume: a.resume,
         checkpoint_every: a.checkpoint_every,
+        crack,
     };
     let pb = ProgressBar::new(optimizer.iterations as u64);
     pb.set_style(
