@@ -64,7 +64,9 @@ mod simulate;
 mod sparse_grid;
 mod stencil;
 
-pub use adjoint::{simulate_with_gradient, simulate_with_gradient_in, GradientResult, GradientWorkspace};
+pub use adjoint::{
+    checkpoint_segment_for, simulate_with_gradient, simulate_with_gradient_in, GradientResult, GradientWorkspace,
+};
 pub use budget::{estimate_memory_bytes, DEFAULT_MEMORY_LIMIT_BYTES};
 pub use cfl::{cfl_dt, cfl_number, cfl_warnings};
 pub use constitutive::{lame, ConstitutiveModel};

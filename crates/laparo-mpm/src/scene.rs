@@ -127,6 +127,11 @@ pub struct Scene<const D: usize> {
     pub mass_epsilon: f64,
     /// CFL number above which [`crate::cfl_warnings`] warns (c Δt / Δx).
     pub cfl_limit: f64,
+    /// Steps per adjoint checkpoint segment (0 or 1: every step's state and grid are kept, the fastest).
+    /// k > 1 keeps every k-th step's particle state and recomputes each segment in the reverse pass:
+    /// memory for about ⌈T/k⌉ + k steps instead of T, one more forward pass, the same gradient bit for bit.
+    /// [`checkpoint_segment_for`](crate::checkpoint_segment_for) picks k for a memory budget.
+    pub checkpoint_segment: usize,
 }
 
 impl<const D: usize> Scene<D> {
@@ -159,6 +164,7 @@ impl<const D: usize> Scene<D> {
             steps,
             mass_epsilon: 0.0,
             cfl_limit: 0.5,
+            checkpoint_segment: 0,
         }
     }
 

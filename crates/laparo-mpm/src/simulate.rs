@@ -90,6 +90,12 @@ impl<const D: usize> Stepper<D> {
         Stepper { grid, affine: Vec::new(), keys: Vec::new(), keys_valid: false }
     }
 
+    /// Forget the block keys of the last step's output: the next step starts from another state (the
+    /// adjoint recomputing a checkpoint segment).
+    pub fn restart(&mut self) {
+        self.keys_valid = false;
+    }
+
     /// One full step `cur` → `next`: sparse-grid build (in parallel with the F update and stress of
     /// P2G, which do not need the grid), P2G scatter, grid update, G2P. `cur` must be the `next` of
     /// the previous call, if any (its block keys were computed by that call's G2P).

@@ -272,25 +272,10 @@ pub fn organ_from_mesh(path: &Path, cfg: &OrganConfig) -> Result<Organ> {
     let dx = check_config(cfg)?;
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let limit = cfg.memory_limit_bytes.or_else(available_memory).unwrap_or(f64::INFINITY);
+    // a first check from the volume, before sampling (the exact one is in `organ_from_points`)
     let budget = |volume: f64| -> Result<()> {
         let n = volume / cfg.spacing_mm.powi(3);
-        let bytes = n * cfg.steps as f64 * CHECKPOINT_BYTES_PER_PARTICLE_STEP;
-        if bytes > limit {
-            return Err(RegisterError::param(
-                "spacing_mm",
-                cfg.spacing_mm,
-                format!(
-                    "{}: ≈{:.0} particles need ≈{:.1} GB of adjoint checkpoints at T = {} (available {:.1} GB): \
-                     coarser spacing, fewer steps or a region of interest",
-                    path.display(),
-                    n,
-                    bytes / 1e9,
-                    cfg.steps,
-                    limit / 1e9
-                ),
-            ));
-        }
-        Ok(())
+        checkpoint_segment(n as usize, cfg, limit, &path.display().to_string()).map(|_| ())
     };
     let points = if ext == "msh" || ext == "vtk" {
         let mesh = read_tet_mesh(path)?;
@@ -316,6 +301,25 @@ pub fn organ_from_mesh(path: &Path, cfg: &OrganConfig) -> Result<Organ> {
     organ_from_points(points, cfg, &path.display().to_string())
 }
 
+/// The adjoint checkpoint segment (`Scene::checkpoint_segment`) for `n` particles within `limit` bytes: 0 when
+/// every step fits; an error naming `--spacing-mm` when even segments of ≈ √T steps do not.
+fn checkpoint_segment(n: usize, cfg: &OrganConfig, limit: f64, input: &str) -> Result<usize> {
+    laparo_mpm::checkpoint_segment_for(n, cfg.steps, CHECKPOINT_BYTES_PER_PARTICLE_STEP, limit).ok_or_else(|| {
+        let full = n as f64 * cfg.steps as f64 * CHECKPOINT_BYTES_PER_PARTICLE_STEP;
+        RegisterError::param(
+            "spacing_mm",
+            cfg.spacing_mm,
+            format!(
+                "{input}: ≈{n} particles need ≈{:.1} GB of adjoint checkpoints at T = {} (≈{:.1} GB with segments of √T steps; available {:.1} GB): coarser spacing, fewer steps or a region of interest",
+                full / 1e9,
+                cfg.steps,
+                full * 2.0 / (cfg.steps as f64).sqrt() / 1e9,
+                limit / 1e9
+            ),
+        )
+    })
+}
+
 /// An organ from particle positions already sampled at `cfg.spacing_mm` (model mm).
 pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &str) -> Result<Organ> {
     let dx = check_config(cfg)?;
@@ -327,18 +331,13 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
         }
     }
     let limit = cfg.memory_limit_bytes.or_else(available_memory).unwrap_or(f64::INFINITY);
-    let bytes = points.len() as f64 * cfg.steps as f64 * CHECKPOINT_BYTES_PER_PARTICLE_STEP;
-    if bytes > limit {
-        return Err(RegisterError::param(
-            "spacing_mm",
-            cfg.spacing_mm,
-            format!(
-                "{}: {} particles need ≈{:.1} GB of checkpoints (available {:.1} GB)",
-                input,
-                points.len(),
-                bytes / 1e9,
-                limit / 1e9
-            ),
+    let segment = checkpoint_segment(points.len(), cfg, limit, input)?;
+    if segment > 0 {
+        warnings.push(format!(
+            "{} particles × T {} exceed the adjoint memory ({:.1} GB): checkpoints every {segment} steps, each segment recomputed in the reverse pass (same gradient, one more forward pass)",
+            points.len(),
+            cfg.steps,
+            limit / 1e9
         ));
     }
     let mut lo = points[0];
@@ -359,6 +358,7 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
     let vol = cfg.spacing_mm.powi(3);
     let mut scene = Scene::new(positions, vol, material, grid, dt, cfg.steps);
     scene.cfl_limit = cfg.cfl_limit;
+    scene.checkpoint_segment = segment;
     let mut fixed_count = 0;
     if let Some(roi) = &cfg.roi {
         scene.fixed = points.iter().map(|p| roi.depth(p) < dx).collect();

@@ -57,7 +57,7 @@ fn landmarks_pull_the_box_and_the_far_end_stays() {
     // four landmarks on the top face near x = 5 mm, pulled 3 mm up
     let src: Vec<Vector3<f64>> =
         [(5.0, 5.0), (5.0, 15.0), (10.0, 5.0), (10.0, 15.0)].iter().map(|&(x, y)| Vector3::new(x, y, 20.0)).collect();
-    let groups = src
+    let groups: Vec<SideGroup> = src
         .iter()
         .enumerate()
         .map(|(i, s)| SideGroup {
@@ -70,10 +70,19 @@ fn landmarks_pull_the_box_and_the_far_end_stays() {
     let roi = Some(Roi::Ball { center: [7.5, 10.0, 20.0], radius_mm: 28.0 });
     let organ = OrganConfig { spacing_mm: 2.5, steps: 60, roi, ..Default::default() };
     let optimizer = OptimizerConfig { iterations: 15, ..Default::default() };
-    let problem = free_problem(&nodes, &tets, &side, groups, organ, optimizer);
+    let problem = free_problem(&nodes, &tets, &side, groups.clone(), organ.clone(), optimizer.clone());
     let out = run_rods(&problem, &mut |_| {}).unwrap();
     assert_eq!(out.nodes.len(), nodes.len());
     assert!(out.particles > 100);
+    // within a memory budget of a third of every step's checkpoints the adjoint recomputes segments: the
+    // same registration bit for bit, and a note says so
+    let full = out.particles as f64 * 60.0 * laparo_register::organ::CHECKPOINT_BYTES_PER_PARTICLE_STEP;
+    let tight = OrganConfig { memory_limit_bytes: Some(full / 3.0), ..organ };
+    let seg = run_rods(&free_problem(&nodes, &tets, &side, groups, tight, optimizer), &mut |_| {}).unwrap();
+    assert_eq!(seg.nodes, out.nodes);
+    assert_eq!(seg.landmark_distance_mm, out.landmark_distance_mm);
+    assert!(seg.notes.iter().any(|n| n.contains("checkpoints every")), "{:?}", seg.notes);
+    assert!(!out.notes.iter().any(|n| n.contains("checkpoints every")), "{:?}", out.notes);
     let [before, after] = out.landmark_distance_mm;
     assert!((before - 3.0).abs() < 0.6, "landmark particles start ≈3 mm from their targets: {before}");
     assert!(after < 0.5 * before, "registration halves the landmark distance: {before} → {after}");

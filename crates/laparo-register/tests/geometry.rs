@@ -210,6 +210,18 @@ fn p2ilf_liver_organ_and_bad_inputs() {
     // memory and CFL errors name the parameter
     let e = organ_from_mesh(&path, &OrganConfig { spacing_mm: 0.3, ..Default::default() }).unwrap_err();
     assert!(e.to_string().contains("spacing_mm"), "{e}");
+    // within a memory budget below every step's checkpoints (n × T × 230 B ≈ 0.53 GB), two-level checkpointing:
+    // segments of k steps with (⌈200/k⌉ + k) × n × 230 B ≤ 0.1 GB
+    let tight = OrganConfig { spacing_mm: 6.0, memory_limit_bytes: Some(0.1e9), ..Default::default() };
+    let o = organ_from_mesh(&path, &tight).unwrap();
+    let k = o.scene.checkpoint_segment;
+    let steps_worth = 0.1e9 / (n as f64 * 230.0);
+    assert!(k > 1 && (200usize.div_ceil(k) + k) as f64 <= steps_worth, "segment {k}, {steps_worth} steps' worth");
+    assert!((200usize.div_ceil(k + 1) + k + 1) as f64 > steps_worth, "segment {k} is not the longest");
+    assert!(o.warnings.iter().any(|w| w.contains(&format!("checkpoints every {k} steps"))), "{:?}", o.warnings);
+    assert_eq!(organ.scene.checkpoint_segment, 0);
+    let e = organ_from_mesh(&path, &OrganConfig { memory_limit_bytes: Some(0.03e9), ..tight }).unwrap_err();
+    assert!(e.to_string().contains("spacing_mm") && e.to_string().contains("√T"), "{e}");
     let e =
         organ_from_mesh(&path, &OrganConfig { spacing_mm: 6.0, dt_s: Some(1e-2), ..Default::default() }).unwrap_err();
     assert!(e.to_string().contains("CFL"), "{e}");

@@ -620,7 +620,10 @@ impl super::case::Method for RodsMethod {
         format!("{RODS_MPM_NAME}{}", two_field_label(self.two_field, " "))
     }
     fn settings(&self) -> String {
-        format!("{self:?}")
+        // the memory budget only chooses how the adjoint is checkpointed, never the result
+        let mut m = self.clone();
+        m.organ.memory_limit_bytes = None;
+        format!("{m:?}")
     }
     fn register(
         &self,
@@ -655,7 +658,9 @@ impl super::case::Method for RodsOracle {
         }
     }
     fn settings(&self) -> String {
-        format!("{self:?}")
+        let mut m = self.clone();
+        m.inner.organ.memory_limit_bytes = None;
+        format!("{m:?}")
     }
     fn register(
         &self,

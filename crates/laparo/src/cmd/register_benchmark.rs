@@ -108,6 +108,10 @@ pub struct BenchmarkArgs {
     /// Also run the sensitivity sweeps (Fig. 5.9: E, ν, spacing, grid, horizon; LDDMM width) at 50 landmarks.
     #[arg(long)]
     pub sweeps: bool,
+    /// RODS-MPM's adjoint checkpoint budget (GB): beyond it the adjoint keeps every k-th step and recomputes
+    /// the rest (the same gradient, one more forward pass), so the whole benchmark stays within 8 GB.
+    #[arg(long, default_value_t = 6.0)]
+    pub memory_gb: f64,
     /// FEM load increments per solve; default 20 (quick 8).
     #[arg(long)]
     pub fem_steps: Option<usize>,
@@ -190,8 +194,12 @@ fn rods_organ(a: &BenchmarkArgs, quick: bool) -> Result<OrganConfig> {
         steps: a.steps.unwrap_or(if quick { 60 } else { 200 }),
         dx_mm: a.dx_mm,
         poisson_ratio: a.poisson_ratio.unwrap_or(base.poisson_ratio),
+        memory_limit_bytes: Some(a.memory_gb * 1e9),
         ..base
     };
+    if !(a.memory_gb > 0.0 && a.memory_gb.is_finite()) {
+        bail!("--memory-gb {}: must be finite and > 0", a.memory_gb);
+    }
     organ.time_step_s().context("RODS-MPM's set-up (--spacing-mm, --dx-mm, --poisson-ratio, --steps)")?;
     Ok(organ)
 }
