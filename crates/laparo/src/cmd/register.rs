@@ -163,7 +163,8 @@ pub struct RunArgs {
     /// Checkpoint v₀ every N iterations.
     #[arg(long, default_value_t = 5)]
     pub checkpoint_every: usize,
-    /// Memory available for the adjoint checkpoints (GB); default: MemAvailable.
+    /// Memory available for the adjoint checkpoints (GB); default: MemAvailable. Beyond it the adjoint keeps
+    /// every k-th step and recomputes the rest (the same result, one more forward pass per iteration).
     #[arg(long)]
     pub memory_gb: Option<f64>,
     /// Least-action prior κ (default 0: the thesis' eq. 5.10 alone): adds κ · mean |v₀ T Δt|² / (2 Δx) over the
