@@ -237,21 +237,20 @@ pub fn run_protocol(
     let mut jobs = Vec::new();
     for case in cases {
         case.validate()?;
+        let fingerprint = case.fingerprint();
         for c in columns {
             for seed in c.seeds(n_seeds) {
                 for m in methods {
-                    jobs.push((case, *m, *c, seed));
+                    jobs.push((case, fingerprint.clone(), *m, *c, seed));
                 }
             }
         }
     }
     let total = jobs.len();
     let mut results = Vec::with_capacity(total);
-    let fingerprints: Vec<String> = cases.iter().map(|c| c.fingerprint()).collect();
-    for (done, (case, m, column, seed)) in jobs.into_iter().enumerate() {
+    for (done, (case, fingerprint, m, column, seed)) in jobs.into_iter().enumerate() {
         let key = RunKey { scenario: case.scenario.clone(), method: m.name(), column, seed };
-        let k = cases.iter().position(|c| std::ptr::eq(c, case)).unwrap_or(0);
-        let provenance = Provenance { case: fingerprints[k].clone(), settings: m.settings() };
+        let provenance = Provenance { case: fingerprint, settings: m.settings() };
         if let Some(r) = store.load(&key, &provenance)? {
             progress(&RunEvent { done: done + 1, total, case, result: &r, registered: None });
             results.push(r);
