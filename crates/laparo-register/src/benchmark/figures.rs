@@ -1,5 +1,6 @@
 //! Benchmark pictures: TRE colour maps on the organ surface (Fig. 5.7) with a colour bar, the error against
 //! the distance to the nearest incision landmark (Fig. 5.8), and a VTK file with per-node error for ParaView.
+use super::rods::RODS_MPM_NAME;
 use super::table::Cell;
 use super::tre::DISTANCE_BIN_EDGES_MM;
 use crate::error::{RegisterError, Result};
@@ -170,8 +171,13 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
         RGBColor(214, 39, 40),
         RGBColor(90, 90, 90),
     ];
-    laparo_core::plot::draw_png(path, 760, 460, |area| {
-        let mut chart = ChartBuilder::on(&area)
+    // the legend gets its own strip right of the axes, so it never hides a line or a point
+    // (≈ 8 px a character at 14 px DejaVu Sans, so a long oracle name widens the strip, not the overlap)
+    let longest = cells.iter().map(|c| c.method.chars().count()).max().unwrap_or(0) as u32;
+    let legend_px = (40 + 8 * longest).max(170);
+    laparo_core::plot::draw_png(path, 760 + legend_px, 460, |area| {
+        let (plot, side) = area.split_horizontally(760);
+        let mut chart = ChartBuilder::on(&plot)
             .caption(title, ("DejaVu Sans", 18))
             .margin(12)
             .x_label_area_size(44)
@@ -194,23 +200,21 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
             .y_desc("mean TRE [mm]")
             .draw()
             .map_err(|e| e.to_string())?;
+        // one colour per method whatever the figure holds (the six Table 5.1 rows in order), others cycle
+        let known = ["none (rest)", "ARAP", "DRBC", "François et al.", "LDDMM", RODS_MPM_NAME];
         for (i, c) in cells.iter().enumerate() {
-            let col = colors[i % colors.len()];
+            let k = known.iter().position(|n| c.method == *n);
+            let col = colors[k.unwrap_or(i) % colors.len()];
             let pts: Vec<(f64, f64)> =
                 c.bin_means_mm.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(k, &v)| (k as f64, v)).collect();
-            chart
-                .draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))
-                .map_err(|e| e.to_string())?
-                .label(c.method.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(2)));
+            chart.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled()))).map_err(|e| e.to_string())?;
+            let y = 56 + 22 * i as i32;
+            side.draw(&PathElement::new(vec![(4, y), (26, y)], col.stroke_width(3))).map_err(|e| e.to_string())?;
+            side.draw(&Circle::new((15, y), 4, col.filled())).map_err(|e| e.to_string())?;
+            side.draw(&Text::new(c.method.clone(), (32, y - 8), ("DejaVu Sans", 14).into_font()))
+                .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
         Ok(())
     })
     .map_err(|e| RegisterError::bad(path.display().to_string(), e.to_string()))
@@ -268,10 +272,36 @@ pub fn write_sweep_plot(
     let (mean_col, near_col) = (RGBColor(31, 119, 180), RGBColor(214, 39, 40));
     let cols = panels.len().min(3);
     let rows = panels.len().div_ceil(cols);
-    laparo_core::plot::draw_png(path, 420 * cols as u32, 330 * rows as u32 + 40, |root| {
+    // the legend: (colour, dashed, label); it goes in the grid's free cell, or in a band below the panels
+    let mut legend: Vec<(RGBColor, bool, String)> =
+        vec![(mean_col, false, "RODS-MPM, all nodes".into()), (near_col, false, "RODS-MPM, 0–5 mm".into())];
+    if let Some((name, mean, near)) = reference {
+        for (col, v, what) in [(mean_col, mean, "all nodes"), (near_col, near, "0–5 mm")] {
+            if finite(v) {
+                legend.push((col, true, format!("{name}, {what}")));
+            }
+        }
+    }
+    let free_cell = rows * cols > panels.len();
+    let band = if free_cell { 0 } else { 24 * legend.len() as u32 + 16 };
+    laparo_core::plot::draw_png(path, 420 * cols as u32, 330 * rows as u32 + 40 + band, |root| {
         let root = root.titled(title, ("DejaVu Sans", 20)).map_err(|e| e.to_string())?;
-        let areas = root.split_evenly((rows, cols));
-        for (k, (p, area)) in panels.iter().zip(areas.iter()).enumerate() {
+        let (grid, below) = root.split_vertically(330 * rows as u32);
+        let areas = grid.split_evenly((rows, cols));
+        let key = if free_cell { &areas[areas.len() - 1] } else { &below };
+        for (i, (col, dashed, label)) in legend.iter().enumerate() {
+            let (x, y) = (if free_cell { 60 } else { 20 }, if free_cell { 60 } else { 8 } + 24 * i as i32);
+            let style = col.stroke_width(if *dashed { 1 } else { 2 });
+            if *dashed {
+                key.draw(&plotters::element::DashedPathElement::new(vec![(x, y), (x + 28, y)], 6, 4, style))
+                    .map_err(|e| e.to_string())?;
+            } else {
+                key.draw(&PathElement::new(vec![(x, y), (x + 28, y)], style)).map_err(|e| e.to_string())?;
+            }
+            key.draw(&Text::new(label.clone(), (x + 36, y - 7), ("DejaVu Sans", 13).into_font()))
+                .map_err(|e| e.to_string())?;
+        }
+        for (p, area) in panels.iter().zip(areas.iter()) {
             let tx = |v: f64| if p.log_x { v.log10() } else { v };
             let xs: Vec<f64> = p.points.iter().map(|q| tx(q.value)).chain([tx(p.default_value)]).collect();
             let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
@@ -293,18 +323,13 @@ pub fn write_sweep_plot(
                 .map_err(|e| e.to_string())?;
             let mut pts: Vec<&SweepPoint> = p.points.iter().collect();
             pts.sort_by(|a, b| a.value.total_cmp(&b.value));
-            for (col, pick, label) in [
-                (mean_col, (|q: &SweepPoint| q.mean_mm) as fn(&SweepPoint) -> f64, "RODS-MPM, all nodes"),
-                (near_col, |q: &SweepPoint| q.near_mm, "RODS-MPM, 0–5 mm"),
+            for (col, pick) in [
+                (mean_col, (|q: &SweepPoint| q.mean_mm) as fn(&SweepPoint) -> f64),
+                (near_col, |q: &SweepPoint| q.near_mm),
             ] {
                 let line: Vec<(f64, f64)> =
                     pts.iter().filter(|q| finite(pick(q))).map(|q| (tx(q.value), pick(q))).collect();
-                let s =
-                    chart.draw_series(LineSeries::new(line.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
-                if k == 0 {
-                    s.label(label)
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(2)));
-                }
+                chart.draw_series(LineSeries::new(line.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
                 chart.draw_series(line.iter().map(|&q| Circle::new(q, 3, col.filled()))).map_err(|e| e.to_string())?;
                 let d: Vec<(f64, f64)> =
                     line.iter().copied().filter(|q| (q.0 - tx(p.default_value)).abs() < 1e-9).collect();
@@ -312,35 +337,19 @@ pub fn write_sweep_plot(
                     .draw_series(d.iter().map(|&q| Circle::new(q, 7, BLACK.stroke_width(2))))
                     .map_err(|e| e.to_string())?;
             }
-            if let Some((name, mean, near)) = reference {
-                for (col, v, what) in [(mean_col, mean, "all nodes"), (near_col, near, "0–5 mm")] {
-                    if !finite(v) {
-                        continue;
-                    }
-                    let s = chart
-                        .draw_series(DashedLineSeries::new(
-                            vec![(lo - pad, v), (hi + pad, v)],
-                            6,
-                            4,
-                            col.stroke_width(1),
-                        ))
-                        .map_err(|e| e.to_string())?;
-                    if k == 0 {
-                        let label = format!("{name}, {what}");
-                        s.label(label)
-                            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(1)));
+            if let Some((_, mean, near)) = reference {
+                for (col, v) in [(mean_col, mean), (near_col, near)] {
+                    if finite(v) {
+                        chart
+                            .draw_series(DashedLineSeries::new(
+                                vec![(lo - pad, v), (hi + pad, v)],
+                                6,
+                                4,
+                                col.stroke_width(1),
+                            ))
+                            .map_err(|e| e.to_string())?;
                     }
                 }
-            }
-            if k == 0 {
-                chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperRight)
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .label_font(("DejaVu Sans", 11))
-                    .draw()
-                    .map_err(|e| e.to_string())?;
             }
         }
         Ok(())
@@ -380,6 +389,44 @@ mod tests {
         assert_eq!(img.pixel(32, 32)[0], 0);
     }
 
+    /// Whether any pixel in columns x0..x1, rows y0..y1 of `img` has exactly the colour `rgb`.
+    fn has_colour(img: &Image<u8>, (x0, x1): (usize, usize), (y0, y1): (usize, usize), rgb: [u8; 3]) -> bool {
+        (y0..y1.min(img.height)).any(|y| (x0..x1.min(img.width)).any(|x| img.pixel(x, y)[..3] == rgb))
+    }
+
+    #[test]
+    fn distance_plot_keeps_its_legend_off_the_axes() {
+        use super::super::protocol::Column;
+        let cell = |method: &str, bins: [f64; 6]| Cell {
+            scenario: "anatomical".into(),
+            method: method.into(),
+            column: Column { landmarks: 50, noise_sigma_mm: 0.0 },
+            mean_mm: bins[0],
+            std_mm: 0.0,
+            seed_std_mm: 0.0,
+            surface_mean_mm: bins[0],
+            bin_means_mm: bins.to_vec(),
+            seeds: 1,
+            seconds: 1.0,
+        };
+        // the second method's last point lies where an in-chart legend (upper right) used to be drawn
+        let a = cell("none (rest)", [5.0, 2.7, 1.7, 0.8, 0.5, 0.1]);
+        let b = cell("RODS-MPM oracle (ballistic v0, kerf 18 mm)", [6.4, 6.4, 9.6, 16.5, 17.5, 8.1]);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("fig58.png");
+        write_distance_plot(&path, &[&a, &b], "t").unwrap();
+        let img = laparo_core::io::read_image(&path).unwrap();
+        // the strip right of the 760 px axes is wide enough for the longest name (42 characters)
+        assert_eq!((img.width, img.height), (760 + 40 + 8 * 42, 460));
+        let (blue, orange) = ([31, 119, 180], [255, 127, 14]);
+        for c in [blue, orange] {
+            assert!(has_colour(&img, (760, img.width), (0, 460), c), "legend entry {c:?} in the strip");
+            assert!(has_colour(&img, (0, 760), (0, 460), c), "line {c:?} in the axes");
+        }
+        // the > 80 mm point of the second method (8.1 mm, x at the last bin) is drawn, not covered
+        assert!(has_colour(&img, (640, 760), (0, 460), orange));
+    }
+
     #[test]
     fn sweep_plot_has_one_panel_per_setting_and_refuses_bad_sweeps() {
         let pt = |value: f64, mean_mm: f64, near_mm: f64| SweepPoint { value, mean_mm, near_mm };
@@ -401,7 +448,14 @@ mod tests {
         let img = laparo_core::io::read_image(&path).unwrap();
         // four panels: three columns, two rows, 40 px for the title
         assert_eq!((img.width, img.height), (3 * 420, 2 * 330 + 40));
-        std::fs::copy(&path, "/tmp/fig59_test.png").ok();
+        // the legend (solid and dashed RODS-MPM / reference lines) sits in the free cells, not over a panel
+        let (red, blue) = ([214, 39, 40], [31, 119, 180]);
+        assert!(has_colour(&img, (420, 1260), (370, 700), red) && has_colour(&img, (420, 1260), (370, 700), blue));
+        // three panels fill the grid: the legend gets a band of its own below them
+        write_sweep_plot(&path, &panels[..3], Some(("François et al.", 0.28, 2.16)), "sweep").unwrap();
+        let img = laparo_core::io::read_image(&path).unwrap();
+        assert_eq!((img.width, img.height), (3 * 420, 330 + 40 + 24 * 4 + 16));
+        assert!(has_colour(&img, (0, 1260), (372, img.height), red));
         let err = write_sweep_plot(&path, &[], None, "x").unwrap_err().to_string();
         assert!(err.contains("no sweep results"), "{err}");
         let neg = vec![panel("E factor", true, &[1.0, -1.0])];
