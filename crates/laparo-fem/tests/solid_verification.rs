@@ -302,3 +302,32 @@ fn nested_dissection_and_amd_give_the_same_solution() {
     assert_eq!(a.free_dofs, b.free_dofs);
     assert!(b.factor_nnz as f64 <= 1.5 * a.factor_nnz as f64, "ND {} vs AMD {}", b.factor_nnz, a.factor_nnz);
 }
+
+#[test]
+fn two_level_and_direct_solvers_give_the_same_solution() {
+    // The solver of the Newton directions changes the path, not the equilibrium: conjugate gradients
+    // with the two-level (TET10 Gauss–Seidel + linear-tetrahedron coarse) preconditioner converge to the
+    // displacements of the Cholesky path, at the same Newton tolerance. `Auto` with a budget smaller
+    // than the factor picks the two-level solver.
+    use laparo_fem::solid::LinearSolver;
+    let tau = Vector3::new(0.2, 0.0, -0.1);
+    let loads = Loads {
+        face_tractions: top_faces(5).iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
+        ..Default::default()
+    };
+    let p = bottom_fixed_problem(5, &loads);
+    let run = |linear| solve(&p, &SolverSettings { steps: 3, rel_tol: 1e-11, linear, ..Default::default() }).unwrap();
+    let direct = run(LinearSolver::Direct);
+    let two = run(LinearSolver::TwoLevel);
+    let auto = run(LinearSolver::Auto { factor_budget_bytes: 1 << 10 });
+    assert_eq!((direct.linear_solver, two.linear_solver, auto.linear_solver), ("direct", "two-level", "two-level"));
+    assert!(direct.max_displacement_mm > 0.5, "a finite deformation: {} mm", direct.max_displacement_mm);
+    let diff = direct.displacement.iter().zip(&two.displacement).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max);
+    assert!(diff < 1e-8 * direct.max_displacement_mm, "max difference {diff} mm of {} mm", direct.max_displacement_mm);
+    assert_eq!(auto.displacement, two.displacement, "same solver, same result");
+    assert!(two.factor_nnz < direct.factor_nnz / 4, "coarse factor {} vs {}", two.factor_nnz, direct.factor_nnz);
+    assert!(two.timings.pcg_iterations > 0 && two.min_j > 0.0);
+    for s in &two.steps {
+        assert!(s.residual_history.last().unwrap() <= &s.tolerance);
+    }
+}

@@ -5,14 +5,17 @@
 //! potential energy, sparse Cholesky (faer; geometric nested-dissection or AMD fill-reducing ordering) of the tangent.
 //!
 //! Units: mm, kPa, mN (energy in mN·mm = µJ).
+mod linear;
 mod newton;
 mod ordering;
 mod problem;
 mod quadrature;
 mod tet10;
+mod two_level;
 
 pub use newton::{
-    factorization_profile, solve, FactorizationProfile, FillOrdering, Solution, SolverSettings, StepReport, Timings,
+    factorization_profile, solve, FactorizationProfile, FillOrdering, LinearSolver, Solution, SolverSettings,
+    StepReport, Timings,
 };
 pub use problem::{Assembled, BodyForce, Dirichlet, FaceTraction, Loads, NodalForce, SolidProblem};
 pub use quadrature::{tet10_shape, tet10_shape_grad, QuadPoint, Quadrature, TET10_EDGES};

@@ -7,13 +7,10 @@
 //! tangent (inexact Newton, [`SolverSettings::forcing`]); the tangent is factorised again only when
 //! that fails to converge in [`SolverSettings::pcg_max_iterations`] or meets non-positive curvature. The
 //! convergence test of Newton's method is unchanged, so the solution meets the same residual tolerance.
+use super::linear::{norm, DirectSystem, Factor, NodeGraph};
 use super::problem::SolidProblem;
+use super::two_level::TwoLevel;
 use crate::error::{FemError, Result};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, MatMut, Side};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::time::Instant;
@@ -37,6 +34,35 @@ pub struct SolverSettings {
     pub pcg_max_iterations: usize,
     /// Fill-reducing ordering of the sparse Cholesky.
     pub ordering: FillOrdering,
+    /// Solver of the Newton directions.
+    pub linear: LinearSolver,
+    /// Conjugate-gradient iterations of the two-level solver per Newton direction; at the limit the
+    /// last iterate is taken when it has reduced the residual tenfold.
+    pub two_level_max_iterations: usize,
+}
+
+/// Solver of the linear systems of Newton's method.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum LinearSolver {
+    /// Sparse Cholesky of the tangent, reused as a conjugate-gradient preconditioner (inexact Newton).
+    Direct,
+    /// Conjugate gradients preconditioned by a two-level cycle: block Gauss–Seidel on the TET10 nodes
+    /// and a coarse correction on the linear tetrahedra of the same mesh (`two_level.rs`); memory
+    /// grows linearly with the mesh instead of as n^{4/3}.
+    TwoLevel,
+    /// Direct when its Cholesky factor (8 bytes per nonzero, from the symbolic analysis) fits in
+    /// `factor_budget_bytes`, two-level otherwise.
+    Auto {
+        /// Largest factor to hold (bytes).
+        factor_budget_bytes: u64,
+    },
+}
+
+impl Default for LinearSolver {
+    /// Direct up to a 6 GiB factor (the 8 mm P2ILF liver, 5.9 GB), two-level beyond (6 mm: 20.6 GB).
+    fn default() -> Self {
+        LinearSolver::Auto { factor_budget_bytes: 6 << 30 }
+    }
 }
 
 /// Fill-reducing ordering of the tangent's sparse Cholesky.
@@ -58,6 +84,8 @@ impl Default for SolverSettings {
             forcing: 1e-2,
             pcg_max_iterations: 30,
             ordering: FillOrdering::NestedDissection,
+            linear: LinearSolver::default(),
+            two_level_max_iterations: 400,
         }
     }
 }
@@ -117,8 +145,11 @@ pub struct Solution {
     pub free_dofs: usize,
     /// Nonzeros of the (upper) free tangent.
     pub tangent_nnz: usize,
-    /// Nonzeros of its Cholesky factor (the fill of [`SolverSettings::ordering`]).
+    /// Nonzeros of its Cholesky factor (the fill of [`SolverSettings::ordering`]); of the coarse
+    /// level's for the two-level solver.
     pub factor_nnz: usize,
+    /// Solver of the Newton directions that ran: `direct` or `two-level`.
+    pub linear_solver: &'static str,
     /// Per-increment reports.
     pub steps: Vec<StepReport>,
     /// Minimum det F over all quadrature points at the final state.
@@ -136,23 +167,22 @@ impl Solution {
     }
 }
 
-/// Free-DOF sparse structure (upper triangle, CSC) and the map from node blocks.
+/// The free DOFs and the solver of the Newton directions.
 struct FreeSystem {
     n: usize,
     free_of_node: Vec<usize>,
-    symbolic: SymbolicSparseColMat<usize>,
-    /// For each CSC value: index into the flat block array.
-    src: Vec<usize>,
-    /// CSC value index of each diagonal entry.
-    diag: Vec<usize>,
-    chol: SymbolicCholesky<usize>,
+    /// Nonzeros of the tangent's upper triangle over the free DOFs.
+    tangent_nnz: usize,
+    linear: Linear,
 }
 
-/// Numeric Cholesky factor values of a [`FreeSystem`]'s symbolic factorisation.
-struct Factor(Vec<f64>);
+enum Linear {
+    Direct(DirectSystem),
+    TwoLevel(TwoLevel),
+}
 
 impl FreeSystem {
-    fn new(p: &SolidProblem, ordering: FillOrdering) -> Result<Self> {
+    fn new(p: &SolidProblem, settings: &SolverSettings) -> Result<Self> {
         let nn = p.mesh.n_nodes();
         let mut free_of_node = vec![usize::MAX; nn];
         let mut nf = 0;
@@ -162,269 +192,99 @@ impl FreeSystem {
                 nf += 1;
             }
         }
-        let n = 3 * nf;
-        let mut col_ptr = Vec::with_capacity(n + 1);
-        let mut row_idx = Vec::new();
-        let mut src = Vec::new();
-        let mut diag = Vec::with_capacity(n);
-        col_ptr.push(0usize);
-        for b in 0..nn {
-            let fb = free_of_node[b];
-            if fb == usize::MAX {
-                continue;
-            }
-            for k in 0..3 {
-                let col = 3 * fb + k;
-                for pidx in p.row_ptr[b]..p.row_ptr[b + 1] {
-                    let a = p.cols[pidx];
-                    let fa = free_of_node[a];
-                    if fa == usize::MAX || fa > fb {
-                        continue;
-                    }
-                    for i in 0..3 {
-                        let row = 3 * fa + i;
-                        if row > col {
-                            continue;
-                        }
-                        if row == col {
-                            diag.push(row_idx.len());
-                        }
-                        row_idx.push(row);
-                        // K[(a,i),(b,k)] = K[(b,k),(a,i)] = block(b,a)[k][i]
-                        src.push(9 * pidx + 3 * k + i);
-                    }
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
-        if n == 0 {
+        if nf == 0 {
             return Err(FemError::bad("fixed nodes", "every node is prescribed: nothing to solve"));
         }
-        let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        let perm = match ordering {
-            FillOrdering::Amd => None,
-            FillOrdering::NestedDissection => Some(Self::nested_dissection(p, &free_of_node, nf)),
-        };
-        let ord = match &perm {
-            None => SymmetricOrdering::Amd,
-            Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, n)),
-        };
-        let chol = factorize_symbolic_cholesky(symbolic.as_ref(), Side::Upper, ord, Default::default())
-            .map_err(|e| FemError::Solver(format!("symbolic Cholesky of the {n}-DOF tangent: {e:?}")))?;
-        Ok(Self { n, free_of_node, symbolic, src, diag, chol })
-    }
-
-    /// DOF permutation (forward: new → old, inverse) from the nested dissection of the free nodes.
-    fn nested_dissection(p: &SolidProblem, free_of_node: &[usize], nf: usize) -> (Vec<usize>, Vec<usize>) {
-        let mut points = vec![[0.0; 3]; nf];
-        let (mut row_ptr, mut cols) = (Vec::with_capacity(nf + 1), Vec::new());
-        let mut node_of_free = vec![0; nf];
-        for (b, &f) in free_of_node.iter().enumerate() {
-            if f != usize::MAX {
-                node_of_free[f] = b;
-            }
-        }
-        row_ptr.push(0);
-        for &b in &node_of_free {
-            let x = p.mesh.nodes[b];
-            points[free_of_node[b]] = [x.x, x.y, x.z];
-            cols.extend(
-                p.cols[p.row_ptr[b]..p.row_ptr[b + 1]].iter().map(|&a| free_of_node[a]).filter(|&f| f != usize::MAX),
-            );
-            row_ptr.push(cols.len());
-        }
-        let leaf = 2000; // AMD below this many nodes (500–8,000 measured within 8 % of each other at 12 mm)
-        let order = super::ordering::nested_dissection(&points, &row_ptr, &cols, leaf);
-        let fwd: Vec<usize> = order.iter().flat_map(|&f| [3 * f, 3 * f + 1, 3 * f + 2]).collect();
-        let mut inv = vec![0; fwd.len()];
-        for (new, &old) in fwd.iter().enumerate() {
-            inv[old] = new;
-        }
-        (fwd, inv)
-    }
-
-    /// Nonzeros of the Cholesky factor.
-    fn factor_nnz(&self) -> usize {
-        self.chol.len_val()
-    }
-
-    /// x ← K⁻¹ x with a factor of K.
-    fn solve_in_place(&self, f: &Factor, x: &mut [f64]) {
-        let par = faer::get_global_parallelism();
-        let mut mem = MemBuffer::new(self.chol.solve_in_place_scratch::<f64>(1, par));
-        LltRef::new(&self.chol, &f.0).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(x, self.n, 1),
-            par,
-            MemStack::new(&mut mem),
-        );
-    }
-
-    fn values(&self, blocks: &[f64]) -> Vec<f64> {
-        self.src.iter().map(|&s| blocks[s]).collect()
-    }
-
-    /// Cholesky factor of K; a diagonal shift grows until it succeeds when K is not positive
-    /// definite. Returns the factor and whether a shift was needed.
-    fn factor(&self, vals: &mut [f64], timings: &mut Timings) -> Result<(Factor, bool)> {
-        let par = faer::get_global_parallelism();
-        let mut mem = MemBuffer::try_new(self.chol.factorize_numeric_llt_scratch::<f64>(par, Default::default()))
-            .map_err(|_| FemError::Solver(format!("out of memory for the Cholesky of the {}-DOF tangent", self.n)))?;
-        let mut values = Vec::new();
-        values.try_reserve_exact(self.chol.len_val()).map_err(|_| {
-            FemError::Solver(format!("out of memory: the Cholesky factor has {} nonzeros", self.chol.len_val()))
-        })?;
-        values.resize(self.chol.len_val(), 0.0);
-        let mut shift = 0.0;
-        let dmax = self.diag.iter().map(|&d| vals[d].abs()).fold(0.0, f64::max).max(1e-300);
-        let base: Vec<f64> = self.diag.iter().map(|&d| vals[d]).collect();
-        for attempt in 0..40 {
-            if attempt > 0 {
-                shift = if shift == 0.0 { 1e-8 * dmax } else { shift * 10.0 };
-                for (&d, &b) in self.diag.iter().zip(&base) {
-                    vals[d] = b + shift;
+        let mut tangent_nnz = 0;
+        for b in 0..nn {
+            let fb = free_of_node[b];
+            if fb != usize::MAX {
+                for &a in &p.cols[p.row_ptr[b]..p.row_ptr[b + 1]] {
+                    let fa = free_of_node[a];
+                    tangent_nnz += match fa {
+                        usize::MAX => 0,
+                        fa if fa < fb => 9,
+                        fa if fa == fb => 6,
+                        _ => 0,
+                    };
                 }
             }
-            let t0 = Instant::now();
-            let mat = SparseColMatRef::new(self.symbolic.as_ref(), &*vals);
-            let ok = self
-                .chol
-                .factorize_numeric_llt::<f64>(
-                    &mut values,
-                    mat,
-                    Side::Upper,
-                    Default::default(),
-                    par,
-                    MemStack::new(&mut mem),
-                    Default::default(),
-                )
-                .is_ok();
-            timings.factorization_s += t0.elapsed().as_secs_f64();
-            timings.factorizations += 1;
-            if ok {
-                return Ok((Factor(values), attempt > 0));
-            }
-            if shift > 1e3 * dmax {
-                break;
-            }
         }
-        Err(FemError::Solver("the tangent stays singular even with a large diagonal shift".into()))
-    }
-
-    /// y = K x for the symmetric K stored as its upper triangle.
-    fn product(&self, vals: &[f64], x: &[f64], y: &mut [f64]) {
-        y.iter_mut().for_each(|v| *v = 0.0);
-        let cp = self.symbolic.col_ptr();
-        let ri = self.symbolic.row_idx();
-        for j in 0..self.n {
-            let xj = x[j];
-            let mut acc = 0.0;
-            for k in cp[j]..cp[j + 1] {
-                let i = ri[k];
-                let v = vals[k];
-                if i == j {
-                    acc += v * xj;
+        let graph = NodeGraph {
+            row_ptr: &p.row_ptr,
+            cols: &p.cols,
+            points: &p.mesh.nodes,
+            free_of_node: &free_of_node,
+            n_free: nf,
+        };
+        let ordering = settings.ordering;
+        let linear = match settings.linear {
+            LinearSolver::Direct => Linear::Direct(DirectSystem::new(&graph, ordering)?),
+            LinearSolver::TwoLevel => Linear::TwoLevel(TwoLevel::new(p, &free_of_node, nf, ordering)?),
+            LinearSolver::Auto { factor_budget_bytes } => {
+                let d = DirectSystem::new(&graph, ordering)?;
+                if (d.factor_nnz() as u64).saturating_mul(8) > factor_budget_bytes {
+                    drop(d);
+                    Linear::TwoLevel(TwoLevel::new(p, &free_of_node, nf, ordering)?)
                 } else {
-                    y[i] += v * xj;
-                    acc += v * x[i];
+                    Linear::Direct(d)
                 }
             }
-            y[j] += acc;
+        };
+        Ok(Self { n: 3 * nf, free_of_node, tangent_nnz, linear })
+    }
+
+    /// Nonzeros of the Cholesky factor (of the coarse level for the two-level solver).
+    fn factor_nnz(&self) -> usize {
+        match &self.linear {
+            Linear::Direct(d) => d.factor_nnz(),
+            Linear::TwoLevel(t) => t.coarse.factor_nnz(),
         }
     }
 
-    /// Solve K x = rhs to ‖K x − rhs‖ ≤ max(`forcing` ‖rhs‖, `abs_tol`): conjugate gradients
-    /// preconditioned by the factor in `reuse` when there is one; otherwise, or when that fails, a
-    /// fresh factorisation, which is kept in `reuse` when it needed no shift. Returns whether a shift
-    /// was needed.
-    fn solve_reusing(
+    fn solver_name(&self) -> &'static str {
+        match &self.linear {
+            Linear::Direct(_) => "direct",
+            Linear::TwoLevel(_) => "two-level",
+        }
+    }
+
+    /// rhs ← K⁻¹ rhs (to the forcing term) for the tangent `blocks`; whether a shift was needed.
+    #[allow(clippy::too_many_arguments)] // the Newton iteration's running state
+    fn direction(
         &self,
-        vals: &mut [f64],
+        p: &SolidProblem,
+        blocks: &[f64],
         rhs: &mut [f64],
         abs_tol: f64,
-        (forcing, max_iterations): (f64, usize),
+        settings: &SolverSettings,
         reuse: &mut Option<Factor>,
         timings: &mut Timings,
     ) -> Result<bool> {
-        if let (Some(m), true) = (reuse.as_ref(), max_iterations > 0) {
-            let t0 = Instant::now();
-            let target = (forcing * norm(rhs)).max(abs_tol);
-            let before = timings.pcg_iterations;
-            let out = self.pcg(vals, rhs, m, target, max_iterations, timings);
-            timings.solve_s += t0.elapsed().as_secs_f64();
-            if let Some(x) = out {
-                rhs.copy_from_slice(&x);
-                // a slow solve means the tangent has drifted from the factor: refresh it next time
-                if timings.pcg_iterations - before > max_iterations / 3 {
-                    *reuse = None;
-                }
-                return Ok(false);
+        match &self.linear {
+            Linear::Direct(d) => {
+                let mut vals = d.values(blocks);
+                d.solve_reusing(
+                    &mut vals,
+                    rhs,
+                    abs_tol,
+                    (settings.forcing, settings.pcg_max_iterations),
+                    reuse,
+                    timings,
+                )
             }
+            Linear::TwoLevel(t) => t.solve(
+                p,
+                &self.free_of_node,
+                blocks,
+                rhs,
+                abs_tol,
+                (settings.forcing, settings.two_level_max_iterations),
+                reuse,
+                timings,
+            ),
         }
-        let (llt, shifted) = self.factor(vals, timings)?;
-        let t1 = Instant::now();
-        self.solve_in_place(&llt, rhs);
-        timings.solve_s += t1.elapsed().as_secs_f64();
-        *reuse = if shifted { None } else { Some(llt) };
-        Ok(shifted)
     }
-
-    /// Preconditioned conjugate gradients from x = 0; `None` when it meets non-positive curvature or
-    /// has not reached `target` after `max_iterations`.
-    fn pcg(
-        &self,
-        vals: &[f64],
-        b: &[f64],
-        m: &Factor,
-        target: f64,
-        max_iterations: usize,
-        timings: &mut Timings,
-    ) -> Option<Vec<f64>> {
-        let n = self.n;
-        let mut x = vec![0.0; n];
-        let mut r = b.to_vec();
-        if norm(&r) <= target {
-            return Some(x);
-        }
-        let precondition = |r: &[f64]| {
-            let mut z = r.to_vec();
-            self.solve_in_place(m, &mut z);
-            z
-        };
-        let mut z = precondition(&r);
-        let mut p = z.clone();
-        let mut rz = dot(&r, &z);
-        let mut q = vec![0.0; n];
-        for _ in 0..max_iterations {
-            timings.pcg_iterations += 1;
-            self.product(vals, &p, &mut q);
-            let pq = dot(&p, &q);
-            let positive_curvature = pq > 0.0 && rz > 0.0; // false for NaN too
-            if !positive_curvature {
-                return None;
-            }
-            let alpha = rz / pq;
-            for i in 0..n {
-                x[i] += alpha * p[i];
-                r[i] -= alpha * q[i];
-            }
-            if norm(&r) <= target {
-                return Some(x);
-            }
-            z = precondition(&r);
-            let rz_new = dot(&r, &z);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for i in 0..n {
-                p[i] = z[i] + beta * p[i];
-            }
-        }
-        None
-    }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 enum StepFail {
@@ -453,13 +313,15 @@ pub struct FactorizationProfile {
 /// `numeric` false, only the ordering and symbolic analysis (the factor's size, hence its memory).
 pub fn factorization_profile(p: &SolidProblem, ordering: FillOrdering, numeric: bool) -> Result<FactorizationProfile> {
     let t0 = Instant::now();
-    let sys = FreeSystem::new(p, ordering)?;
+    let settings = SolverSettings { ordering, linear: LinearSolver::Direct, ..Default::default() };
+    let free = FreeSystem::new(p, &settings)?;
+    let Linear::Direct(sys) = &free.linear else { unreachable!("direct solver asked") };
     let symbolic_s = t0.elapsed().as_secs_f64();
     if !numeric {
         return Ok(FactorizationProfile {
             ordering,
             free_dofs: sys.n,
-            tangent_nnz: sys.src.len(),
+            tangent_nnz: free.tangent_nnz,
             factor_nnz: sys.factor_nnz(),
             symbolic_s,
             numeric_s: None,
@@ -474,7 +336,7 @@ pub fn factorization_profile(p: &SolidProblem, ordering: FillOrdering, numeric: 
     Ok(FactorizationProfile {
         ordering,
         free_dofs: sys.n,
-        tangent_nnz: sys.src.len(),
+        tangent_nnz: free.tangent_nnz,
         factor_nnz: sys.factor_nnz(),
         symbolic_s,
         numeric_s: Some(t.factorization_s),
@@ -493,7 +355,7 @@ pub fn solve(p: &SolidProblem, settings: &SolverSettings) -> Result<Solution> {
     let t_start = Instant::now();
     let mut timings = Timings::default();
     let t0 = Instant::now();
-    let sys = FreeSystem::new(p, settings.ordering)?;
+    let sys = FreeSystem::new(p, settings)?;
     timings.symbolic_s = t0.elapsed().as_secs_f64();
     let nn = p.mesh.n_nodes();
     let mut u = vec![0.0; 3 * nn];
@@ -544,8 +406,9 @@ pub fn solve(p: &SolidProblem, settings: &SolverSettings) -> Result<Solution> {
         displacement,
         n_vertices: p.mesh.n_vertices,
         free_dofs: sys.n,
-        tangent_nnz: sys.src.len(),
+        tangent_nnz: sys.tangent_nnz,
         factor_nnz: sys.factor_nnz(),
+        linear_solver: sys.solver_name(),
         steps,
         min_j,
         timings,
@@ -567,10 +430,6 @@ fn free_residual(p: &SolidProblem, sys: &FreeSystem, fint: &[f64], t: f64) -> (V
         }
     }
     (r, react.sqrt())
-}
-
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
 type StepOut = std::result::Result<(Vec<f64>, StepReport), StepFail>;
@@ -626,12 +485,8 @@ fn newton_step(
                 }
             }
         }
-        let mut vals = sys.values(blocks);
         let tol = 0.1 * settings.rel_tol * load_norm;
-        if sys
-            .solve_reusing(&mut vals, &mut rhs, tol, (settings.forcing, settings.pcg_max_iterations), reuse, timings)
-            .is_err()
-        {
+        if sys.direction(p, blocks, &mut rhs, tol, settings, reuse, timings).is_err() {
             return Err(StepFail::NoConvergence);
         }
         for (i, &f) in sys.free_of_node.iter().enumerate() {
@@ -667,17 +522,9 @@ fn newton_step(
         }
         let wext: f64 = fe.iter().zip(&u).map(|(f, x)| f * x).sum();
         let pi0 = a.strain_energy - t1 * wext;
-        let mut vals = sys.values(a.blocks.as_ref().expect("tangent asked"));
         // d = −K⁻¹ r
         let mut d: Vec<f64> = r.iter().map(|x| -x).collect();
-        match sys.solve_reusing(
-            &mut vals,
-            &mut d,
-            0.1 * tol,
-            (settings.forcing, settings.pcg_max_iterations),
-            reuse,
-            timings,
-        ) {
+        match sys.direction(p, a.blocks.as_ref().expect("tangent asked"), &mut d, 0.1 * tol, settings, reuse, timings) {
             Ok(shifted) => rep.shifted_iterations += usize::from(shifted),
             Err(_) => return Err(StepFail::NoConvergence),
         }
@@ -755,8 +602,10 @@ mod tests {
     #[test]
     fn cholesky_solves_the_free_system_and_shifts_an_indefinite_one() {
         let p = one_tet();
-        let sys = FreeSystem::new(&p, FillOrdering::NestedDissection).unwrap();
+        let free = FreeSystem::new(&p, &SolverSettings { linear: LinearSolver::Direct, ..Default::default() }).unwrap();
+        let Linear::Direct(sys) = &free.linear else { panic!("direct asked") };
         assert_eq!(sys.n, 12, "vertex 3 and three mid-edge nodes are free");
+        assert_eq!(free.tangent_nnz, sys.src.len());
         let u = vec![0.0; 3 * p.mesh.n_nodes()];
         let kd = p.tangent_dense(&u).unwrap();
         let a = p.assemble(&u, true).unwrap();
