@@ -2,7 +2,8 @@
 //! one scenario, one fixed crack pressure, so runs at several edges compare the same load.
 //!
 //! `cargo run --release -p laparo-register --example crack_convergence -- EDGE_MM non-anatomical|anatomical
-//!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER]`
+//!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER]`; `SOLVER=direct|two-level` in the environment forces
+//!  the solver of the Newton directions (default: direct when its factor fits in 6 GiB).
 //!
 //! Prints the crack's resolution (`CrackResolution`: crack area against the blade's area inside the
 //! organ, duplicated nodes, lip pairs) and, when PRESSURE_KPA > 0, the FEM at that pressure: the max
@@ -14,7 +15,7 @@ use laparo_fem::mesh::{
     anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, ScenarioFrame,
     Surface, TetraParams,
 };
-use laparo_fem::solid::{solve, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
+use laparo_fem::solid::{solve, LinearSolver, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use laparo_register::benchmark::build::{
     crack_pair_gaps_mm, crack_pressure, distance_to_crack_mm, drop_detached_fragments, lip_opening_profile_mm,
     max_gap_mm, CrackResolution,
@@ -82,7 +83,27 @@ fn main() -> Result<(), Box<dyn Error>> {
     let loads = Loads { face_tractions, ..Default::default() };
     let problem = SolidProblem::new(m10, material, &fixed, &loads, Quadrature::Degree2)?;
     let t0 = std::time::Instant::now();
-    let sol = solve(&problem, &SolverSettings { steps, rel_tol: 1e-8, ..Default::default() })?;
+    let linear = match std::env::var("SOLVER").as_deref() {
+        Err(_) => LinearSolver::default(),
+        Ok("direct") => LinearSolver::Direct,
+        Ok("two-level") => LinearSolver::TwoLevel,
+        Ok(other) => return Err(format!("SOLVER={other:?}: expected direct or two-level").into()),
+    };
+    let sol = solve(&problem, &SolverSettings { steps, rel_tol: 1e-8, linear, ..Default::default() })?;
+    let t = &sol.timings;
+    println!(
+        "solver {}: {} free DOFs, factor nnz {}, Newton {} iterations, {} factorisations ({:.0} s), {} CG iterations, \
+         assembly {:.0} s, solves {:.0} s",
+        sol.linear_solver,
+        sol.free_dofs,
+        sol.factor_nnz,
+        t.newton_iterations,
+        t.factorizations,
+        t.factorization_s,
+        t.pcg_iterations,
+        t.assembly_s,
+        t.solve_s
+    );
     let u = sol.vertex_displacements();
     let deformed: Vec<Vector3<f64>> = x.iter().zip(u).map(|(a, b)| a + b).collect();
 

@@ -33,6 +33,10 @@ pub(crate) struct TwoLevel {
     cfree_of_vertex: Vec<usize>,
     /// Block index of each fine free node's diagonal block.
     diag_block: Vec<usize>,
+    /// Fine free nodes grouped by colour (greedy colouring of the node graph: no two coupled nodes share
+    /// one): colour c holds `colour_nodes[colour_ptr[c]..colour_ptr[c + 1]]`, ascending.
+    colour_ptr: Vec<usize>,
+    colour_nodes: Vec<usize>,
     pub coarse: DirectSystem,
 }
 
@@ -113,6 +117,7 @@ impl TwoLevel {
                 p.row_ptr[b] + row.binary_search(&b).expect("diagonal in pattern")
             })
             .collect();
+        let (colour_ptr, colour_nodes) = colour_free_nodes(p, free_of_node, &node_of_free);
         Ok(Self {
             n: 3 * n_free,
             node_of_free,
@@ -122,6 +127,8 @@ impl TwoLevel {
             ccols,
             cfree_of_vertex,
             diag_block,
+            colour_ptr,
+            colour_nodes,
             coarse,
         })
     }
@@ -202,7 +209,9 @@ impl TwoLevel {
         });
     }
 
-    /// One block Gauss–Seidel sweep for (K + shift I) z = r, forward or backward over the free nodes.
+    /// One multicolour block Gauss–Seidel sweep for (K + shift I) z = r: colour by colour (forward, or
+    /// backward in reverse colour order), the nodes of one colour in parallel — no two of them are
+    /// coupled, so the result does not depend on the thread count.
     #[allow(clippy::too_many_arguments)] // the level's fixed data and the sweep's vectors
     fn sweep(
         &self,
@@ -214,29 +223,35 @@ impl TwoLevel {
         z: &mut [f64],
         forward: bool,
     ) {
-        let nf = self.node_of_free.len();
-        let mut visit = |f: usize| {
-            let b = self.node_of_free[f];
-            let mut s = Vector3::new(r[3 * f], r[3 * f + 1], r[3 * f + 2]);
-            for pidx in p.row_ptr[b]..p.row_ptr[b + 1] {
-                let a = p.cols[pidx];
-                let fa = free_of_node[a];
-                if a == b || fa == usize::MAX {
-                    continue;
-                }
-                let k = &blocks[9 * pidx..9 * pidx + 9];
-                let za = &z[3 * fa..3 * fa + 3];
-                for c in 0..3 {
-                    s[c] -= k[3 * c] * za[0] + k[3 * c + 1] * za[1] + k[3 * c + 2] * za[2];
-                }
+        let ncol = self.colour_ptr.len() - 1;
+        for step in 0..ncol {
+            let c = if forward { step } else { ncol - 1 - step };
+            let nodes = &self.colour_nodes[self.colour_ptr[c]..self.colour_ptr[c + 1]];
+            let zr: &[f64] = z;
+            let new: Vec<Vector3<f64>> = nodes
+                .par_iter()
+                .with_min_len(256)
+                .map(|&f| {
+                    let b = self.node_of_free[f];
+                    let mut s = Vector3::new(r[3 * f], r[3 * f + 1], r[3 * f + 2]);
+                    for pidx in p.row_ptr[b]..p.row_ptr[b + 1] {
+                        let a = p.cols[pidx];
+                        let fa = free_of_node[a];
+                        if a == b || fa == usize::MAX {
+                            continue;
+                        }
+                        let k = &blocks[9 * pidx..9 * pidx + 9];
+                        let za = &zr[3 * fa..3 * fa + 3];
+                        for c in 0..3 {
+                            s[c] -= k[3 * c] * za[0] + k[3 * c + 1] * za[1] + k[3 * c + 2] * za[2];
+                        }
+                    }
+                    dinv[f] * s
+                })
+                .collect();
+            for (&f, v) in nodes.iter().zip(&new) {
+                z[3 * f..3 * f + 3].copy_from_slice(v.as_slice());
             }
-            let v = dinv[f] * s;
-            z[3 * f..3 * f + 3].copy_from_slice(v.as_slice());
-        };
-        if forward {
-            (0..nf).for_each(&mut visit);
-        } else {
-            (0..nf).rev().for_each(&mut visit);
         }
     }
 
@@ -390,6 +405,43 @@ impl TwoLevel {
     }
 }
 
+/// Greedy colouring of the free nodes in index order (each takes the smallest colour none of its coupled,
+/// already coloured nodes has), returned as CSR groups.
+fn colour_free_nodes(p: &SolidProblem, free_of_node: &[usize], node_of_free: &[usize]) -> (Vec<usize>, Vec<usize>) {
+    let nf = node_of_free.len();
+    let mut colour = vec![usize::MAX; nf];
+    let mut used: Vec<usize> = Vec::new(); // used[c] == f marks colour c taken for node f
+    let mut ncol = 0;
+    for (f, &b) in node_of_free.iter().enumerate() {
+        for &a in &p.cols[p.row_ptr[b]..p.row_ptr[b + 1]] {
+            let fa = free_of_node[a];
+            if fa != usize::MAX && colour[fa] != usize::MAX {
+                used[colour[fa]] = f;
+            }
+        }
+        let c = (0..ncol).find(|&c| used[c] != f).unwrap_or(ncol);
+        if c == ncol {
+            ncol += 1;
+            used.push(usize::MAX);
+        }
+        colour[f] = c;
+    }
+    let mut colour_ptr = vec![0; ncol + 1];
+    for &c in &colour {
+        colour_ptr[c + 1] += 1;
+    }
+    for c in 0..ncol {
+        colour_ptr[c + 1] += colour_ptr[c];
+    }
+    let mut next = colour_ptr.clone();
+    let mut colour_nodes = vec![0; nf];
+    for (f, &c) in colour.iter().enumerate() {
+        colour_nodes[next[c]] = f;
+        next[c] += 1;
+    }
+    (colour_ptr, colour_nodes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -471,6 +523,21 @@ mod tests {
             .flat_map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
             .collect();
         assert_eq!(dofs.len(), tl.n);
+        // the colouring covers every free node once and never puts two coupled nodes in one colour
+        let mut colour = vec![usize::MAX; nf];
+        for c in 0..tl.colour_ptr.len() - 1 {
+            for &f in &tl.colour_nodes[tl.colour_ptr[c]..tl.colour_ptr[c + 1]] {
+                assert_eq!(colour[f], usize::MAX);
+                colour[f] = c;
+            }
+        }
+        for (f, &b) in tl.node_of_free.iter().enumerate() {
+            for &a in &p.cols[p.row_ptr[b]..p.row_ptr[b + 1]] {
+                if a != b && free[a] != usize::MAX {
+                    assert_ne!(colour[f], colour[free[a]], "coupled nodes {b} and {a} share a colour");
+                }
+            }
+        }
         // the fine product is the dense tangent restricted to the free DOFs
         let x = pseudo_random(tl.n, 0.37);
         let mut kx = vec![0.0; tl.n];
