@@ -70,13 +70,17 @@ pub struct GroundTruthReport {
     pub max_relative_residual: f64,
     /// Wall time of all solves (s).
     pub seconds: f64,
-    /// Accepted solve: numeric Cholesky factorisations.
+    /// Accepted solve: solver of the Newton directions (`direct` or `two-level`; empty in reports
+    /// written before it was recorded: direct).
+    #[serde(default)]
+    pub linear_solver: String,
+    /// Accepted solve: numeric Cholesky factorisations (of the coarse level for the two-level solver).
     #[serde(default)]
     pub factorizations: usize,
     /// Accepted solve: time of the factorisations (s).
     #[serde(default)]
     pub factorization_s: f64,
-    /// Accepted solve: conjugate-gradient iterations on a reused factor.
+    /// Accepted solve: conjugate-gradient iterations (preconditioned by a reused factor or the two-level cycle).
     #[serde(default)]
     pub pcg_iterations: usize,
     /// Accepted solve: time of all triangular solves and CG iterations (s).
@@ -313,6 +317,7 @@ pub fn fem_ground_truth(
             .filter_map(|s| s.residual_history.last().map(|r| r / s.tolerance * cfg.rel_tol))
             .fold(0.0, f64::max),
         seconds: t0.elapsed().as_secs_f64(),
+        linear_solver: sol.linear_solver.to_string(),
         factorizations: sol.timings.factorizations,
         factorization_s: sol.timings.factorization_s,
         pcg_iterations: sol.timings.pcg_iterations,

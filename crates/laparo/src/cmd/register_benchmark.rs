@@ -43,9 +43,9 @@ pub struct BenchmarkArgs {
     /// The tier the test suite affords: coarse mesh, one seed, short RODS-MPM runs.
     #[arg(long)]
     pub quick: bool,
-    /// Tetrahedron edge (mm); default 10 (quick 16). The FEM's sparse Cholesky factor (nested dissection) holds
-    /// 2.3 GB of values at 10 mm, 5.9 GB at 8 mm and 20.6 GB at 6 mm (`laparo-bench fem --symbolic-only`): 8 mm is
-    /// the finest mesh within the 8 GB budget, 10 mm the one whose whole protocol is measured overnight-safe.
+    /// Tetrahedron edge (mm); default 10 (quick 16). The FEM solves its Newton systems by two-level conjugate
+    /// gradients, in memory linear in the mesh (0.3 GB at 10 mm, 1.7 GB at 6 mm, where a direct Cholesky factor
+    /// would hold 20.6 GB); 10 mm is the mesh whose whole protocol is measured overnight-safe.
     #[arg(long)]
     pub edge_mm: Option<f64>,
     /// Noise seeds per noisy column; default 5 (quick 1).
