@@ -2,7 +2,9 @@
 //! benchmark (thesis §5.4.2). Nearly incompressible Neo-Hookean law of eq. 5.3
 //! ([`crate::material::NeoHookean`]), dead tractions / nodal / body forces and prescribed
 //! displacements ramped over load increments, Newton with a backtracking line search on the total
-//! potential energy, sparse Cholesky (faer; geometric nested-dissection or AMD fill-reducing ordering) of the tangent.
+//! potential energy; the Newton systems by sparse Cholesky (faer; geometric nested-dissection or AMD
+//! fill-reducing ordering) on small meshes and by conjugate gradients with a two-level (TET10 → linear
+//! tetrahedra) preconditioner beyond ([`LinearSolver`]).
 //!
 //! Units: mm, kPa, mN (energy in mN·mm = µJ).
 mod linear;
