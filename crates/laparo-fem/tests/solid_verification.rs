@@ -12,40 +12,16 @@ use std::sync::Arc;
 /// Box [0, l]³ split in n³ cubes of 6 Kuhn tetrahedra; interior vertices jittered by `jitter` × h.
 fn box_mesh(n: usize, l: f64, jitter: f64, seed: u64) -> TetMesh {
     let h = l / n as f64;
-    let id = |i: usize, j: usize, k: usize| (i * (n + 1) + j) * (n + 1) + k;
+    let mut m = laparo_fem::mesh::shapes::kuhn_box([n; 3], h);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut vertices = Vec::new();
-    for i in 0..=n {
-        for j in 0..=n {
-            for k in 0..=n {
-                let mut x = Vector3::new(i as f64, j as f64, k as f64) * h;
-                let interior = [i, j, k].iter().all(|&c| c > 0 && c < n);
-                if interior && jitter > 0.0 {
-                    x += Vector3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))
-                        * (jitter * h);
-                }
-                vertices.push(x);
-            }
+    for x in m.vertices.iter_mut() {
+        let interior = x.iter().all(|&c| c > 0.5 * h && c < l - 0.5 * h);
+        if interior && jitter > 0.0 {
+            *x += Vector3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))
+                * (jitter * h);
         }
     }
-    let perms = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
-    let mut tets = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            for k in 0..n {
-                for p in perms {
-                    let mut c = [i, j, k];
-                    let mut t = [id(c[0], c[1], c[2]), 0, 0, 0];
-                    for (s, &ax) in p.iter().enumerate() {
-                        c[ax] += 1;
-                        t[s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    tets.push(t);
-                }
-            }
-        }
-    }
-    TetMesh::new(vertices, tets).unwrap()
+    TetMesh::new(m.vertices, m.tets).unwrap()
 }
 
 /// All TET10 nodes on the boundary surface of the linear mesh.

@@ -12,34 +12,7 @@ fn run(args: &[&str]) -> std::process::Output {
 
 /// Box [0,10]×[0,10]×[0,20] mm of 2×2×4 cubes, 6 tets each.
 fn column() -> TetMesh {
-    let (nx, nz) = (2usize, 4usize);
-    let h = 5.0;
-    let id = |i: usize, j: usize, k: usize| (i * (nx + 1) + j) * (nz + 1) + k;
-    let mut v = Vec::new();
-    for i in 0..=nx {
-        for j in 0..=nx {
-            for k in 0..=nz {
-                v.push(Vector3::new(i as f64, j as f64, k as f64) * h);
-            }
-        }
-    }
-    let mut t = Vec::new();
-    for i in 0..nx {
-        for j in 0..nx {
-            for k in 0..nz {
-                for p in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
-                    let mut c = [i, j, k];
-                    let mut tet = [id(i, j, k), 0, 0, 0];
-                    for (s, &ax) in p.iter().enumerate() {
-                        c[ax] += 1;
-                        tet[s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    t.push(tet);
-                }
-            }
-        }
-    }
-    TetMesh::new(v, t).unwrap()
+    laparo_fem::mesh::shapes::kuhn_box([2, 2, 4], 5.0)
 }
 
 #[test]

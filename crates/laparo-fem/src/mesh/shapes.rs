@@ -1,11 +1,44 @@
-//! Closed test surfaces with closed-form volumes: an axis-aligned box and an icosphere.
-use laparo_core::mesh::TriMesh;
+//! Closed test surfaces with closed-form volumes (an axis-aligned box, an icosphere) and a structured
+//! tetrahedral box.
+use laparo_core::mesh::{TetMesh, TriMesh};
 use nalgebra::Vector3;
 use std::collections::HashMap;
 
 /// The box `[lo, hi]` as 12 outward triangles (volume Π(hi − lo)): [`TriMesh::cuboid`].
 pub fn box_surface(lo: &Vector3<f64>, hi: &Vector3<f64>) -> TriMesh {
     TriMesh::cuboid(lo, hi)
+}
+
+/// The box [0, nx h] × [0, ny h] × [0, nz h] (mm) cut into nx × ny × nz cubes of edge `h_mm`, each split
+/// into the 6 Kuhn tetrahedra around its main diagonal (a conforming mesh, positively and negatively
+/// oriented tets mixed). Vertex (i, j, k) has id (i (ny + 1) + j)(nz + 1) + k.
+pub fn kuhn_box([nx, ny, nz]: [usize; 3], h_mm: f64) -> TetMesh {
+    let id = |i: usize, j: usize, k: usize| (i * (ny + 1) + j) * (nz + 1) + k;
+    let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+    for i in 0..=nx {
+        for j in 0..=ny {
+            for k in 0..=nz {
+                vertices.push(Vector3::new(i as f64, j as f64, k as f64) * h_mm);
+            }
+        }
+    }
+    let mut tets = Vec::with_capacity(6 * nx * ny * nz);
+    for i in 0..nx {
+        for j in 0..ny {
+            for k in 0..nz {
+                for p in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+                    let mut c = [i, j, k];
+                    let mut t = [id(i, j, k), 0, 0, 0];
+                    for (s, &ax) in p.iter().enumerate() {
+                        c[ax] += 1;
+                        t[s + 1] = id(c[0], c[1], c[2]);
+                    }
+                    tets.push(t);
+                }
+            }
+        }
+    }
+    TetMesh::new(vertices, tets).expect("a Kuhn box is a valid tet mesh")
 }
 
 /// An icosphere of radius `radius` centred at `centre`: the icosahedron subdivided `levels` times,

@@ -447,37 +447,10 @@ mod tests {
     use super::*;
     use crate::solid::{Quadrature, SolidProblem, Tet10Mesh};
     use crate::NeoHookean;
-    use laparo_core::mesh::TetMesh;
 
     /// [0, 10 mm]³ in n³ cubes of 6 Kuhn tetrahedra, bottom face fixed.
     fn cube(n: usize) -> SolidProblem {
-        let h = 10.0 / n as f64;
-        let id = |i: usize, j: usize, k: usize| (i * (n + 1) + j) * (n + 1) + k;
-        let mut v = Vec::new();
-        for i in 0..=n {
-            for j in 0..=n {
-                for k in 0..=n {
-                    v.push(Vector3::new(i as f64, j as f64, k as f64) * h);
-                }
-            }
-        }
-        let mut tets = Vec::new();
-        for i in 0..n {
-            for j in 0..n {
-                for k in 0..n {
-                    for p in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
-                        let mut c = [i, j, k];
-                        let mut t = [id(i, j, k), 0, 0, 0];
-                        for (s, &ax) in p.iter().enumerate() {
-                            c[ax] += 1;
-                            t[s + 1] = id(c[0], c[1], c[2]);
-                        }
-                        tets.push(t);
-                    }
-                }
-            }
-        }
-        let m = Tet10Mesh::from_linear(&TetMesh::new(v, tets).unwrap()).unwrap();
+        let m = Tet10Mesh::from_linear(&crate::mesh::shapes::kuhn_box([n; 3], 10.0 / n as f64)).unwrap();
         let bottom: Vec<usize> = (0..m.n_vertices).filter(|&i| m.nodes[i].z < 1e-9).collect();
         let fixed = SolidProblem::fixed_vertices(&m, &bottom).unwrap();
         SolidProblem::new(m, NeoHookean::liver(), &fixed, &Default::default(), Quadrature::Degree2).unwrap()
