@@ -101,6 +101,26 @@ pub struct SolidProblem {
 
 const CHUNK: usize = 2048;
 
+/// Node adjacency (CSR over `n` nodes, each row sorted, self included) of elements given by their node lists.
+pub(crate) fn node_adjacency<'a>(n: usize, elements: impl Iterator<Item = &'a [usize]>) -> (Vec<usize>, Vec<usize>) {
+    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for el in elements {
+        for &a in el {
+            adj[a].extend_from_slice(el);
+        }
+    }
+    let mut row_ptr = Vec::with_capacity(n + 1);
+    let mut cols = Vec::new();
+    row_ptr.push(0);
+    for l in adj.iter_mut() {
+        l.sort_unstable();
+        l.dedup();
+        cols.extend_from_slice(l);
+        row_ptr.push(cols.len());
+    }
+    (row_ptr, cols)
+}
+
 impl SolidProblem {
     /// Set up the problem; errors on out-of-range ids, non-finite values, missing Dirichlet
     /// conditions (rigid-body modes) and bad faces.
@@ -187,23 +207,7 @@ impl SolidProblem {
             }
         }
         let qp = quadrature.points().iter().map(|q| (q.weight, tet10_shape_grad(&q.xi))).collect();
-        // Node adjacency.
-        let mut adj: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for el in &mesh.elements {
-            for &a in el {
-                adj[a].extend_from_slice(el);
-            }
-        }
-        let mut row_ptr = Vec::with_capacity(n + 1);
-        let mut cols = Vec::new();
-        row_ptr.push(0);
-        for l in adj.iter_mut() {
-            l.sort_unstable();
-            l.dedup();
-            cols.extend_from_slice(l);
-            row_ptr.push(cols.len());
-        }
-        drop(adj);
+        let (row_ptr, cols) = node_adjacency(n, mesh.elements.iter().map(|el| &el[..]));
         let elem_blocks = mesh
             .elements
             .par_iter()

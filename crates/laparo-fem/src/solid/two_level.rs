@@ -11,7 +11,7 @@
 //! algebraic multigrid crates do not build the P2 → P1 hierarchy that the mesh gives for free.
 use super::linear::{norm, pcg, DirectSystem, Factor, NodeGraph, PcgEnd};
 use super::newton::{FillOrdering, Timings};
-use super::problem::SolidProblem;
+use super::problem::{node_adjacency, SolidProblem};
 use crate::error::{FemError, Result};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -78,22 +78,7 @@ impl TwoLevel {
             }
             parents[f] = list;
         }
-        // vertex adjacency of the linear tetrahedra
-        let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nv];
-        for el in &mesh.elements {
-            for &a in &el[..4] {
-                adj[a].extend_from_slice(&el[..4]);
-            }
-        }
-        let mut crow_ptr = Vec::with_capacity(nv + 1);
-        let mut ccols = Vec::new();
-        crow_ptr.push(0);
-        for l in adj.iter_mut() {
-            l.sort_unstable();
-            l.dedup();
-            ccols.extend_from_slice(l);
-            crow_ptr.push(ccols.len());
-        }
+        let (crow_ptr, ccols) = node_adjacency(nv, mesh.elements.iter().map(|el| &el[..4]));
         let mut cfree_of_vertex = vec![usize::MAX; nv];
         let mut nc = 0;
         for (v, c) in cfree_of_vertex.iter_mut().enumerate() {
@@ -297,8 +282,8 @@ impl TwoLevel {
         self.sweep(p, free_of_node, blocks, dinv, r, &mut z, true);
         let mut kz = vec![0.0; self.n];
         self.product(p, free_of_node, blocks, shift, &z, &mut kz);
-        let res: Vec<f64> = r.iter().zip(&kz).map(|(a, b)| a - b).collect();
-        let mut rc = self.restrict(&res);
+        kz.iter_mut().zip(r).for_each(|(k, &ri)| *k = ri - *k); // the residual r − K z
+        let mut rc = self.restrict(&kz);
         self.coarse.solve_in_place(coarse, &mut rc);
         self.prolong_add(&rc, &mut z);
         self.sweep(p, free_of_node, blocks, dinv, r, &mut z, false);
