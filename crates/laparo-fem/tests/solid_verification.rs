@@ -311,3 +311,51 @@ fn two_level_and_direct_solvers_give_the_same_solution() {
         assert!(s.residual_history.last().unwrap() <= &s.tolerance);
     }
 }
+
+#[test]
+fn a_load_path_reaches_the_equilibria_of_solves_from_rest() {
+    // Calibrating a load solves one problem at several load factors; `LoadPath` starts each solve from
+    // the highest equilibrium it has stored below the target. Hyperelastic equilibrium does not depend
+    // on the path, so each result must equal a solve from rest at that load factor (to the Newton
+    // tolerance), with fewer increments; a target that is a stored state needs no Newton iteration.
+    use laparo_fem::solid::LoadPath;
+    let tau = Vector3::new(0.2, 0.0, -0.1);
+    let loads = Loads {
+        face_tractions: top_faces(4).iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
+        ..Default::default()
+    };
+    let p = bottom_fixed_problem(4, &loads);
+    let settings = SolverSettings { steps: 4, rel_tol: 1e-11, ..Default::default() };
+    let mut path = LoadPath::new(&p, &settings).unwrap();
+    let full = path.solve_at(1.0).unwrap();
+    assert_eq!(full.steps.len(), 4);
+    assert_eq!(path.stored_states(), 5, "rest and the four increments");
+    // the first solve from rest is `solve` itself, bit for bit
+    assert_eq!(full.displacement, solve(&p, &settings).unwrap().displacement);
+    assert!(full.max_displacement_mm > 0.5, "a finite deformation: {} mm", full.max_displacement_mm);
+    for (target, increments) in [(0.63, 1), (0.5, 1), (1.6, 2)] {
+        // 0.63 from the state at 0.5 (0.13 ≤ 0.63 / 4: one increment), 0.5 stored (one zero increment,
+        // 0 Newton iterations), 1.6 from 1.0 (0.6 / (1.6 / 4) = 1.5: two increments)
+        let warm = path.solve_at(target).unwrap();
+        let cold = LoadPath::new(&p, &settings).unwrap().solve_at(target).unwrap();
+        assert_eq!(cold.steps.len(), 4);
+        assert_eq!(warm.steps.len(), increments, "load factor {target}");
+        let diff = warm.displacement.iter().zip(&cold.displacement).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max);
+        assert!(
+            diff < 1e-8 * cold.max_displacement_mm,
+            "load factor {target}: {diff} mm of {} mm",
+            cold.max_displacement_mm
+        );
+        assert!((warm.min_j - cold.min_j).abs() < 1e-8);
+        for s in &warm.steps {
+            assert!(s.residual_history.last().unwrap() <= &s.tolerance);
+        }
+        if target == 0.5 {
+            assert_eq!(warm.timings.newton_iterations, 0, "a stored equilibrium");
+        } else {
+            assert!(warm.timings.newton_iterations < cold.timings.newton_iterations);
+        }
+    }
+    let e = path.solve_at(f64::NAN).unwrap_err().to_string();
+    assert!(e.contains("load_factor"), "{e}");
+}

@@ -8,6 +8,7 @@
 //!
 //! Units: mm, kPa, mN (energy in mN·mm = µJ).
 mod linear;
+mod load_path;
 mod newton;
 mod ordering;
 mod problem;
@@ -15,6 +16,7 @@ mod quadrature;
 mod tet10;
 mod two_level;
 
+pub use load_path::LoadPath;
 pub use newton::{
     factorization_profile, solve, FactorizationProfile, FillOrdering, LinearSolver, Solution, SolverSettings,
     StepReport, Timings,

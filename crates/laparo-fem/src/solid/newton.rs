@@ -8,6 +8,7 @@
 //! that fails to converge in [`SolverSettings::pcg_max_iterations`] or meets non-positive curvature. The
 //! convergence test of Newton's method is unchanged, so the solution meets the same residual tolerance.
 use super::linear::{norm, DirectSystem, Factor, NodeGraph};
+use super::load_path::LoadPath;
 use super::problem::SolidProblem;
 use super::two_level::TwoLevel;
 use crate::error::{FemError, Result};
@@ -170,11 +171,11 @@ impl Solution {
 }
 
 /// The free DOFs and the solver of the Newton directions.
-struct FreeSystem {
-    n: usize,
-    free_of_node: Vec<usize>,
+pub(super) struct FreeSystem {
+    pub(super) n: usize,
+    pub(super) free_of_node: Vec<usize>,
     /// Nonzeros of the tangent's upper triangle over the free DOFs.
-    tangent_nnz: usize,
+    pub(super) tangent_nnz: usize,
     linear: Linear,
 }
 
@@ -184,7 +185,7 @@ enum Linear {
 }
 
 impl FreeSystem {
-    fn new(p: &SolidProblem, settings: &SolverSettings) -> Result<Self> {
+    pub(super) fn new(p: &SolidProblem, settings: &SolverSettings) -> Result<Self> {
         let nn = p.mesh.n_nodes();
         let mut free_of_node = vec![usize::MAX; nn];
         let mut nf = 0;
@@ -237,14 +238,14 @@ impl FreeSystem {
     }
 
     /// Nonzeros of the Cholesky factor (of the coarse level for the two-level solver).
-    fn factor_nnz(&self) -> usize {
+    pub(super) fn factor_nnz(&self) -> usize {
         match &self.linear {
             Linear::Direct(d) => d.factor_nnz(),
             Linear::TwoLevel(t) => t.coarse.factor_nnz(),
         }
     }
 
-    fn solver_name(&self) -> &'static str {
+    pub(super) fn solver_name(&self) -> &'static str {
         match &self.linear {
             Linear::Direct(_) => "direct",
             Linear::TwoLevel(_) => "two-level",
@@ -289,7 +290,7 @@ impl FreeSystem {
     }
 }
 
-enum StepFail {
+pub(super) enum StepFail {
     Inverted,
     NoConvergence,
 }
@@ -348,73 +349,7 @@ pub fn factorization_profile(p: &SolidProblem, ordering: FillOrdering, numeric: 
 /// Solve the quasi-static problem by `settings.steps` load increments (tractions, forces, body
 /// force and prescribed displacements all ramped by the load factor t = k / steps).
 pub fn solve(p: &SolidProblem, settings: &SolverSettings) -> Result<Solution> {
-    if settings.steps == 0 {
-        return Err(FemError::param("steps", 0.0, "must be ≥ 1"));
-    }
-    if !(settings.rel_tol > 0.0 && settings.rel_tol < 1.0) {
-        return Err(FemError::param("rel_tol", settings.rel_tol, "must lie in (0, 1)"));
-    }
-    let t_start = Instant::now();
-    let mut timings = Timings::default();
-    let t0 = Instant::now();
-    let sys = FreeSystem::new(p, settings)?;
-    timings.symbolic_s = t0.elapsed().as_secs_f64();
-    let nn = p.mesh.n_nodes();
-    let mut u = vec![0.0; 3 * nn];
-    let mut steps = Vec::new();
-    let dt0 = 1.0 / settings.steps as f64;
-    let mut t = 0.0;
-    let mut dt = dt0;
-    let mut cuts = 0;
-    let mut step_idx = 1;
-    let mut reuse: Option<Factor> = None;
-    while t < 1.0 - 1e-12 {
-        let t_new = if t + dt > 1.0 - 1e-12 { 1.0 } else { t + dt };
-        match newton_step(p, &sys, &u, t, t_new, settings, &mut reuse, &mut timings) {
-            Ok((u_new, mut rep)) => {
-                u = u_new;
-                t = t_new;
-                rep.step = step_idx;
-                steps.push(rep);
-                if (t / dt0 - (t / dt0).round()).abs() < 1e-9 {
-                    step_idx = (t / dt0).round() as usize + 1;
-                }
-                dt = (dt * 2.0).min(dt0);
-            }
-            Err(fail) => {
-                cuts += 1;
-                if cuts > settings.max_cuts || dt < dt0 / 1024.0 {
-                    return Err(FemError::Solver(match fail {
-                        StepFail::Inverted => format!(
-                            "tractions invert elements at step {step_idx} (load factor {t_new:.4}): J ≤ 0 at quadrature points persists after {} step cuts",
-                            cuts - 1
-                        ),
-                        StepFail::NoConvergence => format!(
-                            "Newton does not converge at step {step_idx} (load factor {t_new:.4}) after {} step cuts",
-                            cuts - 1
-                        ),
-                    }));
-                }
-                dt *= 0.5;
-            }
-        }
-    }
-    let displacement: Vec<Vector3<f64>> = (0..nn).map(|i| Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2])).collect();
-    let min_j = steps.last().map_or(1.0, |s| s.min_j);
-    timings.total_s = t_start.elapsed().as_secs_f64();
-    timings.newton_iterations = steps.iter().map(|s| s.iterations).sum();
-    Ok(Solution {
-        max_displacement_mm: displacement.iter().map(|d| d.norm()).fold(0.0, f64::max),
-        displacement,
-        n_vertices: p.mesh.n_vertices,
-        free_dofs: sys.n,
-        tangent_nnz: sys.tangent_nnz,
-        factor_nnz: sys.factor_nnz(),
-        linear_solver: sys.solver_name(),
-        steps,
-        min_j,
-        timings,
-    })
+    LoadPath::one_shot(p, settings)?.solve_at(1.0)
 }
 
 fn free_residual(p: &SolidProblem, sys: &FreeSystem, fint: &[f64], t: f64) -> (Vec<f64>, f64) {
@@ -434,10 +369,10 @@ fn free_residual(p: &SolidProblem, sys: &FreeSystem, fint: &[f64], t: f64) -> (V
     (r, react.sqrt())
 }
 
-type StepOut = std::result::Result<(Vec<f64>, StepReport), StepFail>;
+pub(super) type StepOut = std::result::Result<(Vec<f64>, StepReport), StepFail>;
 
 #[allow(clippy::too_many_arguments)] // the reused factor and the timings are the step's running state
-fn newton_step(
+pub(super) fn newton_step(
     p: &SolidProblem,
     sys: &FreeSystem,
     u0: &[f64],

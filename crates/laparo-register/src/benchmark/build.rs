@@ -9,7 +9,7 @@ use crate::organ::Roi;
 use laparo_fem::material::NeoHookean;
 use laparo_fem::mesh::incision::CutMesh;
 use laparo_fem::mesh::scenario::Scenario;
-use laparo_fem::solid::{solve, FaceTraction, Loads, Quadrature, SolidProblem, Solution, SolverSettings, Tet10Mesh};
+use laparo_fem::solid::{FaceTraction, LoadPath, Loads, Quadrature, SolidProblem, Solution, SolverSettings, Tet10Mesh};
 use nalgebra::Vector3;
 
 /// How to make the ground truth.
@@ -219,14 +219,13 @@ pub fn crack_pressure(cut: &CutMesh, p: f64) -> Vec<FaceTraction> {
         .collect()
 }
 
-fn solve_at(scn: &Scenario, material: NeoHookean, p: f64, cfg: &GroundTruthConfig) -> Result<Solution> {
+/// The problem of `scn` with pressure `p_ref` (kPa) on the crack faces; a load factor f is the pressure f · `p_ref`.
+fn crack_problem(scn: &Scenario, material: NeoHookean, p_ref: f64) -> Result<SolidProblem> {
     let fem = |e: laparo_fem::FemError| RegisterError::bad(format!("FEM ground truth ({})", scn.name), e.to_string());
     let mesh = Tet10Mesh::from_linear(&scn.cut.mesh).map_err(fem)?;
     let dirichlet = SolidProblem::fixed_vertices(&mesh, &scn.fixed_nodes).map_err(fem)?;
-    let loads = Loads { face_tractions: crack_pressure(&scn.cut, p), ..Default::default() };
-    let problem = SolidProblem::new(mesh, material, &dirichlet, &loads, Quadrature::Degree2).map_err(fem)?;
-    let settings = SolverSettings { steps: cfg.steps, rel_tol: cfg.rel_tol, ..Default::default() };
-    solve(&problem, &settings).map_err(fem)
+    let loads = Loads { face_tractions: crack_pressure(&scn.cut, p_ref), ..Default::default() };
+    SolidProblem::new(mesh, material, &dirichlet, &loads, Quadrature::Degree2).map_err(fem)
 }
 
 /// The ground truth of `scn`: node displacements of the cut mesh (mm) and the calibration report.
@@ -247,9 +246,18 @@ pub fn fem_ground_truth(
     let x0 = &scn.cut.mesh.vertices;
     let mut tried: Vec<[f64; 2]> = Vec::new();
     let mut p = cfg.initial_pressure_kpa;
+    if !(p.is_finite() && p > 0.0) {
+        return Err(RegisterError::param("initial_pressure_kpa", p, "must be finite and > 0"));
+    }
+    // One problem for every solve of the calibration: each starts from the nearest lower equilibrium
+    // already reached (the pressures are load factors of the first).
+    let problem = crack_problem(scn, material, p)?;
+    let settings = SolverSettings { steps: cfg.steps, rel_tol: cfg.rel_tol, ..Default::default() };
+    let fem = |e: laparo_fem::FemError| RegisterError::bad(format!("FEM ground truth ({})", scn.name), e.to_string());
+    let mut path = LoadPath::new(&problem, &settings).map_err(fem)?;
     let mut best: Option<(Solution, f64, f64)> = None;
     for k in 0..cfg.max_solves.max(1) {
-        let sol = match solve_at(scn, material, p, cfg) {
+        let sol = match path.solve_at(p / cfg.initial_pressure_kpa).map_err(fem) {
             Ok(s) => s,
             Err(e) if k > 0 => {
                 // too much pressure (inversion): step back halfway towards the last good pressure
