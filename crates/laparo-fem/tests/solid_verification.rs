@@ -173,6 +173,16 @@ fn top_faces(n: usize) -> Vec<[usize; 3]> {
     lin.boundary().faces.into_iter().filter(|f| f.iter().all(|&v| (lin.vertices[v].z - 10.0).abs() < 1e-9)).collect()
 }
 
+/// The n³ box, bottom fixed, its top sheared by the traction (0.2, 0, −0.1) kPa: a finite deformation.
+fn sheared_box(n: usize) -> SolidProblem {
+    let tau = Vector3::new(0.2, 0.0, -0.1);
+    let loads = Loads {
+        face_tractions: top_faces(n).iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
+        ..Default::default()
+    };
+    bottom_fixed_problem(n, &loads)
+}
+
 #[test]
 fn zero_load_gives_zero_displacement() {
     let p = bottom_fixed_problem(2, &Loads::default());
@@ -259,12 +269,7 @@ fn nested_dissection_and_amd_give_the_same_solution() {
     // same displacements (to the Newton tolerance), and on a 3D mesh nested dissection's factor is no
     // denser than 1.5× AMD's.
     use laparo_fem::solid::FillOrdering;
-    let tau = Vector3::new(0.2, 0.0, -0.1);
-    let loads = Loads {
-        face_tractions: top_faces(7).iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
-        ..Default::default()
-    };
-    let p = bottom_fixed_problem(7, &loads);
+    let p = sheared_box(7);
     let run = |ordering| {
         let linear = laparo_fem::solid::LinearSolver::Direct;
         solve(
@@ -290,12 +295,7 @@ fn two_level_and_direct_solvers_give_the_same_solution() {
     // displacements of the Cholesky path, at the same Newton tolerance. `Auto` with a budget smaller
     // than the factor picks the two-level solver.
     use laparo_fem::solid::LinearSolver;
-    let tau = Vector3::new(0.2, 0.0, -0.1);
-    let loads = Loads {
-        face_tractions: top_faces(5).iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
-        ..Default::default()
-    };
-    let p = bottom_fixed_problem(5, &loads);
+    let p = sheared_box(5);
     let run = |linear| solve(&p, &SolverSettings { steps: 3, rel_tol: 1e-11, linear, ..Default::default() }).unwrap();
     let direct = run(LinearSolver::Direct);
     let two = run(LinearSolver::TwoLevel);
@@ -319,12 +319,7 @@ fn a_load_path_reaches_the_equilibria_of_solves_from_rest() {
     // on the path, so each result must equal a solve from rest at that load factor (to the Newton
     // tolerance), with fewer increments; a target that is a stored state needs no Newton iteration.
     use laparo_fem::solid::LoadPath;
-    let tau = Vector3::new(0.2, 0.0, -0.1);
-    let loads = Loads {
-        face_tractions: top_faces(4).iter().map(|&face| FaceTraction { face, traction_kpa: tau }).collect(),
-        ..Default::default()
-    };
-    let p = bottom_fixed_problem(4, &loads);
+    let p = sheared_box(4);
     let settings = SolverSettings { steps: 4, rel_tol: 1e-11, ..Default::default() };
     let mut path = LoadPath::new(&p, &settings).unwrap();
     let full = path.solve_at(1.0).unwrap();

@@ -220,12 +220,11 @@ pub fn crack_pressure(cut: &CutMesh, p: f64) -> Vec<FaceTraction> {
 }
 
 /// The problem of `scn` with pressure `p_ref` (kPa) on the crack faces; a load factor f is the pressure f · `p_ref`.
-fn crack_problem(scn: &Scenario, material: NeoHookean, p_ref: f64) -> Result<SolidProblem> {
-    let fem = |e: laparo_fem::FemError| RegisterError::bad(format!("FEM ground truth ({})", scn.name), e.to_string());
-    let mesh = Tet10Mesh::from_linear(&scn.cut.mesh).map_err(fem)?;
-    let dirichlet = SolidProblem::fixed_vertices(&mesh, &scn.fixed_nodes).map_err(fem)?;
+fn crack_problem(scn: &Scenario, material: NeoHookean, p_ref: f64) -> laparo_fem::Result<SolidProblem> {
+    let mesh = Tet10Mesh::from_linear(&scn.cut.mesh)?;
+    let dirichlet = SolidProblem::fixed_vertices(&mesh, &scn.fixed_nodes)?;
     let loads = Loads { face_tractions: crack_pressure(&scn.cut, p_ref), ..Default::default() };
-    SolidProblem::new(mesh, material, &dirichlet, &loads, Quadrature::Degree2).map_err(fem)
+    SolidProblem::new(mesh, material, &dirichlet, &loads, Quadrature::Degree2)
 }
 
 /// The ground truth of `scn`: node displacements of the cut mesh (mm) and the calibration report.
@@ -251,9 +250,9 @@ pub fn fem_ground_truth(
     }
     // One problem for every solve of the calibration: each starts from the nearest lower equilibrium
     // already reached (the pressures are load factors of the first).
-    let problem = crack_problem(scn, material, p)?;
-    let settings = SolverSettings { steps: cfg.steps, rel_tol: cfg.rel_tol, ..Default::default() };
     let fem = |e: laparo_fem::FemError| RegisterError::bad(format!("FEM ground truth ({})", scn.name), e.to_string());
+    let problem = crack_problem(scn, material, p).map_err(fem)?;
+    let settings = SolverSettings { steps: cfg.steps, rel_tol: cfg.rel_tol, ..Default::default() };
     let mut path = LoadPath::new(&problem, &settings).map_err(fem)?;
     let mut best: Option<(Solution, f64, f64)> = None;
     for k in 0..cfg.max_solves.max(1) {
