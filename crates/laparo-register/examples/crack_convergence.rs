@@ -2,8 +2,11 @@
 //! one scenario, one fixed crack pressure, so runs at several edges compare the same load.
 //!
 //! `cargo run --release -p laparo-register --example crack_convergence -- EDGE_MM non-anatomical|anatomical
-//!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER]`; `SOLVER=direct|two-level` in the environment forces
-//!  the solver of the Newton directions (default: direct when its factor fits in 6 GiB).
+//!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER] [CUT_LENGTH_MM] [CUT_DEPTH]`; `SOLVER=direct|two-level` in
+//!  the environment forces the solver of the Newton directions (default: direct when its factor fits in 6 GiB).
+//!  CUT_LENGTH_MM and CUT_DEPTH change the blade (anatomical: depth as a fraction of the local thickness;
+//!  non-anatomical: depth in mm; default the benchmark's). `TARGET_GAP_MM=G` adds a second solve at the
+//!  pressure the first one's gap scales to G (one secant step from zero), so cuts compare at one opening.
 //!
 //! Prints the crack's resolution (`CrackResolution`: crack area against the blade's area inside the
 //! organ, duplicated nodes, lip pairs) and, when PRESSURE_KPA > 0, the FEM at that pressure: the max
@@ -12,8 +15,8 @@
 //! on the input surface (`non_anatomical_on` / `anatomical_on`), so every edge gets the same cut.
 use laparo_fem::material::NeoHookean;
 use laparo_fem::mesh::{
-    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, ScenarioFrame,
-    Surface, TetraParams,
+    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
+    ScenarioFrame, Surface, TetraParams,
 };
 use laparo_fem::solid::{solve, LinearSolver, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use laparo_register::benchmark::build::{
@@ -36,7 +39,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 2 {
         return Err("usage: crack_convergence EDGE_MM non-anatomical|anatomical [PRESSURE_KPA] [STEPS] \
-                    [FIXED_FRACTION] [LIVER]"
+                    [FIXED_FRACTION] [LIVER] [CUT_LENGTH_MM] [CUT_DEPTH]"
             .into());
     }
     let edge_mm: f64 = parsed(&args, 0, "EDGE_MM", 0.0)?;
@@ -45,15 +48,25 @@ fn main() -> Result<(), Box<dyn Error>> {
     let steps: usize = parsed(&args, 3, "STEPS", 8)?;
     let mut frame = ScenarioFrame::default();
     frame.fixed_fraction = parsed(&args, 4, "FIXED_FRACTION", frame.fixed_fraction)?;
-    let liver = args.get(5).map(String::as_str).unwrap_or(P2ILF);
+    let liver = args.get(5).map(String::as_str).filter(|s| *s != "-").unwrap_or(P2ILF);
+    let mut anat = AnatomicalParams::default();
+    let mut non = NonAnatomicalParams::default();
+    anat.length_mm = parsed(&args, 6, "CUT_LENGTH_MM", anat.length_mm)?;
+    non.length_mm = parsed(&args, 6, "CUT_LENGTH_MM", non.length_mm)?;
+    anat.depth_fraction = parsed(&args, 7, "CUT_DEPTH", anat.depth_fraction)?;
+    non.depth_mm = parsed(&args, 7, "CUT_DEPTH", non.depth_mm)?;
+    let target_gap_mm: Option<f64> = match std::env::var("TARGET_GAP_MM") {
+        Err(_) => None,
+        Ok(s) => Some(s.parse().map_err(|_| format!("TARGET_GAP_MM: cannot parse {s:?}"))?),
+    };
 
     let surface = laparo_core::mesh::read_mesh(liver)?;
     let organ = Surface::new(surface.clone(), liver)?;
     let params = TetraParams { edge_mm, ..Default::default() };
     let (mesh, quality) = tetrahedralize_surface(surface.clone(), liver, &params)?;
     let mut scn = match scenario {
-        "anatomical" => anatomical_on(&mesh, &surface, &frame, &AnatomicalParams::default())?,
-        "non-anatomical" => non_anatomical_on(&mesh, &surface, &frame, &NonAnatomicalParams::default())?,
+        "anatomical" => anatomical_on(&mesh, &surface, &frame, &anat)?,
+        "non-anatomical" => non_anatomical_on(&mesh, &surface, &frame, &non)?,
         other => return Err(format!("scenario {other:?}: expected non-anatomical or anatomical").into()),
     };
     let dropped = drop_detached_fragments(&mut scn);
@@ -75,6 +88,26 @@ fn main() -> Result<(), Box<dyn Error>> {
         return Ok(());
     }
 
+    let linear = match std::env::var("SOLVER").as_deref() {
+        Err(_) => LinearSolver::default(),
+        Ok("direct") => LinearSolver::Direct,
+        Ok("two-level") => LinearSolver::TwoLevel,
+        Ok(other) => return Err(format!("SOLVER={other:?}: expected direct or two-level").into()),
+    };
+    let gap = open_at(&scn, pressure_kpa, steps, linear)?;
+    if let Some(target) = target_gap_mm {
+        if !(target > 0.0 && gap > 0.0) {
+            return Err(
+                format!("TARGET_GAP_MM {target}: needs a positive target and a first gap > 0 (got {gap})").into()
+            );
+        }
+        open_at(&scn, pressure_kpa * target / gap, steps, linear)?;
+    }
+    Ok(())
+}
+
+/// Opens the crack at `pressure_kpa`, prints the solver and crack-opening figures, returns the max gap (mm).
+fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver) -> Result<f64, Box<dyn Error>> {
     let x = &scn.cut.mesh.vertices;
     let material = NeoHookean::from_young_poisson(4.1, 0.49)?;
     let m10 = Tet10Mesh::from_linear(&scn.cut.mesh)?;
@@ -83,12 +116,6 @@ fn main() -> Result<(), Box<dyn Error>> {
     let loads = Loads { face_tractions, ..Default::default() };
     let problem = SolidProblem::new(m10, material, &fixed, &loads, Quadrature::Degree2)?;
     let t0 = std::time::Instant::now();
-    let linear = match std::env::var("SOLVER").as_deref() {
-        Err(_) => LinearSolver::default(),
-        Ok("direct") => LinearSolver::Direct,
-        Ok("two-level") => LinearSolver::TwoLevel,
-        Ok(other) => return Err(format!("SOLVER={other:?}: expected direct or two-level").into()),
-    };
     let sol = solve(&problem, &SolverSettings { steps, rel_tol: 1e-8, linear, ..Default::default() })?;
     let t = &sol.timings;
     println!(
@@ -129,5 +156,5 @@ fn main() -> Result<(), Box<dyn Error>> {
         sol.max_displacement_mm,
         sol.min_j
     );
-    Ok(())
+    Ok(max_gap_mm(&scn.cut, &deformed))
 }

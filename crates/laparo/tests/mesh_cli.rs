@@ -81,6 +81,46 @@ fn tetra_then_incision_on_a_sphere() {
         serde_json::from_str(&std::fs::read_to_string(cut_dir.join("lips.json")).unwrap()).unwrap();
     let l = lips["side_a"]["length_mm"].as_f64().unwrap();
     assert!((l - 100.0).abs() < 25.0, "lip length {l}");
+    // another blade and fixed region: a 50 mm cut a third of the way down, 30 % of the surface nodes fixed
+    let short = dir.path().join("short");
+    let s_ = |p: &PathBuf| p.display().to_string();
+    run_ok(&[
+        "mesh",
+        "incision",
+        "--mesh",
+        &s_(&vtk),
+        "--scenario",
+        "anatomical",
+        "--anterior",
+        "0,0,1",
+        "--cut-length-mm",
+        "50",
+        "--cut-depth-fraction",
+        "0.3",
+        "--fixed-fraction",
+        "0.3",
+        "--out",
+        &s_(&short),
+    ]);
+    let read =
+        |p: PathBuf| -> serde_json::Value { serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap() };
+    let l2 = read(short.join("lips.json"))["side_a"]["length_mm"].as_f64().unwrap();
+    assert!((l2 - 50.0).abs() < 15.0 && l2 < l - 25.0, "lip length {l2} (default blade {l})");
+    let sc = read(short.join("scenario.json"));
+    assert_eq!(sc["params"]["length_mm"], 50.0);
+    assert_eq!(sc["frame"]["fixed_fraction"], 0.3);
+    let n_fixed = |v: &serde_json::Value| v["fixed_nodes"].as_array().unwrap().len() as f64;
+    let ratio = n_fixed(&read(short.join("fixed_nodes.json"))) / n_fixed(&fixed);
+    assert!((ratio - 2.0).abs() < 0.2, "fixed nodes 30 % / 15 %: ratio {ratio}");
+    // the blade depth, in the plane of the cut through the north pole (z = 40 at the mouth, thickness 80)
+    let cut2 = laparo_core::mesh::read_vtk(short.join("cut.vtk")).unwrap();
+    let deepest = |c: &laparo_core::mesh::TetMesh, faces: &serde_json::Value| {
+        let ids = faces.as_array().unwrap().iter().flat_map(|f| f.as_array().unwrap().iter());
+        ids.map(|i| c.vertices[i.as_u64().unwrap() as usize].z).fold(f64::INFINITY, f64::min)
+    };
+    let sc1 = read(cut_dir.join("scenario.json"));
+    let (z1, z2) = (deepest(&cut, &sc1["crack_faces_a"]), deepest(&cut2, &sc["crack_faces_a"]));
+    assert!(z2 > z1 + 15.0, "0.3 of the thickness ends higher than 0.6: deepest crack node z {z2} vs {z1} mm");
 }
 
 #[test]
@@ -107,6 +147,30 @@ fn bad_inputs_fail_clearly() {
         .unwrap();
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("missing.vtk"));
+    // blade flags that do not fit the scenario, or out of range: named, before any work
+    let obj = dir.path().join("ball.obj");
+    std::fs::write(&obj, sphere_obj(30.0)).unwrap();
+    let vtk = dir.path().join("ball.vtk");
+    run_ok(&["mesh", "tetra", "--surface", obj.to_str().unwrap(), "--edge-mm", "8", "--out", vtk.to_str().unwrap()]);
+    for (scenario, flags, named) in [
+        ("anatomical", &["--cut-depth-mm", "20"][..], "--cut-depth-mm 20"),
+        ("non-anatomical", &["--cut-depth-fraction", "0.5"][..], "--cut-depth-fraction 0.5"),
+        ("anatomical", &["--cut-depth-fraction", "1.5"][..], "--cut-depth-fraction 1.5"),
+        ("anatomical", &["--cut-length-mm=-5"][..], "--cut-length-mm -5"),
+        ("non-anatomical", &["--cut-length-mm", "NaN"][..], "--cut-length-mm NaN"),
+        ("anatomical", &["--fixed-fraction", "1"][..], "--fixed-fraction 1"),
+    ] {
+        let o = laparo()
+            .args(["mesh", "incision", "--mesh", vtk.to_str().unwrap(), "--scenario", scenario])
+            .args(flags)
+            .arg("--out")
+            .arg(dir.path().join("y"))
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(named) && !e.contains("panicked"), "{named}: {e}");
+    }
+    assert!(!dir.path().join("y").exists(), "nothing written for a refused blade");
 }
 
 #[test]

@@ -105,6 +105,26 @@ fn quick_tier_end_to_end_and_resume() {
     let bad: Vec<&str> = args.iter().copied().chain(["--methods", "rods-ballistic", "--oracle-kerf-mm=-1"]).collect();
     let (ok, _, err) = laparo(&bad, dir.path());
     assert!(!ok && err.contains("--oracle-kerf-mm"), "{err}");
+    // another blade into this folder: refused before any solve (its runs belong to the stored ground truth)
+    let other_cut: Vec<&str> = args.iter().copied().chain(["--methods", "none", "--cut-depth-mm", "18"]).collect();
+    let (ok, _, err) = laparo(&other_cut, dir.path());
+    assert!(!ok && err.contains("ground_truth.json") && err.contains("another --out folder"), "{err}");
+    // ... and into a folder of its own: a shallower, shorter blade calibrated to another opening
+    let cut_out = dir.path().join("short");
+    let mut short: Vec<&str> = args.to_vec();
+    let last = short.len() - 1;
+    short[last] = cut_out.to_str().unwrap();
+    short.extend(["--methods", "none", "--cut-depth-mm", "18", "--cut-length-mm", "45", "--target-gap-mm", "6,9"]);
+    let (ok, _, err) = laparo(&short, dir.path());
+    assert!(ok, "{err}");
+    let gt2: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cut_out.join("ground_truth.json")).unwrap()).unwrap();
+    assert_eq!(gt2[0]["blade"]["depth_mm"], 18.0);
+    assert_eq!(gt2[0]["blade"]["length_mm"], 45.0);
+    let gap2 = gt2[0]["ground_truth"]["max_gap_mm"].as_f64().unwrap();
+    assert!((6.0..=9.0).contains(&gap2), "lip gap {gap2} outside --target-gap-mm 6,9");
+    let area = |g: &serde_json::Value| g[0]["crack_resolution"]["crack_area_mm2"][0].as_f64().unwrap();
+    assert!(area(&gt2) < 0.7 * area(&gt), "crack area {} vs the default blade's {}", area(&gt2), area(&gt));
 }
 
 #[test]
@@ -137,6 +157,21 @@ fn bad_input_is_named() {
     );
     assert!(!ok && err.contains("--methods") && err.contains("magic"), "{err}");
     assert!(!err.contains("panicked"));
+    // blade and calibration flags: checked before the liver is read (here: an open surface)
+    for (flags, named) in [
+        (&["--cut-length-mm", "60"][..], "--cut-length-mm 60 with --scenario all"),
+        (&["--target-gap-mm", "20,30"][..], "--target-gap-mm 20,30 with --scenario all"),
+        (&["--scenario", "anatomical", "--target-gap-mm", "30,20"][..], "--target-gap-mm '30,20'"),
+        (&["--scenario", "anatomical", "--target-gap-mm", "25"][..], "--target-gap-mm '25'"),
+        (&["--scenario", "non-anatomical", "--cut-depth-fraction", "0.4"][..], "--cut-depth-fraction 0.4"),
+        (&["--scenario", "anatomical", "--cut-depth-fraction", "0"][..], "--cut-depth-fraction 0"),
+        (&["--scenario", "anatomical", "--fixed-fraction=-0.1"][..], "--fixed-fraction -0.1"),
+    ] {
+        let mut args = vec!["register", "benchmark", "--liver", open.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend(flags);
+        let (ok, _, err) = laparo(&args, dir.path());
+        assert!(!ok && err.contains(named) && !err.contains("panicked"), "{named}: {err}");
+    }
     // a mesh too coarse to resolve the incision: refused before any FEM solve, naming --edge-mm
     if let Some(l) = liver() {
         let (ok, _, err) = laparo(

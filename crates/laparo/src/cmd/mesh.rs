@@ -13,6 +13,88 @@ use std::time::Instant;
 
 type V3 = Vector3<f64>;
 
+/// The blade of a benchmark incision and the fixed region (register.md §4); every flag defaults to the
+/// benchmark's scenario, so a run without them is the thesis-sized cut.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct CutArgs {
+    /// Incision length along the organ surface (mm); default 60 (non-anatomical) or 100 (anatomical).
+    #[arg(long)]
+    pub cut_length_mm: Option<f64>,
+    /// Non-anatomical blade depth below the surface (mm); default 25.
+    #[arg(long)]
+    pub cut_depth_mm: Option<f64>,
+    /// Anatomical blade depth as a fraction of the local thickness, in (0, 1); default 0.6.
+    #[arg(long)]
+    pub cut_depth_fraction: Option<f64>,
+    /// Fraction of the outer-surface nodes held fixed (the most posterior ones), in (0, 1); default 0.15.
+    #[arg(long)]
+    pub fixed_fraction: Option<f64>,
+}
+
+impl CutArgs {
+    /// Fails when a depth flag is given but none of `scenarios` ("non-anatomical", "anatomical") takes it.
+    pub fn check_for(&self, scenarios: &[&str]) -> Result<()> {
+        if let Some(f) = self.cut_depth_fraction.filter(|_| !scenarios.contains(&"anatomical")) {
+            bail!(
+                "--cut-depth-fraction {f}: that is the anatomical blade's depth; the non-anatomical blade takes \
+                 --cut-depth-mm"
+            );
+        }
+        if let Some(d) = self.cut_depth_mm.filter(|_| !scenarios.contains(&"non-anatomical")) {
+            bail!(
+                "--cut-depth-mm {d}: that is the non-anatomical blade's depth; the anatomical blade takes \
+                 --cut-depth-fraction (of the local thickness)"
+            );
+        }
+        Ok(())
+    }
+
+    /// The scenario frame with `--fixed-fraction` applied.
+    pub fn frame(&self, mut frame: ScenarioFrame) -> Result<ScenarioFrame> {
+        if let Some(f) = self.fixed_fraction {
+            if !(f > 0.0 && f < 1.0) {
+                bail!("--fixed-fraction {f}: must be in (0, 1)");
+            }
+            frame.fixed_fraction = f;
+        }
+        Ok(frame)
+    }
+
+    /// Scenario (i)'s parameters with `--cut-length-mm` and `--cut-depth-mm` applied.
+    pub fn non_anatomical(&self) -> Result<NonAnatomicalParams> {
+        let mut p = NonAnatomicalParams::default();
+        if let Some(l) = self.cut_length_mm {
+            p.length_mm = positive_mm("--cut-length-mm", l)?;
+        }
+        if let Some(d) = self.cut_depth_mm {
+            p.depth_mm = positive_mm("--cut-depth-mm", d)?;
+        }
+        Ok(p)
+    }
+
+    /// Scenario (ii)'s parameters with `--cut-length-mm` and `--cut-depth-fraction` applied.
+    pub fn anatomical(&self) -> Result<AnatomicalParams> {
+        let mut p = AnatomicalParams::default();
+        if let Some(l) = self.cut_length_mm {
+            p.length_mm = positive_mm("--cut-length-mm", l)?;
+        }
+        if let Some(f) = self.cut_depth_fraction {
+            if !(f > 0.0 && f < 1.0) {
+                bail!("--cut-depth-fraction {f}: must be in (0, 1)");
+            }
+            p.depth_fraction = f;
+        }
+        Ok(p)
+    }
+}
+
+fn positive_mm(flag: &str, v: f64) -> Result<f64> {
+    if !(v.is_finite() && v > 0.0) {
+        bail!("{flag} {v}: must be a finite length > 0 (mm)");
+    }
+    Ok(v)
+}
+
 /// Which benchmark incision.
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ScenarioKind {
@@ -63,6 +145,8 @@ pub enum MeshCmd {
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
+        #[command(flatten)]
+        cut: CutArgs,
     },
 }
 
@@ -71,8 +155,8 @@ pub fn run(c: MeshCmd) -> Result<()> {
         MeshCmd::Tetra { surface, edge_mm, min_dihedral_deg, out, report } => {
             tetra_cmd(&surface, edge_mm, min_dihedral_deg, &out, report.as_deref())
         }
-        MeshCmd::Incision { mesh, scenario, anterior, surface, out } => {
-            incision_cmd(&mesh, scenario, anterior.as_deref(), surface.as_deref(), &out)
+        MeshCmd::Incision { mesh, scenario, anterior, surface, out, cut } => {
+            incision_cmd(&mesh, scenario, anterior.as_deref(), surface.as_deref(), &out, &cut)
         }
     }
 }
@@ -154,11 +238,16 @@ fn incision_cmd(
     anterior: Option<&str>,
     surface: Option<&Path>,
     out: &Path,
+    cut_args: &CutArgs,
 ) -> Result<()> {
     let t0 = Instant::now();
     let mut mesh = read_tets(mesh_path)?;
     mesh.orient_positive();
-    let mut frame = ScenarioFrame::default();
+    cut_args.check_for(&[match kind {
+        ScenarioKind::NonAnatomical => "non-anatomical",
+        ScenarioKind::Anatomical => "anatomical",
+    }])?;
+    let mut frame = cut_args.frame(ScenarioFrame::default())?;
     if let Some(a) = anterior {
         frame.anterior = parse_axis(a)?;
     }
@@ -172,11 +261,11 @@ fn incision_cmd(
     };
     let (sc, params) = match kind {
         ScenarioKind::NonAnatomical => {
-            let p = NonAnatomicalParams::default();
+            let p = cut_args.non_anatomical()?;
             (non_anatomical_on(&mesh, &organ, &frame, &p), serde_json::to_value(&p)?)
         }
         ScenarioKind::Anatomical => {
-            let p = AnatomicalParams::default();
+            let p = cut_args.anatomical()?;
             (anatomical_on(&mesh, &organ, &frame, &p), serde_json::to_value(&p)?)
         }
     };

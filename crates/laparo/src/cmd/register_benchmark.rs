@@ -7,8 +7,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::mesh::{write_vtk_fields, VtkField, VtkValues};
 use laparo_fem::mesh::{
-    anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
-    ScenarioFrame, TetraParams,
+    anatomical_on, non_anatomical_on, tetrahedralize_surface, Scenario, ScenarioFrame, TetraParams,
 };
 use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig};
 use laparo_register::benchmark::build::{
@@ -115,6 +114,27 @@ pub struct BenchmarkArgs {
     /// FEM load increments per solve; default 20 (quick 8).
     #[arg(long)]
     pub fem_steps: Option<usize>,
+    /// The ground truth's calibration target "LO,HI": the largest lip gap (mm) the crack pressure is tuned to
+    /// reach; default 10,15 (non-anatomical) or 20,30 (anatomical), register.md §4. One scenario only.
+    #[arg(long)]
+    pub target_gap_mm: Option<String>,
+    /// Another blade or fixed region than the benchmark's (each changes the ground truth, which is solved
+    /// again; a folder never mixes runs of two cuts).
+    #[command(flatten)]
+    pub cut: crate::cmd::mesh::CutArgs,
+}
+
+/// `--target-gap-mm LO,HI` (mm).
+fn parse_gap(s: &str) -> Result<[f64; 2]> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .with_context(|| format!("--target-gap-mm '{s}': expected two numbers LO,HI (mm)"))?;
+    match v[..] {
+        [lo, hi] if lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi => Ok([lo, hi]),
+        _ => bail!("--target-gap-mm '{s}': expected LO,HI with 0 < LO <= HI (mm)"),
+    }
 }
 
 fn default_liver() -> Option<PathBuf> {
@@ -138,8 +158,14 @@ fn ground_truth_inputs(scn: &Scenario, cfg: &GroundTruthConfig) -> String {
 }
 
 /// Ground truth from `dir/ground_truth.json` when it was solved from the same inputs ([`ground_truth_inputs`]),
-/// else solved and saved.
-fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
+/// else solved and saved; refused when another ground truth's runs are stored in `runs` (the folder would
+/// then hold a ground truth and runs that do not belong together).
+fn ground_truth(
+    dir: &Path,
+    runs: &Path,
+    scn: &Scenario,
+    cfg: &GroundTruthConfig,
+) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
     let path = dir.join("ground_truth.json");
     let n = scn.cut.mesh.vertices.len();
     let inputs = ground_truth_inputs(scn, cfg);
@@ -154,11 +180,16 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
                 serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
             return Ok((u, report));
         }
-        eprintln!(
-            "{}: solved from other inputs (mesh, crack, fixed region or FEM settings: {:?}, now {inputs:?}): solving again",
-            path.display(),
-            v["inputs"].as_str().unwrap_or("none recorded")
-        );
+        let stored = v["inputs"].as_str().unwrap_or("none recorded");
+        if holds_runs(runs) {
+            bail!(
+                "{}: solved from other inputs (mesh, blade, fixed region or FEM settings: {stored:?}, now {inputs:?}) \
+                 and {} holds runs made on it: write to another --out folder to benchmark another mesh or cut",
+                path.display(),
+                runs.display()
+            );
+        }
+        eprintln!("{}: solved from other inputs ({stored:?}, now {inputs:?}): solving again", path.display());
     }
     let pb = ProgressBar::new_spinner();
     pb.set_message(format!("{}: FEM ground truth (TET10 Neo-Hookean), calibrating the crack pressure", scn.name));
@@ -170,6 +201,16 @@ fn ground_truth(dir: &Path, scn: &Scenario, cfg: &GroundTruthConfig) -> Result<(
     let flat: Vec<f64> = u.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
     write_json(&path, &serde_json::json!({"inputs": inputs, "report": report, "displacement_mm": flat}))?;
     Ok((u, report))
+}
+
+/// Whether `dir` (a scenario's run folder, one subfolder per method) holds any stored run.
+fn holds_runs(dir: &Path) -> bool {
+    let Ok(methods) = std::fs::read_dir(dir) else { return false };
+    methods.flatten().any(|m| {
+        std::fs::read_dir(m.path())
+            .map(|r| r.flatten().any(|f| f.path().extension().is_some_and(|e| e == "json")))
+            .unwrap_or(false)
+    })
 }
 
 /// RODS-MPM's optimiser: the `--optimizer` preset with `--iterations` (default 60, quick 8).
@@ -441,6 +482,18 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         o => bail!("--scenario {o:?}: expected non-anatomical, anatomical or all"),
     };
     let ms = methods(&a, quick)?;
+    if scenarios.len() > 1 {
+        if let Some(l) = a.cut.cut_length_mm {
+            bail!("--cut-length-mm {l} with --scenario all: the two blades differ (60 / 100 mm); give one --scenario");
+        }
+        if let Some(g) = &a.target_gap_mm {
+            bail!("--target-gap-mm {g} with --scenario all: the two openings differ (10–15 / 20–30 mm); give one --scenario");
+        }
+    }
+    let target_gap = a.target_gap_mm.as_deref().map(parse_gap).transpose()?;
+    let frame = a.cut.frame(ScenarioFrame::default())?;
+    a.cut.check_for(&scenarios)?;
+    let blades = (a.cut.non_anatomical()?, a.cut.anatomical()?);
     let liver = match a.liver.clone().or_else(default_liver) {
         Some(p) => p,
         None => bail!(
@@ -465,17 +518,16 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         "mesh: {} nodes, {} tets, min dihedral {:.1}°, edge {edge} mm ({mesh_s:.1} s)",
         quality.nodes, quality.tets, quality.min_dihedral_deg
     );
-    let frame = ScenarioFrame::default();
     let organ = laparo_fem::mesh::Surface::new(surface.clone(), &liver.display().to_string())?;
     let mut cases = Vec::new();
     let mut gt_reports = Vec::new();
     for name in &scenarios {
         let dir = a.out.join(name);
         std::fs::create_dir_all(&dir)?;
-        let scn = if *name == "anatomical" {
-            anatomical_on(&mesh, &surface, &frame, &AnatomicalParams::default())?
+        let (scn, blade) = if *name == "anatomical" {
+            (anatomical_on(&mesh, &surface, &frame, &blades.1)?, serde_json::to_value(&blades.1)?)
         } else {
-            non_anatomical_on(&mesh, &surface, &frame, &NonAnatomicalParams::default())?
+            (non_anatomical_on(&mesh, &surface, &frame, &blades.0)?, serde_json::to_value(&blades.0)?)
         };
         let mut scn = scn;
         let dropped = laparo_register::benchmark::build::drop_detached_fragments(&mut scn);
@@ -487,13 +539,16 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             .check(edge, MIN_CRACK_AREA_FRACTION, MIN_LIP_SAMPLES)
             .with_context(|| format!("--edge-mm {edge}: the {name} incision"))?;
         let mut gcfg = GroundTruthConfig::for_scenario(name);
+        if let Some(g) = target_gap {
+            gcfg.target_gap_mm = g;
+        }
         if let Some(s) = a.fem_steps {
             gcfg.steps = s;
         } else if quick {
             gcfg.steps = 8;
         }
         let t0 = std::time::Instant::now();
-        let (u, rep) = ground_truth(&dir, &scn, &gcfg)?;
+        let (u, rep) = ground_truth(&dir, &a.out.join("runs").join(name), &scn, &gcfg)?;
         let x = &scn.cut.mesh.vertices;
         let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
         let centre = crack.iter().sum::<Vector3<f64>>() / crack.len().max(1) as f64;
@@ -552,7 +607,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             };
             d.write(&dir.join("deformation"))?;
         }
-        gt_reports.push(serde_json::json!({"scenario": name, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped, "crack_resolution": resolution}));
+        gt_reports.push(serde_json::json!({"scenario": name, "blade": blade, "fixed_fraction": frame.fixed_fraction, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped, "crack_resolution": resolution}));
         cases.push(case);
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
