@@ -84,6 +84,23 @@ fn main() -> Result<(), Box<dyn Error>> {
         res.duplicated_nodes,
         res.lip_pairs
     );
+    // how much of the crack can open: faces with every node duplicated, faces touching the front
+    let front: std::collections::HashSet<usize> = scn.cut.front_nodes.iter().copied().collect();
+    let [a_faces, _] = &scn.cut.crack_faces;
+    let free = a_faces.iter().filter(|f| f.iter().all(|i| !front.contains(i))).count();
+    let depth_of = |f: &[usize; 3]| {
+        let c = f.iter().map(|&i| scn.cut.mesh.vertices[i]).sum::<Vector3<f64>>() / 3.0;
+        scn.cut.lips[0].iter().map(|&i| (scn.cut.mesh.vertices[i] - c).norm()).fold(f64::INFINITY, f64::min)
+    };
+    let deepest_free =
+        a_faces.iter().filter(|f| f.iter().all(|i| !front.contains(i))).map(depth_of).fold(0.0, f64::max);
+    let deepest = a_faces.iter().map(depth_of).fold(0.0, f64::max);
+    println!(
+        "crack faces (side A): {} of {} with no crack-front node; farthest from the lip: {deepest_free:.1} mm \
+         (any face: {deepest:.1} mm)",
+        free,
+        a_faces.len()
+    );
     if pressure_kpa <= 0.0 {
         return Ok(());
     }

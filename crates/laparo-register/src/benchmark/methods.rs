@@ -4,7 +4,7 @@
 //! mesh along the surface swept from the source lip polylines to an assumed depth (the true depth is not
 //! known intraoperatively) and run DRBC on that cut mesh. All methods get the same landmarks, the same
 //! eq. 5.10 distances (each lip against its own target polyline) and the same fixed posterior nodes as the
-//! ground truth.
+//! ground truth; with `hold_outside_roi`, also RODS-MPM's region of interest (nodes outside it at rest).
 use super::case::{BenchmarkCase, LandmarkSet, Method, MethodOutput};
 use crate::baselines::{
     arap, drbc, lddmm, ArapConfig, BaselineProblem, DrbcConfig, LddmmConfig, MaterialPoint, MeshLandmarkGroup,
@@ -55,6 +55,9 @@ pub struct BaselineMethod {
     pub name: String,
     /// The method and its settings.
     pub baseline: Baseline,
+    /// Hold the nodes outside the case's region of interest at rest, as RODS-MPM does (`--methods
+    /// arap-roi,drbc-roi,francois-roi`): the same information about where the tissue does not move.
+    pub hold_outside_roi: bool,
 }
 
 fn groups_for(landmarks: &[LandmarkSet], node_map: &dyn Fn(usize, u8) -> usize) -> Vec<MeshLandmarkGroup> {
@@ -166,7 +169,11 @@ impl Method for BaselineMethod {
         self.name.clone()
     }
     fn settings(&self) -> String {
-        format!("{:?}", self.baseline)
+        if self.hold_outside_roi {
+            format!("{:?}, nodes outside the region of interest held at rest", self.baseline)
+        } else {
+            format!("{:?}", self.baseline)
+        }
     }
 
     fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput> {
@@ -191,6 +198,17 @@ impl Method for BaselineMethod {
         let mut problem = BaselineProblem::new(mesh, groups_for(landmarks, &node_map));
         let fixed: Vec<usize> = {
             let mut f: Vec<usize> = case.fixed.iter().map(|&i| to_case[i]).collect();
+            if self.hold_outside_roi {
+                let roi = case.roi.as_ref().ok_or_else(|| {
+                    RegisterError::bad(
+                        &self.name,
+                        "holds the nodes outside the region of interest, but this case has none (whole organ)",
+                    )
+                })?;
+                let outside: Vec<usize> = (0..case.rest.len()).filter(|&i| !roi.inside(&case.rest[i])).collect();
+                notes.push(format!("{} nodes outside the region of interest held at rest", outside.len()));
+                f.extend(outside.iter().map(|&i| to_case[i]));
+            }
             f.sort_unstable();
             f.dedup();
             f
@@ -232,5 +250,71 @@ impl Method for NoRegistration {
             }
         }
         Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: sum / n.max(1) as f64, notes: vec![] })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::baselines::box_tet_mesh;
+    use crate::organ::Roi;
+
+    /// A 40 × 40 × 20 mm box (no crack), its bottom fixed, three top nodes near the centre pulled up 3 mm.
+    fn pulled_box(roi: Option<Roi>) -> (BenchmarkCase, Vec<LandmarkSet>) {
+        let m = box_tet_mesh([8, 8, 4], 5.0, Vector3::zeros());
+        let n = m.vertices.len();
+        let fixed: Vec<usize> = (0..n).filter(|&i| m.vertices[i].z == 0.0).collect();
+        let top = |x: f64, y: f64| {
+            (0..n).find(|&i| (m.vertices[i] - Vector3::new(x, y, 20.0)).norm() < 1e-9).expect("a lattice node")
+        };
+        let picked = [top(15.0, 20.0), top(20.0, 20.0), top(25.0, 20.0)];
+        let lm = LandmarkSet {
+            name: "lip 1".into(),
+            side: 0,
+            points: picked.iter().map(|&i| MaterialPoint::node(i)).collect(),
+            sources: picked.iter().map(|&i| m.vertices[i]).collect(),
+            targets: picked.iter().map(|&i| m.vertices[i] + Vector3::new(0.0, 0.0, 3.0)).collect(),
+        };
+        let case = BenchmarkCase {
+            scenario: "box".into(),
+            surface: vec![],
+            node_side: vec![0; n],
+            original_node: (0..n).collect(),
+            ground_truth: m.vertices.clone(),
+            lips: [vec![], vec![]],
+            fixed,
+            roi,
+            rest: m.vertices.clone(),
+            tets: m.tets.clone(),
+        };
+        (case, vec![lm])
+    }
+
+    #[test]
+    fn roi_variant_holds_every_node_outside_the_ball_at_rest() {
+        let ball = Roi::Ball { center: [20.0, 20.0, 20.0], radius_mm: 12.0 };
+        let (case, lms) = pulled_box(Some(ball.clone()));
+        let method = |hold| BaselineMethod {
+            name: "ARAP".into(),
+            baseline: Baseline::Arap(ArapConfig::default()),
+            hold_outside_roi: hold,
+        };
+        let free = method(false).register(&case, &lms).unwrap();
+        let held = method(true).register(&case, &lms).unwrap();
+        let outside: Vec<usize> = (0..case.rest.len()).filter(|&i| !ball.inside(&case.rest[i])).collect();
+        let moved =
+            |out: &MethodOutput| outside.iter().map(|&i| (out.nodes[i] - case.rest[i]).norm()).fold(0.0, f64::max);
+        // without the ball ARAP moves tissue outside it; with it, not at all
+        assert!(moved(&free) > 0.1, "free ARAP moved the outside by {} mm only", moved(&free));
+        assert_eq!(moved(&held), 0.0);
+        // the landmarks still move toward their targets inside the ball
+        assert!(held.landmark_distance_mm < 0.5 * 3.0, "{}", held.landmark_distance_mm);
+        assert!(held.notes.iter().any(|n| n.contains(&format!("{} nodes outside", outside.len()))), "{:?}", held.notes);
+        // the two variants are different settings for the result store
+        assert_ne!(method(false).settings(), method(true).settings());
+        // a case without a region of interest: refused, naming the method
+        let (whole, lms) = pulled_box(None);
+        let e = method(true).register(&whole, &lms).unwrap_err().to_string();
+        assert!(e.contains("ARAP") && e.contains("region of interest"), "{e}");
     }
 }

@@ -55,7 +55,9 @@ pub struct BenchmarkArgs {
     /// François et al. assume: --francois-depth-mm); and the diagnostics rods-ballistic, rods-dense
     /// (RODS-MPM oracles that read the ground truth: what the simulator can represent, not a registration
     /// method; with the suffix -two-field, on the two-field grid), rods-readback (no simulation: the
-    /// ground truth read back from the particles to the nodes, the transfer's error floor).
+    /// ground truth read back from the particles to the nodes, the transfer's error floor). arap-roi,
+    /// drbc-roi, francois-roi: the baseline with RODS-MPM's region of interest, its nodes outside held at
+    /// rest (what RODS-MPM is told about where the tissue does not move; needs a ball, non-anatomical).
     #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods")]
     pub methods: String,
     /// RODS-MPM particle spacing (mm); default 3 (quick 6).
@@ -253,8 +255,16 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     let optimizer = rods_optimizer(a, quick)?;
     let mut out: Vec<Box<dyn Method>> = Vec::new();
     for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
-        let b = |name: &str, baseline| Box::new(BaselineMethod { name: name.into(), baseline }) as Box<dyn Method>;
-        out.push(match m.as_str() {
+        // `-roi`: the baseline with RODS-MPM's region of interest (nodes outside it held at rest)
+        let (base, hold_outside_roi) = match m.strip_suffix("-roi") {
+            Some(b) if ["arap", "drbc", "francois"].contains(&b) => (b, true),
+            _ => (m.as_str(), false),
+        };
+        let b = |name: &str, baseline| {
+            let name = if hold_outside_roi { format!("{name} (ROI)") } else { name.into() };
+            Box::new(BaselineMethod { name, baseline, hold_outside_roi }) as Box<dyn Method>
+        };
+        out.push(match base {
             // per-element rotations (libigl's tet default): cotangent spokes are unreliable on obtuse tets
             "arap" => b("ARAP", Baseline::Arap(ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })),
             // diagnostics that read the ground truth (not registration methods: see RodsOracle)
@@ -293,7 +303,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                 optimizer: optimizer.clone(),
                 two_field: Some(two_field(a)?),
             }),
-            o => bail!("--methods: unknown method {o:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback)"),
+            _ => bail!("--methods: unknown method {m:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback; arap-roi, drbc-roi, francois-roi hold RODS-MPM's region of interest)"),
         });
     }
     if out.is_empty() {
@@ -379,6 +389,7 @@ fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [
             method: Box::new(BaselineMethod {
                 name: format!("LDDMM σ {s}"),
                 baseline: Baseline::Lddmm(LddmmConfig { sigma_mm: s, ..Default::default() }),
+                hold_outside_roi: false,
             }),
             panel: None,
         });
