@@ -293,7 +293,7 @@ mod tests {
     #[test]
     fn roi_variant_holds_every_node_outside_the_ball_at_rest() {
         let ball = Roi::Ball { center: [20.0, 20.0, 20.0], radius_mm: 12.0 };
-        let (case, lms) = pulled_box(Some(ball.clone()));
+        let (case, lms) = pulled_box(Some(ball));
         let method = |hold| BaselineMethod {
             name: "ARAP".into(),
             baseline: Baseline::Arap(ArapConfig::default()),
