@@ -42,7 +42,17 @@ fn quick_tier_end_to_end_and_resume() {
     ];
     let (ok, stdout, err) = laparo(&args, dir.path());
     assert!(ok, "{err}");
-    for m in ["none (rest)", "ARAP", "DRBC", "François et al.", "LDDMM", "RODS-MPM"] {
+    for m in [
+        "none (rest)",
+        "ARAP",
+        "DRBC",
+        "François et al.",
+        "LDDMM",
+        "RODS-MPM",
+        "ARAP (ROI)",
+        "DRBC (ROI)",
+        "François et al. (ROI)",
+    ] {
         assert!(stdout.contains(&format!("| {m} |")), "{m} row missing:\n{stdout}");
     }
     let gt: serde_json::Value =
@@ -61,7 +71,7 @@ fn quick_tier_end_to_end_and_resume() {
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&runs).unwrap()).unwrap();
     let umax = g["max_displacement_mm"].as_f64().unwrap();
     assert!((r["tre_volume"]["max"].as_f64().unwrap() - umax).abs() < 1e-9 * umax.max(1.0));
-    assert_eq!(cells.as_array().unwrap().len(), 6 * 6, "6 methods × 6 columns");
+    assert_eq!(cells.as_array().unwrap().len(), 9 * 6, "9 methods × 6 columns");
     for f in [
         "table51.md",
         "table51.csv",
@@ -93,7 +103,7 @@ fn quick_tier_end_to_end_and_resume() {
     }
     let cells: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("table51.json")).unwrap()).unwrap();
-    assert_eq!(cells.as_array().unwrap().len(), 6 * 6 + 18, "the main table and 18 sweep settings");
+    assert_eq!(cells.as_array().unwrap().len(), 9 * 6 + 18, "the main table and 18 sweep settings");
     assert!(out.join("non-anatomical/fig59_sensitivity.png").exists());
     // the ballistic oracle (a diagnostic reading the ground truth) runs on the stored ground truth; with a
     // kerf it names itself; a negative kerf is refused naming the option

@@ -70,6 +70,11 @@ pub trait Method {
     fn settings(&self) -> String;
     /// Register the case's rest mesh to the landmark targets.
     fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput>;
+    /// Whether the method runs on `case` at all ([`run_protocol`] skips it otherwise; e.g. a baseline that
+    /// borrows RODS-MPM's region of interest on a whole-organ case).
+    fn applies_to(&self, _case: &BenchmarkCase) -> bool {
+        true
+    }
 }
 
 impl BenchmarkCase {
@@ -240,7 +245,7 @@ pub fn run_protocol(
         let fingerprint = case.fingerprint();
         for c in columns {
             for seed in c.seeds(n_seeds) {
-                for m in methods {
+                for m in methods.iter().filter(|m| m.applies_to(case)) {
                     jobs.push((case, fingerprint.clone(), *m, *c, seed));
                 }
             }

@@ -176,6 +176,10 @@ impl Method for BaselineMethod {
         }
     }
 
+    fn applies_to(&self, case: &BenchmarkCase) -> bool {
+        !self.hold_outside_roi || case.roi.is_some()
+    }
+
     fn register(&self, case: &BenchmarkCase, landmarks: &[LandmarkSet]) -> Result<MethodOutput> {
         let (nodes, tets, map) = case.uncut();
         let uncut = TetMesh { vertices: nodes, tets };
@@ -312,8 +316,9 @@ mod tests {
         assert!(held.notes.iter().any(|n| n.contains(&format!("{} nodes outside", outside.len()))), "{:?}", held.notes);
         // the two variants are different settings for the result store
         assert_ne!(method(false).settings(), method(true).settings());
-        // a case without a region of interest: refused, naming the method
+        // a case without a region of interest: not run by the protocol, refused if called
         let (whole, lms) = pulled_box(None);
+        assert!(method(true).applies_to(&case) && !method(true).applies_to(&whole) && method(false).applies_to(&whole));
         let e = method(true).register(&whole, &lms).unwrap_err().to_string();
         assert!(e.contains("ARAP") && e.contains("region of interest"), "{e}");
     }

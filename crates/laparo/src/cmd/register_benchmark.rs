@@ -57,8 +57,8 @@ pub struct BenchmarkArgs {
     /// method; with the suffix -two-field, on the two-field grid), rods-readback (no simulation: the
     /// ground truth read back from the particles to the nodes, the transfer's error floor). arap-roi,
     /// drbc-roi, francois-roi: the baseline with RODS-MPM's region of interest, its nodes outside held at
-    /// rest (what RODS-MPM is told about where the tissue does not move; needs a ball, non-anatomical).
-    #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods")]
+    /// rest (what RODS-MPM is told about where the tissue does not move; run where the case has a ball).
+    #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods,arap-roi,drbc-roi,francois-roi")]
     pub methods: String,
     /// RODS-MPM particle spacing (mm); default 3 (quick 6).
     #[arg(long)]
