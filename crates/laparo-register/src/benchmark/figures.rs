@@ -200,16 +200,32 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
             .y_desc("mean TRE [mm]")
             .draw()
             .map_err(|e| e.to_string())?;
-        // one colour per method whatever the figure holds (the six Table 5.1 rows in order), others cycle
+        // one colour per method whatever the figure holds (the six Table 5.1 rows in order), others cycle;
+        // a baseline with RODS-MPM's region of interest ("… (ROI)") takes its base's colour, dashed
         let known = ["none (rest)", "ARAP", "DRBC", "François et al.", "LDDMM", RODS_MPM_NAME];
         for (i, c) in cells.iter().enumerate() {
-            let k = known.iter().position(|n| c.method == *n);
+            let base = c.method.strip_suffix(" (ROI)");
+            let k = known.iter().position(|n| base.unwrap_or(&c.method) == *n);
             let col = colors[k.unwrap_or(i) % colors.len()];
             let pts: Vec<(f64, f64)> =
                 c.bin_means_mm.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(k, &v)| (k as f64, v)).collect();
+            let y = 56 + 22 * i as i32;
+            if base.is_some() {
+                chart
+                    .draw_series(DashedLineSeries::new(pts.clone(), 7, 4, col.stroke_width(2)))
+                    .map_err(|e| e.to_string())?;
+                chart
+                    .draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.stroke_width(2))))
+                    .map_err(|e| e.to_string())?;
+                side.draw(&plotters::element::DashedPathElement::new(vec![(4, y), (26, y)], 5, 3, col.stroke_width(2)))
+                    .map_err(|e| e.to_string())?;
+                side.draw(&Circle::new((15, y), 4, col.stroke_width(2))).map_err(|e| e.to_string())?;
+                side.draw(&Text::new(c.method.clone(), (32, y - 8), ("DejaVu Sans", 14).into_font()))
+                    .map_err(|e| e.to_string())?;
+                continue;
+            }
             chart.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled()))).map_err(|e| e.to_string())?;
-            let y = 56 + 22 * i as i32;
             side.draw(&PathElement::new(vec![(4, y), (26, y)], col.stroke_width(3))).map_err(|e| e.to_string())?;
             side.draw(&Circle::new((15, y), 4, col.filled())).map_err(|e| e.to_string())?;
             side.draw(&Text::new(c.method.clone(), (32, y - 8), ("DejaVu Sans", 14).into_font()))
