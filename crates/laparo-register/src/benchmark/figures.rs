@@ -210,24 +210,20 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
             let pts: Vec<(f64, f64)> =
                 c.bin_means_mm.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(k, &v)| (k as f64, v)).collect();
             let y = 56 + 22 * i as i32;
+            // solid line and filled markers, or dashed line and hollow markers for a "(ROI)" variant
+            let marker = if base.is_some() { col.stroke_width(2) } else { col.filled() };
             if base.is_some() {
                 chart
                     .draw_series(DashedLineSeries::new(pts.clone(), 7, 4, col.stroke_width(2)))
                     .map_err(|e| e.to_string())?;
-                chart
-                    .draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.stroke_width(2))))
-                    .map_err(|e| e.to_string())?;
                 side.draw(&plotters::element::DashedPathElement::new(vec![(4, y), (26, y)], 5, 3, col.stroke_width(2)))
                     .map_err(|e| e.to_string())?;
-                side.draw(&Circle::new((15, y), 4, col.stroke_width(2))).map_err(|e| e.to_string())?;
-                side.draw(&Text::new(c.method.clone(), (32, y - 8), ("DejaVu Sans", 14).into_font()))
-                    .map_err(|e| e.to_string())?;
-                continue;
+            } else {
+                chart.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
+                side.draw(&PathElement::new(vec![(4, y), (26, y)], col.stroke_width(3))).map_err(|e| e.to_string())?;
             }
-            chart.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2))).map_err(|e| e.to_string())?;
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled()))).map_err(|e| e.to_string())?;
-            side.draw(&PathElement::new(vec![(4, y), (26, y)], col.stroke_width(3))).map_err(|e| e.to_string())?;
-            side.draw(&Circle::new((15, y), 4, col.filled())).map_err(|e| e.to_string())?;
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, marker))).map_err(|e| e.to_string())?;
+            side.draw(&Circle::new((15, y), 4, marker)).map_err(|e| e.to_string())?;
             side.draw(&Text::new(c.method.clone(), (32, y - 8), ("DejaVu Sans", 14).into_font()))
                 .map_err(|e| e.to_string())?;
         }

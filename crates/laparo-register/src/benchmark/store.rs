@@ -124,6 +124,13 @@ impl ResultStore {
         Ok(p)
     }
 
+    /// Whether any result of `scenario` is stored (a ground truth must not change under stored runs).
+    pub fn holds_runs(&self, scenario: &str) -> bool {
+        let mut files = Vec::new();
+        collect_json(&self.root.join(sanitize(scenario)), &mut files);
+        !files.is_empty()
+    }
+
     /// Every stored result under the root, sorted by path (deterministic).
     pub fn all(&self) -> Result<Vec<RunResult>> {
         let mut files = Vec::new();

@@ -160,11 +160,11 @@ fn ground_truth_inputs(scn: &Scenario, cfg: &GroundTruthConfig) -> String {
 }
 
 /// Ground truth from `dir/ground_truth.json` when it was solved from the same inputs ([`ground_truth_inputs`]),
-/// else solved and saved; refused when another ground truth's runs are stored in `runs` (the folder would
-/// then hold a ground truth and runs that do not belong together).
+/// else solved and saved; refused when `store` holds runs of the scenario made on another ground truth (the
+/// folder would then hold a ground truth and runs that do not belong together).
 fn ground_truth(
     dir: &Path,
-    runs: &Path,
+    store: &ResultStore,
     scn: &Scenario,
     cfg: &GroundTruthConfig,
 ) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
@@ -183,12 +183,12 @@ fn ground_truth(
             return Ok((u, report));
         }
         let stored = v["inputs"].as_str().unwrap_or("none recorded");
-        if holds_runs(runs) {
+        if store.holds_runs(&scn.name) {
             bail!(
                 "{}: solved from other inputs (mesh, blade, fixed region or FEM settings: {stored:?}, now {inputs:?}) \
-                 and {} holds runs made on it: write to another --out folder to benchmark another mesh or cut",
+                 and the folder holds {} runs made on it: write to another --out folder to benchmark another mesh or cut",
                 path.display(),
-                runs.display()
+                scn.name
             );
         }
         eprintln!("{}: solved from other inputs ({stored:?}, now {inputs:?}): solving again", path.display());
@@ -203,16 +203,6 @@ fn ground_truth(
     let flat: Vec<f64> = u.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
     write_json(&path, &serde_json::json!({"inputs": inputs, "report": report, "displacement_mm": flat}))?;
     Ok((u, report))
-}
-
-/// Whether `dir` (a scenario's run folder, one subfolder per method) holds any stored run.
-fn holds_runs(dir: &Path) -> bool {
-    let Ok(methods) = std::fs::read_dir(dir) else { return false };
-    methods.flatten().any(|m| {
-        std::fs::read_dir(m.path())
-            .map(|r| r.flatten().any(|f| f.path().extension().is_some_and(|e| e == "json")))
-            .unwrap_or(false)
-    })
 }
 
 /// RODS-MPM's optimiser: the `--optimizer` preset with `--iterations` (default 60, quick 8).
@@ -530,6 +520,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         quality.nodes, quality.tets, quality.min_dihedral_deg
     );
     let organ = laparo_fem::mesh::Surface::new(surface.clone(), &liver.display().to_string())?;
+    let store = ResultStore::new(a.out.join("runs"));
     let mut cases = Vec::new();
     let mut gt_reports = Vec::new();
     for name in &scenarios {
@@ -559,7 +550,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             gcfg.steps = 8;
         }
         let t0 = std::time::Instant::now();
-        let (u, rep) = ground_truth(&dir, &a.out.join("runs").join(name), &scn, &gcfg)?;
+        let (u, rep) = ground_truth(&dir, &store, &scn, &gcfg)?;
         let x = &scn.cut.mesh.vertices;
         let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
         let centre = crack.iter().sum::<Vector3<f64>>() / crack.len().max(1) as f64;
@@ -623,7 +614,6 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
     // 2. the protocol
-    let store = ResultStore::new(a.out.join("runs"));
     let n_seeds = a.seeds.unwrap_or(if quick { 1 } else { 5 });
     let refs: Vec<&dyn Method> = ms.iter().map(|m| m.as_ref()).collect();
     let columns = table51_columns();
