@@ -101,6 +101,41 @@ fn main() -> Result<(), Box<dyn Error>> {
         free,
         a_faces.len()
     );
+    // Crack-front nodes should lie along the blade's edge inside the organ (its floor and its two
+    // ends); one farther than two tet edges from that edge is a bridge pinning the crack shut.
+    let b = &scn.blade;
+    let n = b.mouth.len();
+    let seg = |p: &Vector3<f64>, a: &Vector3<f64>, c: &Vector3<f64>| {
+        let d = c - a;
+        let t = ((p - a).dot(&d) / d.norm_squared().max(1e-30)).clamp(0.0, 1.0);
+        (p - (a + d * t)).norm()
+    };
+    let bottom: Vec<Vector3<f64>> = (0..n).map(|i| b.mouth[i] + b.directions[i].normalize() * b.depths[i]).collect();
+    let top = |i: usize| b.mouth[i] - b.directions[i].normalize() * b.overshoot_mm;
+    let to_edge = |p: &Vector3<f64>| {
+        let floor = bottom.windows(2).map(|w| seg(p, &w[0], &w[1])).fold(f64::INFINITY, f64::min);
+        floor.min(seg(p, &top(0), &bottom[0])).min(seg(p, &top(n - 1), &bottom[n - 1]))
+    };
+    let mut bridges: Vec<(f64, f64)> = scn
+        .cut
+        .front_nodes
+        .iter()
+        .map(|&k| {
+            let p = scn.cut.mesh.vertices[k];
+            let lip = scn.cut.lips[0].iter().map(|&i| (scn.cut.mesh.vertices[i] - p).norm()).fold(f64::INFINITY, f64::min);
+            (to_edge(&p), lip)
+        })
+        .filter(|(d, _)| *d > 2.0 * edge_mm)
+        .collect();
+    bridges.sort_by(|a, b| b.0.total_cmp(&a.0));
+    println!(
+        "crack front: {} nodes, {} of them farther than {:.0} mm from the blade's edge (bridges); the farthest \
+         (mm from the edge, mm from lip A): {:?}",
+        scn.cut.front_nodes.len(),
+        bridges.len(),
+        2.0 * edge_mm,
+        bridges.iter().take(8).map(|(d, l)| (d.round(), l.round())).collect::<Vec<_>>()
+    );
     if pressure_kpa <= 0.0 {
         return Ok(());
     }
