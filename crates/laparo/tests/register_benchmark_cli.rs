@@ -61,7 +61,11 @@ fn quick_tier_end_to_end_and_resume() {
     let gap = g["max_gap_mm"].as_f64().unwrap();
     assert!((10.0..=15.0).contains(&gap), "lip gap {gap}");
     assert!(g["min_j"].as_f64().unwrap() > 0.0);
-    assert!(g["far_displacement_mm"].as_f64().unwrap() < 1.0);
+    let far = g["far_displacement_mm"].as_f64().unwrap();
+    let p95 = g["far_displacement_p95_mm"].as_f64().unwrap();
+    assert!(far < 1.0);
+    assert!(p95 > 0.0 && p95 <= far, "p95 {p95} of the far field must lie in (0, max {far}]");
+    assert_eq!(g["far_share_over_1mm"].as_f64().unwrap(), 0.0, "max below 1 mm, so no far node above it");
     assert!(g["max_relative_residual"].as_f64().unwrap() <= 1e-8);
     // the "none (rest)" row is the ground-truth displacement itself: its TRE max = the largest |u|
     let cells: serde_json::Value =

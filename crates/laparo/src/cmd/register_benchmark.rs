@@ -560,12 +560,14 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             None => choose_roi(x, &u, centre, 50.0, 120.0, 6.0, 0.5),
         };
         println!(
-            "{name}: {} nodes after the cut (crack nodes duplicated), lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm, min J {:.3} ({:.1} s); ROI {}",
+            "{name}: {} nodes after the cut (crack nodes duplicated), lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm (p95 {:.3} mm, {:.1} % of those nodes above 1 mm), min J {:.3} ({:.1} s); ROI {}",
             x.len(),
             rep.max_gap_mm,
             rep.pressure_kpa,
             rep.max_displacement_mm,
             rep.far_displacement_mm,
+            rep.far_displacement_p95_mm,
+            100.0 * rep.far_share_over_1mm,
             rep.min_j,
             t0.elapsed().as_secs_f64(),
             match &roi {
