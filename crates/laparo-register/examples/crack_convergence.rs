@@ -3,7 +3,8 @@
 //!
 //! `cargo run --release -p laparo-register --example crack_convergence -- EDGE_MM non-anatomical|anatomical
 //!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER] [CUT_LENGTH_MM] [CUT_DEPTH]`; `SOLVER=direct|two-level` in
-//!  the environment forces the solver of the Newton directions (default: direct when its factor fits in 6 GiB).
+//!  the environment forces the solver of the Newton directions (default: direct when its factor fits in 6 GiB);
+//!  `NU=ν` changes Poisson's ratio (default 0.49).
 //!  CUT_LENGTH_MM and CUT_DEPTH change the blade (anatomical: depth as a fraction of the local thickness;
 //!  non-anatomical: depth in mm; default the benchmark's). `TARGET_GAP_MM=G` adds a second solve at the
 //!  pressure the first one's gap scales to G (one secant step from zero), so cuts compare at one opening.
@@ -161,7 +162,11 @@ fn main() -> Result<(), Box<dyn Error>> {
 /// Opens the crack at `pressure_kpa`, prints the solver and crack-opening figures, returns the max gap (mm).
 fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver) -> Result<f64, Box<dyn Error>> {
     let x = &scn.cut.mesh.vertices;
-    let material = NeoHookean::from_young_poisson(4.1, 0.49)?;
+    let nu: f64 = match std::env::var("NU") {
+        Err(_) => 0.49,
+        Ok(s) => s.parse().map_err(|_| format!("NU: cannot parse {s:?}"))?,
+    };
+    let material = NeoHookean::from_young_poisson(4.1, nu)?;
     let m10 = Tet10Mesh::from_linear(&scn.cut.mesh)?;
     let fixed = SolidProblem::fixed_vertices(&m10, &scn.fixed_nodes)?;
     let face_tractions = crack_pressure(&scn.cut, pressure_kpa);
