@@ -86,7 +86,12 @@ fn pressurised_edge_crack_opens_as_fracture_mechanics_predicts() {
     }
     for j in 0..2 {
         // at 1 mm (8 and 16 edges along the crack) within 2 % of the handbook, and closer than at 2 mm
-        assert!(err[1][j].abs() < 0.02, "a = {} mm: δ off Tada by {:.2} % at 1 mm edges", [8, 16][j], 100.0 * err[1][j]);
+        assert!(
+            err[1][j].abs() < 0.02,
+            "a = {} mm: δ off Tada by {:.2} % at 1 mm edges",
+            [8, 16][j],
+            100.0 * err[1][j]
+        );
         assert!(err[1][j].abs() < err[0][j].abs(), "no convergence: errors {err:?}");
     }
     // doubling the depth multiplies the opening by 2 V(1/2) / V(1/4) ≈ 4.89, not by 1 (the liver's

@@ -123,7 +123,8 @@ fn main() -> Result<(), Box<dyn Error>> {
         .iter()
         .map(|&k| {
             let p = scn.cut.mesh.vertices[k];
-            let lip = scn.cut.lips[0].iter().map(|&i| (scn.cut.mesh.vertices[i] - p).norm()).fold(f64::INFINITY, f64::min);
+            let lip =
+                scn.cut.lips[0].iter().map(|&i| (scn.cut.mesh.vertices[i] - p).norm()).fold(f64::INFINITY, f64::min);
             (to_edge(&p), lip)
         })
         .filter(|(d, _)| *d > 2.0 * edge_mm)
@@ -214,8 +215,7 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         sol.min_j
     );
     // Where the far field moves: the nodes beyond 60 mm from the crack, by |u|.
-    let mut far60: Vec<(f64, usize)> =
-        (0..x.len()).filter(|&k| distance[k] > 60.0).map(|k| (u[k].norm(), k)).collect();
+    let mut far60: Vec<(f64, usize)> = (0..x.len()).filter(|&k| distance[k] > 60.0).map(|k| (u[k].norm(), k)).collect();
     far60.sort_by(|a, b| b.0.total_cmp(&a.0));
     let q = |f: f64| far60.get(((far60.len().max(1) - 1) as f64 * f) as usize).map_or(0.0, |v| v.0);
     let fixed_pts: Vec<Vector3<f64>> = scn.fixed_nodes.iter().map(|&k| x[k]).collect();
