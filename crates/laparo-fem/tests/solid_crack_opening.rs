@@ -8,7 +8,7 @@ use laparo_core::mesh::TetMesh;
 use laparo_fem::material::NeoHookean;
 use laparo_fem::mesh::shapes::box_surface;
 use laparo_fem::mesh::{cut, tetrahedralize_surface, Blade, CutMesh, TetraParams};
-use laparo_fem::solid::{solve, FaceTraction, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
+use laparo_fem::solid::{solve, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use nalgebra::Vector3;
 use std::f64::consts::PI;
 
@@ -44,15 +44,7 @@ fn mouth_opening(edge_mm: f64, a: f64) -> (f64, CutMesh) {
     let end: Vec<usize> = (0..c.mesh.vertices.len()).filter(|&k| c.mesh.vertices[k].x < 1e-9).collect();
     let fixed = SolidProblem::fixed_vertices(&mesh, &end).unwrap();
     let x = &c.mesh.vertices;
-    let face_tractions = c
-        .crack_faces
-        .iter()
-        .flatten()
-        .map(|f| {
-            let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).normalize();
-            FaceTraction { face: *f, traction_kpa: -n * P_KPA }
-        })
-        .collect();
+    let face_tractions = c.crack_pressure(P_KPA);
     let loads = Loads { face_tractions, ..Default::default() };
     let material = NeoHookean::from_young_poisson(E_KPA, 0.0).unwrap();
     let problem = SolidProblem::new(mesh, material, &fixed, &loads, Quadrature::Degree2).unwrap();

@@ -440,6 +440,20 @@ pub fn lip_landmarks(lips: &[Vec<usize>; 2], positions: &[V3], n_total: usize) -
 }
 
 impl CutMesh {
+    /// Equal and opposite pressure `p_kpa` on the two lips' crack faces, each pushing into its own
+    /// side (thesis §5.4.2: the forces that open the incision), as reference-configuration tractions.
+    pub fn crack_pressure(&self, p_kpa: f64) -> Vec<crate::solid::FaceTraction> {
+        let x = &self.mesh.vertices;
+        self.crack_faces
+            .iter()
+            .flatten()
+            .map(|f| {
+                let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).normalize();
+                crate::solid::FaceTraction { face: *f, traction_kpa: -n * p_kpa }
+            })
+            .collect()
+    }
+
     /// Positions of lip `side` (0 = A, 1 = B) in a configuration `positions` (mm).
     pub fn lip_positions(&self, side: usize, positions: &[V3]) -> Vec<V3> {
         self.lips[side].iter().map(|&k| positions[k]).collect()

@@ -213,18 +213,9 @@ impl CrackResolution {
     }
 }
 
-/// Pressure `p` (kPa) on every crack face, pushing each lip away from the other: traction −p n with n the
-/// face's outward normal (from its own side into the gap). Equal and opposite on the two lips.
+/// Equal and opposite pressure `p` (kPa) on the two crack faces ([`CutMesh::crack_pressure`]).
 pub fn crack_pressure(cut: &CutMesh, p: f64) -> Vec<FaceTraction> {
-    let x = &cut.mesh.vertices;
-    cut.crack_faces
-        .iter()
-        .flatten()
-        .map(|f| {
-            let n = (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).normalize();
-            FaceTraction { face: *f, traction_kpa: -n * p }
-        })
-        .collect()
+    cut.crack_pressure(p)
 }
 
 /// The problem of `scn` with pressure `p_ref` (kPa) on the crack faces; a load factor f is the pressure f · `p_ref`.
