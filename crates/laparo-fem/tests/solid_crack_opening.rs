@@ -8,7 +8,7 @@ use laparo_core::mesh::TetMesh;
 use laparo_fem::material::NeoHookean;
 use laparo_fem::mesh::shapes::box_surface;
 use laparo_fem::mesh::{cut, tetrahedralize_surface, Blade, CutMesh, TetraParams};
-use laparo_fem::solid::{solve, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
+use laparo_fem::solid::{solve, LinearSolver, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use nalgebra::Vector3;
 use std::f64::consts::PI;
 
@@ -91,4 +91,33 @@ fn pressurised_edge_crack_opens_as_fracture_mechanics_predicts() {
     let want = 2.0 * tada_v(0.5) / tada_v(0.25);
     let got = delta[1][1] / delta[1][0];
     assert!((got / want - 1.0).abs() < 0.03, "δ(b/2) / δ(b/4) = {got:.3}, Tada {want:.3}");
+}
+
+#[test]
+fn a_tolerance_two_level_cannot_reach_names_the_solver_and_direct_meets_it() {
+    // the strip one tet edge thick, 2 mm tets, asked for 1e-10 of the load
+    let s = box_surface(&V3::zeros(), &V3::new(2.0 * H, 2.0, B));
+    let m = tetrahedralize_surface(s, "strip", &TetraParams { edge_mm: 2.0, ..TetraParams::default() }).unwrap().0;
+    let mouth: Vec<V3> = (0..=8).map(|i| V3::new(H + 0.3, -1.0 + 4.0 * i as f64 / 8.0, B)).collect();
+    let c = cut(&m, &Blade::uniform(mouth, -V3::z(), 8.0, 2.0)).unwrap();
+    let mesh = Tet10Mesh::from_linear(&c.mesh).unwrap();
+    let end: Vec<usize> = (0..c.mesh.vertices.len()).filter(|&k| c.mesh.vertices[k].x < 1e-9).collect();
+    let fixed = SolidProblem::fixed_vertices(&mesh, &end).unwrap();
+    let loads = Loads { face_tractions: c.crack_pressure(P_KPA), ..Default::default() };
+    let material = NeoHookean::from_young_poisson(E_KPA, 0.0).unwrap();
+    let problem = SolidProblem::new(mesh, material, &fixed, &loads, Quadrature::Degree2).unwrap();
+    let settings = |linear| SolverSettings { steps: 1, rel_tol: 1e-10, linear, ..Default::default() };
+    let converged = |sol: &laparo_fem::solid::Solution| {
+        sol.steps.iter().all(|s| s.residual_history.last().is_some_and(|r| *r <= s.tolerance))
+    };
+    // on this machine (Intel Xeon, AVX-512) two-level stalls above 1e-10; should another CPU's rounding let
+    // it through, it must then have converged
+    match solve(&problem, &settings(LinearSolver::TwoLevel)) {
+        Err(e) => {
+            let err = e.to_string();
+            assert!(err.contains("two-level") && err.contains("direct solver") && err.contains("1e-10"), "{err}");
+        }
+        Ok(sol) => assert!(converged(&sol)),
+    }
+    assert!(converged(&solve(&problem, &settings(LinearSolver::Direct)).unwrap()));
 }

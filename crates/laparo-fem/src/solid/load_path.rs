@@ -174,7 +174,17 @@ impl<'p> LoadPath<'p> {
                 "tractions invert elements at step {step_idx} (load factor {t_new:.4}): J ≤ 0 at quadrature points persists after {cuts} step cuts"
             ),
             StepFail::NoConvergence => {
-                format!("Newton does not converge at step {step_idx} (load factor {t_new:.4}) after {cuts} step cuts")
+                let hint = match self.sys.solver_name() {
+                    "two-level" => format!(
+                        "; its directions came from the two-level solver: the direct solver, or a tolerance looser than \
+                         {:e}, may converge",
+                        self.settings.rel_tol
+                    ),
+                    _ => String::new(),
+                };
+                format!(
+                    "Newton does not converge at step {step_idx} (load factor {t_new:.4}) after {cuts} step cuts{hint}"
+                )
             }
         })
     }
