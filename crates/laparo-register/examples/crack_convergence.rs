@@ -4,7 +4,8 @@
 //! `cargo run --release -p laparo-register --example crack_convergence -- EDGE_MM non-anatomical|anatomical
 //!  [PRESSURE_KPA] [STEPS] [FIXED_FRACTION] [LIVER] [CUT_LENGTH_MM] [CUT_DEPTH]`; `SOLVER=direct|two-level` in
 //!  the environment forces the solver of the Newton directions (default: direct when its factor fits in 6 GiB);
-//!  `NU=ν` changes Poisson's ratio (default 0.49).
+//!  `NU=ν` changes Poisson's ratio (default 0.49); `OFFSET_MM=d` shifts the anatomical cut plane by d mm along
+//!  its normal (towards side B).
 //!  CUT_LENGTH_MM and CUT_DEPTH change the blade (anatomical: depth as a fraction of the local thickness;
 //!  non-anatomical: depth in mm; default the benchmark's). `TARGET_GAP_MM=G` adds a second solve at the
 //!  pressure the first one's gap scales to G (one secant step from zero), so cuts compare at one opening.
@@ -56,6 +57,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     non.length_mm = parsed(&args, 6, "CUT_LENGTH_MM", non.length_mm)?;
     anat.depth_fraction = parsed(&args, 7, "CUT_DEPTH", anat.depth_fraction)?;
     non.depth_mm = parsed(&args, 7, "CUT_DEPTH", non.depth_mm)?;
+    if let Ok(s) = std::env::var("OFFSET_MM") {
+        anat.offset_mm = s.parse().map_err(|_| format!("OFFSET_MM: cannot parse {s:?}"))?;
+    }
     let target_gap_mm: Option<f64> = match std::env::var("TARGET_GAP_MM") {
         Err(_) => None,
         Ok(s) => Some(s.parse().map_err(|_| format!("TARGET_GAP_MM: cannot parse {s:?}"))?),
@@ -71,6 +75,62 @@ fn main() -> Result<(), Box<dyn Error>> {
         other => return Err(format!("scenario {other:?}: expected non-anatomical or anatomical").into()),
     };
     let dropped = drop_detached_fragments(&mut scn);
+    // The tissue beside the cut: from points of the blade's middle third at depths below the mouth, the
+    // distance along ± the blade normal to the organ surface (how thick each lip's wall is).
+    {
+        let b = &scn.blade;
+        let n = (b.mouth[b.mouth.len() - 1] - b.mouth[0]).cross(&b.directions[0]).normalize();
+        let m = b.mouth.len();
+        let exit = |o: &Vector3<f64>, d: &Vector3<f64>| {
+            surface
+                .faces
+                .iter()
+                .filter_map(|f| {
+                    let [p, q, r] = f.map(|k| surface.vertices[k]);
+                    laparo_core::geometry::ray_triangle(o, d, &p, &q, &r)
+                })
+                .filter(|t| *t > 0.0)
+                .fold(f64::INFINITY, f64::min)
+        };
+        // inside the organ: an odd number of surface crossings along a ray
+        let inside = |o: &Vector3<f64>| {
+            let d = Vector3::new(0.5377, 0.3181, 0.7809).normalize();
+            surface
+                .faces
+                .iter()
+                .filter(|f| {
+                    let [p, q, r] = f.map(|k| surface.vertices[k]);
+                    laparo_core::geometry::ray_triangle(o, &d, &p, &q, &r).is_some_and(|t| t > 0.0)
+                })
+                .count()
+                % 2
+                == 1
+        };
+        let mid = b.mouth[m / 2] + b.directions[m / 2].normalize() * 15.0;
+        println!(
+            "blade middle, 15 mm deep: inside the organ {}; along +n at 5/10/15/20 mm: {:?}",
+            inside(&mid),
+            [5.0, 10.0, 15.0, 20.0].map(|t| inside(&(mid + n * t)))
+        );
+        let mut rows = Vec::new();
+        for depth in [5.0, 15.0, 30.0, 50.0] {
+            let (mut wa, mut wb) = (Vec::new(), Vec::new());
+            for i in m / 3..=2 * m / 3 {
+                if depth >= b.depths[i] {
+                    continue;
+                }
+                let o = b.mouth[i] + b.directions[i].normalize() * depth;
+                wa.push(exit(&o, &n));
+                wb.push(exit(&o, &-n));
+            }
+            let med = |mut v: Vec<f64>| {
+                v.sort_by(f64::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+            };
+            rows.push(format!("{depth} mm: A {:.0} / B {:.0} mm", med(wa), med(wb)));
+        }
+        println!("tissue beside the cut (median over the blade's middle third): {}", rows.join("; "));
+    }
     let res = CrackResolution::of(&scn, &organ);
     println!(
         "edge {edge_mm} mm, {scenario}: {} nodes, {} tets, {dropped} fragment nodes dropped, fixed {}; crack {:.0} / {:.0} mm² \
@@ -214,6 +274,39 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         sol.max_displacement_mm,
         sol.min_j
     );
+    // Signed opening of each crack node pair, (u_A − u_B)·n with n the blade normal towards side A: a
+    // negative value is the two lips passing through each other (the FEM has no contact), by depth.
+    {
+        let b = &scn.blade;
+        let n = (b.mouth[b.mouth.len() - 1] - b.mouth[0]).cross(&b.directions[0]).normalize();
+        let a_nodes: std::collections::HashSet<usize> = scn.cut.crack_faces[0].iter().flatten().copied().collect();
+        let b_nodes: std::collections::HashSet<usize> = scn.cut.crack_faces[1].iter().flatten().copied().collect();
+        let mut by_orig: std::collections::HashMap<usize, (Option<usize>, Option<usize>)> = Default::default();
+        for (k, &o) in scn.cut.original_node.iter().enumerate() {
+            let e = by_orig.entry(o).or_default();
+            if a_nodes.contains(&k) && !b_nodes.contains(&k) {
+                e.0 = Some(k);
+            } else if b_nodes.contains(&k) && !a_nodes.contains(&k) {
+                e.1 = Some(k);
+            }
+        }
+        let mut bins: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
+        for (ka, kb) in by_orig.values().filter_map(|&(a, b)| a.zip(b)) {
+            let open = (u[ka] - u[kb]).dot(&n);
+            let depth = scn.cut.lips[0].iter().map(|&i| (x[i] - x[ka]).norm()).fold(f64::INFINITY, f64::min);
+            let e = bins.entry((depth / 20.0).floor() as i64).or_insert((f64::INFINITY, 0.0, 0));
+            e.0 = e.0.min(open);
+            e.1 += open;
+            e.2 += 1;
+        }
+        let rows: Vec<String> = bins
+            .iter()
+            .map(|(d, (mn, sum, c))| {
+                format!("{}–{} mm: mean {:.2} min {:.2} (n {c})", d * 20, d * 20 + 20, sum / *c as f64, mn)
+            })
+            .collect();
+        println!("signed opening (u_A − u_B)·n by distance from lip A: {}", rows.join("; "));
+    }
     // Where the far field moves: the nodes beyond 60 mm from the crack, by |u|.
     let mut far60: Vec<(f64, usize)> = (0..x.len()).filter(|&k| distance[k] > 60.0).map(|k| (u[k].norm(), k)).collect();
     far60.sort_by(|a, b| b.0.total_cmp(&a.0));

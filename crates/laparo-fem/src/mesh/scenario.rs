@@ -116,11 +116,14 @@ pub struct AnatomicalParams {
     pub length_mm: f64,
     /// Blade depth as a fraction of the local thickness along −anterior.
     pub depth_fraction: f64,
+    /// Shift of the cut plane along its normal (mm; + towards side B, along the volume's major
+    /// principal axis), from the plane through the entry point.
+    pub offset_mm: f64,
 }
 
 impl Default for AnatomicalParams {
     fn default() -> Self {
-        AnatomicalParams { length_mm: 100.0, depth_fraction: 0.6 }
+        AnatomicalParams { length_mm: 100.0, depth_fraction: 0.6, offset_mm: 0.0 }
     }
 }
 
@@ -443,6 +446,10 @@ pub fn anatomical_on(
     let mut normal: V3 = eig.eigenvectors.column(imax).into();
     normal = (normal - a * a.dot(&normal)).normalize();
     let t = a.cross(&normal).normalize();
+    if !p.offset_mm.is_finite() {
+        return Err(FemError::param("offset_mm", p.offset_mm, "must be a finite shift in mm"));
+    }
+    let entry_point = entry_point + normal * p.offset_mm;
     let trace = |half: f64| -> Result<Vec<V3>> {
         (0..frame.samples)
             .map(|i| {
