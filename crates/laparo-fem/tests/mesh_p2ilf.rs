@@ -123,7 +123,7 @@ fn p2ilf_benchmark_incisions() {
     let n_a = (b0.mouth[b0.mouth.len() - 1] - b0.mouth[0]).cross(&b0.directions[0]).normalize();
     let shifted = anatomical(&m, &frame, &AnatomicalParams { offset_mm: 10.0, ..Default::default() }).unwrap();
     let plane = |b: &laparo_fem::mesh::Blade| b.mouth.iter().map(|q| q.dot(&n_a)).sum::<f64>() / b.mouth.len() as f64;
-    assert!((plane(&b0) - plane(&shifted.blade) - 10.0).abs() < 1e-6, "{} → {}", plane(b0), plane(&shifted.blade));
+    assert!((plane(b0) - plane(&shifted.blade) - 10.0).abs() < 1e-6, "{} → {}", plane(b0), plane(&shifted.blade));
     assert!(shifted.blade.mouth.iter().all(|q| (q.dot(&n_a) - plane(&shifted.blade)).abs() < 1e-6), "planar");
     let bad = AnatomicalParams { offset_mm: f64::NAN, ..Default::default() };
     assert!(anatomical(&m, &frame, &bad).unwrap_err().to_string().contains("offset_mm"));
