@@ -131,6 +131,22 @@ fn main() -> Result<(), Box<dyn Error>> {
         }
         println!("tissue beside the cut (median over the blade's middle third): {}", rows.join("; "));
     }
+    {
+        // how close the crack comes to the fixed (posterior) region
+        let xs = &scn.cut.mesh.vertices;
+        let fixed: Vec<Vector3<f64>> = scn.fixed_nodes.iter().map(|&k| xs[k]).collect();
+        let mut d: Vec<f64> = scn.cut.crack_faces[0]
+            .iter()
+            .flatten()
+            .map(|&k| fixed.iter().map(|f| (f - xs[k]).norm()).fold(f64::INFINITY, f64::min))
+            .collect();
+        d.sort_by(f64::total_cmp);
+        println!(
+            "crack nodes to the fixed region: min {:.0} mm, median {:.0} mm",
+            d.first().copied().unwrap_or(f64::NAN),
+            d.get(d.len() / 2).copied().unwrap_or(f64::NAN)
+        );
+    }
     let res = CrackResolution::of(&scn, &organ);
     println!(
         "edge {edge_mm} mm, {scenario}: {} nodes, {} tets, {dropped} fragment nodes dropped, fixed {}; crack {:.0} / {:.0} mm² \
