@@ -121,6 +121,37 @@ fn tetra_then_incision_on_a_sphere() {
     let sc1 = read(cut_dir.join("scenario.json"));
     let (z1, z2) = (deepest(&cut, &sc1["crack_faces_a"]), deepest(&cut2, &sc["crack_faces_a"]));
     assert!(z2 > z1 + 15.0, "0.3 of the thickness ends higher than 0.6: deepest crack node z {z2} vs {z1} mm");
+    // the same blade with its plane shifted 6 mm: the crack moves by about that much
+    let shifted = dir.path().join("shifted");
+    let mut args = vec!["mesh", "incision", "--scenario", "anatomical", "--anterior", "0,0,1"];
+    let (v, o) = (s_(&vtk), s_(&shifted));
+    args.extend([
+        "--mesh",
+        &v,
+        "--cut-length-mm",
+        "50",
+        "--cut-depth-fraction",
+        "0.3",
+        "--cut-offset-mm=-6",
+        "--out",
+        &o,
+    ]);
+    run_ok(&args);
+    let sc3 = read(shifted.join("scenario.json"));
+    assert_eq!(sc3["params"]["offset_mm"], -6.0);
+    let cut3 = laparo_core::mesh::read_vtk(shifted.join("cut.vtk")).unwrap();
+    let centre = |c: &laparo_core::mesh::TetMesh, faces: &serde_json::Value| {
+        let ids: Vec<usize> = faces
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|f| f.as_array().unwrap().iter())
+            .map(|i| i.as_u64().unwrap() as usize)
+            .collect();
+        ids.iter().map(|&i| c.vertices[i]).sum::<nalgebra::Vector3<f64>>() / ids.len() as f64
+    };
+    let moved = (centre(&cut3, &sc3["crack_faces_a"]) - centre(&cut2, &sc["crack_faces_a"])).norm();
+    assert!((3.0..9.0).contains(&moved), "a 6 mm shift moved the crack's centre by {moved} mm");
 }
 
 #[test]
@@ -159,6 +190,8 @@ fn bad_inputs_fail_clearly() {
         ("anatomical", &["--cut-length-mm=-5"][..], "--cut-length-mm -5"),
         ("non-anatomical", &["--cut-length-mm", "NaN"][..], "--cut-length-mm NaN"),
         ("anatomical", &["--fixed-fraction", "1"][..], "--fixed-fraction 1"),
+        ("non-anatomical", &["--cut-offset-mm", "5"][..], "--cut-offset-mm 5"),
+        ("anatomical", &["--cut-offset-mm", "inf"][..], "--cut-offset-mm inf"),
     ] {
         let o = laparo()
             .args(["mesh", "incision", "--mesh", vtk.to_str().unwrap(), "--scenario", scenario])

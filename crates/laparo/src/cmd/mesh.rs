@@ -26,6 +26,10 @@ pub struct CutArgs {
     /// Anatomical blade depth as a fraction of the local thickness, in (0, 1); default 0.6.
     #[arg(long)]
     pub cut_depth_fraction: Option<f64>,
+    /// Anatomical cut plane shifted along its normal (mm, + towards side B); default 0. On the P2ILF liver
+    /// the default plane splits an anterior ridge (side A's wall ≈ 10 mm); −15 cuts into the bulk.
+    #[arg(long, allow_hyphen_values = true)]
+    pub cut_offset_mm: Option<f64>,
     /// Fraction of the outer-surface nodes held fixed (the most posterior ones), in (0, 1); default 0.15.
     #[arg(long)]
     pub fixed_fraction: Option<f64>,
@@ -39,6 +43,9 @@ impl CutArgs {
                 "--cut-depth-fraction {f}: that is the anatomical blade's depth; the non-anatomical blade takes \
                  --cut-depth-mm"
             );
+        }
+        if let Some(o) = self.cut_offset_mm.filter(|_| !scenarios.contains(&"anatomical")) {
+            bail!("--cut-offset-mm {o}: only the anatomical (planar) cut has a plane to shift");
         }
         if let Some(d) = self.cut_depth_mm.filter(|_| !scenarios.contains(&"non-anatomical")) {
             bail!(
@@ -83,6 +90,12 @@ impl CutArgs {
                 bail!("--cut-depth-fraction {f}: must be in (0, 1)");
             }
             p.depth_fraction = f;
+        }
+        if let Some(o) = self.cut_offset_mm {
+            if !o.is_finite() {
+                bail!("--cut-offset-mm {o}: must be a finite shift (mm)");
+            }
+            p.offset_mm = o;
         }
         Ok(p)
     }
