@@ -421,8 +421,11 @@ pub fn node_sides(cut: &CutMesh) -> Vec<u8> {
 }
 
 /// Smallest region of interest (a ball around the crack's centroid, radius from `r0_mm` in 10 mm steps
-/// up to `r_max_mm`) whose boundary shell (the nodes within `shell_mm` inside it) has a ground-truth
-/// displacement below `max_boundary_mm`; None when even `r_max_mm` fails (simulate the whole organ).
+/// up to `r_max_mm`) such that every node a method holds at rest with it — its boundary shell (the nodes
+/// within `shell_mm` inside it) and everything outside — has a ground-truth displacement below
+/// `max_boundary_mm`; returns the ball and that largest held displacement (mm); None when even
+/// `r_max_mm` fails (simulate the whole organ). Checking the shell alone would accept a ball that a deep
+/// cut's mouth pokes out of (the mouth then held at rest).
 pub fn choose_roi(
     rest: &[Vector3<f64>],
     displacement: &[Vector3<f64>],
@@ -437,10 +440,7 @@ pub fn choose_roi(
         let worst = rest
             .iter()
             .zip(displacement)
-            .filter(|(x, _)| {
-                let d = (*x - centre).norm();
-                d <= r && d > r - shell_mm
-            })
+            .filter(|(x, _)| (*x - centre).norm() > r - shell_mm)
             .map(|(_, u)| u.norm())
             .fold(0.0, f64::max);
         if worst < max_boundary_mm {
@@ -465,5 +465,29 @@ pub fn case_from(scn: &Scenario, displacement: &[Vector3<f64>], roi: Option<Roi>
         lips: scn.cut.lips.clone(),
         fixed: scn.fixed_nodes.clone(),
         roi,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roi_holds_no_moving_node_even_outside_its_shell() {
+        // nodes on a line from the centre; the ones at 10 and 75 mm move 5 mm, the rest stay
+        let rest: Vec<Vector3<f64>> = (0..=100).map(|k| Vector3::new(k as f64, 0.0, 0.0)).collect();
+        let u: Vec<Vector3<f64>> = (0..=100)
+            .map(|k| if k == 10 || k == 75 { Vector3::new(0.0, 5.0, 0.0) } else { Vector3::zeros() })
+            .collect();
+        // a 50 mm ball's shell (44–50 mm) is still, but the node at 75 mm would be held at rest: the ball must reach it
+        let (roi, worst) = choose_roi(&rest, &u, Vector3::zeros(), 50.0, 120.0, 6.0, 0.5).unwrap();
+        let Roi::Ball { radius_mm, .. } = roi else { panic!("a ball") };
+        assert_eq!(radius_mm, 90.0, "75 mm node inside, 6 mm shell clear of it");
+        assert_eq!(worst, 0.0);
+        // forced radius: the held displacement is reported
+        let (_, worst) = choose_roi(&rest, &u, Vector3::zeros(), 50.0, 50.0, 6.0, f64::INFINITY).unwrap();
+        assert_eq!(worst, 5.0);
+        // nothing up to 70 mm qualifies
+        assert!(choose_roi(&rest, &u, Vector3::zeros(), 50.0, 70.0, 6.0, 0.5).is_none());
     }
 }

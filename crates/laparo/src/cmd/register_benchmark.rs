@@ -571,8 +571,8 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             rep.min_j,
             t0.elapsed().as_secs_f64(),
             match &roi {
-                Some((laparo_register::organ::Roi::Ball { radius_mm, .. }, w)) => format!("ball {radius_mm} mm (boundary |u| ≤ {w:.3} mm)"),
-                _ => "whole organ (no ball up to 120 mm keeps the boundary displacement < 0.5 mm)".into(),
+                Some((laparo_register::organ::Roi::Ball { radius_mm, .. }, w)) => format!("ball {radius_mm} mm (ground-truth |u| ≤ {w:.3} mm on its boundary shell and outside, where it holds the tissue at rest)"),
+                _ => "whole organ (no ball up to 120 mm keeps the displacement on its boundary shell and outside < 0.5 mm)".into(),
             }
         );
         let case = case_from(&scn, &u, roi.map(|r| r.0));
