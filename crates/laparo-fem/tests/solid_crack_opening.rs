@@ -4,7 +4,6 @@
 //! / cos²(πa/2b), within 1 % for every a/b). With ν = 0 a slab of any thickness with free faces is
 //! exactly the plane problem, and pressure p on the crack faces opens the crack as a remote tension
 //! p does (superposition with the uncracked strip, which does not open).
-use laparo_core::mesh::TetMesh;
 use laparo_fem::material::NeoHookean;
 use laparo_fem::mesh::shapes::box_surface;
 use laparo_fem::mesh::{cut, tetrahedralize_surface, Blade, CutMesh, TetraParams};
@@ -15,15 +14,27 @@ use std::f64::consts::PI;
 type V3 = Vector3<f64>;
 
 /// Strip width b (mm, along z: the crack runs from the top face z = b downwards) and half length
-/// (mm, along x: the crack plane is x ≈ H); the thickness (along y) is two tet edges.
+/// (mm, along x: the crack plane is x ≈ H).
 const B: f64 = 32.0;
 const H: f64 = 48.0;
 const E_KPA: f64 = 1.0;
 const P_KPA: f64 = 1e-4;
 
-fn strip(edge_mm: f64) -> TetMesh {
-    let s = box_surface(&V3::zeros(), &V3::new(2.0 * H, 2.0 * edge_mm, B));
-    tetrahedralize_surface(s, "strip", &TetraParams { edge_mm, ..TetraParams::default() }).unwrap().0
+/// A strip `thickness_mm` thick meshed at `edge_mm`, cracked from its top face by an edge crack `a_mm`
+/// deep through the whole thickness, pressure `P_KPA` on the crack faces, the end x = 0 clamped (far
+/// from the crack; the pressure is self-equilibrated, so this only fixes the frame), E = `E_KPA`, ν = 0.
+fn cracked_strip(edge_mm: f64, thickness_mm: f64, a_mm: f64) -> (CutMesh, SolidProblem) {
+    let s = box_surface(&V3::zeros(), &V3::new(2.0 * H, thickness_mm, B));
+    let m = tetrahedralize_surface(s, "strip", &TetraParams { edge_mm, ..TetraParams::default() }).unwrap().0;
+    let mouth: Vec<V3> = (0..=8).map(|i| V3::new(H + 0.3, -1.0 + (thickness_mm + 2.0) * i as f64 / 8.0, B)).collect();
+    let c = cut(&m, &Blade::uniform(mouth, -V3::z(), a_mm, 2.0)).unwrap();
+    let mesh = Tet10Mesh::from_linear(&c.mesh).unwrap();
+    let end: Vec<usize> = (0..c.mesh.vertices.len()).filter(|&k| c.mesh.vertices[k].x < 1e-9).collect();
+    let fixed = SolidProblem::fixed_vertices(&mesh, &end).unwrap();
+    let loads = Loads { face_tractions: c.crack_pressure(P_KPA), ..Default::default() };
+    let material = NeoHookean::from_young_poisson(E_KPA, 0.0).unwrap();
+    let problem = SolidProblem::new(mesh, material, &fixed, &loads, Quadrature::Degree2).unwrap();
+    (c, problem)
 }
 
 /// Tada's single-edge-notched strip: mouth opening δ / (4 σ a / E').
@@ -35,19 +46,9 @@ fn tada_v(a_over_b: f64) -> f64 {
 /// Mouth opening (mm) of an edge crack of depth `a` mm through the whole thickness: the mean x-gap
 /// of the duplicated node pairs on the top face.
 fn mouth_opening(edge_mm: f64, a: f64) -> (f64, CutMesh) {
-    let m = strip(edge_mm);
-    let (x0, t) = (H + 0.3, 2.0 * edge_mm);
-    let mouth: Vec<V3> = (0..=8).map(|i| V3::new(x0, -1.0 + (t + 2.0) * i as f64 / 8.0, B)).collect();
-    let c = cut(&m, &Blade::uniform(mouth, -V3::z(), a, 2.0)).unwrap();
-    let mesh = Tet10Mesh::from_linear(&c.mesh).unwrap();
-    // clamp the end x = 0, far from the crack (the pressure is self-equilibrated, so this only fixes the frame)
-    let end: Vec<usize> = (0..c.mesh.vertices.len()).filter(|&k| c.mesh.vertices[k].x < 1e-9).collect();
-    let fixed = SolidProblem::fixed_vertices(&mesh, &end).unwrap();
+    // two tet edges thick
+    let (c, problem) = cracked_strip(edge_mm, 2.0 * edge_mm, a);
     let x = &c.mesh.vertices;
-    let face_tractions = c.crack_pressure(P_KPA);
-    let loads = Loads { face_tractions, ..Default::default() };
-    let material = NeoHookean::from_young_poisson(E_KPA, 0.0).unwrap();
-    let problem = SolidProblem::new(mesh, material, &fixed, &loads, Quadrature::Degree2).unwrap();
     let sol = solve(&problem, &SolverSettings { steps: 1, rel_tol: 1e-10, ..Default::default() }).unwrap();
     let u = sol.vertex_displacements();
     let mut sum = 0.0;
@@ -96,16 +97,7 @@ fn pressurised_edge_crack_opens_as_fracture_mechanics_predicts() {
 #[test]
 fn a_tolerance_two_level_cannot_reach_names_the_solver_and_direct_meets_it() {
     // the strip one tet edge thick, 2 mm tets, asked for 1e-10 of the load
-    let s = box_surface(&V3::zeros(), &V3::new(2.0 * H, 2.0, B));
-    let m = tetrahedralize_surface(s, "strip", &TetraParams { edge_mm: 2.0, ..TetraParams::default() }).unwrap().0;
-    let mouth: Vec<V3> = (0..=8).map(|i| V3::new(H + 0.3, -1.0 + 4.0 * i as f64 / 8.0, B)).collect();
-    let c = cut(&m, &Blade::uniform(mouth, -V3::z(), 8.0, 2.0)).unwrap();
-    let mesh = Tet10Mesh::from_linear(&c.mesh).unwrap();
-    let end: Vec<usize> = (0..c.mesh.vertices.len()).filter(|&k| c.mesh.vertices[k].x < 1e-9).collect();
-    let fixed = SolidProblem::fixed_vertices(&mesh, &end).unwrap();
-    let loads = Loads { face_tractions: c.crack_pressure(P_KPA), ..Default::default() };
-    let material = NeoHookean::from_young_poisson(E_KPA, 0.0).unwrap();
-    let problem = SolidProblem::new(mesh, material, &fixed, &loads, Quadrature::Degree2).unwrap();
+    let (_, problem) = cracked_strip(2.0, 2.0, 8.0);
     let settings = |linear| SolverSettings { steps: 1, rel_tol: 1e-10, linear, ..Default::default() };
     let converged = |sol: &laparo_fem::solid::Solution| {
         sol.steps.iter().all(|s| s.residual_history.last().is_some_and(|r| *r <= s.tolerance))

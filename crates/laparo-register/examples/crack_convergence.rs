@@ -15,6 +15,7 @@
 //! gap and its 50/90/99th percentiles over all crack node pairs, the mouth's opening profile along
 //! the lip, and the largest displacement farther than 40/60/80 mm from the crack. The blade is traced
 //! on the input surface (`non_anatomical_on` / `anatomical_on`), so every edge gets the same cut.
+use laparo_core::geometry::closest_point_on_segment;
 use laparo_fem::material::NeoHookean;
 use laparo_fem::mesh::{
     anatomical_on, non_anatomical_on, tetrahedralize_surface, AnatomicalParams, NonAnatomicalParams, Scenario,
@@ -22,9 +23,10 @@ use laparo_fem::mesh::{
 };
 use laparo_fem::solid::{solve, LinearSolver, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use laparo_register::benchmark::build::{
-    crack_pair_gaps_mm, crack_pressure, distance_to_crack_mm, drop_detached_fragments, lip_opening_profile_mm,
-    max_gap_mm, CrackResolution,
+    crack_pair_gaps_mm, distance_to_crack_mm, drop_detached_fragments, lip_opening_profile_mm, max_gap_mm,
+    CrackResolution,
 };
+use laparo_register::rigid::umeyama;
 use nalgebra::Vector3;
 use std::error::Error;
 
@@ -92,26 +94,6 @@ fn main() -> Result<(), Box<dyn Error>> {
                 .filter(|t| *t > 0.0)
                 .fold(f64::INFINITY, f64::min)
         };
-        // inside the organ: an odd number of surface crossings along a ray
-        let inside = |o: &Vector3<f64>| {
-            let d = Vector3::new(0.5377, 0.3181, 0.7809).normalize();
-            surface
-                .faces
-                .iter()
-                .filter(|f| {
-                    let [p, q, r] = f.map(|k| surface.vertices[k]);
-                    laparo_core::geometry::ray_triangle(o, &d, &p, &q, &r).is_some_and(|t| t > 0.0)
-                })
-                .count()
-                % 2
-                == 1
-        };
-        let mid = b.mouth[m / 2] + b.directions[m / 2].normalize() * 15.0;
-        println!(
-            "blade middle, 15 mm deep: inside the organ {}; along +n at 5/10/15/20 mm: {:?}",
-            inside(&mid),
-            [5.0, 10.0, 15.0, 20.0].map(|t| inside(&(mid + n * t)))
-        );
         let mut rows = Vec::new();
         for depth in [5.0, 15.0, 30.0, 50.0] {
             let (mut wa, mut wb) = (Vec::new(), Vec::new());
@@ -182,11 +164,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     // ends); one farther than two tet edges from that edge is a bridge pinning the crack shut.
     let b = &scn.blade;
     let n = b.mouth.len();
-    let seg = |p: &Vector3<f64>, a: &Vector3<f64>, c: &Vector3<f64>| {
-        let d = c - a;
-        let t = ((p - a).dot(&d) / d.norm_squared().max(1e-30)).clamp(0.0, 1.0);
-        (p - (a + d * t)).norm()
-    };
+    let seg = |p: &Vector3<f64>, a: &Vector3<f64>, c: &Vector3<f64>| (p - closest_point_on_segment(p, a, c)).norm();
     let bottom: Vec<Vector3<f64>> = (0..n).map(|i| b.mouth[i] + b.directions[i].normalize() * b.depths[i]).collect();
     let top = |i: usize| b.mouth[i] - b.directions[i].normalize() * b.overshoot_mm;
     let to_edge = |p: &Vector3<f64>| {
@@ -246,7 +224,7 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
     let material = NeoHookean::from_young_poisson(4.1, nu)?;
     let m10 = Tet10Mesh::from_linear(&scn.cut.mesh)?;
     let fixed = SolidProblem::fixed_vertices(&m10, &scn.fixed_nodes)?;
-    let face_tractions = crack_pressure(&scn.cut, pressure_kpa);
+    let face_tractions = scn.cut.crack_pressure(pressure_kpa);
     let loads = Loads { face_tractions, ..Default::default() };
     let problem = SolidProblem::new(m10, material, &fixed, &loads, Quadrature::Degree2)?;
     let t0 = std::time::Instant::now();
@@ -290,11 +268,12 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         sol.max_displacement_mm,
         sol.min_j
     );
+    // The blade normal towards side A, (mouth tangent) × (direction).
+    let b = &scn.blade;
+    let normal = (b.mouth[b.mouth.len() - 1] - b.mouth[0]).cross(&b.directions[0]).normalize();
     // Signed opening of each crack node pair, (u_A − u_B)·n with n the blade normal towards side A: a
     // negative value is the two lips passing through each other (the FEM has no contact), by depth.
     {
-        let b = &scn.blade;
-        let n = (b.mouth[b.mouth.len() - 1] - b.mouth[0]).cross(&b.directions[0]).normalize();
         let a_nodes: std::collections::HashSet<usize> = scn.cut.crack_faces[0].iter().flatten().copied().collect();
         let b_nodes: std::collections::HashSet<usize> = scn.cut.crack_faces[1].iter().flatten().copied().collect();
         let mut by_orig: std::collections::HashMap<usize, (Option<usize>, Option<usize>)> = Default::default();
@@ -308,7 +287,7 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         }
         let mut bins: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
         for (ka, kb) in by_orig.values().filter_map(|&(a, b)| a.zip(b)) {
-            let open = (u[ka] - u[kb]).dot(&n);
+            let open = (u[ka] - u[kb]).dot(&normal);
             let depth = scn.cut.lips[0].iter().map(|&i| (x[i] - x[ka]).norm()).fold(f64::INFINITY, f64::min);
             let e = bins.entry((depth / 20.0).floor() as i64).or_insert((f64::INFINITY, 0.0, 0));
             e.0 = e.0.min(open);
@@ -349,10 +328,8 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
             ))
             .collect::<Vec<_>>()
     );
-    // Do the two halves swing as rigid flaps? Per side of the blade, the best rigid motion (Kabsch)
-    // of the nodes 20–60 mm from the crack: its rotation and the share of the motion it explains.
-    let b = &scn.blade;
-    let normal = (b.mouth[b.mouth.len() - 1] - b.mouth[0]).cross(&b.directions[0]).normalize();
+    // Do the two halves swing as rigid flaps? Per side of the blade, the best rigid motion (Umeyama, no
+    // scale) of the nodes 20–60 mm from the crack: its rotation and the share of the motion it explains.
     for (side, sign) in [("A", 1.0), ("B", -1.0)] {
         let ids: Vec<usize> = (0..x.len())
             .filter(|&k| (20.0..60.0).contains(&distance[k]) && sign * (x[k] - b.mouth[0]).dot(&normal) > 0.0)
@@ -360,22 +337,20 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         if ids.len() < 4 {
             continue;
         }
-        let n = ids.len() as f64;
-        let cx = ids.iter().map(|&k| x[k]).sum::<Vector3<f64>>() / n;
-        let cy = ids.iter().map(|&k| deformed[k]).sum::<Vector3<f64>>() / n;
-        let h = ids.iter().fold(nalgebra::Matrix3::zeros(), |h, &k| h + (x[k] - cx) * (deformed[k] - cy).transpose());
-        let svd = h.svd(true, true);
-        let (uu, vt) = (svd.u.unwrap_or_default(), svd.v_t.unwrap_or_default());
-        let d = (vt.transpose() * uu.transpose()).determinant().signum();
-        let r = vt.transpose() * nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * uu.transpose();
-        let angle = ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
-        let rms = |f: &dyn Fn(usize) -> f64| (ids.iter().map(|&k| f(k).powi(2)).sum::<f64>() / n).sqrt();
-        let residual = rms(&|k| (r * (x[k] - cx) + cy - deformed[k]).norm());
+        let src: Vec<Vector3<f64>> = ids.iter().map(|&k| x[k]).collect();
+        let dst: Vec<Vector3<f64>> = ids.iter().map(|&k| deformed[k]).collect();
+        let fit = umeyama(&src, &dst, false)?;
+        let angle = ((fit.rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+        let rms = |v: &mut dyn Iterator<Item = f64>| {
+            let (s2, n) = v.fold((0.0, 0usize), |(s2, n), e| (s2 + e * e, n + 1));
+            (s2 / n.max(1) as f64).sqrt()
+        };
+        let residual = rms(&mut src.iter().zip(&dst).map(|(a, b)| (fit.apply(a) - b).norm()));
         println!(
             "side {side}: {} nodes 20–60 mm from the crack; rigid fit rotates {angle:.2}°, leaves {residual:.2} mm RMS \
              of {:.2} mm RMS displacement",
             ids.len(),
-            rms(&|k| u[k].norm())
+            rms(&mut ids.iter().map(|&k| u[k].norm()))
         );
     }
     Ok(max_gap_mm(&scn.cut, &deformed))

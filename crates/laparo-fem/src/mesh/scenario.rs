@@ -416,6 +416,9 @@ pub fn anatomical_on(
     if !(p.depth_fraction > 0.0 && p.depth_fraction < 1.0) {
         return Err(FemError::param("depth_fraction", p.depth_fraction, "must be in (0, 1)"));
     }
+    if !p.offset_mm.is_finite() {
+        return Err(FemError::param("offset_mm", p.offset_mm, "must be a finite shift in mm"));
+    }
     let surf = surface;
     let far = 2.0 * bbox_diag(mesh).max(surface.bounding_box().map(|(lo, hi)| (hi - lo).norm()).unwrap_or(0.0));
     let (entry_point, _) = entry(surf, &a, far)?;
@@ -446,9 +449,6 @@ pub fn anatomical_on(
     let mut normal: V3 = eig.eigenvectors.column(imax).into();
     normal = (normal - a * a.dot(&normal)).normalize();
     let t = a.cross(&normal).normalize();
-    if !p.offset_mm.is_finite() {
-        return Err(FemError::param("offset_mm", p.offset_mm, "must be a finite shift in mm"));
-    }
     let entry_point = entry_point + normal * p.offset_mm;
     let trace = |half: f64| -> Result<Vec<V3>> {
         (0..frame.samples)
