@@ -77,6 +77,11 @@ fn main() -> Result<(), Box<dyn Error>> {
         other => return Err(format!("scenario {other:?}: expected non-anatomical or anatomical").into()),
     };
     let dropped = drop_detached_fragments(&mut scn);
+    {
+        // The blade's depth under each mouth sample (mm): a dip is tissue the blade does not cut.
+        let d: Vec<String> = scn.blade.depths.iter().map(|d| format!("{d:.0}")).collect();
+        println!("blade depth under each of the {} mouth samples (mm): [{}]", d.len(), d.join(", "));
+    }
     // The tissue beside the cut: from points of the blade's middle third at depths below the mouth, the
     // distance along ± the blade normal to the organ surface (how thick each lip's wall is).
     {
@@ -301,6 +306,15 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
             })
             .collect();
         println!("signed opening (u_A − u_B)·n by distance from lip A: {}", rows.join("; "));
+        if let Ok(path) = std::env::var("CRACK_PNG") {
+            let opening: std::collections::HashMap<usize, f64> = by_orig
+                .iter()
+                .filter_map(|(&o, &(a, b))| a.zip(b).map(|(ka, kb)| (o, (u[ka] - u[kb]).dot(&normal))))
+                .collect();
+            let title = format!("{pressure_kpa} kPa: signed crack opening, side A's crack faces in the blade plane");
+            draw_crack_plane(scn, &opening, &title, &path)?;
+            println!("wrote {path}");
+        }
     }
     // Where the far field moves: the nodes beyond 60 mm from the crack, by |u|.
     let mut far60: Vec<(f64, usize)> = (0..x.len()).filter(|&k| distance[k] > 60.0).map(|k| (u[k].norm(), k)).collect();
@@ -354,4 +368,68 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         );
     }
     Ok(max_gap_mm(&scn.cut, &deformed))
+}
+
+/// The crack seen face-on: side A's crack faces in the blade plane (mm along the mouth, mm below
+/// it), each filled with the mean signed opening of its three nodes (0 at the crack front, which
+/// is not duplicated), the front nodes in black and the blade's outline in red.
+fn draw_crack_plane(
+    scn: &Scenario,
+    opening_mm: &std::collections::HashMap<usize, f64>,
+    title: &str,
+    path: &str,
+) -> Result<(), Box<dyn Error>> {
+    use laparo_core::colormap::Colormap;
+    use plotters::prelude::*;
+    let b = &scn.blade;
+    let x = &scn.cut.mesh.vertices;
+    let o = b.mouth[0];
+    let down = b.directions[0].normalize();
+    let chord = b.mouth[b.mouth.len() - 1] - o;
+    let along = (chord - down * down.dot(&chord)).normalize();
+    let plane = |p: &Vector3<f64>| ((p - o).dot(&along), (p - o).dot(&down));
+    let faces: Vec<([(f64, f64); 3], f64)> = scn.cut.crack_faces[0]
+        .iter()
+        .map(|f| {
+            let open =
+                f.iter().map(|&k| opening_mm.get(&scn.cut.original_node[k]).copied().unwrap_or(0.0)).sum::<f64>() / 3.0;
+            (f.map(|k| plane(&x[k])), open)
+        })
+        .collect();
+    let outline: Vec<(f64, f64)> = b
+        .mouth
+        .iter()
+        .map(|m| plane(m))
+        .chain(b.mouth.iter().zip(&b.depths).rev().map(|(m, d)| plane(&(m + down * *d))))
+        .chain(std::iter::once(plane(&b.mouth[0])))
+        .collect();
+    let front: Vec<(f64, f64)> = scn.cut.front_nodes.iter().map(|&k| plane(&x[k])).collect();
+    let pts = || faces.iter().flat_map(|(p, _)| p.iter().copied()).chain(outline.iter().copied());
+    let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| (a.min(p.0), c.max(p.0)));
+    let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| (a.min(p.1), c.max(p.1)));
+    let hi = faces.iter().map(|f| f.1).fold(0.0, f64::max).max(1e-9);
+    let cmap = Colormap::Viridis;
+    let (w, h) = (900u32, (900.0 * (y1 - y0 + 20.0) / (x1 - x0 + 20.0)).clamp(300.0, 1400.0) as u32 + 60);
+    let img = laparo_core::plot::render_rgb(w, h, |root| {
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 16))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(45)
+            .build_cartesian_2d(x0 - 5.0..x1 + 5.0, y1 + 5.0..y0 - 5.0)?;
+        chart.configure_mesh().x_desc("along the mouth (mm)").y_desc("below the mouth (mm)").draw()?;
+        chart.draw_series(faces.iter().map(|(p, v)| {
+            let [r, g, bl] = cmap.rgb(v / hi);
+            Polygon::new(p.to_vec(), RGBColor(r, g, bl).filled())
+        }))?;
+        chart.draw_series(
+            faces.iter().map(|(p, _)| PathElement::new(vec![p[0], p[1], p[2], p[0]], RGBColor(120, 120, 120))),
+        )?;
+        chart.draw_series(std::iter::once(PathElement::new(outline.clone(), RED.stroke_width(2))))?;
+        chart.draw_series(front.iter().map(|&p| Circle::new(p, 3, BLACK.filled())))?;
+        Ok(())
+    })?;
+    let img = laparo_core::plot::with_colorbar(&img, 0.0, hi, cmap, "opening (mm)");
+    laparo_core::io::write_png(path, &img)?;
+    Ok(())
 }

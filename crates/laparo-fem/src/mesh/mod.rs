@@ -19,5 +19,6 @@ pub use incision::{cut, Blade, CutMesh, Landmark, Landmarks};
 pub use scenario::{
     anatomical, anatomical_on, anterior_from_vertices, fixed_posterior_nodes, non_anatomical, non_anatomical_on,
     AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame, Sphere, P2ILF_ANTERIOR, P2ILF_CONTOUR_VERTICES,
+    THICKNESS_WINDOW_MM,
 };
 pub use tetra::{quality_report, tetrahedralize, tetrahedralize_surface, Percentile, QualityReport, TetraParams};

@@ -114,7 +114,8 @@ impl Default for NonAnatomicalParams {
 pub struct AnatomicalParams {
     /// Length of the incision on the surface (mm).
     pub length_mm: f64,
-    /// Blade depth as a fraction of the local thickness along −anterior.
+    /// Blade depth as a fraction of the local thickness along −anterior (the median over ±[`THICKNESS_WINDOW_MM`]
+    /// of the mouth, so a fold of the surface leaves no uncut slot).
     pub depth_fraction: f64,
     /// Shift of the cut plane along its normal (mm; + towards side B, along the volume's major
     /// principal axis), from the plane through the entry point.
@@ -391,11 +392,42 @@ pub fn non_anatomical_on(
     })
 }
 
+/// Half-width (mm along the cut plane's lateral direction) of the window whose median thickness sets
+/// the anatomical blade's depth.
+///
+/// Under a fold or fissure of the anterior surface the ray along −anterior leaves the organ after a
+/// millimetre or two and re-enters (on the P2ILF liver, one to three of 61 mouth samples: 1.4 mm where
+/// the neighbours measure 140–170 mm); a blade that followed it would leave a slot of uncut tissue
+/// from the mouth to the crack's floor, tying the two lips together. The median over ±10 mm ignores
+/// such a dip when it is narrower than 10 mm and follows any wider change of thickness.
+pub const THICKNESS_WINDOW_MM: f64 = 10.0;
+
+/// The median of `values` over the samples whose position (mm, one per value) lies within
+/// `half_window_mm` of each one's: a running median that keeps a linear trend and removes dips
+/// narrower than the half-window.
+pub(crate) fn local_median(position_mm: &[f64], values: &[f64], half_window_mm: f64) -> Vec<f64> {
+    let arc = position_mm;
+    (0..values.len())
+        .map(|i| {
+            let mut w: Vec<f64> =
+                (0..values.len()).filter(|&j| (arc[j] - arc[i]).abs() <= half_window_mm).map(|j| values[j]).collect();
+            w.sort_by(f64::total_cmp);
+            let m = w.len() / 2;
+            if w.len() % 2 == 1 {
+                w[m]
+            } else {
+                0.5 * (w[m - 1] + w[m])
+            }
+        })
+        .collect()
+}
+
 /// Scenario (ii): a planar cut through P containing the anterior axis, its plane normal the
 /// mesh's major principal axis made orthogonal to `a` (left–right); the mouth is the surface trace
 /// (cast along −a) of a segment through P along `a × normal`, scaled to `length_mm` of traced
 /// length; each mouth point is swept along −a by `depth_fraction` × the local thickness (distance
-/// along −a to where that ray leaves the organ).
+/// along −a to where that ray leaves the organ, the median over ±[`THICKNESS_WINDOW_MM`] of the
+/// mouth's lateral extent so that a fold of the surface does not leave a slot of uncut tissue).
 ///
 /// [`anatomical_on`] traces the blade on the organ's input surface instead of the mesh boundary.
 pub fn anatomical(mesh: &TetMesh, frame: &ScenarioFrame, p: &AnatomicalParams) -> Result<Scenario> {
@@ -465,7 +497,7 @@ pub fn anatomical_on(
     };
     let half = fit_length(p.length_mm, p.length_mm, &trace)?;
     let mouth = trace(half)?;
-    let mut depths = Vec::new();
+    let mut thickness = Vec::new();
     for (i, q) in mouth.iter().enumerate() {
         // Thickness: from q (just inside) along −a to the next crossing.
         let o = q - a * 1e-6;
@@ -473,8 +505,12 @@ pub fn anatomical_on(
         let th = hits.into_iter().find(|&t| t > 1e-3).ok_or_else(|| {
             FemError::bad("anatomical scenario", format!("no exit along −anterior from mouth point {i}"))
         })?;
-        depths.push(p.depth_fraction * th);
+        thickness.push(th);
     }
+    // the window runs along the plane's lateral direction t (where the samples are evenly spaced), not
+    // along the mouth's arc, which jumps where the surface folds
+    let lateral: Vec<f64> = mouth.iter().map(|q| (q - mouth[0]).dot(&t)).collect();
+    let depths = local_median(&lateral, &thickness, THICKNESS_WINDOW_MM).iter().map(|t| p.depth_fraction * t).collect();
     let blade = Blade { directions: vec![-a; mouth.len()], mouth, depths, overshoot_mm: frame.overshoot_mm };
     let cut_mesh = cut(mesh, &blade)?;
     let fixed_nodes = fixed_posterior_nodes(&cut_mesh, &a, frame.fixed_fraction);
@@ -488,4 +524,38 @@ pub fn anatomical_on(
         entry_point,
         min_margin_mm: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn local_median_keeps_a_ramp_and_removes_a_narrow_dip() {
+        // 61 samples 1.7 mm apart on a straight mouth, thickness rising 100 → 160 mm
+        let mouth: Vec<f64> = (0..61).map(|i| 1.7 * i as f64).collect();
+        let ramp: Vec<f64> = (0..61).map(|i| 100.0 + i as f64).collect();
+        let m = local_median(&mouth, &ramp, THICKNESS_WINDOW_MM);
+        // a symmetric window of a linear trend has the centre as its median; near the ends the window is
+        // one-sided and the median moves inwards by half the missing samples
+        for i in 6..55 {
+            assert!((m[i] - ramp[i]).abs() < 1e-12, "sample {i}: {} vs {}", m[i], ramp[i]);
+        }
+        assert!((m[0] - 102.5).abs() < 1e-12, "end: the window is samples 0..=5, median 102.5: {}", m[0]);
+        // three samples of a fold (the ray leaving after 4, 9, 13 mm) vanish
+        let mut dip = ramp.clone();
+        dip[30..33].copy_from_slice(&[4.0, 9.0, 13.0]);
+        let md = local_median(&mouth, &dip, THICKNESS_WINDOW_MM);
+        assert!(md.iter().all(|&t| t >= 100.0), "min {}", md.iter().copied().fold(f64::INFINITY, f64::min));
+        for i in 30..33 {
+            assert!((md[i] - ramp[i]).abs() <= 3.0, "sample {i}: {}", md[i]);
+        }
+        // a change wider than the window is followed: a 30 mm long shallow part stays shallow
+        let mut shelf = ramp;
+        for t in &mut shelf[20..38] {
+            *t = 20.0;
+        }
+        let ms = local_median(&mouth, &shelf, THICKNESS_WINDOW_MM);
+        assert_eq!(ms[29], 20.0);
+    }
 }

@@ -23,7 +23,8 @@ pub struct CutArgs {
     /// Non-anatomical blade depth below the surface (mm); default 25.
     #[arg(long)]
     pub cut_depth_mm: Option<f64>,
-    /// Anatomical blade depth as a fraction of the local thickness, in (0, 1); default 0.6.
+    /// Anatomical blade depth as a fraction of the local thickness (its median over ±10 mm along the cut, so a fold
+    /// of the surface leaves no uncut slot), in (0, 1); default 0.6.
     #[arg(long)]
     pub cut_depth_fraction: Option<f64>,
     /// Anatomical cut plane shifted along its normal (mm, + towards side B); default 0. On the P2ILF liver
