@@ -9,6 +9,7 @@
 //!  CUT_LENGTH_MM and CUT_DEPTH change the blade (anatomical: depth as a fraction of the local thickness;
 //!  non-anatomical: depth in mm; default the benchmark's). `TARGET_GAP_MM=G` adds a second solve at the
 //!  pressure the first one's gap scales to G (one secant step from zero), so cuts compare at one opening.
+//!  `CRACK_PNG=path` draws the crack face-on, coloured by its opening (`write_crack_opening`).
 //!
 //! Prints the crack's resolution (`CrackResolution`: crack area against the blade's area inside the
 //! organ, duplicated nodes, lip pairs) and, when PRESSURE_KPA > 0, the FEM at that pressure: the max
@@ -23,9 +24,10 @@ use laparo_fem::mesh::{
 };
 use laparo_fem::solid::{solve, LinearSolver, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use laparo_register::benchmark::build::{
-    crack_pair_gaps_mm, distance_to_crack_mm, drop_detached_fragments, lip_opening_profile_mm, max_gap_mm,
-    CrackResolution,
+    crack_gap_by_node_mm, crack_pair_gaps_mm, distance_to_crack_mm, drop_detached_fragments, lip_opening_profile_mm,
+    max_gap_mm, CrackResolution,
 };
+use laparo_register::benchmark::figures::write_crack_opening;
 use laparo_register::rigid::umeyama;
 use nalgebra::Vector3;
 use std::error::Error;
@@ -307,12 +309,8 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
             .collect();
         println!("signed opening (u_A − u_B)·n by distance from lip A: {}", rows.join("; "));
         if let Ok(path) = std::env::var("CRACK_PNG") {
-            let opening: std::collections::HashMap<usize, f64> = by_orig
-                .iter()
-                .filter_map(|(&o, &(a, b))| a.zip(b).map(|(ka, kb)| (o, (u[ka] - u[kb]).dot(&normal))))
-                .collect();
-            let title = format!("{pressure_kpa} kPa: signed crack opening, side A's crack faces in the blade plane");
-            draw_crack_plane(scn, &opening, &title, &path)?;
+            let title = format!("{pressure_kpa} kPa: the crack face-on, unrolled along the blade");
+            write_crack_opening(std::path::Path::new(&path), scn, &crack_gap_by_node_mm(&scn.cut, &deformed), &title)?;
             println!("wrote {path}");
         }
     }
@@ -368,68 +366,4 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         );
     }
     Ok(max_gap_mm(&scn.cut, &deformed))
-}
-
-/// The crack seen face-on: side A's crack faces in the blade plane (mm along the mouth, mm below
-/// it), each filled with the mean signed opening of its three nodes (0 at the crack front, which
-/// is not duplicated), the front nodes in black and the blade's outline in red.
-fn draw_crack_plane(
-    scn: &Scenario,
-    opening_mm: &std::collections::HashMap<usize, f64>,
-    title: &str,
-    path: &str,
-) -> Result<(), Box<dyn Error>> {
-    use laparo_core::colormap::Colormap;
-    use plotters::prelude::*;
-    let b = &scn.blade;
-    let x = &scn.cut.mesh.vertices;
-    let o = b.mouth[0];
-    let down = b.directions[0].normalize();
-    let chord = b.mouth[b.mouth.len() - 1] - o;
-    let along = (chord - down * down.dot(&chord)).normalize();
-    let plane = |p: &Vector3<f64>| ((p - o).dot(&along), (p - o).dot(&down));
-    let faces: Vec<([(f64, f64); 3], f64)> = scn.cut.crack_faces[0]
-        .iter()
-        .map(|f| {
-            let open =
-                f.iter().map(|&k| opening_mm.get(&scn.cut.original_node[k]).copied().unwrap_or(0.0)).sum::<f64>() / 3.0;
-            (f.map(|k| plane(&x[k])), open)
-        })
-        .collect();
-    let outline: Vec<(f64, f64)> = b
-        .mouth
-        .iter()
-        .map(|m| plane(m))
-        .chain(b.mouth.iter().zip(&b.depths).rev().map(|(m, d)| plane(&(m + down * *d))))
-        .chain(std::iter::once(plane(&b.mouth[0])))
-        .collect();
-    let front: Vec<(f64, f64)> = scn.cut.front_nodes.iter().map(|&k| plane(&x[k])).collect();
-    let pts = || faces.iter().flat_map(|(p, _)| p.iter().copied()).chain(outline.iter().copied());
-    let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| (a.min(p.0), c.max(p.0)));
-    let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| (a.min(p.1), c.max(p.1)));
-    let hi = faces.iter().map(|f| f.1).fold(0.0, f64::max).max(1e-9);
-    let cmap = Colormap::Viridis;
-    let (w, h) = (900u32, (900.0 * (y1 - y0 + 20.0) / (x1 - x0 + 20.0)).clamp(300.0, 1400.0) as u32 + 60);
-    let img = laparo_core::plot::render_rgb(w, h, |root| {
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(45)
-            .build_cartesian_2d(x0 - 5.0..x1 + 5.0, y1 + 5.0..y0 - 5.0)?;
-        chart.configure_mesh().x_desc("along the mouth (mm)").y_desc("below the mouth (mm)").draw()?;
-        chart.draw_series(faces.iter().map(|(p, v)| {
-            let [r, g, bl] = cmap.rgb(v / hi);
-            Polygon::new(p.to_vec(), RGBColor(r, g, bl).filled())
-        }))?;
-        chart.draw_series(
-            faces.iter().map(|(p, _)| PathElement::new(vec![p[0], p[1], p[2], p[0]], RGBColor(120, 120, 120))),
-        )?;
-        chart.draw_series(std::iter::once(PathElement::new(outline.clone(), RED.stroke_width(2))))?;
-        chart.draw_series(front.iter().map(|&p| Circle::new(p, 3, BLACK.filled())))?;
-        Ok(())
-    })?;
-    let img = laparo_core::plot::with_colorbar(&img, 0.0, hi, cmap, "opening (mm)");
-    laparo_core::io::write_png(path, &img)?;
-    Ok(())
 }

@@ -5,9 +5,10 @@ use laparo_fem::mesh::{
     non_anatomical_on, tetrahedralize_surface, NonAnatomicalParams, ScenarioFrame, Surface, TetraParams,
 };
 use laparo_register::benchmark::build::{
-    case_from, drop_detached_fragments, fem_ground_truth, lip_opening_profile_mm, max_gap_mm, node_sides,
-    CrackResolution, GroundTruthConfig,
+    case_from, crack_gap_by_node_mm, drop_detached_fragments, fem_ground_truth, lip_opening_profile_mm, max_gap_mm,
+    node_sides, CrackResolution, GroundTruthConfig,
 };
+use laparo_register::benchmark::figures::write_crack_opening;
 use std::path::PathBuf;
 
 fn liver() -> Option<PathBuf> {
@@ -53,6 +54,17 @@ fn non_anatomical_ground_truth_on_the_p2ilf_liver() {
     for &i in &scn.fixed_nodes {
         assert!(u[i].norm() < 1e-12, "fixed node {i} moved {}", u[i].norm());
     }
+    // the opening field: one gap per duplicated node, its largest the max gap; the front (not duplicated) absent
+    let by_node = crack_gap_by_node_mm(&scn.cut, &def);
+    let largest = by_node.values().copied().fold(0.0, f64::max);
+    assert!((largest - rep.max_gap_mm).abs() < 1e-12, "{largest} vs {}", rep.max_gap_mm);
+    assert!(scn.cut.front_nodes.iter().all(|&k| !by_node.contains_key(&scn.cut.original_node[k])));
+    assert!(crack_gap_by_node_mm(&scn.cut, &scn.cut.mesh.vertices).values().all(|&g| g == 0.0));
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("crack.png");
+    write_crack_opening(&png, &scn, &by_node, "non-anatomical crack").unwrap();
+    let img = laparo_core::io::read_image(&png).unwrap();
+    assert!(img.width > 900 && img.height >= 300, "{}x{}", img.width, img.height);
     let sides = node_sides(&scn.cut);
     // crack nodes are duplicated and labelled with their lip (at 16 mm tets the crack holds very few)
     let mut copies = std::collections::HashMap::new();

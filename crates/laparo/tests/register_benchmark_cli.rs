@@ -82,6 +82,7 @@ fn quick_tier_end_to_end_and_resume() {
         "mesh.vtk",
         "non-anatomical/fig58_tre_vs_distance.png",
         "non-anatomical/ground_truth.png",
+        "non-anatomical/crack.png",
         "non-anatomical/maps/RODS-MPM.png",
         "non-anatomical/maps/RODS-MPM.vtk",
     ] {

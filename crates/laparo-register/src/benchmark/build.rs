@@ -104,12 +104,8 @@ pub struct GroundTruthReport {
 
 /// Distance between every two deformed copies of one duplicated crack node (mm), unordered.
 pub fn crack_pair_gaps_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> Vec<f64> {
-    let mut copies: std::collections::HashMap<usize, Vec<usize>> = std::collections::HashMap::new();
-    for (i, &o) in cut.original_node.iter().enumerate() {
-        copies.entry(o).or_default().push(i);
-    }
     let mut gaps = Vec::new();
-    for c in copies.values().filter(|c| c.len() > 1) {
+    for c in copies_of_crack_nodes(cut).values() {
         for (k, &i) in c.iter().enumerate() {
             for &j in &c[k + 1..] {
                 gaps.push((deformed[i] - deformed[j]).norm());
@@ -117,6 +113,64 @@ pub fn crack_pair_gaps_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> Vec<f64> 
         }
     }
     gaps
+}
+
+/// The copies (cut-mesh indices) of every crack node the cut duplicated, by uncut-mesh node.
+fn copies_of_crack_nodes(cut: &CutMesh) -> std::collections::HashMap<usize, Vec<usize>> {
+    let mut copies: std::collections::HashMap<usize, Vec<usize>> = std::collections::HashMap::new();
+    for (i, &o) in cut.original_node.iter().enumerate() {
+        copies.entry(o).or_default().push(i);
+    }
+    copies.retain(|_, c| c.len() > 1);
+    copies
+}
+
+/// The crack's opening field: for every duplicated crack node (by its index in the uncut mesh,
+/// `cut.original_node`), the largest distance between two of its deformed copies (mm). Crack-front nodes
+/// are not duplicated and are absent (they cannot open).
+pub fn crack_gap_by_node_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> std::collections::HashMap<usize, f64> {
+    copies_of_crack_nodes(cut)
+        .into_iter()
+        .map(|(o, c)| {
+            let gap = c
+                .iter()
+                .enumerate()
+                .flat_map(|(k, &i)| c[k + 1..].iter().map(move |&j| (i, j)))
+                .map(|(i, j)| (deformed[i] - deformed[j]).norm())
+                .fold(0.0, f64::max);
+            (o, gap)
+        })
+        .collect()
+}
+
+/// Where a point lies on the blade unrolled flat: (mm of arc along the mouth, mm below the mouth along the
+/// blade's direction there), measured on the blade ruling (mouth point + direction) nearest to `p`.
+pub fn blade_coordinates_mm(blade: &laparo_fem::mesh::Blade, p: &Vector3<f64>) -> (f64, f64) {
+    let m = &blade.mouth;
+    let mut arc = vec![0.0; m.len()];
+    for i in 1..m.len() {
+        arc[i] = arc[i - 1] + (m[i] - m[i - 1]).norm();
+    }
+    let off_ruling = |i: usize| {
+        let r = p - m[i];
+        let d = blade.directions[i].normalize();
+        (r - d * r.dot(&d)).norm()
+    };
+    let i = (0..m.len()).min_by(|&a, &b| off_ruling(a).total_cmp(&off_ruling(b))).unwrap_or(0);
+    let r = p - m[i];
+    let below = r.dot(&blade.directions[i].normalize());
+    // along the mouth: the offset along the local tangent, kept within half a segment of this sample
+    let (prev, next) = (i.saturating_sub(1), (i + 1).min(m.len() - 1));
+    let tangent = m[next] - m[prev];
+    let along = if tangent.norm() > 0.0 {
+        let t = tangent.normalize();
+        let lo = -(arc[i] - arc[prev]) / 2.0;
+        let hi = (arc[next] - arc[i]) / 2.0;
+        r.dot(&t).clamp(lo, hi)
+    } else {
+        0.0
+    };
+    (arc[i] + along, below)
 }
 
 /// Largest distance between two deformed copies of one duplicated crack node (mm), over all pairs of copies.
@@ -464,6 +518,33 @@ pub fn case_from(scn: &Scenario, displacement: &[Vector3<f64>], roi: Option<Roi>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn blade_coordinates_unroll_a_straight_and_a_curved_blade() {
+        use laparo_fem::mesh::Blade;
+        // straight mouth along x, blade straight down (−z), 50 mm deep: (along, below) = (x, −z)
+        let mouth: Vec<Vector3<f64>> = (0..=20).map(|i| Vector3::new(5.0 * i as f64, 0.0, 0.0)).collect();
+        let flat = Blade::uniform(mouth, -Vector3::z(), 50.0, 2.0);
+        let (s, d) = blade_coordinates_mm(&flat, &Vector3::new(32.5, 0.7, -21.0));
+        assert!((s - 32.5).abs() < 1e-12 && (d - 21.0).abs() < 1e-12, "({s}, {d})");
+        // a half circle of radius 30 mm (the wedge around a tumour), blade down: along = the arc to the point
+        let r = 30.0;
+        let n = 181;
+        let arc: Vec<Vector3<f64>> = (0..n)
+            .map(|i| {
+                let t = std::f64::consts::PI * i as f64 / (n - 1) as f64;
+                Vector3::new(r * t.cos(), r * t.sin(), 0.0)
+            })
+            .collect();
+        let curved = Blade::uniform(arc, -Vector3::z(), 25.0, 2.0);
+        for theta in [0.3f64, 1.0, 2.2] {
+            let p = Vector3::new(r * theta.cos(), r * theta.sin(), -12.0);
+            let (s, d) = blade_coordinates_mm(&curved, &p);
+            // the polyline's arc is a chord sum: shorter than r θ by at most r θ (Δθ)²/24
+            assert!((s - r * theta).abs() < 1e-3, "θ {theta}: along {s} vs {}", r * theta);
+            assert!((d - 12.0).abs() < 1e-12, "θ {theta}: below {d}");
+        }
+    }
 
     #[test]
     fn roi_holds_no_moving_node_even_outside_its_shell() {

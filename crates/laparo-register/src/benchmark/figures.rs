@@ -142,6 +142,72 @@ pub fn write_tre_map(
     Ok(laparo_core::io::write_png(path, &out)?)
 }
 
+/// The crack seen face-on, unrolled along its blade ([`blade_coordinates_mm`](super::build::blade_coordinates_mm):
+/// mm along the mouth, mm below it): side A's crack faces, each filled with the mean of `gap_by_node_mm` (by
+/// uncut-mesh node, [`crack_gap_by_node_mm`](super::build::crack_gap_by_node_mm); absent = 0, the crack front)
+/// over its three nodes, the crack-front nodes as black dots and the blade's outline in red, with a colour
+/// bar. An uncut slot or bridge inside the outline shows as a hole or a chain of dots. Written to `path`
+/// (PNG, atomically).
+pub fn write_crack_opening(
+    path: &Path,
+    scn: &laparo_fem::mesh::Scenario,
+    gap_by_node_mm: &std::collections::HashMap<usize, f64>,
+    title: &str,
+) -> Result<()> {
+    use plotters::prelude::*;
+    let b = &scn.blade;
+    let x = &scn.cut.mesh.vertices;
+    let flat = |p: &Vector3<f64>| super::build::blade_coordinates_mm(b, p);
+    let gap = |k: usize| gap_by_node_mm.get(&scn.cut.original_node[k]).copied().unwrap_or(0.0);
+    let faces: Vec<([(f64, f64); 3], f64)> = scn.cut.crack_faces[0]
+        .iter()
+        .map(|f| (f.map(|k| flat(&x[k])), f.iter().map(|&k| gap(k)).sum::<f64>() / 3.0))
+        .collect();
+    if faces.is_empty() {
+        return Err(RegisterError::bad(path.display().to_string(), "the scenario has no crack faces to draw"));
+    }
+    let mut arc = vec![0.0; b.mouth.len()];
+    for i in 1..b.mouth.len() {
+        arc[i] = arc[i - 1] + (b.mouth[i] - b.mouth[i - 1]).norm();
+    }
+    let end = arc[arc.len() - 1];
+    let outline: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
+        .chain(std::iter::once((end, 0.0)))
+        .chain(arc.iter().zip(&b.depths).rev().map(|(&s, &d)| (s, d)))
+        .chain(std::iter::once((0.0, 0.0)))
+        .collect();
+    let front: Vec<(f64, f64)> = scn.cut.front_nodes.iter().map(|&k| flat(&x[k])).collect();
+    let pts = || faces.iter().flat_map(|(p, _)| p.iter().copied()).chain(outline.iter().copied());
+    let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| (a.min(p.0), c.max(p.0)));
+    let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| (a.min(p.1), c.max(p.1)));
+    let hi = faces.iter().map(|f| f.1).fold(0.0, f64::max).max(1e-9);
+    let cmap = Colormap::Viridis;
+    let w = 900u32;
+    let h = ((w as f64 - 60.0) * (y1 - y0 + 10.0) / (x1 - x0 + 10.0) + 80.0).clamp(300.0, 1400.0) as u32;
+    let img = laparo_core::plot::render_rgb(w, h, |root| {
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 16))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(50)
+            .build_cartesian_2d(x0 - 5.0..x1 + 5.0, y1 + 5.0..y0 - 5.0)?;
+        chart.configure_mesh().x_desc("along the mouth (mm)").y_desc("below the mouth (mm)").draw()?;
+        chart.draw_series(faces.iter().map(|(p, v)| {
+            let [r, g, bl] = cmap.rgb(v / hi);
+            Polygon::new(p.to_vec(), RGBColor(r, g, bl).filled())
+        }))?;
+        chart.draw_series(
+            faces.iter().map(|(p, _)| PathElement::new(vec![p[0], p[1], p[2], p[0]], RGBColor(120, 120, 120))),
+        )?;
+        chart.draw_series(std::iter::once(PathElement::new(outline.clone(), RED.stroke_width(2))))?;
+        chart.draw_series(front.iter().map(|&p| Circle::new(p, 3, BLACK.filled())))?;
+        Ok(())
+    })
+    .map_err(|e| RegisterError::bad(path.display().to_string(), e))?;
+    let out = laparo_core::plot::with_colorbar(&img, 0.0, hi, cmap, "gap between the lips (mm)");
+    Ok(laparo_core::io::write_png(path, &out)?)
+}
+
 /// Fig. 5.8: mean TRE per distance bin, one line per method, for the cells of one scenario and column.
 pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<()> {
     use plotters::prelude::*;

@@ -11,10 +11,11 @@ use laparo_fem::mesh::{
 };
 use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig};
 use laparo_register::benchmark::build::{
-    case_from, choose_roi, fem_ground_truth, CrackResolution, GroundTruthConfig, GroundTruthReport,
+    case_from, choose_roi, crack_gap_by_node_mm, fem_ground_truth, CrackResolution, GroundTruthConfig,
+    GroundTruthReport,
 };
 use laparo_register::benchmark::figures::{
-    write_distance_plot, write_sweep_plot, write_tre_map, SurfaceView, SweepPanel, SweepPoint,
+    write_crack_opening, write_distance_plot, write_sweep_plot, write_tre_map, SurfaceView, SweepPanel, SweepPoint,
 };
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod, CutDirection};
 use laparo_register::benchmark::{
@@ -588,6 +589,14 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             &view,
             (centre, 60.0),
             (&format!("{name}: FEM ground truth (deformed), whole liver and the incision"), "|u| [mm]"),
+        )?;
+        // the crack face-on, coloured by the ground truth's opening: where it opens, and any uncut slot
+        let deformed: Vec<Vector3<f64>> = x.iter().zip(&u).map(|(a, b)| a + b).collect();
+        write_crack_opening(
+            &dir.join("crack.png"),
+            &scn,
+            &crack_gap_by_node_mm(&scn.cut, &deformed),
+            &format!("{name}: the crack face-on, its ground-truth opening at {:.4} kPa", rep.pressure_kpa),
         )?;
         write_vtk_fields(
             dir.join("ground_truth.vtk"),
