@@ -143,34 +143,44 @@ pub fn crack_gap_by_node_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> std::co
         .collect()
 }
 
-/// Where a point lies on the blade unrolled flat: (mm of arc along the mouth, mm below the mouth along the
-/// blade's direction there), measured on the blade ruling (mouth point + direction) nearest to `p`.
-pub fn blade_coordinates_mm(blade: &laparo_fem::mesh::Blade, p: &Vector3<f64>) -> (f64, f64) {
+/// The blade unrolled flat, per mouth sample: (mm across the rulings from the first sample, mm below the
+/// first sample along the rulings). The mouth's climbs along the rulings (a ridge, a fold) are heights, not
+/// width, so a planar blade unrolls to its own plane exactly.
+pub fn blade_chart_mm(blade: &laparo_fem::mesh::Blade) -> Vec<(f64, f64)> {
     let m = &blade.mouth;
-    let mut arc = vec![0.0; m.len()];
+    let mut chart = vec![(0.0, 0.0); m.len()];
     for i in 1..m.len() {
-        arc[i] = arc[i - 1] + (m[i] - m[i - 1]).norm();
+        let step = m[i] - m[i - 1];
+        let d = (blade.directions[i].normalize() + blade.directions[i - 1].normalize()).normalize();
+        let (across, level) = chart[i - 1];
+        chart[i] = (across + (step - d * d.dot(&step)).norm(), level + d.dot(&step));
     }
+    chart
+}
+
+/// Where `p` lies on the blade unrolled flat ([`blade_chart_mm`]): measured on the ruling (mouth sample +
+/// direction) nearest to `p`, (mm across the rulings, mm below the first mouth sample).
+pub fn blade_coordinates_mm(blade: &laparo_fem::mesh::Blade, chart: &[(f64, f64)], p: &Vector3<f64>) -> (f64, f64) {
+    let m = &blade.mouth;
+    let dir = |i: usize| blade.directions[i].normalize();
     let off_ruling = |i: usize| {
         let r = p - m[i];
-        let d = blade.directions[i].normalize();
-        (r - d * r.dot(&d)).norm()
+        (r - dir(i) * r.dot(&dir(i))).norm()
     };
     let i = (0..m.len()).min_by(|&a, &b| off_ruling(a).total_cmp(&off_ruling(b))).unwrap_or(0);
-    let r = p - m[i];
-    let below = r.dot(&blade.directions[i].normalize());
-    // along the mouth: the offset along the local tangent, kept within half a segment of this sample
+    let (r, d) = (p - m[i], dir(i));
+    // across: the offset along the local tangent (its ruling component removed), within half a step of sample i
     let (prev, next) = (i.saturating_sub(1), (i + 1).min(m.len() - 1));
     let tangent = m[next] - m[prev];
-    let along = if tangent.norm() > 0.0 {
-        let t = tangent.normalize();
-        let lo = -(arc[i] - arc[prev]) / 2.0;
-        let hi = (arc[next] - arc[i]) / 2.0;
-        r.dot(&t).clamp(lo, hi)
+    let tangent = tangent - d * d.dot(&tangent);
+    let offset = if tangent.norm() > 0.0 {
+        let lo = -(chart[i].0 - chart[prev].0) / 2.0;
+        let hi = (chart[next].0 - chart[i].0) / 2.0;
+        r.dot(&tangent.normalize()).clamp(lo, hi)
     } else {
         0.0
     };
-    (arc[i] + along, below)
+    (chart[i].0 + offset, chart[i].1 + r.dot(&d))
 }
 
 /// Largest distance between two deformed copies of one duplicated crack node (mm), over all pairs of copies.
@@ -520,14 +530,27 @@ mod tests {
     use super::*;
 
     #[test]
-    fn blade_coordinates_unroll_a_straight_and_a_curved_blade() {
+    fn blade_coordinates_unroll_a_straight_a_climbing_and_a_curved_blade() {
         use laparo_fem::mesh::Blade;
-        // straight mouth along x, blade straight down (−z), 50 mm deep: (along, below) = (x, −z)
+        // straight mouth along x, blade straight down (−z), 50 mm deep: (across, below) = (x, −z)
         let mouth: Vec<Vector3<f64>> = (0..=20).map(|i| Vector3::new(5.0 * i as f64, 0.0, 0.0)).collect();
         let flat = Blade::uniform(mouth, -Vector3::z(), 50.0, 2.0);
-        let (s, d) = blade_coordinates_mm(&flat, &Vector3::new(32.5, 0.7, -21.0));
+        let chart = blade_chart_mm(&flat);
+        let (s, d) = blade_coordinates_mm(&flat, &chart, &Vector3::new(32.5, 0.7, -21.0));
         assert!((s - 32.5).abs() < 1e-12 && (d - 21.0).abs() < 1e-12, "({s}, {d})");
-        // a half circle of radius 30 mm (the wedge around a tumour), blade down: along = the arc to the point
+        // a planar blade whose mouth climbs a 40 mm ridge (as on the P2ILF liver): still its own plane, the
+        // mouth's height in `below`, the climb no width
+        let ridge = |x: f64| if (30.0..50.0).contains(&x) { 40.0 } else { 0.0 };
+        let mouth: Vec<Vector3<f64>> = (0..=80).map(|i| Vector3::new(i as f64, 0.0, ridge(i as f64))).collect();
+        let climbing = Blade::uniform(mouth, -Vector3::z(), 60.0, 2.0);
+        let chart = blade_chart_mm(&climbing);
+        assert!((chart[80].0 - 80.0).abs() < 1e-12 && chart[80].1.abs() < 1e-12, "{:?}", chart[80]);
+        assert!((chart[40].1 + 40.0).abs() < 1e-12, "the ridge top is 40 mm above the first sample");
+        for p in [Vector3::new(40.2, 0.0, 12.0), Vector3::new(29.6, -0.5, -30.0), Vector3::new(70.0, 1.0, -7.5)] {
+            let (s, d) = blade_coordinates_mm(&climbing, &chart, &p);
+            assert!((s - p.x).abs() < 1e-9 && (d + p.z).abs() < 1e-9, "{p:?}: ({s}, {d})");
+        }
+        // a half circle of radius 30 mm (the wedge around a tumour), blade down: across = the arc to the point
         let r = 30.0;
         let n = 181;
         let arc: Vec<Vector3<f64>> = (0..n)
@@ -537,11 +560,12 @@ mod tests {
             })
             .collect();
         let curved = Blade::uniform(arc, -Vector3::z(), 25.0, 2.0);
+        let chart = blade_chart_mm(&curved);
         for theta in [0.3f64, 1.0, 2.2] {
             let p = Vector3::new(r * theta.cos(), r * theta.sin(), -12.0);
-            let (s, d) = blade_coordinates_mm(&curved, &p);
+            let (s, d) = blade_coordinates_mm(&curved, &chart, &p);
             // the polyline's arc is a chord sum: shorter than r θ by at most r θ (Δθ)²/24
-            assert!((s - r * theta).abs() < 1e-3, "θ {theta}: along {s} vs {}", r * theta);
+            assert!((s - r * theta).abs() < 1e-3, "θ {theta}: across {s} vs {}", r * theta);
             assert!((d - 12.0).abs() < 1e-12, "θ {theta}: below {d}");
         }
     }

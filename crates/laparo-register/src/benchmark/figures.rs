@@ -143,7 +143,7 @@ pub fn write_tre_map(
 }
 
 /// The crack seen face-on, unrolled along its blade ([`blade_coordinates_mm`](super::build::blade_coordinates_mm):
-/// mm along the mouth, mm below it): side A's crack faces, each filled with the mean of `gap_by_node_mm` (by
+/// mm across the blade, mm below its first mouth sample): side A's crack faces, each filled with the mean of `gap_by_node_mm` (by
 /// uncut-mesh node, [`crack_gap_by_node_mm`](super::build::crack_gap_by_node_mm); absent = 0, the crack front)
 /// over its three nodes, the crack-front nodes as black dots and the blade's outline in red, with a colour
 /// bar. An uncut slot or bridge inside the outline shows as a hole or a chain of dots. Written to `path`
@@ -157,7 +157,8 @@ pub fn write_crack_opening(
     use plotters::prelude::*;
     let b = &scn.blade;
     let x = &scn.cut.mesh.vertices;
-    let flat = |p: &Vector3<f64>| super::build::blade_coordinates_mm(b, p);
+    let chart = super::build::blade_chart_mm(b);
+    let flat = |p: &Vector3<f64>| super::build::blade_coordinates_mm(b, &chart, p);
     let gap = |k: usize| gap_by_node_mm.get(&scn.cut.original_node[k]).copied().unwrap_or(0.0);
     let faces: Vec<([(f64, f64); 3], f64)> = scn.cut.crack_faces[0]
         .iter()
@@ -166,15 +167,11 @@ pub fn write_crack_opening(
     if faces.is_empty() {
         return Err(RegisterError::bad(path.display().to_string(), "the scenario has no crack faces to draw"));
     }
-    let mut arc = vec![0.0; b.mouth.len()];
-    for i in 1..b.mouth.len() {
-        arc[i] = arc[i - 1] + (b.mouth[i] - b.mouth[i - 1]).norm();
-    }
-    let end = arc[arc.len() - 1];
-    let outline: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
-        .chain(std::iter::once((end, 0.0)))
-        .chain(arc.iter().zip(&b.depths).rev().map(|(&s, &d)| (s, d)))
-        .chain(std::iter::once((0.0, 0.0)))
+    let outline: Vec<(f64, f64)> = chart
+        .iter()
+        .copied()
+        .chain(chart.iter().zip(&b.depths).rev().map(|(&(s, h), &d)| (s, h + d)))
+        .chain(chart.first().copied())
         .collect();
     let front: Vec<(f64, f64)> = scn.cut.front_nodes.iter().map(|&k| flat(&x[k])).collect();
     let pts = || faces.iter().flat_map(|(p, _)| p.iter().copied()).chain(outline.iter().copied());
@@ -191,7 +188,7 @@ pub fn write_crack_opening(
             .x_label_area_size(35)
             .y_label_area_size(50)
             .build_cartesian_2d(x0 - 5.0..x1 + 5.0, y1 + 5.0..y0 - 5.0)?;
-        chart.configure_mesh().x_desc("along the mouth (mm)").y_desc("below the mouth (mm)").draw()?;
+        chart.configure_mesh().x_desc("across the blade (mm)").y_desc("below the mouth's first point (mm)").draw()?;
         chart.draw_series(faces.iter().map(|(p, v)| {
             let [r, g, bl] = cmap.rgb(v / hi);
             Polygon::new(p.to_vec(), RGBColor(r, g, bl).filled())
