@@ -310,7 +310,12 @@ fn open_at(scn: &Scenario, pressure_kpa: f64, steps: usize, linear: LinearSolver
         println!("signed opening (u_A − u_B)·n by distance from lip A: {}", rows.join("; "));
         if let Ok(path) = std::env::var("CRACK_PNG") {
             let title = format!("{pressure_kpa} kPa: the crack face-on, unrolled along the blade");
-            write_crack_opening(std::path::Path::new(&path), scn, &crack_gap_by_node_mm(&scn.cut, &deformed), &title)?;
+            write_crack_opening(
+                std::path::Path::new(&path),
+                scn,
+                Some(&crack_gap_by_node_mm(&scn.cut, &deformed)),
+                &title,
+            )?;
             println!("wrote {path}");
         }
     }

@@ -62,7 +62,7 @@ fn non_anatomical_ground_truth_on_the_p2ilf_liver() {
     assert!(crack_gap_by_node_mm(&scn.cut, &scn.cut.mesh.vertices).values().all(|&g| g == 0.0));
     let tmp = tempfile::tempdir().unwrap();
     let png = tmp.path().join("crack.png");
-    write_crack_opening(&png, &scn, &by_node, "non-anatomical crack").unwrap();
+    write_crack_opening(&png, &scn, Some(&by_node), "non-anatomical crack").unwrap();
     let img = laparo_core::io::read_image(&png).unwrap();
     assert!(img.width > 900 && img.height >= 300, "{}x{}", img.width, img.height);
     let sides = node_sides(&scn.cut);

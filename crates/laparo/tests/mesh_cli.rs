@@ -59,7 +59,16 @@ fn tetra_then_incision_on_a_sphere() {
         &s(&cut_dir),
     ]);
     assert!(out.contains("anatomical"), "{out}");
-    for f in ["cut.vtk", "lips.json", "landmarks.json", "tumour.json", "fixed_nodes.json", "scenario.json", "cut.png"] {
+    for f in [
+        "cut.vtk",
+        "lips.json",
+        "landmarks.json",
+        "tumour.json",
+        "fixed_nodes.json",
+        "scenario.json",
+        "cut.png",
+        "crack.png",
+    ] {
         assert!(cut_dir.join(f).exists(), "{f}");
     }
     let cut = laparo_core::mesh::read_vtk(cut_dir.join("cut.vtk")).unwrap();
@@ -229,7 +238,7 @@ fn p2ilf_liver_both_scenarios() {
         if let Ok(keep) = std::env::var("LAPARO_MESH_KEEP") {
             let k = PathBuf::from(keep).join(sc);
             std::fs::create_dir_all(&k).unwrap();
-            for f in ["cut.png", "scenario.json", "lips.json"] {
+            for f in ["cut.png", "crack.png", "scenario.json", "lips.json"] {
                 std::fs::copy(d.join(f), k.join(f)).unwrap();
             }
         }

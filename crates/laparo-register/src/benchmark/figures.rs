@@ -145,13 +145,13 @@ pub fn write_tre_map(
 /// The crack seen face-on, unrolled along its blade ([`blade_coordinates_mm`](super::build::blade_coordinates_mm):
 /// mm across the blade, mm below its first mouth sample): side A's crack faces, each filled with the mean of `gap_by_node_mm` (by
 /// uncut-mesh node, [`crack_gap_by_node_mm`](super::build::crack_gap_by_node_mm); absent = 0, the crack front)
-/// over its three nodes, the crack-front nodes as black dots and the blade's outline in red, with a colour
-/// bar. An uncut slot or bridge inside the outline shows as a hole or a chain of dots. Written to `path`
+/// over its three nodes with a colour bar (or plain, at rest, when `None`), the crack-front nodes as black dots
+/// and the blade's outline in red. An uncut slot or bridge inside the outline shows as a hole or a chain of dots. Written to `path`
 /// (PNG, atomically).
 pub fn write_crack_opening(
     path: &Path,
     scn: &laparo_fem::mesh::Scenario,
-    gap_by_node_mm: &std::collections::HashMap<usize, f64>,
+    gap_by_node_mm: Option<&std::collections::HashMap<usize, f64>>,
     title: &str,
 ) -> Result<()> {
     use plotters::prelude::*;
@@ -159,7 +159,7 @@ pub fn write_crack_opening(
     let x = &scn.cut.mesh.vertices;
     let chart = super::build::blade_chart_mm(b);
     let flat = |p: &Vector3<f64>| super::build::blade_coordinates_mm(b, &chart, p);
-    let gap = |k: usize| gap_by_node_mm.get(&scn.cut.original_node[k]).copied().unwrap_or(0.0);
+    let gap = |k: usize| gap_by_node_mm.and_then(|g| g.get(&scn.cut.original_node[k])).copied().unwrap_or(0.0);
     let faces: Vec<([(f64, f64); 3], f64)> = scn.cut.crack_faces[0]
         .iter()
         .map(|f| (f.map(|k| flat(&x[k])), f.iter().map(|&k| gap(k)).sum::<f64>() / 3.0))
@@ -190,7 +190,7 @@ pub fn write_crack_opening(
             .build_cartesian_2d(x0 - 5.0..x1 + 5.0, y1 + 5.0..y0 - 5.0)?;
         chart.configure_mesh().x_desc("across the blade (mm)").y_desc("below the mouth's first point (mm)").draw()?;
         chart.draw_series(faces.iter().map(|(p, v)| {
-            let [r, g, bl] = cmap.rgb(v / hi);
+            let [r, g, bl] = if gap_by_node_mm.is_some() { cmap.rgb(v / hi) } else { [176, 196, 222] };
             Polygon::new(p.to_vec(), RGBColor(r, g, bl).filled())
         }))?;
         chart.draw_series(
@@ -201,7 +201,10 @@ pub fn write_crack_opening(
         Ok(())
     })
     .map_err(|e| RegisterError::bad(path.display().to_string(), e))?;
-    let out = laparo_core::plot::with_colorbar(&img, 0.0, hi, cmap, "gap between the lips (mm)");
+    let out = match gap_by_node_mm {
+        Some(_) => laparo_core::plot::with_colorbar(&img, 0.0, hi, cmap, "gap between the lips (mm)"),
+        None => img,
+    };
     Ok(laparo_core::io::write_png(path, &out)?)
 }
 

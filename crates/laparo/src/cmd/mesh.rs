@@ -141,7 +141,7 @@ pub enum MeshCmd {
     },
     /// Cut a tet mesh (.vtk/.msh, mm) with a benchmark incision; writes into DIR: cut.vtk (cell
     /// data `side`: 1/2 = tets owning lip A/B crack faces), lips.json, landmarks.json (N = 20, 50,
-    /// 250), tumour.json, fixed_nodes.json, scenario.json and cut.png.
+    /// 250), tumour.json, fixed_nodes.json, scenario.json, cut.png and crack.png (the crack face-on).
     Incision {
         /// Tetrahedral mesh (.vtk or .msh, mm), e.g. from `laparo mesh tetra`.
         #[arg(long)]
@@ -328,6 +328,14 @@ fn incision_cmd(
     write_json(&out.join("scenario.json"), &summary)?;
     let img = render(&sc);
     laparo_core::plot::save_rgb_png(out.join("cut.png"), img.0, img.1, &img.2)?;
+    // the crack face-on, unrolled along the blade: its faces, its front (dots) and the blade (red); a hole inside
+    // the outline is tissue the blade did not cut
+    laparo_register::benchmark::figures::write_crack_opening(
+        &out.join("crack.png"),
+        &sc,
+        None,
+        &format!("{}: the crack face-on (front: dots, blade: red)", sc.name),
+    )?;
     println!(
         "{}: {} cut, {} → {} nodes, {} tets, {} + {} crack faces, lips {:.1} / {:.1} mm{}, {} fixed nodes, {:.2} s",
         out.display(),

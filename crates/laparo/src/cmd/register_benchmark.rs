@@ -595,7 +595,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         write_crack_opening(
             &dir.join("crack.png"),
             &scn,
-            &crack_gap_by_node_mm(&scn.cut, &deformed),
+            Some(&crack_gap_by_node_mm(&scn.cut, &deformed)),
             &format!("{name}: the crack face-on, its ground-truth opening at {:.4} kPa", rep.pressure_kpa),
         )?;
         write_vtk_fields(
