@@ -406,11 +406,12 @@ pub const THICKNESS_WINDOW_MM: f64 = 10.0;
 /// `half_window_mm` of each one's: a running median that keeps a linear trend and removes dips
 /// narrower than the half-window.
 pub(crate) fn local_median(position_mm: &[f64], values: &[f64], half_window_mm: f64) -> Vec<f64> {
-    let arc = position_mm;
     (0..values.len())
         .map(|i| {
-            let mut w: Vec<f64> =
-                (0..values.len()).filter(|&j| (arc[j] - arc[i]).abs() <= half_window_mm).map(|j| values[j]).collect();
+            let mut w: Vec<f64> = (0..values.len())
+                .filter(|&j| (position_mm[j] - position_mm[i]).abs() <= half_window_mm)
+                .map(|j| values[j])
+                .collect();
             w.sort_by(f64::total_cmp);
             let m = w.len() / 2;
             if w.len() % 2 == 1 {

@@ -104,15 +104,15 @@ pub struct GroundTruthReport {
 
 /// Distance between every two deformed copies of one duplicated crack node (mm), unordered.
 pub fn crack_pair_gaps_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> Vec<f64> {
-    let mut gaps = Vec::new();
-    for c in copies_of_crack_nodes(cut).values() {
-        for (k, &i) in c.iter().enumerate() {
-            for &j in &c[k + 1..] {
-                gaps.push((deformed[i] - deformed[j]).norm());
-            }
-        }
-    }
-    gaps
+    copies_of_crack_nodes(cut).values().flat_map(|c| copy_gaps(c, deformed).collect::<Vec<_>>()).collect()
+}
+
+/// The distances between every two deformed copies in `copies` (mm).
+fn copy_gaps<'a>(copies: &'a [usize], deformed: &'a [Vector3<f64>]) -> impl Iterator<Item = f64> + 'a {
+    copies
+        .iter()
+        .enumerate()
+        .flat_map(move |(k, &i)| copies[k + 1..].iter().map(move |&j| (deformed[i] - deformed[j]).norm()))
 }
 
 /// The copies (cut-mesh indices) of every crack node the cut duplicated, by uncut-mesh node.
@@ -129,18 +129,7 @@ fn copies_of_crack_nodes(cut: &CutMesh) -> std::collections::HashMap<usize, Vec<
 /// `cut.original_node`), the largest distance between two of its deformed copies (mm). Crack-front nodes
 /// are not duplicated and are absent (they cannot open).
 pub fn crack_gap_by_node_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> std::collections::HashMap<usize, f64> {
-    copies_of_crack_nodes(cut)
-        .into_iter()
-        .map(|(o, c)| {
-            let gap = c
-                .iter()
-                .enumerate()
-                .flat_map(|(k, &i)| c[k + 1..].iter().map(move |&j| (i, j)))
-                .map(|(i, j)| (deformed[i] - deformed[j]).norm())
-                .fold(0.0, f64::max);
-            (o, gap)
-        })
-        .collect()
+    copies_of_crack_nodes(cut).into_iter().map(|(o, c)| (o, copy_gaps(&c, deformed).fold(0.0, f64::max))).collect()
 }
 
 /// The blade unrolled flat, per mouth sample: (mm across the rulings from the first sample, mm below the

@@ -591,11 +591,10 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             (&format!("{name}: FEM ground truth (deformed), whole liver and the incision"), "|u| [mm]"),
         )?;
         // the crack face-on, coloured by the ground truth's opening: where it opens, and any uncut slot
-        let deformed: Vec<Vector3<f64>> = x.iter().zip(&u).map(|(a, b)| a + b).collect();
         write_crack_opening(
             &dir.join("crack.png"),
             &scn,
-            Some(&crack_gap_by_node_mm(&scn.cut, &deformed)),
+            Some(&crack_gap_by_node_mm(&scn.cut, &case.ground_truth)),
             &format!("{name}: the crack face-on, its ground-truth opening at {:.4} kPa", rep.pressure_kpa),
         )?;
         write_vtk_fields(
