@@ -104,7 +104,8 @@ pub struct GroundTruthReport {
 
 /// Distance between every two deformed copies of one duplicated crack node (mm), unordered.
 pub fn crack_pair_gaps_mm(cut: &CutMesh, deformed: &[Vector3<f64>]) -> Vec<f64> {
-    copies_of_crack_nodes(cut).values().flat_map(|c| copy_gaps(c, deformed).collect::<Vec<_>>()).collect()
+    let copies = copies_of_crack_nodes(cut);
+    copies.values().flat_map(|c| copy_gaps(c, deformed)).collect()
 }
 
 /// The distances between every two deformed copies in `copies` (mm).
