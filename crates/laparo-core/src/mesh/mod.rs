@@ -203,6 +203,20 @@ impl TriMesh {
             / 6.0
     }
 
+    /// Centroid of the enclosed solid (same units as the vertices): the volume-weighted centroids
+    /// of the tetrahedra (origin, p0, p1, p2), Σ v_f (p0 + p1 + p2) / 4 / Σ v_f.
+    pub fn volume_centroid(&self) -> Vector3<f64> {
+        let mut vol = 0.0;
+        let mut c = Vector3::zeros();
+        for f in &self.faces {
+            let (a, b, d) = (self.vertices[f[0]], self.vertices[f[1]], self.vertices[f[2]]);
+            let v = a.dot(&b.cross(&d)) / 6.0;
+            vol += v;
+            c += v * (a + b + d) / 4.0;
+        }
+        c / vol
+    }
+
     /// Axis-aligned bounding box `(min, max)`, `None` for an empty mesh.
     pub fn bounding_box(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
         bbox(&self.vertices)
@@ -444,6 +458,11 @@ pub(crate) mod tests {
         let t = crate::se3::se3_from_rt(&crate::se3::rotation_zyx(0.3, 0.2, 0.1), &Vector3::new(1.0, 2.0, 3.0));
         assert!((c.transformed(&t).signed_volume() - 1.0).abs() < 1e-12);
         assert!((c.scaled(10.0).signed_volume() - 1000.0).abs() < 1e-9);
+        // The unit cube's centroid is its centre, wherever the origin is.
+        assert!((c.volume_centroid() - Vector3::new(0.5, 0.5, 0.5)).norm() < 1e-12);
+        let moved = c.transformed(&t);
+        let expect = (t * nalgebra::Point3::new(0.5, 0.5, 0.5)).coords;
+        assert!((moved.volume_centroid() - expect).norm() < 1e-12);
     }
 
     #[test]

@@ -228,20 +228,6 @@ impl Surface {
     pub fn ray_hits(&self, o: &V3, d: &V3) -> Vec<f64> {
         ray_hits(&self.mesh, o, d)
     }
-
-    /// Volume centroid of the enclosed solid (mm).
-    pub fn centroid(&self) -> V3 {
-        let m = &self.mesh;
-        let mut vol = 0.0;
-        let mut c = V3::zeros();
-        for f in &m.faces {
-            let (a, b, d) = (m.vertices[f[0]], m.vertices[f[1]], m.vertices[f[2]]);
-            let v = a.dot(&b.cross(&d)) / 6.0;
-            vol += v;
-            c += v * (a + b + d) / 4.0;
-        }
-        c / vol
-    }
 }
 
 /// The six interior dihedral angles of tetrahedron (p0, p1, p2, p3) in degrees.

@@ -38,21 +38,9 @@ pub fn anterior_from_vertices(surface: &TriMesh, ids: &[usize]) -> Result<V3> {
             format!("empty or out of range for {} vertices", surface.vertices.len()),
         ));
     }
-    let c = volume_centroid(surface);
+    let c = surface.volume_centroid();
     let m = ids.iter().map(|&i| surface.vertices[i]).sum::<V3>() / ids.len() as f64;
     Ok((m - c).normalize())
-}
-
-fn volume_centroid(m: &TriMesh) -> V3 {
-    let mut vol = 0.0;
-    let mut c = V3::zeros();
-    for f in &m.faces {
-        let (a, b, d) = (m.vertices[f[0]], m.vertices[f[1]], m.vertices[f[2]]);
-        let v = a.dot(&b.cross(&d)) / 6.0;
-        vol += v;
-        c += v * (a + b + d) / 4.0;
-    }
-    c / vol
 }
 
 /// Orientation of a scenario on the organ.
@@ -187,7 +175,7 @@ fn check_frame(f: &ScenarioFrame) -> Result<V3> {
 
 /// Entry point P and the outward normal there (mean normal of the surface faces within 15 mm).
 fn entry(surf: &TriMesh, a: &V3, far: f64) -> Result<(V3, V3)> {
-    let c = volume_centroid(surf);
+    let c = surf.volume_centroid();
     let p = surface_along(surf, &c, a, far).ok_or_else(|| {
         FemError::bad("scenario", "the line through the centroid along the anterior axis misses the mesh")
     })?;
@@ -237,7 +225,7 @@ fn fit_length(length: f64, max: f64, trace: &dyn Fn(f64) -> Result<Vec<V3>>) -> 
 /// closest surface point (within 0.5 mm: the tumour axis is not cut short by another part of the
 /// surface); of these the one closest to the line through the volume centroid along `a`.
 fn tumour_entry(surf: &TriMesh, a: &V3, depth: f64) -> Result<(V3, V3)> {
-    let c = volume_centroid(surf);
+    let c = surf.volume_centroid();
     let normals = surf.vertex_normals();
     let used: BTreeSet<usize> = surf.faces.iter().flatten().copied().collect();
     let tris: Vec<[V3; 3]> = surf.faces.iter().map(|f| f.map(|k| surf.vertices[k])).collect();
