@@ -172,6 +172,54 @@ impl Arr<f64> {
     }
 }
 
+/// (N, 3) finite points (mm) as vectors.
+pub fn points3(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<nalgebra::Vector3<f64>>> {
+    let a = f64_array(obj, arg)?;
+    a.rows(arg, 3)?;
+    a.require_finite(arg)?;
+    Ok(a.data.chunks_exact(3).map(|p| nalgebra::Vector3::new(p[0], p[1], p[2])).collect())
+}
+
+/// (M, K) indices into `n` items (integers, or floats with no fraction), e.g. triangle faces (K = 3)
+/// or tetrahedra (K = 4); `arg` names the argument and `what` its owner in errors.
+pub fn index_rows<const K: usize>(
+    obj: &Bound<'_, PyAny>,
+    arg: &str,
+    what: &str,
+    n: usize,
+) -> PyResult<Vec<[usize; K]>> {
+    let (shape, data) = with_f64(obj, arg, |s, d| Ok((s.to_vec(), d.to_vec()))).or_else(|_| {
+        let v: Vec<[usize; K]> = obj.extract().map_err(|_| bad(arg, format!("{what}: expected (M, {K}) indices")))?;
+        Ok::<_, PyErr>((vec![v.len(), K], v.iter().flatten().map(|&x| x as f64).collect()))
+    })?;
+    if shape.len() != 2 || shape[1] != K {
+        return Err(bad(arg, format!("{what}: expected shape (M, {K}), got {shape:?}")));
+    }
+    data.chunks_exact(K)
+        .map(|c| {
+            let ok = c.iter().all(|&v| v >= 0.0 && v.fract() == 0.0 && (v as usize) < n);
+            ok.then(|| std::array::from_fn(|k| c[k] as usize))
+        })
+        .collect::<Option<_>>()
+        .ok_or_else(|| bad(arg, format!("{what}: indices must be integers in 0..{n}")))
+}
+
+/// A 1-D array (or sequence) of indices into `n` items.
+pub fn indices(obj: &Bound<'_, PyAny>, arg: &str, n: usize) -> PyResult<Vec<usize>> {
+    let data = match with_f64(obj, arg, |s, d| Ok((s.to_vec(), d.to_vec()))) {
+        Ok((s, d)) if s.len() == 1 => d,
+        Ok((s, _)) => return Err(bad(arg, format!("expected a 1-D array of indices, got shape {s:?}"))),
+        Err(_) => {
+            let v: Vec<usize> = obj.extract().map_err(|_| bad(arg, "expected a 1-D array of integer indices"))?;
+            v.into_iter().map(|x| x as f64).collect()
+        }
+    };
+    data.iter()
+        .map(|&v| (v >= 0.0 && v.fract() == 0.0 && (v as usize) < n).then_some(v as usize))
+        .collect::<Option<_>>()
+        .ok_or_else(|| bad(arg, format!("indices must be integers in 0..{n}")))
+}
+
 /// A 3×3 float matrix (finite).
 pub fn mat3(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<nalgebra::Matrix3<f64>> {
     let a = f64_array(obj, arg)?;

@@ -1,8 +1,9 @@
 //! laparo-py — the Python package `laparo` (PyO3 + maturin, one abi3 wheel): RoDEM depth
 //! evaluation (thesis §3.2), CATS augmentation and stereo geometry (§3.3), Conformal
 //! Perspective Correction (Ch. 4), differentiable MPM (§5.2), feature detection / matching /
-//! robust two-view geometry (§4.2, §4.5), semi-global stereo matching and RODS-MPM
-//! registration (Ch. 5) on NumPy arrays.
+//! robust two-view geometry (§4.2, §4.5), semi-global stereo matching, RODS-MPM
+//! registration and its mesh baselines (Ch. 5), volume meshing and the Neo-Hookean FEM (§5.4.2) on
+//! NumPy arrays.
 //!
 //! This crate is the compiled extension `laparo._laparo`; the Python modules in
 //! `python/laparo/` wrap it with keyword arguments, docstrings and `.pyi` stubs. Every entry
@@ -15,9 +16,11 @@
 
 mod alloc;
 mod arrays;
+mod baselines;
 mod cpc;
 mod depth;
 mod features;
+mod fem;
 mod mpm;
 mod register;
 mod stereo;
@@ -65,6 +68,12 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(features::features_transfer_error, m)?)?;
     m.add_function(wrap_pyfunction!(register::register_run, m)?)?;
     m.add_function(wrap_pyfunction!(register::register_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(baselines::register_arap, m)?)?;
+    m.add_function(wrap_pyfunction!(baselines::register_drbc, m)?)?;
+    m.add_function(wrap_pyfunction!(baselines::register_lddmm, m)?)?;
+    m.add_function(wrap_pyfunction!(fem::fem_tetrahedralize, m)?)?;
+    m.add_function(wrap_pyfunction!(fem::fem_quality, m)?)?;
+    m.add_function(wrap_pyfunction!(fem::fem_solve, m)?)?;
     m.add_class::<cpc::PyCpcWarp>()?;
     m.add_function(wrap_pyfunction!(cpc::cpc_warp_frame, m)?)?;
     m.add_class::<mpm::PyMpmScene>()?;

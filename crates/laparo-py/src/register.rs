@@ -36,31 +36,6 @@ fn parse_roi(s: &str) -> PyResult<Roi> {
     }
 }
 
-fn points3(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<Vector<3>>> {
-    let a = f64_array(obj, arg)?;
-    a.rows(arg, 3)?;
-    a.require_finite(arg)?;
-    Ok(a.data.chunks_exact(3).map(|p| Vector::<3>::new(p[0], p[1], p[2])).collect())
-}
-
-/// (F, 3) vertex indices (integers, or floats with no fraction) into `n` vertices; `what` names the owner.
-fn faces3(f: &Bound<'_, PyAny>, what: &str, n: usize) -> PyResult<Vec<[usize; 3]>> {
-    let a = with_f64(f, "faces", |s, d| Ok((s.to_vec(), d.to_vec()))).or_else(|_| {
-        let v: Vec<[usize; 3]> = f.extract().map_err(|_| bad("faces", "expected (F, 3) vertex indices"))?;
-        Ok::<_, PyErr>((vec![v.len(), 3], v.iter().flatten().map(|&x| x as f64).collect()))
-    })?;
-    if a.0.len() != 2 || a.0[1] != 3 {
-        return Err(bad("faces", format!("{what}: expected shape (F, 3), got {:?}", a.0)));
-    }
-    a.1.chunks_exact(3)
-        .map(|c| {
-            let ok = c.iter().all(|&v| v >= 0.0 && v.fract() == 0.0 && (v as usize) < n);
-            ok.then(|| [c[0] as usize, c[1] as usize, c[2] as usize])
-        })
-        .collect::<Option<_>>()
-        .ok_or_else(|| bad("faces", format!("{what}: indices must be in 0..{n}")))
-}
-
 /// `crack`: a mesh file or (vertices (N, 3) mm, faces (F, 3)), normals from side −1 to side +1; `crack_band_mm`
 /// the labelling band (default 3 grid cells).
 fn crack_from(
@@ -83,7 +58,7 @@ fn crack_from(
             return Err(bad("crack", "expected (vertices, faces)"));
         }
         let vertices = points3(&t.get_item(0)?, "crack vertices")?;
-        let faces = faces3(&t.get_item(1)?, "crack", vertices.len())?;
+        let faces = index_rows::<3>(&t.get_item(1)?, "faces", "crack", vertices.len())?;
         (laparo_core::mesh::TriMesh { vertices, faces }, "crack".to_string())
     };
     laparo_register::crack::CrackSurface::from_mesh(&mesh, &name, band_mm).map(Some).map_err(lib_err)
@@ -94,7 +69,7 @@ fn as_path(obj: &Bound<'_, PyAny>) -> Option<PathBuf> {
 }
 
 /// Landmarks: a path (JSON groups or CSV), or a list of (name, (K, 3) points mm, weight).
-fn landmarks_from(obj: &Bound<'_, PyAny>) -> PyResult<Vec<SourceGroup>> {
+pub(crate) fn landmarks_from(obj: &Bound<'_, PyAny>) -> PyResult<Vec<SourceGroup>> {
     if let Some(p) = as_path(obj) {
         return read_landmarks(&p).map_err(lib_err);
     }
@@ -129,7 +104,7 @@ fn landmarks_from(obj: &Bound<'_, PyAny>) -> PyResult<Vec<SourceGroup>> {
 /// Targets: a path (JSON groups by name, or a PLY/OBJ surface / point cloud shared by all
 /// groups), or a list of (name, kind, (M, 3) points mm, faces or None) with kind `points`,
 /// `polyline`, `cloud` or `surface`, matched to the landmark groups by name.
-fn targets_from(obj: &Bound<'_, PyAny>, groups: &[SourceGroup]) -> PyResult<Vec<TargetSpec>> {
+pub(crate) fn targets_from(obj: &Bound<'_, PyAny>, groups: &[SourceGroup]) -> PyResult<Vec<TargetSpec>> {
     if let Some(p) = as_path(obj) {
         return read_targets(&p, groups).map_err(lib_err);
     }
@@ -155,7 +130,7 @@ fn targets_from(obj: &Bound<'_, PyAny>, groups: &[SourceGroup]) -> PyResult<Vec<
             "polyline" => TargetSpec::Polyline(pts),
             "cloud" => TargetSpec::Cloud(pts),
             "surface" => {
-                let faces = faces3(&t.get_item(3)?, &format!("target {name:?}"), pts.len())?;
+                let faces = index_rows::<3>(&t.get_item(3)?, "faces", &format!("target {name:?}"), pts.len())?;
                 TargetSpec::Surface(pts, faces)
             }
             k => return Err(bad("targets", format!("group {name:?}: kind {k:?} (points, polyline, cloud, surface)"))),

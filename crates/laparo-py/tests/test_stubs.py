@@ -15,7 +15,7 @@ from laparo import _laparo
 
 PKG = Path(laparo.__file__).resolve().parent
 SRC_PKG = Path(__file__).resolve().parents[1] / "python" / "laparo"
-SUBMODULES = ["depth", "cats", "stereo", "cpc", "mpm", "shard", "features", "register"]
+SUBMODULES = ["depth", "cats", "stereo", "cpc", "mpm", "shard", "features", "register", "fem"]
 
 
 def stub_names(path):

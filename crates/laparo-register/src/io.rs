@@ -6,10 +6,13 @@
 //!   matched to the landmark groups by name (`points`: one target per landmark, in order), or a PLY/OBJ
 //!   file: a triangle surface (with faces) or a point cloud (without), shared by every group.
 //! * P2ILF 3D contours (`patient*_3D-contours.json`: contours of mesh vertex ids) → landmark groups.
+use crate::distance::{PointCloud, Polyline, TriangleSurface};
 use crate::error::{RegisterError, Result};
+use crate::loss::GroupTarget;
 use laparo_mpm::Vector;
 use serde_json::Value;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Source landmarks of one group.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -33,6 +36,20 @@ pub enum TargetSpec {
     Surface(Vec<Vector<3>>, Vec<[usize; 3]>),
     /// A point cloud.
     Cloud(Vec<Vector<3>>),
+}
+
+impl TargetSpec {
+    /// The loss target (eq. 5.10) of this spec, its points shifted by `offset` (mm) into the frame the
+    /// landmarks are scored in.
+    pub fn group_target(&self, offset: Vector<3>) -> GroupTarget<3> {
+        let sh = |v: &[Vector<3>]| v.iter().map(|p| p + offset).collect::<Vec<_>>();
+        match self {
+            TargetSpec::Points(p) => GroupTarget::Paired(sh(p)),
+            TargetSpec::Polyline(p) => GroupTarget::Shared(Arc::new(Polyline::open(sh(p)))),
+            TargetSpec::Surface(v, f) => GroupTarget::Shared(Arc::new(TriangleSurface::new(sh(v), f.clone()))),
+            TargetSpec::Cloud(p) => GroupTarget::Shared(Arc::new(PointCloud::new(sh(p)))),
+        }
+    }
 }
 
 fn bad(path: &Path, reason: impl Into<String>) -> RegisterError {

@@ -1,10 +1,9 @@
 //! The end-to-end registration a user runs (`laparo register`): organ mesh + landmarks + targets →
 //! registered particles, deformed meshes, display surface, overlay, report, loss curve. Every output is
 //! written atomically; v₀ is checkpointed every few iterations so that an interrupted run resumes.
-use crate::distance::{PointCloud, Polyline, TriangleSurface};
 use crate::error::{RegisterError, Result};
 use crate::io::{SourceGroup, TargetSpec};
-use crate::loss::{GroupResidual, GroupTarget, LandmarkGroup, RegionTerm, RegistrationLoss};
+use crate::loss::{GroupResidual, LandmarkGroup, RegionTerm, RegistrationLoss};
 use crate::optimize::{register, IterationRecord, OptimizerConfig};
 use crate::organ::{organ_from_mesh, HorizonReport, Organ, OrganConfig};
 use crate::surface::{particle_surface, SurfaceConfig};
@@ -13,7 +12,6 @@ use laparo_core::atomic::write_atomic;
 use laparo_core::mesh::TriMesh;
 use laparo_mpm::{det, diagnostics, Diagnostics, Vector};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// Everything `laparo register` needs.
 #[derive(Clone, Debug)]
@@ -132,12 +130,7 @@ pub fn build_loss(
     let mut region: Option<RegionTerm<3>> = None;
     for (g, t) in groups.iter().zip(targets) {
         let particles = organ.landmark_particles(&g.points, &format!("{input}: group `{}`", g.name))?;
-        let target = match t {
-            TargetSpec::Points(p) => GroupTarget::Paired(sh(p)),
-            TargetSpec::Polyline(p) => GroupTarget::Shared(Arc::new(Polyline::open(sh(p)))),
-            TargetSpec::Surface(v, f) => GroupTarget::Shared(Arc::new(TriangleSurface::new(sh(v), f.clone()))),
-            TargetSpec::Cloud(p) => GroupTarget::Shared(Arc::new(PointCloud::new(sh(p)))),
-        };
+        let target = t.group_target(off);
         if region_weight > 0.0 && region.is_none() {
             if let TargetSpec::Cloud(p) | TargetSpec::Surface(p, _) = t {
                 region =

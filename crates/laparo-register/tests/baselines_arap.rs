@@ -136,3 +136,29 @@ fn bad_input_is_named() {
     let e = arap(&p, &ArapConfig::default()).unwrap_err().to_string();
     assert!(e.contains("fixed nodes") && e.contains("node 5000"), "{e}");
 }
+
+/// `MaterialPoint::locate`: a node is itself, an interior point is reproduced by its weights, a point
+/// just outside a face takes the face's closest point, a point farther than the tolerance is named.
+#[test]
+fn material_point_locate_by_hand() {
+    // box [0, 20] x [0, 15] x [0, 10] mm, 5 mm cells
+    let mesh = box_tet_mesh([4, 3, 2], 5.0, Vector3::zeros());
+    let on_node = MaterialPoint::locate(&mesh, &mesh.vertices[17], 0.0, "lm").unwrap();
+    assert_eq!(on_node.nodes, vec![(17, 1.0)]);
+    for p in [Vector3::new(3.3, 7.1, 2.2), Vector3::new(17.9, 0.4, 9.6), Vector3::new(10.0, 7.5, 5.0)] {
+        let m = MaterialPoint::locate(&mesh, &p, 0.0, "lm").unwrap();
+        assert!(m.nodes.iter().all(|&(_, w)| w > 0.0 && w <= 1.0), "{:?}", m.nodes);
+        assert!((m.nodes.iter().map(|q| q.1).sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!((m.position(&mesh.vertices) - p).norm() < 1e-12, "{p:?}");
+    }
+    // 0.3 mm above the top face z = 10: the closest point is (x, y, 10)
+    let m = MaterialPoint::locate(&mesh, &Vector3::new(6.2, 8.8, 10.3), 0.5, "lm").unwrap();
+    assert!((m.position(&mesh.vertices) - Vector3::new(6.2, 8.8, 10.0)).norm() < 1e-12);
+    // outside a corner by (1, 1, 1) mm: the corner node, √3 mm away
+    let m = MaterialPoint::locate(&mesh, &Vector3::new(21.0, 16.0, 11.0), 2.0, "lm").unwrap();
+    assert!((m.position(&mesh.vertices) - Vector3::new(20.0, 15.0, 10.0)).norm() < 1e-12);
+    let e = MaterialPoint::locate(&mesh, &Vector3::new(21.0, 16.0, 11.0), 1.7, "group `a` landmark 3").unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("group `a` landmark 3") && msg.contains("1.732 mm outside"), "{msg}");
+    assert!(MaterialPoint::locate(&mesh, &Vector3::new(f64::NAN, 0.0, 0.0), 1.0, "lm").is_err());
+}

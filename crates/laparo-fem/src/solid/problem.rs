@@ -28,6 +28,22 @@ pub struct FaceTraction {
     pub traction_kpa: Vector3<f64>,
 }
 
+impl FaceTraction {
+    /// A pressure `p_kpa` along the unit normal (b − a) × (c − a) of the triangle `face` of the linear
+    /// mesh with vertices `vertices` (mm); errors name `what` for an out-of-range id or a zero-area face.
+    pub fn normal(vertices: &[Vector3<f64>], face: [usize; 3], p_kpa: f64, what: &str) -> Result<Self> {
+        if let Some(&v) = face.iter().find(|&&v| v >= vertices.len()) {
+            return Err(FemError::bad(what, format!("vertex {v} out of range ({} vertices)", vertices.len())));
+        }
+        let x = |i: usize| vertices[face[i]];
+        let n = (x(1) - x(0)).cross(&(x(2) - x(0)));
+        if n.norm() == 0.0 || !n.norm().is_finite() {
+            return Err(FemError::bad(what, format!("degenerate face {face:?}")));
+        }
+        Ok(FaceTraction { face, traction_kpa: n.normalize() * p_kpa })
+    }
+}
+
 /// A dead point force (mN) on one TET10 node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NodalForce {

@@ -12,7 +12,9 @@ Submodules:
 * :mod:`laparo.stereo` — rectification, disparity ↔ depth (§3.3.8), stereo evaluation,
   semi-global matching and self-rectification;
 * :mod:`laparo.features` — SIFT / ORB, matching, RANSAC H / F / E (§4.2, §4.5);
-* :mod:`laparo.register` — RODS-MPM deformable registration (Ch. 5);
+* :mod:`laparo.register` — RODS-MPM deformable registration (Ch. 5) and the mesh baselines
+  ARAP, DRBC and LDDMM (§5.4.2);
+* :mod:`laparo.fem` — tetrahedral meshing and the Neo-Hookean TET10 FEM (§5.4.2);
 * :mod:`laparo.cpc` — Conformal Perspective Correction of a frame (Ch. 4), point mapping;
 * :mod:`laparo.mpm` — differentiable MLS-MPM (§5.2) and a ``torch.autograd.Function``.
 
@@ -29,5 +31,5 @@ next call on same-sized data (no page faults on warm buffers); ``set_buffer_cach
 changes the limit (0 = off).
 """
 from ._laparo import __version__, get_num_threads, set_buffer_cache_mb, set_num_threads
-from . import depth, cats, stereo, cpc, mpm, shard, features, register
-__all__ = ['__version__', 'depth', 'cats', 'stereo', 'cpc', 'mpm', 'shard', 'features', 'register', 'set_num_threads', 'get_num_threads', 'set_buffer_cache_mb']
+from . import depth, cats, stereo, cpc, mpm, shard, features, register, fem
+__all__ = ['__version__', 'depth', 'cats', 'stereo', 'cpc', 'mpm', 'shard', 'features', 'register', 'fem', 'set_num_threads', 'get_num_threads', 'set_buffer_cache_mb']

@@ -132,6 +132,40 @@ def register_arrays(
     memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 
+def register_arap(
+    nodes: np.ndarray, tets: np.ndarray, landmarks: Any, targets: Any, fixed: Optional[np.ndarray] = None,
+    energy: str = "spokes", weights: str = "cotangent", landmark_weight: Optional[float] = None, iterations: int = 200,
+    tolerance_mm: float = 1e-3, outside_tolerance_mm: float = 1.0,
+) -> Dict[str, Any]: ...
+
+def register_drbc(
+    nodes: np.ndarray, tets: np.ndarray, landmarks: Any, targets: Any, fixed: Optional[np.ndarray] = None,
+    young_kpa: float = 4.1, poisson: float = 0.49, lam: Optional[float] = None, iterations: int = 50,
+    outside_tolerance_mm: float = 1.0,
+) -> Dict[str, Any]: ...
+
+def register_lddmm(
+    nodes: np.ndarray, tets: np.ndarray, landmarks: Any, targets: Any, fixed: Optional[np.ndarray] = None,
+    sigma_mm: float = 20.0, steps: int = 10, gamma: float = 0.01, iterations: int = 300,
+    outside_tolerance_mm: float = 1.0,
+) -> Dict[str, Any]: ...
+
+def fem_tetrahedralize(
+    vertices: np.ndarray, faces: np.ndarray, edge_mm: float = 6.0, min_dihedral_deg: float = 10.0, snap_passes: int = 4,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], Dict[str, Any]]: ...
+
+def fem_quality(
+    nodes: np.ndarray, tets: np.ndarray, surface_vertices: Optional[np.ndarray] = None,
+    surface_faces: Optional[np.ndarray] = None,
+) -> Dict[str, Any]: ...
+
+def fem_solve(
+    nodes: np.ndarray, tets: np.ndarray, fixed: np.ndarray, face_faces: Optional[np.ndarray] = None,
+    face_tractions_kpa: Optional[np.ndarray] = None, force_vertices: Optional[np.ndarray] = None,
+    forces_mn: Optional[np.ndarray] = None, young_kpa: float = 4.1, poisson: float = 0.49, steps: int = 20,
+    rel_tol: float = 1e-8, quadrature: str = "degree2", solver: str = "auto",
+) -> Dict[str, Any]: ...
+
 class CpcWarp:
     canvas_size: Tuple[int, int]
     canvas_origin: Tuple[float, float]

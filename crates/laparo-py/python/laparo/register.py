@@ -3,7 +3,9 @@ landmark groups and their targets → optimised initial velocities v₀ of the M
 final particles match the targets (loss eq. 5.10), with the Neo-Hookean material of eq. 5.3.
 
 * :func:`register` — in memory: the registered particle positions, v₀, J = det F, history;
-* :func:`run` — ``laparo register``: every output file of the CLI in ``out`` and ``report.json``.
+* :func:`run` — ``laparo register``: every output file of the CLI in ``out`` and ``report.json``;
+* :func:`arap`, :func:`drbc`, :func:`lddmm` — the mesh-based baselines of the incision benchmark
+  (§5.4.2, Table 5.1) on a tetrahedral mesh, scored with the same eq. 5.10 distance.
 
 Landmarks: a file (JSON ``{"groups": [...]}`` or CSV ``group,x,y,z``), a dict ``name → (K, 3)``
 array, or a list of dicts ``{"name", "points", "weight"}``. Targets: a file (JSON groups matched by
@@ -179,4 +181,117 @@ def run(
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
         _opt_float(max_step_dx), float(target_mean_mm), bool(resume), int(checkpoint_every), memory_gb,
         float(kinetic_weight), _crack(crack), _opt_float(crack_band_mm),
+    )
+
+
+def _mesh_landmarks(lm: Any, nodes: np.ndarray) -> Any:
+    """Landmarks of a mesh baseline: as :func:`register`'s, and in a dict a group may also be a 1-D
+    integer array of node ids (those nodes' rest positions)."""
+    if isinstance(lm, Mapping):
+        out = {}
+        for k, v in lm.items():
+            a = np.asarray(v)
+            if a.ndim == 1 and a.dtype.kind in "iu":
+                if a.size and (a.min() < 0 or a.max() >= len(nodes)):
+                    raise ValueError(f"landmarks[{k!r}]: node ids must be in 0..{len(nodes)}")
+                out[k] = nodes[a]
+            else:
+                out[k] = v
+        lm = out
+    return _landmarks(lm)
+
+
+def _mesh(nodes: Any, tets: Any) -> Tuple[np.ndarray, np.ndarray]:
+    n = _points(nodes, "nodes")
+    t = np.asarray(tets)
+    if t.dtype.kind not in "iu" or t.ndim != 2 or t.shape[1] != 4:
+        raise ValueError(f"tets: expected (T, 4) integer node ids, got {t.dtype} {t.shape}")
+    return n, np.ascontiguousarray(t, dtype=np.float64)
+
+
+def _fixed(fixed: Any) -> Optional[np.ndarray]:
+    if fixed is None:
+        return None
+    f = np.asarray(fixed)
+    if f.size and f.dtype.kind not in "iu":
+        raise TypeError(f"fixed: expected integer node ids, got dtype {f.dtype}")
+    return np.ascontiguousarray(f.reshape(-1), dtype=np.float64)
+
+
+def arap(
+    nodes: np.ndarray,
+    tets: np.ndarray,
+    landmarks: Landmarks,
+    targets: Targets,
+    fixed: Optional[np.ndarray] = None,
+    energy: str = "spokes",
+    weights: str = "cotangent",
+    landmark_weight: Optional[float] = None,
+    iterations: int = 200,
+    tolerance_mm: float = 1e-3,
+    outside_tolerance_mm: float = 1.0,
+) -> Dict[str, Any]:
+    """Volumetric as-rigid-as-possible registration (Sorkine & Alexa 2007) of the tetrahedral mesh
+    (``nodes`` (N, 3) mm, ``tets`` (T, 4) int): local–global iterations on the ARAP energy
+    (``energy`` = ``spokes``, libigl's ``ARAP_ENERGY_TYPE_SPOKES``, or ``elements``, per-tet rotations)
+    plus a soft landmark term w · Σ dist², the closest target points re-linearised every iteration.
+
+    ``landmarks`` as :func:`register`'s (points in mm inside or on the mesh; a point outside by at most
+    ``outside_tolerance_mm`` takes the closest mesh point), or per group a 1-D integer array of node
+    ids; each point is a material point (barycentric in its tetrahedron). ``targets`` as
+    :func:`register`'s (paired points, polyline, cloud, surface). ``fixed``: node ids held at rest.
+    ``landmark_weight`` None: 100 × E_ARAP(unit stretch) / (K L²).
+
+    Returns ``positions`` (N, 3) mm, the deformed nodes, and ``report`` (iterations,
+    initial_mean_distance_mm, mean_distance_mm, history_mm, converged, seconds)."""
+    n, t = _mesh(nodes, tets)
+    return _laparo.register_arap(
+        n, t, _mesh_landmarks(landmarks, n), _targets(targets), _fixed(fixed), str(energy), str(weights),
+        _opt_float(landmark_weight), int(iterations), float(tolerance_mm), float(outside_tolerance_mm),
+    )
+
+
+def drbc(
+    nodes: np.ndarray,
+    tets: np.ndarray,
+    landmarks: Landmarks,
+    targets: Targets,
+    fixed: Optional[np.ndarray] = None,
+    young_kpa: float = 4.1,
+    poisson: float = 0.49,
+    lam: Optional[float] = None,
+    iterations: int = 50,
+    outside_tolerance_mm: float = 1.0,
+) -> Dict[str, Any]:
+    """DRBC (Collins 2020): minimise Σ dist² + λ Σ_e V_e ψ(F_e) with the Neo-Hookean energy ψ of eq. 5.3
+    (``young_kpa``, ``poisson``) on the tetrahedra, by Newton with an exact distance Hessian and an
+    inversion-safe line search. ``lam`` None: 0.01 K L² / (V μ). Other arguments and the result as
+    :func:`arap`; François et al. [2021] is this on a mesh cut along the assumed resection."""
+    n, t = _mesh(nodes, tets)
+    return _laparo.register_drbc(
+        n, t, _mesh_landmarks(landmarks, n), _targets(targets), _fixed(fixed), float(young_kpa), float(poisson),
+        _opt_float(lam), int(iterations), float(outside_tolerance_mm),
+    )
+
+
+def lddmm(
+    nodes: np.ndarray,
+    tets: np.ndarray,
+    landmarks: Landmarks,
+    targets: Targets,
+    fixed: Optional[np.ndarray] = None,
+    sigma_mm: float = 20.0,
+    steps: int = 10,
+    gamma: float = 0.01,
+    iterations: int = 300,
+    outside_tolerance_mm: float = 1.0,
+) -> Dict[str, Any]:
+    """Landmark LDDMM (Beg 2005): geodesic shooting of momenta at the source landmarks with a Gaussian
+    kernel of width ``sigma_mm`` over ``steps`` Euler steps, minimising Σ dist² + ``gamma`` × the geodesic
+    energy by L-BFGS with the adjoint gradient; every node is advected by the same flow. Other arguments
+    and the result as :func:`arap`."""
+    n, t = _mesh(nodes, tets)
+    return _laparo.register_lddmm(
+        n, t, _mesh_landmarks(landmarks, n), _targets(targets), _fixed(fixed), float(sigma_mm), int(steps),
+        float(gamma), int(iterations), float(outside_tolerance_mm),
     )

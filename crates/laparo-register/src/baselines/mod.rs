@@ -10,8 +10,10 @@
 //! (mm) and a [`BaselineReport`].
 use crate::loss::GroupTarget;
 use crate::{RegisterError, Result};
+use laparo_core::geometry::closest_point_on_triangle;
 use laparo_core::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 
 pub mod arap;
 pub mod drbc;
@@ -44,6 +46,66 @@ impl MaterialPoint {
     pub fn position(&self, x: &[Vector3<f64>]) -> Vector3<f64> {
         self.nodes.iter().map(|&(i, w)| x[i] * w).sum()
     }
+
+    /// The material point of the rest mesh at `p` (mm): the barycentric coordinates of the tetrahedron
+    /// that contains it (its nodes with weight > 0; a node itself when `p` is on it). A point outside
+    /// the mesh by at most `tolerance_mm` (e.g. a landmark picked on the organ surface, which a
+    /// tetrahedralisation approximates) takes the closest point of the nearest tetrahedron; farther
+    /// out is an error naming `what`.
+    pub fn locate(mesh: &TetMesh, p: &Vector3<f64>, tolerance_mm: f64, what: &str) -> Result<Self> {
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(RegisterError::bad(what, format!("non-finite position {:?}", p.as_slice())));
+        }
+        // (distance to the tet in mm, tet index, barycentric weights of the closest point)
+        let best = mesh
+            .tets
+            .par_iter()
+            .enumerate()
+            .filter_map(|(e, t)| {
+                let c = t.map(|k| mesh.vertices[k]);
+                let (q, w) = closest_point_in_tet(&c, p)?;
+                Some(((q - p).norm(), e, w))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let Some((dist, e, w)) = best else {
+            return Err(RegisterError::bad(what, "the mesh has no non-degenerate tetrahedron"));
+        };
+        if dist > tolerance_mm {
+            return Err(RegisterError::bad(
+                what,
+                format!(
+                    "({:.3}, {:.3}, {:.3}) mm lies {dist:.3} mm outside the mesh (tolerance {tolerance_mm} mm)",
+                    p.x, p.y, p.z
+                ),
+            ));
+        }
+        let t = mesh.tets[e];
+        let nodes: Vec<(usize, f64)> = (0..4).filter(|&a| w[a] > 1e-12).map(|a| (t[a], w[a])).collect();
+        let s: f64 = nodes.iter().map(|q| q.1).sum();
+        Ok(MaterialPoint { nodes: nodes.into_iter().map(|(i, v)| (i, v / s)).collect() })
+    }
+}
+
+/// The closest point of tetrahedron `c` to `p` and its barycentric weights (≥ 0, sum 1); `None` for a
+/// degenerate tetrahedron. Inside: `p` itself; outside: the closest point over the four faces.
+fn closest_point_in_tet(c: &[Vector3<f64>; 4], p: &Vector3<f64>) -> Option<(Vector3<f64>, [f64; 4])> {
+    let inv = Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]]).try_inverse()?;
+    let weights = |q: &Vector3<f64>| {
+        let l = inv * (q - c[0]);
+        [1.0 - l.x - l.y - l.z, l.x, l.y, l.z]
+    };
+    let w = weights(p);
+    if w.iter().all(|&v| v >= 0.0) {
+        return Some((*p, w));
+    }
+    let q = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]
+        .iter()
+        .map(|f| closest_point_on_triangle(p, &c[f[0]], &c[f[1]], &c[f[2]]))
+        .min_by(|a, b| (a - p).norm_squared().total_cmp(&(b - p).norm_squared()))?;
+    // on a face: clamp the round-off of the opposite corner's weight and renormalise
+    let w = weights(&q).map(|v| v.max(0.0));
+    let s: f64 = w.iter().sum();
+    Some((q, w.map(|v| v / s)))
 }
 
 /// A landmark group of a mesh problem: source material points scored against their own target.

@@ -148,29 +148,16 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
         .with_context(|| format!("--fixed {}", a.fixed.display()))?;
     let mut loads = Loads::default();
     for (k, t) in loads_json.face_tractions.iter().enumerate() {
+        let what = format!("--loads {}: face_tractions[{k}]", a.loads.display());
         if let Some(&v) = t.face.iter().find(|&&v| v >= lin.vertices.len()) {
-            bail!(
-                "--loads {}: face_tractions[{k}]: vertex {v} out of range ({} vertices)",
-                a.loads.display(),
-                lin.vertices.len()
-            );
+            bail!("{what}: vertex {v} out of range ({} vertices)", lin.vertices.len());
         }
         let traction = match (t.traction_kpa, t.normal_traction_kpa) {
-            (Some(v), None) => Vector3::from(v),
-            (None, Some(p)) => {
-                let x = |i: usize| lin.vertices[t.face[i]];
-                let n = (x(1) - x(0)).cross(&(x(2) - x(0)));
-                if n.norm() == 0.0 {
-                    bail!("--loads {}: face_tractions[{k}]: degenerate face {:?}", a.loads.display(), t.face);
-                }
-                n.normalize() * p
-            }
-            _ => bail!(
-                "--loads {}: face_tractions[{k}]: give exactly one of traction_kpa or normal_traction_kpa",
-                a.loads.display()
-            ),
+            (Some(v), None) => FaceTraction { face: t.face, traction_kpa: Vector3::from(v) },
+            (None, Some(p)) => FaceTraction::normal(&lin.vertices, t.face, p, &what)?,
+            _ => bail!("{what}: give exactly one of traction_kpa or normal_traction_kpa"),
         };
-        loads.face_tractions.push(FaceTraction { face: t.face, traction_kpa: traction });
+        loads.face_tractions.push(traction);
     }
     for (k, f) in loads_json.nodal_forces.iter().enumerate() {
         if f.vertex >= lin.vertices.len() {
