@@ -121,6 +121,20 @@ def main():
     print(f"double-precision numpy reference: vs laparo {dref:.3e} mm (relative {dref / disp:.3e}), "
           f"vs libigl {dref_igl:.3e} mm (relative {dref_igl / disp:.3e}); reference time {tref:.3f} s")
     print(f"time: laparo {d['laparo_seconds']:.4f} s, libigl {best:.4f} s, libigl/laparo = {best / d['laparo_seconds']:.2f}")
+    try:
+        import laparo  # the Python package (maturin develop -m crates/laparo-py/Cargo.toml), in this process
+    except ImportError:
+        print("laparo's Python package is not installed here: in-process timing skipped")
+        return
+    best_py = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        r = laparo.register.arap(V, T, fixed=b.astype(np.int64), fixed_positions=bc, energy=a.energy,
+                                 iterations=a.iterations, tolerance_mm=0.0)
+        best_py = min(best_py, time.perf_counter() - t0)
+    dpy = np.linalg.norm(r["positions"] - ours, axis=1).max()
+    print(f"in-process laparo.register.arap: {best_py:.4f} s (wall, NumPy in and out), libigl/laparo = "
+          f"{best / best_py:.2f}; max node difference to the CLI example {dpy:.1e} mm")
 
 
 if __name__ == "__main__":

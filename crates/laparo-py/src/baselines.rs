@@ -17,9 +17,10 @@ use pyo3::types::PyDict;
 fn problem(
     nodes: &Bound<'_, PyAny>,
     tets: &Bound<'_, PyAny>,
-    landmarks: &Bound<'_, PyAny>,
-    targets: &Bound<'_, PyAny>,
+    landmarks: Option<&Bound<'_, PyAny>>,
+    targets: Option<&Bound<'_, PyAny>>,
     fixed: Option<&Bound<'_, PyAny>>,
+    fixed_positions: Option<&Bound<'_, PyAny>>,
     outside_tolerance_mm: f64,
 ) -> PyResult<BaselineProblem> {
     let vertices = points3(nodes, "nodes")?;
@@ -31,8 +32,15 @@ fn problem(
         return Err(bad("outside_tolerance_mm", format!("{outside_tolerance_mm}: must be finite and ≥ 0")));
     }
     let mesh = TetMesh { vertices, tets };
-    let groups = landmarks_from(landmarks)?;
-    let specs = targets_from(targets, &groups)?;
+    let (groups, specs) = match (landmarks, targets) {
+        (Some(l), Some(t)) => {
+            let groups = landmarks_from(l)?;
+            let specs = targets_from(t, &groups)?;
+            (groups, specs)
+        }
+        (None, None) => (Vec::new(), Vec::new()),
+        _ => return Err(bad("targets", "give both landmarks and targets, or neither (fixed nodes only)")),
+    };
     let mut out = Vec::with_capacity(groups.len());
     for (g, spec) in groups.iter().zip(&specs) {
         let points = g
@@ -52,9 +60,21 @@ fn problem(
         });
     }
     let mut p = BaselineProblem::new(mesh, out);
-    if let Some(f) = fixed {
-        let f = indices(f, "fixed", p.mesh.vertices.len())?;
-        p.fix_at_rest(&f);
+    match (fixed, fixed_positions) {
+        (Some(f), None) => {
+            let f = indices(f, "fixed", p.mesh.vertices.len())?;
+            p.fix_at_rest(&f);
+        }
+        (Some(f), Some(x)) => {
+            let f = indices(f, "fixed", p.mesh.vertices.len())?;
+            let x = points3(x, "fixed_positions")?;
+            if x.len() != f.len() {
+                return Err(bad("fixed_positions", format!("{} positions for {} fixed nodes", x.len(), f.len())));
+            }
+            p.fixed = f.into_iter().zip(x).collect();
+        }
+        (None, Some(_)) => return Err(bad("fixed_positions", "needs fixed")),
+        (None, None) => {}
     }
     p.validate().map_err(lib_err)?;
     Ok(p)
@@ -78,16 +98,17 @@ fn positive(v: f64, arg: &str) -> PyResult<()> {
 
 /// Volumetric ARAP (Sorkine & Alexa 2007) with a soft landmark term, closest points re-linearised.
 #[pyfunction]
-#[pyo3(signature = (nodes, tets, landmarks, targets, fixed=None, energy="spokes", weights="cotangent",
+#[pyo3(signature = (nodes, tets, landmarks=None, targets=None, fixed=None, fixed_positions=None, energy="spokes", weights="cotangent",
     landmark_weight=None, iterations=200, tolerance_mm=1e-3, outside_tolerance_mm=1.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_arap<'py>(
     py: Python<'py>,
     nodes: &Bound<'py, PyAny>,
     tets: &Bound<'py, PyAny>,
-    landmarks: &Bound<'py, PyAny>,
-    targets: &Bound<'py, PyAny>,
+    landmarks: Option<&Bound<'py, PyAny>>,
+    targets: Option<&Bound<'py, PyAny>>,
     fixed: Option<&Bound<'py, PyAny>>,
+    fixed_positions: Option<&Bound<'py, PyAny>>,
     energy: &str,
     weights: &str,
     landmark_weight: Option<f64>,
@@ -109,8 +130,13 @@ pub fn register_arap<'py>(
         if let Some(w) = landmark_weight {
             positive(w, "landmark_weight")?;
         }
-        positive(tolerance_mm, "tolerance_mm")?;
-        let p = problem(nodes, tets, landmarks, targets, fixed, outside_tolerance_mm)?;
+        if !(tolerance_mm.is_finite() && tolerance_mm >= 0.0) {
+            return Err(bad(
+                "tolerance_mm",
+                format!("{tolerance_mm}: must be finite and ≥ 0 (0: run every iteration)"),
+            ));
+        }
+        let p = problem(nodes, tets, landmarks, targets, fixed, fixed_positions, outside_tolerance_mm)?;
         let cfg = ArapConfig { energy, weights, landmark_weight, iterations, tolerance_mm };
         let r = par(py, || arap(&p, &cfg)).map_err(lib_err)?;
         result_out(py, &r)
@@ -119,16 +145,17 @@ pub fn register_arap<'py>(
 
 /// DRBC (Collins 2020): landmark term + λ × Neo-Hookean energy (eq. 5.3) on the tetrahedra, Newton.
 #[pyfunction]
-#[pyo3(signature = (nodes, tets, landmarks, targets, fixed=None, young_kpa=4.1, poisson=0.49, lam=None,
+#[pyo3(signature = (nodes, tets, landmarks=None, targets=None, fixed=None, fixed_positions=None, young_kpa=4.1, poisson=0.49, lam=None,
     iterations=50, outside_tolerance_mm=1.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_drbc<'py>(
     py: Python<'py>,
     nodes: &Bound<'py, PyAny>,
     tets: &Bound<'py, PyAny>,
-    landmarks: &Bound<'py, PyAny>,
-    targets: &Bound<'py, PyAny>,
+    landmarks: Option<&Bound<'py, PyAny>>,
+    targets: Option<&Bound<'py, PyAny>>,
     fixed: Option<&Bound<'py, PyAny>>,
+    fixed_positions: Option<&Bound<'py, PyAny>>,
     young_kpa: f64,
     poisson: f64,
     lam: Option<f64>,
@@ -140,7 +167,7 @@ pub fn register_drbc<'py>(
         if let Some(l) = lam {
             positive(l, "lam")?;
         }
-        let p = problem(nodes, tets, landmarks, targets, fixed, outside_tolerance_mm)?;
+        let p = problem(nodes, tets, landmarks, targets, fixed, fixed_positions, outside_tolerance_mm)?;
         let cfg = DrbcConfig { material, lambda: lam, iterations, ..Default::default() };
         let r = par(py, || drbc(&p, &cfg)).map_err(lib_err)?;
         result_out(py, &r)
@@ -150,16 +177,17 @@ pub fn register_drbc<'py>(
 /// Landmark LDDMM (Beg 2005): geodesic shooting with a Gaussian kernel of width `sigma_mm`, every node
 /// advected by the flow.
 #[pyfunction]
-#[pyo3(signature = (nodes, tets, landmarks, targets, fixed=None, sigma_mm=20.0, steps=10, gamma=0.01,
+#[pyo3(signature = (nodes, tets, landmarks=None, targets=None, fixed=None, fixed_positions=None, sigma_mm=20.0, steps=10, gamma=0.01,
     iterations=300, outside_tolerance_mm=1.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_lddmm<'py>(
     py: Python<'py>,
     nodes: &Bound<'py, PyAny>,
     tets: &Bound<'py, PyAny>,
-    landmarks: &Bound<'py, PyAny>,
-    targets: &Bound<'py, PyAny>,
+    landmarks: Option<&Bound<'py, PyAny>>,
+    targets: Option<&Bound<'py, PyAny>>,
     fixed: Option<&Bound<'py, PyAny>>,
+    fixed_positions: Option<&Bound<'py, PyAny>>,
     sigma_mm: f64,
     steps: usize,
     gamma: f64,
@@ -172,7 +200,7 @@ pub fn register_lddmm<'py>(
         if steps == 0 {
             return Err(bad("steps", "must be ≥ 1"));
         }
-        let p = problem(nodes, tets, landmarks, targets, fixed, outside_tolerance_mm)?;
+        let p = problem(nodes, tets, landmarks, targets, fixed, fixed_positions, outside_tolerance_mm)?;
         let cfg = LddmmConfig { sigma_mm, steps, gamma, iterations, ..Default::default() };
         let r = par(py, || lddmm(&p, &cfg)).map_err(lib_err)?;
         result_out(py, &r)

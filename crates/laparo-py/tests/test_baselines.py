@@ -11,12 +11,11 @@ from test_fem import box_tets
 R = laparo.register
 
 
-def rigid():
+def rigid(th=0.45, t=(3.0, -2.0, 5.0)):
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
-    th = 0.45
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     rot = np.eye(3) + np.sin(th) * k + (1 - np.cos(th)) * k @ k  # Rodrigues
-    return rot, np.array([3.0, -2.0, 5.0])
+    return rot, np.array(t)
 
 
 @pytest.fixture(scope="module")
@@ -75,6 +74,23 @@ def test_lddmm_shoots_noiseless_landmarks_onto_their_targets(mesh):
     assert np.linalg.norm(out["positions"][far] - nodes[far]) < np.linalg.norm(shift, axis=1).max()
 
 
+@pytest.mark.parametrize("method", ["arap", "drbc"])
+def test_prescribed_boundary_in_a_rigid_motion_moves_the_interior_rigidly(mesh, method):
+    """Hard constraints only (libigl's b / bc): the boundary nodes placed by a rigid motion leave the interior
+    at the zero-energy state, the same motion. DRBC starts from the rest mesh with the fixed nodes moved,
+    which must not invert a tetrahedron (a clear error otherwise): a small motion for it."""
+    nodes, tets = mesh
+    rot, t = rigid() if method == "arap" else rigid(0.05, (0.3, -0.2, 0.5))
+    lo, hi = nodes.min(axis=0), nodes.max(axis=0)
+    on_box = np.flatnonzero(((np.abs(nodes - lo) < 1e-9) | (np.abs(nodes - hi) < 1e-9)).any(axis=1))
+    assert 0 < len(on_box) < len(nodes)
+    want = nodes @ rot.T + t
+    kw = dict(iterations=500, tolerance_mm=1e-10) if method == "arap" else {}
+    out = getattr(R, method)(nodes, tets, fixed=on_box, fixed_positions=want[on_box], **kw)
+    assert np.abs(out["positions"][on_box] - want[on_box]).max() == 0.0
+    assert np.abs(out["positions"] - want).max() < 1e-6
+
+
 def test_errors_name_the_argument(mesh):
     nodes, tets = mesh
     lm = {"a": np.array([1, 2], np.int64)}
@@ -93,5 +109,11 @@ def test_errors_name_the_argument(mesh):
         R.drbc(nodes, tets, lm, tg, fixed=[len(nodes)])
     with pytest.raises(ValueError, match="targets"):
         R.arap(nodes, tets, lm, {"b": nodes[[1, 2]]})
+    with pytest.raises(ValueError, match="inverted"):
+        R.drbc(nodes, tets, fixed=[0, 1], fixed_positions=nodes[[1, 0]])
+    with pytest.raises(ValueError, match="fixed_positions"):
+        R.arap(nodes, tets, fixed=[0, 1], fixed_positions=nodes[:3])
+    with pytest.raises(ValueError, match="targets"):
+        R.arap(nodes, tets, lm)
     with pytest.raises(ValueError, match="nodes"):
         R.arap(np.where(nodes == 0.0, np.nan, nodes), tets, lm, tg)

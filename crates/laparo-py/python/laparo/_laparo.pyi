@@ -133,19 +133,22 @@ def register_arrays(
 ) -> Dict[str, Any]: ...
 
 def register_arap(
-    nodes: np.ndarray, tets: np.ndarray, landmarks: Any, targets: Any, fixed: Optional[np.ndarray] = None,
+    nodes: np.ndarray, tets: np.ndarray, landmarks: Any = None, targets: Any = None, fixed: Optional[np.ndarray] = None,
+    fixed_positions: Optional[np.ndarray] = None,
     energy: str = "spokes", weights: str = "cotangent", landmark_weight: Optional[float] = None, iterations: int = 200,
     tolerance_mm: float = 1e-3, outside_tolerance_mm: float = 1.0,
 ) -> Dict[str, Any]: ...
 
 def register_drbc(
-    nodes: np.ndarray, tets: np.ndarray, landmarks: Any, targets: Any, fixed: Optional[np.ndarray] = None,
+    nodes: np.ndarray, tets: np.ndarray, landmarks: Any = None, targets: Any = None, fixed: Optional[np.ndarray] = None,
+    fixed_positions: Optional[np.ndarray] = None,
     young_kpa: float = 4.1, poisson: float = 0.49, lam: Optional[float] = None, iterations: int = 50,
     outside_tolerance_mm: float = 1.0,
 ) -> Dict[str, Any]: ...
 
 def register_lddmm(
-    nodes: np.ndarray, tets: np.ndarray, landmarks: Any, targets: Any, fixed: Optional[np.ndarray] = None,
+    nodes: np.ndarray, tets: np.ndarray, landmarks: Any = None, targets: Any = None, fixed: Optional[np.ndarray] = None,
+    fixed_positions: Optional[np.ndarray] = None,
     sigma_mm: float = 20.0, steps: int = 10, gamma: float = 0.01, iterations: int = 300,
     outside_tolerance_mm: float = 1.0,
 ) -> Dict[str, Any]: ...

@@ -184,9 +184,19 @@ def run(
     )
 
 
+def _opt_targets(tg: Any) -> Any:
+    return None if tg is None else _targets(tg)
+
+
+def _opt_points(p: Any) -> Optional[np.ndarray]:
+    return None if p is None else _points(p, "fixed_positions")
+
+
 def _mesh_landmarks(lm: Any, nodes: np.ndarray) -> Any:
     """Landmarks of a mesh baseline: as :func:`register`'s, and in a dict a group may also be a 1-D
     integer array of node ids (those nodes' rest positions)."""
+    if lm is None:
+        return None
     if isinstance(lm, Mapping):
         out = {}
         for k, v in lm.items():
@@ -221,9 +231,10 @@ def _fixed(fixed: Any) -> Optional[np.ndarray]:
 def arap(
     nodes: np.ndarray,
     tets: np.ndarray,
-    landmarks: Landmarks,
-    targets: Targets,
+    landmarks: Optional[Landmarks] = None,
+    targets: Optional[Targets] = None,
     fixed: Optional[np.ndarray] = None,
+    fixed_positions: Optional[np.ndarray] = None,
     energy: str = "spokes",
     weights: str = "cotangent",
     landmark_weight: Optional[float] = None,
@@ -239,14 +250,16 @@ def arap(
     ``landmarks`` as :func:`register`'s (points in mm inside or on the mesh; a point outside by at most
     ``outside_tolerance_mm`` takes the closest mesh point), or per group a 1-D integer array of node
     ids; each point is a material point (barycentric in its tetrahedron). ``targets`` as
-    :func:`register`'s (paired points, polyline, cloud, surface). ``fixed``: node ids held at rest.
+    :func:`register`'s (paired points, polyline, cloud, surface). ``fixed``: node ids held at rest, or at
+    ``fixed_positions`` (K, 3) mm when given (hard constraints, libigl's ``b`` / ``bc``); with fixed
+    nodes, ``landmarks`` and ``targets`` may be None.
     ``landmark_weight`` None: 100 × E_ARAP(unit stretch) / (K L²).
 
     Returns ``positions`` (N, 3) mm, the deformed nodes, and ``report`` (iterations,
     initial_mean_distance_mm, mean_distance_mm, history_mm, converged, seconds)."""
     n, t = _mesh(nodes, tets)
     return _laparo.register_arap(
-        n, t, _mesh_landmarks(landmarks, n), _targets(targets), _fixed(fixed), str(energy), str(weights),
+        n, t, _mesh_landmarks(landmarks, n), _opt_targets(targets), _fixed(fixed), _opt_points(fixed_positions), str(energy), str(weights),
         _opt_float(landmark_weight), int(iterations), float(tolerance_mm), float(outside_tolerance_mm),
     )
 
@@ -254,9 +267,10 @@ def arap(
 def drbc(
     nodes: np.ndarray,
     tets: np.ndarray,
-    landmarks: Landmarks,
-    targets: Targets,
+    landmarks: Optional[Landmarks] = None,
+    targets: Optional[Targets] = None,
     fixed: Optional[np.ndarray] = None,
+    fixed_positions: Optional[np.ndarray] = None,
     young_kpa: float = 4.1,
     poisson: float = 0.49,
     lam: Optional[float] = None,
@@ -269,7 +283,7 @@ def drbc(
     :func:`arap`; François et al. [2021] is this on a mesh cut along the assumed resection."""
     n, t = _mesh(nodes, tets)
     return _laparo.register_drbc(
-        n, t, _mesh_landmarks(landmarks, n), _targets(targets), _fixed(fixed), float(young_kpa), float(poisson),
+        n, t, _mesh_landmarks(landmarks, n), _opt_targets(targets), _fixed(fixed), _opt_points(fixed_positions), float(young_kpa), float(poisson),
         _opt_float(lam), int(iterations), float(outside_tolerance_mm),
     )
 
@@ -277,9 +291,10 @@ def drbc(
 def lddmm(
     nodes: np.ndarray,
     tets: np.ndarray,
-    landmarks: Landmarks,
-    targets: Targets,
+    landmarks: Optional[Landmarks] = None,
+    targets: Optional[Targets] = None,
     fixed: Optional[np.ndarray] = None,
+    fixed_positions: Optional[np.ndarray] = None,
     sigma_mm: float = 20.0,
     steps: int = 10,
     gamma: float = 0.01,
@@ -292,6 +307,6 @@ def lddmm(
     and the result as :func:`arap`."""
     n, t = _mesh(nodes, tets)
     return _laparo.register_lddmm(
-        n, t, _mesh_landmarks(landmarks, n), _targets(targets), _fixed(fixed), float(sigma_mm), int(steps),
+        n, t, _mesh_landmarks(landmarks, n), _opt_targets(targets), _fixed(fixed), _opt_points(fixed_positions), float(sigma_mm), int(steps),
         float(gamma), int(iterations), float(outside_tolerance_mm),
     )

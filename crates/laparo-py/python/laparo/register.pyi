@@ -56,7 +56,7 @@ def run(organ: PathLike, landmarks: Landmarks, targets: Targets, out: PathLike, 
     Arguments as :func:`register` and the CLI's options."""
     ...
 
-def arap(nodes: np.ndarray, tets: np.ndarray, landmarks: Landmarks, targets: Targets, fixed: Optional[np.ndarray]=..., energy: str=..., weights: str=..., landmark_weight: Optional[float]=..., iterations: int=..., tolerance_mm: float=..., outside_tolerance_mm: float=...) -> Dict[str, Any]:
+def arap(nodes: np.ndarray, tets: np.ndarray, landmarks: Optional[Landmarks]=..., targets: Optional[Targets]=..., fixed: Optional[np.ndarray]=..., fixed_positions: Optional[np.ndarray]=..., energy: str=..., weights: str=..., landmark_weight: Optional[float]=..., iterations: int=..., tolerance_mm: float=..., outside_tolerance_mm: float=...) -> Dict[str, Any]:
     """Volumetric as-rigid-as-possible registration (Sorkine & Alexa 2007) of the tetrahedral mesh
     (``nodes`` (N, 3) mm, ``tets`` (T, 4) int): local–global iterations on the ARAP energy
     (``energy`` = ``spokes``, libigl's ``ARAP_ENERGY_TYPE_SPOKES``, or ``elements``, per-tet rotations)
@@ -65,21 +65,23 @@ def arap(nodes: np.ndarray, tets: np.ndarray, landmarks: Landmarks, targets: Tar
     ``landmarks`` as :func:`register`'s (points in mm inside or on the mesh; a point outside by at most
     ``outside_tolerance_mm`` takes the closest mesh point), or per group a 1-D integer array of node
     ids; each point is a material point (barycentric in its tetrahedron). ``targets`` as
-    :func:`register`'s (paired points, polyline, cloud, surface). ``fixed``: node ids held at rest.
+    :func:`register`'s (paired points, polyline, cloud, surface). ``fixed``: node ids held at rest, or at
+    ``fixed_positions`` (K, 3) mm when given (hard constraints, libigl's ``b`` / ``bc``); with fixed
+    nodes, ``landmarks`` and ``targets`` may be None.
     ``landmark_weight`` None: 100 × E_ARAP(unit stretch) / (K L²).
 
     Returns ``positions`` (N, 3) mm, the deformed nodes, and ``report`` (iterations,
     initial_mean_distance_mm, mean_distance_mm, history_mm, converged, seconds)."""
     ...
 
-def drbc(nodes: np.ndarray, tets: np.ndarray, landmarks: Landmarks, targets: Targets, fixed: Optional[np.ndarray]=..., young_kpa: float=..., poisson: float=..., lam: Optional[float]=..., iterations: int=..., outside_tolerance_mm: float=...) -> Dict[str, Any]:
+def drbc(nodes: np.ndarray, tets: np.ndarray, landmarks: Optional[Landmarks]=..., targets: Optional[Targets]=..., fixed: Optional[np.ndarray]=..., fixed_positions: Optional[np.ndarray]=..., young_kpa: float=..., poisson: float=..., lam: Optional[float]=..., iterations: int=..., outside_tolerance_mm: float=...) -> Dict[str, Any]:
     """DRBC (Collins 2020): minimise Σ dist² + λ Σ_e V_e ψ(F_e) with the Neo-Hookean energy ψ of eq. 5.3
     (``young_kpa``, ``poisson``) on the tetrahedra, by Newton with an exact distance Hessian and an
     inversion-safe line search. ``lam`` None: 0.01 K L² / (V μ). Other arguments and the result as
     :func:`arap`; François et al. [2021] is this on a mesh cut along the assumed resection."""
     ...
 
-def lddmm(nodes: np.ndarray, tets: np.ndarray, landmarks: Landmarks, targets: Targets, fixed: Optional[np.ndarray]=..., sigma_mm: float=..., steps: int=..., gamma: float=..., iterations: int=..., outside_tolerance_mm: float=...) -> Dict[str, Any]:
+def lddmm(nodes: np.ndarray, tets: np.ndarray, landmarks: Optional[Landmarks]=..., targets: Optional[Targets]=..., fixed: Optional[np.ndarray]=..., fixed_positions: Optional[np.ndarray]=..., sigma_mm: float=..., steps: int=..., gamma: float=..., iterations: int=..., outside_tolerance_mm: float=...) -> Dict[str, Any]:
     """Landmark LDDMM (Beg 2005): geodesic shooting of momenta at the source landmarks with a Gaussian
     kernel of width ``sigma_mm`` over ``steps`` Euler steps, minimising Σ dist² + ``gamma`` × the geodesic
     energy by L-BFGS with the adjoint gradient; every node is advected by the same flow. Other arguments
