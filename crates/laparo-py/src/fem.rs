@@ -196,3 +196,86 @@ pub fn fem_solve<'py>(
         Ok(out.into_any())
     })
 }
+
+/// Crack the tetrahedral mesh (nodes, tets) along a blade swept from the `mouth` polyline (P, 3) mm
+/// inward along `directions` (3,) or (P, 3) to `depths_mm` (scalar or (P,)); returns a dict with the cut
+/// mesh (`nodes`, `tets`: crack nodes duplicated), `crack_faces_a` / `crack_faces_b` (each wound outward
+/// from its own side), `lips` (the two mouth polylines as node ids), `original_node`, `tet_side`,
+/// `front_nodes`, the blade triangles (`blade_vertices`, `blade_faces`) and, when `landmarks` > 0, that
+/// many lip landmarks (half per lip, equally spaced by arc length: `landmark_side`, `landmark_nodes`
+/// (L, 2), `landmark_t`, `landmark_positions` (L, 3) mm).
+#[pyfunction]
+#[pyo3(signature = (nodes, tets, mouth, directions, depths_mm, overshoot_mm=2.0, landmarks=0))]
+#[allow(clippy::too_many_arguments)]
+pub fn fem_cut<'py>(
+    py: Python<'py>,
+    nodes: &Bound<'py, PyAny>,
+    tets: &Bound<'py, PyAny>,
+    mouth: &Bound<'py, PyAny>,
+    directions: &Bound<'py, PyAny>,
+    depths_mm: &Bound<'py, PyAny>,
+    overshoot_mm: f64,
+    landmarks: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    guard(|| {
+        let mesh = tet_mesh(nodes, tets)?;
+        let mouth = points3(mouth, "mouth")?;
+        let p = mouth.len();
+        let d = f64_array(directions, "directions")?;
+        d.require_finite("directions")?;
+        let directions: Vec<nalgebra::Vector3<f64>> = match d.shape.as_slice() {
+            [3] => vec![nalgebra::Vector3::new(d.data[0], d.data[1], d.data[2]); p],
+            [m, 3] if *m == p => d.data.chunks_exact(3).map(|c| nalgebra::Vector3::new(c[0], c[1], c[2])).collect(),
+            s => return Err(bad("directions", format!("expected (3,) or ({p}, 3), got {s:?}"))),
+        };
+        if let Some(i) = directions.iter().position(|v| v.norm() == 0.0) {
+            return Err(bad("directions", format!("direction {i} is zero")));
+        }
+        let directions: Vec<_> = directions.iter().map(|v| v.normalize()).collect();
+        let depths: Vec<f64> = match depths_mm.extract::<f64>() {
+            Ok(x) => vec![x; p],
+            Err(_) => {
+                let a = f64_array(depths_mm, "depths_mm")?;
+                if a.shape != [p] {
+                    return Err(bad("depths_mm", format!("expected a scalar or ({p},), got {:?}", a.shape)));
+                }
+                a.data
+            }
+        };
+        let blade = laparo_fem::mesh::Blade { mouth, directions, depths, overshoot_mm };
+        let cut = par(py, || laparo_fem::mesh::cut(&mesh, &blade)).map_err(lib_err)?;
+        let lms = if landmarks > 0 { Some(cut.landmarks(landmarks).map_err(lib_err)?) } else { None };
+        let ids = |v: &[usize]| v.iter().map(|&k| k as i64).collect::<Vec<i64>>();
+        let tri = |f: &[[usize; 3]]| f.iter().flatten().map(|&k| k as i64).collect::<Vec<i64>>();
+        let out = PyDict::new(py);
+        let (n, t) = mesh_out(py, &cut.mesh)?;
+        out.set_item("nodes", n)?;
+        out.set_item("tets", t)?;
+        for (k, name) in ["crack_faces_a", "crack_faces_b"].iter().enumerate() {
+            out.set_item(*name, to_numpy(py, tri(&cut.crack_faces[k]), &[cut.crack_faces[k].len(), 3])?)?;
+        }
+        let lips = [
+            to_numpy(py, ids(&cut.lips[0]), &[cut.lips[0].len()])?,
+            to_numpy(py, ids(&cut.lips[1]), &[cut.lips[1].len()])?,
+        ];
+        out.set_item("lips", lips.to_vec())?;
+        out.set_item("original_node", to_numpy(py, ids(&cut.original_node), &[cut.original_node.len()])?)?;
+        let side: Vec<i64> = cut.tet_side.iter().map(|&s| i64::from(s)).collect();
+        out.set_item("tet_side", to_numpy(py, side, &[cut.tet_side.len()])?)?;
+        out.set_item("front_nodes", to_numpy(py, ids(&cut.front_nodes), &[cut.front_nodes.len()])?)?;
+        let bv: Vec<f64> = cut.blade.vertices.iter().flat_map(|v| v.iter().copied()).collect();
+        out.set_item("blade_vertices", to_numpy(py, bv, &[cut.blade.vertices.len(), 3])?)?;
+        out.set_item("blade_faces", to_numpy(py, tri(&cut.blade.faces), &[cut.blade.faces.len(), 3])?)?;
+        if let Some(l) = lms {
+            let m = l.items.len();
+            out.set_item("landmark_side", to_numpy(py, l.items.iter().map(|x| i64::from(x.side)).collect(), &[m])?)?;
+            let pairs: Vec<i64> = l.items.iter().flat_map(|x| [x.a as i64, x.b as i64]).collect();
+            out.set_item("landmark_nodes", to_numpy(py, pairs, &[m, 2])?)?;
+            out.set_item("landmark_t", to_numpy(py, l.items.iter().map(|x| x.t).collect(), &[m])?)?;
+            let pos: Vec<f64> =
+                l.landmark_positions(&cut.mesh.vertices).iter().flat_map(|v| v.iter().copied()).collect();
+            out.set_item("landmark_positions", to_numpy(py, pos, &[m, 3])?)?;
+        }
+        Ok(out.into_any())
+    })
+}

@@ -74,6 +74,7 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fem::fem_tetrahedralize, m)?)?;
     m.add_function(wrap_pyfunction!(fem::fem_quality, m)?)?;
     m.add_function(wrap_pyfunction!(fem::fem_solve, m)?)?;
+    m.add_function(wrap_pyfunction!(fem::fem_cut, m)?)?;
     m.add_class::<cpc::PyCpcWarp>()?;
     m.add_function(wrap_pyfunction!(cpc::cpc_warp_frame, m)?)?;
     m.add_class::<mpm::PyMpmScene>()?;

@@ -189,3 +189,58 @@ def test_errors_name_the_argument():
     top = end_faces(nodes, tets, 4.0)
     with pytest.raises(ValueError):
         F.solve(nodes, tets, fixed, face_tractions=(top, np.tile([0.0, 0.0, -50.0], (len(top), 1))), steps=2)
+
+
+def test_cut_a_box_along_a_node_plane_by_hand():
+    """A blade in the node plane x = 10 of a 20 × 10 × 10 mm box (2.5 mm cells), from the top face down to
+    z = 5: crack area 10 × 5 mm², the plane's nodes above the front duplicated, the lips, their landmarks by
+    arc length; the crack pressure opens it."""
+    nodes, tets = box_tets([8, 4, 4], 2.5)
+    c = F.cut(nodes, tets, mouth=[[10.0, -1.0, 10.0], [10.0, 11.0, 10.0]], directions=[0.0, 0.0, -1.0],
+              depths_mm=5.0, landmarks=4)
+    n2, t2 = c["nodes"], c["tets"]
+    assert len(t2) == len(tets) and (tet_volumes(n2, t2) > 0).all()
+    # nodes of the plane strictly above the front (z = 7.5, 10), 5 per row: 10 duplicated
+    assert len(n2) == len(nodes) + 10
+    # positions unchanged up to round-off of the snap: the plane already holds the nodes
+    np.testing.assert_allclose(nodes[c["original_node"]], n2, rtol=0, atol=1e-12)
+    for k in ("crack_faces_a", "crack_faces_b"):
+        f = c[k]
+        a, b, cc = (n2[f[:, i]] for i in range(3))
+        assert np.abs(n2[f][:, :, 0] - 10.0).max() < 1e-12
+        assert 0.5 * np.linalg.norm(np.cross(b - a, cc - a), axis=1).sum() == pytest.approx(50.0, rel=1e-12)
+    # side A is the side of (mouth tangent) × (direction) = (0, 1, 0) × (0, 0, −1) = −x: its faces point +x (outward)
+    fa = c["crack_faces_a"]
+    na = np.cross(n2[fa[:, 1]] - n2[fa[:, 0]], n2[fa[:, 2]] - n2[fa[:, 0]])
+    assert (na[:, 0] > 0).all()
+    # each lip is where the crack meets the outer surface: down the side y = 0 from the front (z = 5), along the
+    # top edge, down the side y = 10: a U of 5 + 10 + 5 = 20 mm through 9 nodes, its two ends the shared front nodes
+    u_path = np.array([[10, 0, 5], [10, 0, 7.5], [10, 0, 10], [10, 2.5, 10], [10, 5, 10], [10, 7.5, 10], [10, 10, 10],
+                       [10, 10, 7.5], [10, 10, 5]], float)
+    for lip in c["lips"]:
+        np.testing.assert_allclose(n2[lip], u_path, rtol=0, atol=1e-12)
+    assert set(c["lips"][0]) & set(c["lips"][1]) == {c["lips"][0][0], c["lips"][0][-1]}
+    assert set(c["front_nodes"]) == set(np.flatnonzero((np.abs(n2[:, 0] - 10.0) < 1e-12) & (np.abs(n2[:, 2] - 5.0) < 1e-12)))
+    # 2 landmarks per lip at arc lengths (k + 1/2) 20 / 2 = 5 and 15 mm: the two top corners
+    want = np.array([[10.0, 0.0, 10.0], [10.0, 10.0, 10.0]] * 2)
+    np.testing.assert_allclose(c["landmark_positions"], want, atol=1e-12)
+    np.testing.assert_array_equal(c["landmark_side"], [0, 0, 1, 1])
+    # open it: fixed bottom, equal and opposite pressure on the crack faces
+    fixed = np.flatnonzero(n2[:, 2] == 0.0)
+    out = F.solve(n2, t2, fixed, face_tractions=F.crack_pressure(c, 0.2), steps=4)
+    u = out["displacement"]
+    ua, ub = u[c["lips"][0][1:-1]], u[c["lips"][1][1:-1]]  # without the shared front nodes at the ends
+    assert (ua[:, 0] < -0.3).all() and (ub[:, 0] > 0.3).all()  # side A (−x) and side B (+x) pushed apart
+    assert out["report"]["min_j"] > 0
+
+
+def test_cut_errors_name_the_input():
+    nodes, tets = box_tets([2, 2, 2], 2.5)
+    with pytest.raises(ValueError, match="blade|miss"):
+        F.cut(nodes, tets, mouth=[[50.0, 0.0, 5.0], [50.0, 5.0, 5.0]], directions=[0, 0, -1], depths_mm=2.0)
+    with pytest.raises(ValueError, match="directions"):
+        F.cut(nodes, tets, mouth=[[2.5, -1.0, 5.0], [2.5, 6.0, 5.0]], directions=[0, 0, 0], depths_mm=2.0)
+    with pytest.raises(ValueError, match="depth"):
+        F.cut(nodes, tets, mouth=[[2.5, -1.0, 5.0], [2.5, 6.0, 5.0]], directions=[0, 0, -1], depths_mm=-1.0)
+    with pytest.raises(ValueError, match="depths_mm"):
+        F.cut(nodes, tets, mouth=[[2.5, -1.0, 5.0], [2.5, 6.0, 5.0]], directions=[0, 0, -1], depths_mm=np.ones(3))

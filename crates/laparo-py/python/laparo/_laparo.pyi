@@ -169,6 +169,11 @@ def fem_solve(
     rel_tol: float = 1e-8, quadrature: str = "degree2", solver: str = "auto",
 ) -> Dict[str, Any]: ...
 
+def fem_cut(
+    nodes: np.ndarray, tets: np.ndarray, mouth: np.ndarray, directions: np.ndarray, depths_mm: Any,
+    overshoot_mm: float = 2.0, landmarks: int = 0,
+) -> Dict[str, Any]: ...
+
 class CpcWarp:
     canvas_size: Tuple[int, int]
     canvas_origin: Tuple[float, float]

@@ -6,6 +6,9 @@
   boundary snapping (licence-clean; min dihedral ≥ ``min_dihedral_deg``) and a quality report;
 * :func:`quality` — the quality report of any tetrahedral mesh (dihedral angles, edges, volume; with
   the surface: volume error and boundary distances);
+* :func:`cut` — an incision: crack the mesh along a blade swept inward from a mouth polyline on the
+  surface (crack nodes duplicated, so the two lips are disconnected), with lip polylines and landmarks;
+  :func:`crack_pressure` — the equal and opposite pressure on the two crack faces that opens it;
 * :func:`solve` — static equilibrium of a nearly incompressible Neo-Hookean solid (E kPa, ν) on the
   quadratic (TET10) tetrahedra of a linear mesh: fixed vertices, dead face tractions (kPa) and nodal
   forces (mN) ramped over load increments, Newton with a line search to ‖residual‖ ≤ ``rel_tol`` of
@@ -47,4 +50,26 @@ def solve(nodes: np.ndarray, tets: np.ndarray, fixed: Union[np.ndarray, Sequence
     residuals, min_j, max_displacement_mm, free_dofs, timings). Raises ValueError naming the
     argument on bad input, and when an increment cannot converge (e.g. loads that invert elements).
     """
+    ...
+
+def cut(nodes: np.ndarray, tets: np.ndarray, mouth: np.ndarray, directions: np.ndarray, depths_mm: Union[float, np.ndarray], overshoot_mm: float=..., landmarks: int=...) -> Dict[str, Any]:
+    """Crack the tetrahedral mesh (``nodes`` (N, 3) mm, ``tets`` (T, 4) int, positively oriented, e.g.
+    from :func:`tetrahedralize`) along the blade swept from ``mouth`` (P, 3) mm, the incision's polyline on
+    the organ surface, inward along ``directions`` ((3,) or (P, 3)) to ``depths_mm`` (scalar or (P,)),
+    extended ``overshoot_mm`` outward. Faces between tetrahedra on opposite sides of the blade separate;
+    crack nodes move onto the blade where that keeps the min dihedral ≥ 10°.
+
+    Returns ``nodes`` / ``tets`` (the cut mesh), ``crack_faces_a`` / ``crack_faces_b`` (F, 3) (wound
+    outward from their own side), ``lips`` (two arrays of node ids: the mouth on side A and B),
+    ``original_node`` (cut node → input node), ``tet_side`` (0, or 1 / 2 for a tet owning a crack face of
+    side A / B), ``front_nodes``, ``blade_vertices`` / ``blade_faces``; with ``landmarks`` = L > 0, L lip
+    landmarks (L/2 per lip, at arc lengths (k + ½) ℓ / (L/2)): ``landmark_side``, ``landmark_nodes``
+    (L, 2) and ``landmark_t`` (the point (1 − t) x[a] + t x[b]), ``landmark_positions`` (L, 3) mm.
+    A blade that misses the mesh raises ValueError."""
+    ...
+
+def crack_pressure(cut_mesh: Dict[str, Any], p_kpa: float) -> Tuple[np.ndarray, np.ndarray]:
+    """Equal and opposite pressure ``p_kpa`` on the two crack faces of a :func:`cut` result, each pushing
+    into its own side (the forces that open the incision, thesis §5.4.2), as ``face_tractions`` for
+    :func:`solve`: (faces (F, 3), pressures (F,) along (b − a) × (c − a), i.e. −p on the outward faces)."""
     ...
