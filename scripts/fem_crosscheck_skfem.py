@@ -179,6 +179,20 @@ def main():
         print(f"max |u| scikit-fem {umax:.5f} mm, laparo {np.linalg.norm(u_l, axis=1).max():.5f} mm; "
               f"max nodal |u_laparo - u_skfem| {diff:.3e} mm = {100 * diff / umax:.4f} % of max |u| "
               f"-> {'OK (<= 1 %)' if diff <= 0.01 * umax else 'MISMATCH'}")
+        try:
+            import laparo  # the Python package (maturin develop -m crates/laparo-py/Cargo.toml), in this process
+        except ImportError:
+            print("laparo's Python package is not installed here: in-process timing skipped")
+            return
+        t0 = time.time()
+        faces = np.array(top_faces, dtype=np.int64)
+        r = laparo.fem.solve(pts, tets.astype(np.int64), fixed.astype(np.int64),
+                             face_tractions=(faces, np.tile(traction, (len(faces), 1))), steps=a.steps,
+                             quadrature="degree5")
+        t_py = time.time() - t0
+        dpy = np.linalg.norm(r["displacement"] - u_l, axis=1).max()
+        print(f"in-process laparo.fem.solve: {t_py:.2f} s (NumPy in and out), scikit-fem / laparo = {t_skfem / t_py:.1f}; "
+              f"max nodal difference to the CLI {dpy:.1e} mm")
 
 
 if __name__ == "__main__":
