@@ -249,7 +249,8 @@ def arap(
 
     ``landmarks`` as :func:`register`'s (points in mm inside or on the mesh; a point outside by at most
     ``outside_tolerance_mm`` takes the closest mesh point), or per group a 1-D integer array of node
-    ids; each point is a material point (barycentric in its tetrahedron). ``targets`` as
+    ids; each point is a material point (barycentric in its tetrahedron; a point on a crack face, where
+    the two lips' duplicated nodes coincide, belongs to either side: give lip landmarks as node ids). ``targets`` as
     :func:`register`'s (paired points, polyline, cloud, surface). ``fixed``: node ids held at rest, or at
     ``fixed_positions`` (K, 3) mm when given (hard constraints, libigl's ``b`` / ``bc``); with fixed
     nodes, ``landmarks`` and ``targets`` may be None.
