@@ -8,7 +8,7 @@ use laparo_core::mesh::TetMesh;
 use laparo_fem::NeoHookean;
 use laparo_register::baselines::{
     arap, drbc, lddmm, ArapConfig, ArapEnergy, ArapWeights, BaselineProblem, BaselineResult, DrbcConfig, LddmmConfig,
-    MaterialPoint, MeshLandmarkGroup,
+    MeshLandmarkGroup, TetLocator,
 };
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -41,6 +41,7 @@ fn problem(
         (None, None) => (Vec::new(), Vec::new()),
         _ => return Err(bad("targets", "give both landmarks and targets, or neither (fixed nodes only)")),
     };
+    let locator = TetLocator::new(&mesh);
     let mut out = Vec::with_capacity(groups.len());
     for (g, spec) in groups.iter().zip(&specs) {
         let points = g
@@ -49,7 +50,7 @@ fn problem(
             .enumerate()
             .map(|(k, p)| {
                 let what = format!("landmarks: group {:?} landmark {k}", g.name);
-                MaterialPoint::locate(&mesh, p, outside_tolerance_mm, &what).map_err(lib_err)
+                locator.locate(p, outside_tolerance_mm, &what).map_err(lib_err)
             })
             .collect::<PyResult<Vec<_>>>()?;
         out.push(MeshLandmarkGroup {

@@ -52,17 +52,20 @@ pub trait ClosestPoint<const D: usize>: Sync + Send {
     }
 }
 
-/// Generic primitive set (points, segments or triangles) with the exact centroid-tree query.
-struct Accel<const D: usize> {
+/// Generic primitive set (points, segments, triangles or tetrahedra) with the exact centroid-tree query.
+pub(crate) struct Accel<const D: usize> {
     tree: Tree<D>,
     r_max: f64,
 }
 
 impl<const D: usize> Accel<D> {
-    fn new(centroids: &[Vector<D>], r_max: f64) -> Self {
+    /// Primitives with these centroids, none of whose points is farther than `r_max` from its centroid.
+    pub(crate) fn new(centroids: &[Vector<D>], r_max: f64) -> Self {
         Accel { tree: build_tree(centroids), r_max }
     }
-    fn query(&self, x: &Vector<D>, closest: impl Fn(usize) -> Vector<D>) -> (Vector<D>, usize) {
+    /// The closest point to `x` over the primitives (`closest(i)`: primitive i's closest point) and its
+    /// primitive; ties → the smallest index.
+    pub(crate) fn query(&self, x: &Vector<D>, closest: impl Fn(usize) -> Vector<D>) -> (Vector<D>, usize) {
         let q = arr(x);
         let first = self.tree.nearest_one::<SquaredEuclidean>(&q).item as usize;
         let mut best = (closest(first), first);

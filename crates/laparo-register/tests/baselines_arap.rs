@@ -161,4 +161,20 @@ fn material_point_locate_by_hand() {
     let msg = e.to_string();
     assert!(msg.contains("group `a` landmark 3") && msg.contains("1.732 mm outside"), "{msg}");
     assert!(MaterialPoint::locate(&mesh, &Vector3::new(f64::NAN, 0.0, 0.0), 1.0, "lm").is_err());
+    // many points through one locator: inside, reproduced; outside within the tolerance, the box's closest
+    // point (the coordinate-wise clamp) — by hand, whichever tetrahedron the k-d tree picks
+    let loc = TetLocator::new(&mesh);
+    let hi = Vector3::new(20.0, 15.0, 10.0);
+    let mut state = 12345u64;
+    let mut rnd = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for k in 0..400 {
+        let p = Vector3::new(rnd() * 22.0 - 1.0, rnd() * 17.0 - 1.0, rnd() * 12.0 - 1.0);
+        let clamp = p.zip_map(&hi, |x, h| x.clamp(0.0, h));
+        let m = loc.locate(&p, 2.0, "lm").unwrap();
+        assert!((m.position(&mesh.vertices) - clamp).norm() < 1e-9, "point {k} {p:?}");
+        assert!((m.nodes.iter().map(|q| q.1).sum::<f64>() - 1.0).abs() < 1e-12);
+    }
 }

@@ -8,12 +8,12 @@
 //! [`GroupTarget`]s of eq. 5.10 (closest point recomputed at every evaluation, so the distance is the
 //! one RODS-MPM is scored with), and optional fixed nodes. Each returns the deformed node positions
 //! (mm) and a [`BaselineReport`].
+use crate::distance::Accel;
 use crate::loss::GroupTarget;
 use crate::{RegisterError, Result};
 use laparo_core::geometry::closest_point_on_triangle;
 use laparo_core::mesh::TetMesh;
 use nalgebra::{Matrix3, Vector3};
-use rayon::prelude::*;
 
 pub mod arap;
 pub mod drbc;
@@ -47,29 +47,57 @@ impl MaterialPoint {
         self.nodes.iter().map(|&(i, w)| x[i] * w).sum()
     }
 
-    /// The material point of the rest mesh at `p` (mm): the barycentric coordinates of the tetrahedron
-    /// that contains it (its nodes with weight > 0; a node itself when `p` is on it). A point outside
-    /// the mesh by at most `tolerance_mm` (e.g. a landmark picked on the organ surface, which a
-    /// tetrahedralisation approximates) takes the closest point of the nearest tetrahedron; farther
-    /// out is an error naming `what`.
+    /// The material point of the rest mesh at `p` (mm): see [`TetLocator::locate`] (which to use for
+    /// many points: this builds the locator's k-d tree for one).
     pub fn locate(mesh: &TetMesh, p: &Vector3<f64>, tolerance_mm: f64, what: &str) -> Result<Self> {
+        TetLocator::new(mesh).locate(p, tolerance_mm, what)
+    }
+}
+
+/// Point location in a rest tetrahedral mesh: a k-d tree over the tetrahedra's centroids and the exact
+/// centroid-bound query of [`crate::distance`] (the nearest tetrahedron, ties to the smallest index).
+pub struct TetLocator<'a> {
+    mesh: &'a TetMesh,
+    accel: Accel<3>,
+}
+
+impl<'a> TetLocator<'a> {
+    /// Index the tetrahedra of `mesh`.
+    pub fn new(mesh: &'a TetMesh) -> Self {
+        let corners = |t: &[usize; 4]| t.map(|k| mesh.vertices[k]);
+        let centroids: Vec<Vector3<f64>> =
+            mesh.tets.iter().map(|t| corners(t).iter().sum::<Vector3<f64>>() / 4.0).collect();
+        let r_max = mesh
+            .tets
+            .iter()
+            .zip(&centroids)
+            .map(|(t, c)| corners(t).iter().map(|v| (v - c).norm()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        TetLocator { mesh, accel: Accel::new(&centroids, r_max) }
+    }
+
+    /// The material point at `p` (mm): the barycentric coordinates of the tetrahedron that contains it
+    /// (its nodes with weight > 0; a node itself when `p` is on it). A point outside the mesh by at most
+    /// `tolerance_mm` (e.g. a landmark picked on the organ surface, which a tetrahedralisation
+    /// approximates) takes the closest point of the nearest tetrahedron; farther out is an error naming
+    /// `what`. A point on a crack face, where two sides' duplicated nodes coincide, goes to the
+    /// tetrahedron of smaller index.
+    pub fn locate(&self, p: &Vector3<f64>, tolerance_mm: f64, what: &str) -> Result<MaterialPoint> {
         if !p.iter().all(|c| c.is_finite()) {
             return Err(RegisterError::bad(what, format!("non-finite position {:?}", p.as_slice())));
         }
-        // (distance to the tet in mm, tet index, barycentric weights of the closest point)
-        let best = mesh
-            .tets
-            .par_iter()
-            .enumerate()
-            .filter_map(|(e, t)| {
-                let c = t.map(|k| mesh.vertices[k]);
-                let (q, w) = closest_point_in_tet(&c, p)?;
-                Some(((q - p).norm(), e, w))
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let Some((dist, e, w)) = best else {
+        let mesh = self.mesh;
+        if mesh.tets.is_empty() {
+            return Err(RegisterError::bad(what, "the mesh has no tetrahedron"));
+        }
+        let corners = |e: usize| mesh.tets[e].map(|k| mesh.vertices[k]);
+        let (q, e) = self
+            .accel
+            .query(p, |e| closest_point_in_tet(&corners(e), p).map_or(Vector3::repeat(f64::INFINITY), |r| r.0));
+        let Some((_, w)) = closest_point_in_tet(&corners(e), p) else {
             return Err(RegisterError::bad(what, "the mesh has no non-degenerate tetrahedron"));
         };
+        let dist = (q - p).norm();
         if dist > tolerance_mm {
             return Err(RegisterError::bad(
                 what,
