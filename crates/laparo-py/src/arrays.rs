@@ -180,6 +180,21 @@ pub fn points3(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<nalgebra::Vect
     Ok(a.data.chunks_exact(3).map(|p| nalgebra::Vector3::new(p[0], p[1], p[2])).collect())
 }
 
+/// Row-major (N·D) values of D-vectors, for an (N, D) NumPy array.
+pub fn flat<const D: usize>(v: &[nalgebra::SVector<f64, D>]) -> Vec<f64> {
+    v.iter().flat_map(|x| x.iter().copied()).collect()
+}
+
+/// A tetrahedral mesh from `nodes` (N, 3) mm and `tets` (T, 4) node ids (at least one tetrahedron).
+pub fn tet_mesh(nodes: &Bound<'_, PyAny>, tets: &Bound<'_, PyAny>) -> PyResult<laparo_core::mesh::TetMesh> {
+    let vertices = points3(nodes, "nodes")?;
+    let tets = index_rows::<4>(tets, "tets", "tets", vertices.len())?;
+    if tets.is_empty() {
+        return Err(bad("tets", "no tetrahedron"));
+    }
+    Ok(laparo_core::mesh::TetMesh { vertices, tets })
+}
+
 /// (M, K) indices into `n` items (integers, or floats with no fraction), e.g. triangle faces (K = 3)
 /// or tetrahedra (K = 4); `arg` names the argument and `what` its owner in errors.
 pub fn index_rows<const K: usize>(

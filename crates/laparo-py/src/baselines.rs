@@ -4,7 +4,6 @@
 //! (the eq. 5.10 distance, closest point recomputed at every evaluation) → the deformed nodes.
 use crate::arrays::*;
 use crate::register::{landmarks_from, targets_from};
-use laparo_core::mesh::TetMesh;
 use laparo_fem::NeoHookean;
 use laparo_register::baselines::{
     arap, drbc, lddmm, ArapConfig, ArapEnergy, ArapWeights, BaselineProblem, BaselineResult, DrbcConfig, LddmmConfig,
@@ -23,15 +22,10 @@ fn problem(
     fixed_positions: Option<&Bound<'_, PyAny>>,
     outside_tolerance_mm: f64,
 ) -> PyResult<BaselineProblem> {
-    let vertices = points3(nodes, "nodes")?;
-    let tets = index_rows::<4>(tets, "tets", "tets", vertices.len())?;
-    if tets.is_empty() {
-        return Err(bad("tets", "no tetrahedron"));
-    }
+    let mesh = tet_mesh(nodes, tets)?;
     if !(outside_tolerance_mm.is_finite() && outside_tolerance_mm >= 0.0) {
         return Err(bad("outside_tolerance_mm", format!("{outside_tolerance_mm}: must be finite and ≥ 0")));
     }
-    let mesh = TetMesh { vertices, tets };
     let (groups, specs) = match (landmarks, targets) {
         (Some(l), Some(t)) => {
             let groups = landmarks_from(l)?;
@@ -83,8 +77,7 @@ fn problem(
 
 fn result_out<'py>(py: Python<'py>, r: &BaselineResult) -> PyResult<Bound<'py, PyAny>> {
     let out = PyDict::new(py);
-    let flat: Vec<f64> = r.positions.iter().flat_map(|v| v.iter().copied()).collect();
-    out.set_item("positions", to_numpy(py, flat, &[r.positions.len(), 3])?)?;
+    out.set_item("positions", to_numpy(py, flat(&r.positions), &[r.positions.len(), 3])?)?;
     out.set_item("report", to_py(py, &r.report)?)?;
     Ok(out.into_any())
 }

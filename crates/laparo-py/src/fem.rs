@@ -12,15 +12,6 @@ use laparo_fem::NeoHookean;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-fn tet_mesh(nodes: &Bound<'_, PyAny>, tets: &Bound<'_, PyAny>) -> PyResult<TetMesh> {
-    let vertices = points3(nodes, "nodes")?;
-    let tets = index_rows::<4>(tets, "tets", "tets", vertices.len())?;
-    if tets.is_empty() {
-        return Err(bad("tets", "no tetrahedron"));
-    }
-    Ok(TetMesh { vertices, tets })
-}
-
 fn surface(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>, what: &str) -> PyResult<Surface> {
     let v = points3(vertices, "vertices")?;
     let f = index_rows::<3>(faces, "faces", what, v.len())?;
@@ -28,8 +19,7 @@ fn surface(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>, what: &str) ->
 }
 
 fn mesh_out<'py>(py: Python<'py>, mesh: &TetMesh) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let nodes =
-        to_numpy(py, mesh.vertices.iter().flat_map(|v| v.iter().copied()).collect(), &[mesh.vertices.len(), 3])?;
+    let nodes = to_numpy(py, flat(&mesh.vertices), &[mesh.vertices.len(), 3])?;
     let tets = to_numpy(py, mesh.tets.iter().flatten().map(|&k| k as i64).collect(), &[mesh.tets.len(), 4])?;
     Ok((nodes, tets))
 }
@@ -186,7 +176,6 @@ pub fn fem_solve<'py>(
         let problem = SolidProblem::new(mesh, material, &dirichlet, &loads, quadrature).map_err(lib_err)?;
         let settings = SolverSettings { steps, rel_tol, linear, ..Default::default() };
         let sol = par(py, || solve(&problem, &settings)).map_err(lib_err)?;
-        let flat = |d: &[nalgebra::Vector3<f64>]| d.iter().flat_map(|v| v.iter().copied()).collect::<Vec<f64>>();
         let out = PyDict::new(py);
         out.set_item("displacement", to_numpy(py, flat(sol.vertex_displacements()), &[n, 3])?)?;
         let m = problem.mesh.n_nodes();
@@ -263,8 +252,7 @@ pub fn fem_cut<'py>(
         let side: Vec<i64> = cut.tet_side.iter().map(|&s| i64::from(s)).collect();
         out.set_item("tet_side", to_numpy(py, side, &[cut.tet_side.len()])?)?;
         out.set_item("front_nodes", to_numpy(py, ids(&cut.front_nodes), &[cut.front_nodes.len()])?)?;
-        let bv: Vec<f64> = cut.blade.vertices.iter().flat_map(|v| v.iter().copied()).collect();
-        out.set_item("blade_vertices", to_numpy(py, bv, &[cut.blade.vertices.len(), 3])?)?;
+        out.set_item("blade_vertices", to_numpy(py, flat(&cut.blade.vertices), &[cut.blade.vertices.len(), 3])?)?;
         out.set_item("blade_faces", to_numpy(py, tri(&cut.blade.faces), &[cut.blade.faces.len(), 3])?)?;
         if let Some(l) = lms {
             let m = l.items.len();
@@ -272,9 +260,10 @@ pub fn fem_cut<'py>(
             let pairs: Vec<i64> = l.items.iter().flat_map(|x| [x.a as i64, x.b as i64]).collect();
             out.set_item("landmark_nodes", to_numpy(py, pairs, &[m, 2])?)?;
             out.set_item("landmark_t", to_numpy(py, l.items.iter().map(|x| x.t).collect(), &[m])?)?;
-            let pos: Vec<f64> =
-                l.landmark_positions(&cut.mesh.vertices).iter().flat_map(|v| v.iter().copied()).collect();
-            out.set_item("landmark_positions", to_numpy(py, pos, &[m, 3])?)?;
+            out.set_item(
+                "landmark_positions",
+                to_numpy(py, flat(&l.landmark_positions(&cut.mesh.vertices)), &[m, 3])?,
+            )?;
         }
         Ok(out.into_any())
     })

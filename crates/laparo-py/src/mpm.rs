@@ -26,10 +26,6 @@ fn vectors<const D: usize>(a: &Arr<f64>) -> Vec<Vector<D>> {
     a.data.chunks(D).map(Vector::<D>::from_column_slice).collect()
 }
 
-fn flat<const D: usize>(v: &[Vector<D>]) -> Vec<f64> {
-    v.iter().flat_map(|x| x.iter().copied().collect::<Vec<_>>()).collect()
-}
-
 fn flat_m<const D: usize>(v: &[Matrix<D>]) -> Vec<f64> {
     // Row-major D×D per particle.
     v.iter().flat_map(|m| (0..D).flat_map(move |i| (0..D).map(move |j| m[(i, j)]))).collect()

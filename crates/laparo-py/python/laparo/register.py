@@ -21,6 +21,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _laparo
+from .fem import _idx
 
 PathLike = Union[str, "os.PathLike[str]"]
 Landmarks = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
@@ -212,20 +213,11 @@ def _mesh_landmarks(lm: Any, nodes: np.ndarray) -> Any:
 
 
 def _mesh(nodes: Any, tets: Any) -> Tuple[np.ndarray, np.ndarray]:
-    n = _points(nodes, "nodes")
-    t = np.asarray(tets)
-    if t.dtype.kind not in "iu" or t.ndim != 2 or t.shape[1] != 4:
-        raise ValueError(f"tets: expected (T, 4) integer node ids, got {t.dtype} {t.shape}")
-    return n, np.ascontiguousarray(t, dtype=np.float64)
+    return _points(nodes, "nodes"), _idx(tets, "tets", 4)
 
 
 def _fixed(fixed: Any) -> Optional[np.ndarray]:
-    if fixed is None:
-        return None
-    f = np.asarray(fixed)
-    if f.size and f.dtype.kind not in "iu":
-        raise TypeError(f"fixed: expected integer node ids, got dtype {f.dtype}")
-    return np.ascontiguousarray(f.reshape(-1), dtype=np.float64)
+    return None if fixed is None else _idx(np.asarray(fixed).reshape(-1), "fixed")
 
 
 def arap(

@@ -18,6 +18,7 @@ import os
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 import numpy as np
 from . import _laparo
+from .fem import _idx
 PathLike = Union[str, 'os.PathLike[str]']
 Landmarks = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
 Targets = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
