@@ -8,6 +8,7 @@ use crate::error::{GuideError, Result};
 use crate::tetmesh::GridTetMesh;
 use laparo_core::atomic::write_atomic;
 use laparo_core::mesh::{TetMesh, TriMesh};
+use laparo_register::baselines::TetLocator;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::collections::{HashMap, HashSet};
@@ -190,55 +191,11 @@ impl Deformation {
         let loc = TetLocator::new(&self.rest);
         pts.iter()
             .map(|p| {
-                let (t, w) = loc.locate(p);
+                let Some((t, w)) = loc.nearest_tet(p) else { return *p }; // no tetrahedron: nothing moves
                 let tet = self.rest.tets[t];
                 (0..4).map(|k| self.deformed[tet[k]] * w[k]).sum()
             })
             .collect()
-    }
-}
-
-/// Point location in a tetrahedral mesh (nearest centroids first).
-pub struct TetLocator<'a> {
-    mesh: &'a TetMesh,
-    tree: laparo_register::distance::Tree<3>,
-}
-
-impl<'a> TetLocator<'a> {
-    /// Index the tetrahedra of `mesh`.
-    pub fn new(mesh: &'a TetMesh) -> Self {
-        let c: Vec<Vector3<f64>> =
-            mesh.tets.iter().map(|t| t.iter().map(|&v| mesh.vertices[v]).sum::<Vector3<f64>>() / 4.0).collect();
-        TetLocator { mesh, tree: laparo_register::distance::build_tree(&c) }
-    }
-
-    /// Barycentric coordinates of `p` in tetrahedron `t`.
-    pub fn barycentric(&self, t: usize, p: &Vector3<f64>) -> [f64; 4] {
-        let v = &self.mesh.vertices;
-        let tet = self.mesh.tets[t];
-        let m = nalgebra::Matrix3::from_columns(&[v[tet[1]] - v[tet[0]], v[tet[2]] - v[tet[0]], v[tet[3]] - v[tet[0]]]);
-        let l = m.try_inverse().map(|mi| mi * (p - v[tet[0]])).unwrap_or_else(Vector3::zeros);
-        [1.0 - l.sum(), l[0], l[1], l[2]]
-    }
-
-    /// The tetrahedron containing `p` (or the one with the least negative barycentric coordinate
-    /// among the 64 nearest) and the barycentric coordinates of `p` in it.
-    pub fn locate(&self, p: &Vector3<f64>) -> (usize, [f64; 4]) {
-        let near =
-            self.tree.nearest_n::<kiddo::SquaredEuclidean>(&[p[0], p[1], p[2]], std::num::NonZero::new(64).unwrap());
-        let mut best = (usize::MAX, [0.0; 4], f64::NEG_INFINITY);
-        for nb in near {
-            let t = nb.item as usize;
-            let w = self.barycentric(t, p);
-            let m = w.iter().cloned().fold(f64::INFINITY, f64::min);
-            if m > best.2 || (m == best.2 && t < best.0) {
-                best = (t, w, m);
-            }
-            if m >= -1e-12 {
-                break;
-            }
-        }
-        (best.0, best.1)
     }
 }
 
@@ -409,9 +366,8 @@ pub fn synthetic_incision(g: &GridTetMesh, spec: &IncisionSpec) -> Result<Deform
         tumour_radius_mm: spec.tumour_radius_mm,
     };
     // the tumour must be inside the organ
-    let loc = TetLocator::new(&d.rest);
-    let (_, w) = loc.locate(&c);
-    if w.iter().any(|&x| x < -1e-9) {
+    let inside = TetLocator::new(&d.rest).nearest_tet(&c).is_some_and(|(_, w)| w.iter().all(|&x| x >= -1e-9));
+    if !inside {
         return Err(bad(format!("tumour centre {c:?} is outside the organ")));
     }
     d.validate("synthetic incision")?;

@@ -176,5 +176,13 @@ fn material_point_locate_by_hand() {
         let m = loc.locate(&p, 2.0, "lm").unwrap();
         assert!((m.position(&mesh.vertices) - clamp).norm() < 1e-9, "point {k} {p:?}");
         assert!((m.nodes.iter().map(|q| q.1).sum::<f64>() - 1.0).abs() < 1e-12);
+        // `nearest_tet`: unclamped weights, ≥ 0 inside; an affine field interpolated with them is the field
+        // at p itself, inside or outside (extrapolation of the nearest tetrahedron)
+        let (e, w) = loc.nearest_tet(&p).unwrap();
+        let inside = p.iter().zip(hi.iter()).all(|(&x, &h)| (0.0..=h).contains(&x));
+        assert_eq!(w.iter().all(|&v| v >= -1e-12), inside, "point {k} {p:?}: {w:?}");
+        let field = |x: &Vector3<f64>| Vector3::new(2.0 * x.x - x.z + 1.0, 0.5 * x.y + 3.0, x.x + x.y + x.z);
+        let at: Vector3<f64> = (0..4).map(|a| field(&mesh.vertices[mesh.tets[e][a]]) * w[a]).sum();
+        assert!((at - field(&p)).norm() < 1e-9, "point {k} {p:?}");
     }
 }

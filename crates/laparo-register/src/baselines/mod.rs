@@ -90,11 +90,8 @@ impl<'a> TetLocator<'a> {
         if mesh.tets.is_empty() {
             return Err(RegisterError::bad(what, "the mesh has no tetrahedron"));
         }
-        let corners = |e: usize| mesh.tets[e].map(|k| mesh.vertices[k]);
-        let (q, e) = self
-            .accel
-            .query(p, |e| closest_point_in_tet(&corners(e), p).map_or(Vector3::repeat(f64::INFINITY), |r| r.0));
-        let Some((_, w)) = closest_point_in_tet(&corners(e), p) else {
+        let (q, e) = self.nearest_point(p);
+        let Some((_, w)) = closest_point_in_tet(&self.corners(e), p) else {
             return Err(RegisterError::bad(what, "the mesh has no non-degenerate tetrahedron"));
         };
         let dist = (q - p).norm();
@@ -111,6 +108,32 @@ impl<'a> TetLocator<'a> {
         let nodes: Vec<(usize, f64)> = (0..4).filter(|&a| w[a] > 1e-12).map(|a| (t[a], w[a])).collect();
         let s: f64 = nodes.iter().map(|q| q.1).sum();
         Ok(MaterialPoint { nodes: nodes.into_iter().map(|(i, v)| (i, v / s)).collect() })
+    }
+
+    /// The tetrahedron nearest `p` (mm; the one containing it when inside, ties to the smallest index)
+    /// and the barycentric coordinates of `p` in it, not clamped: negative outside the mesh, so that
+    /// interpolating with them extrapolates the nearest tetrahedron's affine field. `None` for a mesh
+    /// without tetrahedra.
+    pub fn nearest_tet(&self, p: &Vector3<f64>) -> Option<(usize, [f64; 4])> {
+        if self.mesh.tets.is_empty() {
+            return None;
+        }
+        let e = self.nearest_point(p).1;
+        let c = self.corners(e);
+        let l = Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]])
+            .try_inverse()
+            .map_or_else(Vector3::zeros, |m| m * (p - c[0]));
+        Some((e, [1.0 - l.sum(), l.x, l.y, l.z]))
+    }
+
+    fn corners(&self, e: usize) -> [Vector3<f64>; 4] {
+        self.mesh.tets[e].map(|k| self.mesh.vertices[k])
+    }
+
+    /// The closest point of the mesh to `p` and its tetrahedron (degenerate tetrahedra never win).
+    fn nearest_point(&self, p: &Vector3<f64>) -> (Vector3<f64>, usize) {
+        self.accel
+            .query(p, |e| closest_point_in_tet(&self.corners(e), p).map_or(Vector3::repeat(f64::INFINITY), |r| r.0))
     }
 }
 
