@@ -37,7 +37,8 @@ pub enum Roi {
 }
 
 impl Roi {
-    pub(crate) fn inside(&self, p: &Vector<3>) -> bool {
+    /// Whether `p` (mm) lies in the region (on its boundary included).
+    pub fn inside(&self, p: &Vector<3>) -> bool {
         self.depth(p) >= 0.0
     }
     /// Distance inside the ROI boundary (negative outside).

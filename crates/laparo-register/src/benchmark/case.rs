@@ -1,12 +1,15 @@
 //! A benchmark case (one scenario on one mesh): the cut rest mesh, its FEM ground-truth deformation and the
 //! incision lips; landmarks sampled on the lips; the [`Method`] interface every registration method
 //! implements; scoring of one run; and the resumable protocol loop over methods × columns × seeds.
+use super::points::EvalPoints;
 use super::protocol::{noisy_targets, Column};
 use super::store::{Provenance, ResultStore, RunKey, RunResult};
+use super::tre::PointScores;
 use super::tre::{binned, distance_to_nearest, node_errors, Stats, DISTANCE_BIN_EDGES_MM};
 use crate::error::{RegisterError, Result};
 use crate::organ::Roi;
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// One scenario on one mesh, with its ground truth (mm).
 #[derive(Clone, Debug)]
@@ -31,6 +34,13 @@ pub struct BenchmarkCase {
     pub fixed: Vec<usize>,
     /// Region of interest RODS-MPM simulates (None = the whole organ).
     pub roi: Option<Roi>,
+    /// The ground truth's full TET10 displacement field (mm): every node of
+    /// `laparo_fem::solid::Tet10Mesh::from_linear` of the rest mesh (vertices first). None: the ground truth is
+    /// known at the vertices only and read between them linearly.
+    pub ground_truth_p2: Option<Vec<Vector3<f64>>>,
+    /// The common evaluation points every method is scored at ([`BenchmarkCase::with_points`]); None: scored at
+    /// the mesh nodes only (the v1 protocol).
+    pub points: Option<Arc<EvalPoints>>,
 }
 
 pub use crate::baselines::MaterialPoint;
@@ -60,6 +70,10 @@ pub struct MethodOutput {
     pub landmark_distance_mm: f64,
     /// Findings worth reporting.
     pub notes: Vec<String>,
+    /// Registered positions of the case's evaluation points (mm), when the method reads its own field there
+    /// (RODS-MPM: the particle→point transfer); None: the nodes are interpolated linearly in each point's
+    /// element ([`EvalPoints::p1`], how every mesh method is read).
+    pub points: Option<Vec<Vector3<f64>>>,
 }
 
 /// A registration method under test.
@@ -75,6 +89,21 @@ pub trait Method {
     fn applies_to(&self, _case: &BenchmarkCase) -> bool {
         true
     }
+    /// The name of the floor row that bounds this method's representation (the ground truth pushed through it
+    /// and read back); None for a row that is itself a floor or has no representation ("none").
+    fn floor(&self) -> Option<String> {
+        None
+    }
+    /// Whether the result depends on the landmarks (false: run once per column, seed 0, e.g. a floor).
+    fn uses_landmarks(&self) -> bool {
+        true
+    }
+}
+
+/// 64-bit FNV-1a (hex) of a method's settings text: the configuration hash every stored run records, so two
+/// runs with any hyperparameter different never share a hash.
+pub fn config_hash(settings: &str) -> String {
+    laparo_core::atomic::fnv1a64_hex(settings.as_bytes())
 }
 
 impl BenchmarkCase {
@@ -93,6 +122,13 @@ impl BenchmarkCase {
         }
         b.extend(&self.node_side);
         b.extend(format!("{:?}", self.roi).as_bytes());
+        if let Some(u) = &self.ground_truth_p2 {
+            b.extend(b"p2");
+            u.iter().for_each(|p| p.iter().for_each(|c| b.extend(c.to_bits().to_le_bytes())));
+        }
+        if let Some(p) = &self.points {
+            b.extend(format!("points {} {}", p.spacing_mm.to_bits(), p.len()).as_bytes());
+        }
         laparo_core::atomic::fnv1a64_hex(&b)
     }
 
@@ -138,6 +174,12 @@ impl BenchmarkCase {
             .collect();
         let tets = self.tets.iter().map(|t| t.map(|i| map[i])).collect();
         (nodes, tets, map)
+    }
+
+    /// This case with its common evaluation points at `spacing_mm` ([`EvalPoints::build`]).
+    pub fn with_points(mut self, spacing_mm: f64) -> Result<Self> {
+        self.points = Some(Arc::new(EvalPoints::build(&self, spacing_mm)?));
+        Ok(self)
     }
 
     /// Nodes on the boundary surface, sorted.
@@ -198,6 +240,10 @@ pub fn score(
     let src: Vec<Vector3<f64>> = landmarks.iter().flat_map(|l| l.sources.iter().copied()).collect();
     let d = distance_to_nearest(&case.rest, &src)?;
     let surf: Vec<f64> = case.surface_nodes().iter().map(|&i| e[i]).collect();
+    let points = match (&case.points, registered_points(case, out)) {
+        (Some(p), Some(x)) => Some(PointScores::of(p, &x)?),
+        _ => None,
+    };
     Ok(RunResult {
         key,
         tre_volume: Stats::of(&e),
@@ -207,7 +253,10 @@ pub fn score(
         landmark_distance_mm: out.landmark_distance_mm,
         seconds,
         notes: out.notes.clone(),
+        config_hash: config_hash(&provenance.settings),
         provenance,
+        points,
+        floor: None,
     })
 }
 
@@ -223,6 +272,18 @@ pub struct RunEvent<'a> {
     pub result: &'a RunResult,
     /// The registered node positions (None when the result was resumed from the store).
     pub registered: Option<&'a [Vector3<f64>]>,
+    /// The registered positions of the case's evaluation points (None when resumed or without points).
+    pub registered_points: Option<&'a [Vector3<f64>]>,
+}
+
+/// The registered positions of `case`'s evaluation points from a method's output: its own reading when it
+/// gave one, else the P1 interpolation of its nodes (None without points).
+pub fn registered_points(case: &BenchmarkCase, out: &MethodOutput) -> Option<Vec<Vector3<f64>>> {
+    let p = case.points.as_ref()?;
+    Some(match &out.points {
+        Some(x) => x.clone(),
+        None => p.p1(&out.nodes, &case.tets),
+    })
 }
 
 /// Progress callback of [`run_protocol`].
@@ -245,7 +306,7 @@ pub fn run_protocol(
         let fingerprint = case.fingerprint();
         for c in columns {
             for seed in c.seeds(n_seeds) {
-                for m in methods.iter().filter(|m| m.applies_to(case)) {
+                for m in methods.iter().filter(|m| m.applies_to(case) && (seed == 0 || m.uses_landmarks())) {
                     jobs.push((case, fingerprint.clone(), *m, *c, seed));
                 }
             }
@@ -257,7 +318,7 @@ pub fn run_protocol(
         let key = RunKey { scenario: case.scenario.clone(), method: m.name(), column, seed };
         let provenance = Provenance { case: fingerprint, settings: m.settings() };
         if let Some(r) = store.load(&key, &provenance)? {
-            progress(&RunEvent { done: done + 1, total, case, result: &r, registered: None });
+            progress(&RunEvent { done: done + 1, total, case, result: &r, registered: None, registered_points: None });
             results.push(r);
             continue;
         }
@@ -269,9 +330,18 @@ pub fn run_protocol(
                 e.to_string(),
             )
         })?;
-        let r = score(case, &lm, &out, key.clone(), provenance, t0.elapsed().as_secs_f64())?;
+        let mut r = score(case, &lm, &out, key.clone(), provenance, t0.elapsed().as_secs_f64())?;
+        r.floor = m.floor();
         store.save(&r)?;
-        progress(&RunEvent { done: done + 1, total, case, result: &r, registered: Some(&out.nodes) });
+        let pts = registered_points(case, &out);
+        progress(&RunEvent {
+            done: done + 1,
+            total,
+            case,
+            result: &r,
+            registered: Some(&out.nodes),
+            registered_points: pts.as_deref(),
+        });
         results.push(r);
     }
     Ok(results)
@@ -308,6 +378,8 @@ mod tests {
             roi: None,
             rest,
             tets,
+            ground_truth_p2: None,
+            points: None,
         }
     }
 
@@ -320,7 +392,7 @@ mod tests {
             String::new()
         }
         fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
-            Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: 0.0, notes: vec![] })
+            Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: 0.0, notes: vec![], points: None })
         }
     }
     struct Oracle;
@@ -332,7 +404,12 @@ mod tests {
             String::new()
         }
         fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
-            Ok(MethodOutput { nodes: case.ground_truth.clone(), landmark_distance_mm: 0.0, notes: vec![] })
+            Ok(MethodOutput {
+                nodes: case.ground_truth.clone(),
+                landmark_distance_mm: 0.0,
+                notes: vec![],
+                points: None,
+            })
         }
     }
 

@@ -222,13 +222,15 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
             }
         })
         .collect();
-    let ymax = cells
-        .iter()
-        .flat_map(|c| c.bin_means_mm.iter().copied())
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max)
-        .max(1e-3)
-        * 1.15;
+    // v2 cells are drawn by distance to the lip polylines at the common points, else by node bins
+    let v2 = cells.iter().any(|c| c.points.is_some());
+    let means = |c: &Cell| -> Vec<f64> {
+        match &c.points {
+            Some(p) => p.lip_bin_means_mm.clone(),
+            None => c.bin_means_mm.clone(),
+        }
+    };
+    let ymax = cells.iter().flat_map(|c| means(c)).filter(|v| v.is_finite()).fold(0.0f64, f64::max).max(1e-3) * 1.15;
     let colors = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
@@ -262,7 +264,11 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
                     String::new()
                 }
             })
-            .x_desc("distance to the nearest incision landmark [mm]")
+            .x_desc(if v2 {
+                "distance to the source lip polylines [mm] (common points; dashed: floors and ROI variants)"
+            } else {
+                "distance to the nearest incision landmark [mm]"
+            })
             .y_desc("mean TRE [mm]")
             .draw()
             .map_err(|e| e.to_string())?;
@@ -270,11 +276,15 @@ pub fn write_distance_plot(path: &Path, cells: &[&Cell], title: &str) -> Result<
         // a baseline with RODS-MPM's region of interest ("… (ROI)") takes its base's colour, dashed
         let known = ["none (rest)", "ARAP", "DRBC", "François et al.", "LDDMM", RODS_MPM_NAME];
         for (i, c) in cells.iter().enumerate() {
-            let base = c.method.strip_suffix(" (ROI)");
+            // a floor row takes the colour of the method it bounds (the mesh methods' P1 floor: grey), dashed
+            let floor_of =
+                c.method.strip_prefix("floor: ").map(|f| if f.starts_with("RODS") { RODS_MPM_NAME } else { "" });
+            let base = c.method.strip_suffix(" (ROI)").or(floor_of);
             let k = known.iter().position(|n| base.unwrap_or(&c.method) == *n);
-            let col = colors[k.unwrap_or(i) % colors.len()];
+            let col =
+                if floor_of == Some("") { RGBColor(150, 150, 150) } else { colors[k.unwrap_or(i) % colors.len()] };
             let pts: Vec<(f64, f64)> =
-                c.bin_means_mm.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(k, &v)| (k as f64, v)).collect();
+                means(c).iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(k, &v)| (k as f64, v)).collect();
             let y = 56 + 22 * i as i32;
             // solid line and filled markers, or dashed line and hollow markers for a "(ROI)" variant
             let marker = if base.is_some() { col.stroke_width(2) } else { col.filled() };

@@ -229,7 +229,35 @@ impl Method for BaselineMethod {
             nodes: to_case.iter().map(|&j| r.positions[j]).collect(),
             landmark_distance_mm: r.report.mean_distance_mm,
             notes,
+            points: None,
         })
+    }
+    fn floor(&self) -> Option<String> {
+        Some(P1_FLOOR_NAME.into())
+    }
+}
+
+/// The floor row of every mesh method: the name in the tables.
+pub const P1_FLOOR_NAME: &str = "floor: P1 mesh (u_GT at the nodes)";
+
+/// The representation floor of the mesh methods: the ground truth at the mesh's nodes, read at the evaluation
+/// points by the same P1 interpolation every mesh method is read by (what a perfect mesh registration scores
+/// against the TET10 field). Reads the ground truth: a diagnostic row, not a method.
+#[derive(Clone, Copy, Debug)]
+pub struct P1Floor;
+
+impl Method for P1Floor {
+    fn name(&self) -> String {
+        P1_FLOOR_NAME.into()
+    }
+    fn settings(&self) -> String {
+        "P1 interpolation of the nodal ground truth".into()
+    }
+    fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
+        Ok(MethodOutput { nodes: case.ground_truth.clone(), landmark_distance_mm: 0.0, notes: vec![], points: None })
+    }
+    fn uses_landmarks(&self) -> bool {
+        false
     }
 }
 
@@ -253,7 +281,14 @@ impl Method for NoRegistration {
                 n += 1;
             }
         }
-        Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: sum / n.max(1) as f64, notes: vec![] })
+        // "none" is read at the points as what it is: the rest positions themselves
+        let points = case.points.as_ref().map(|p| p.rest.clone());
+        Ok(MethodOutput {
+            nodes: case.rest.clone(),
+            landmark_distance_mm: sum / n.max(1) as f64,
+            notes: vec![],
+            points,
+        })
     }
 }
 
@@ -290,6 +325,8 @@ mod tests {
             roi,
             rest: m.vertices.clone(),
             tets: m.tets.clone(),
+            ground_truth_p2: None,
+            points: None,
         };
         (case, vec![lm])
     }

@@ -9,6 +9,7 @@ pub mod build;
 pub mod case;
 pub mod figures;
 pub mod methods;
+pub mod points;
 pub mod protocol;
 pub mod rods;
 pub mod store;
@@ -16,10 +17,14 @@ pub mod table;
 pub mod tre;
 
 pub use case::{
-    column_landmarks, run_protocol, score, BenchmarkCase, LandmarkSet, MaterialPoint, Method, MethodOutput, RunEvent,
+    column_landmarks, config_hash, run_protocol, score, BenchmarkCase, LandmarkSet, MaterialPoint, Method,
+    MethodOutput, RunEvent,
 };
+pub use points::{EvalPoints, PointKind};
 pub use protocol::{noisy_targets, table51_columns, Column};
 pub use rods::{OracleMode, RodsMethod, RodsOracle, TwoField, RODS_MPM_NAME};
 pub use store::{ResultStore, RunKey, RunResult};
 pub use table::{aggregate, table_csv, table_json, table_markdown, Cell};
-pub use tre::{binned, distance_to_nearest, node_errors, BinStats, Stats, DISTANCE_BIN_EDGES_MM};
+pub use tre::{
+    binned, distance_to_nearest, node_errors, BinStats, PointScores, Stats, DISTANCE_BIN_EDGES_MM, FAR_FIELD_MM,
+};

@@ -65,7 +65,17 @@ pub struct RodsOutput {
     pub iterations: usize,
     /// Findings (horizon, extrapolated nodes, optimiser stop reason).
     pub notes: Vec<String>,
+    /// Registered positions (mm) of the query points of [`run_rods_at`] / [`run_rods_oracle_at`], read by the
+    /// same particle→point transfer as the nodes (empty without queries).
+    pub points: Vec<Vector3<f64>>,
 }
+
+/// Query points of a run: (rest position mm, incision side 0/1/2), read back like the nodes.
+pub type Queries<'a> = &'a [(Vector3<f64>, u8)];
+
+/// The ground truth's deformed positions (mm) at particles given as (rest position, case tetrahedron), for
+/// the oracles and the read-back floor (e.g. the TET10 field; default: P1 of the nodal ground truth).
+pub type TruthAt<'a> = &'a dyn Fn(&[(Vector3<f64>, usize)]) -> Result<Vec<Vector3<f64>>>;
 
 /// Lattice points (spacing `s`, origin `origin`) inside the tetrahedra, each with the index of the first
 /// tetrahedron (in mesh order) that contains it: deterministic.
@@ -230,7 +240,31 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
 
 /// Register `problem` with RODS-MPM; `progress` sees every accepted iteration.
 pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord)) -> Result<RodsOutput> {
-    let Prepared { organ, points, side, loss, mut notes, .. } = prepare(problem, 0.0)?;
+    run_rods_at(problem, &[], progress)
+}
+
+/// [`run_rods`], also reading the registered field at `queries` (the benchmark's evaluation points).
+pub fn run_rods_at(
+    problem: &RodsProblem,
+    queries: Queries,
+    progress: &mut dyn FnMut(&IterationRecord),
+) -> Result<RodsOutput> {
+    run_rods_kerfed(problem, queries, 0.0, progress)
+}
+
+/// [`run_rods_at`] on a source whose particles within `kerf_mm / 2` of the case's true crack faces are
+/// removed first (a cut the simulator can see: it uses the true crack, so it is a fidelity row, never a
+/// headline method).
+pub fn run_rods_kerfed(
+    problem: &RodsProblem,
+    queries: Queries,
+    kerf_mm: f64,
+    progress: &mut dyn FnMut(&IterationRecord),
+) -> Result<RodsOutput> {
+    if !(kerf_mm >= 0.0 && kerf_mm.is_finite()) {
+        return Err(RegisterError::param("kerf_mm", kerf_mm, "must be finite and >= 0"));
+    }
+    let Prepared { organ, points, side, loss, mut notes, .. } = prepare(problem, kerf_mm)?;
     let off = organ.offset;
     let before = loss.mean_distance(&organ.scene.positions);
     let mut obs = |r: &IterationRecord, _: &[Vector3<f64>]| {
@@ -241,9 +275,10 @@ pub fn run_rods(problem: &RodsProblem, progress: &mut dyn FnMut(&IterationRecord
     let after = loss.mean_distance(&reg.final_state.x);
     notes.push(format!("optimiser: {}", reg.stop_reason));
     let deformed: Vec<Vector3<f64>> = reg.final_state.x.iter().map(|p| p - off).collect();
-    let nodes = transfer_nodes(problem, &points, &side, &deformed, 0.0, &mut notes)?;
+    let (nodes, read) = transfer_nodes(problem, queries, &points, &side, &deformed, kerf_mm, &mut notes)?;
     Ok(RodsOutput {
         nodes,
+        points: read,
         particles: points.len(),
         landmark_distance_mm: [before, after],
         iterations: reg.history.last().map(|r| r.iteration).unwrap_or(0),
@@ -277,6 +312,19 @@ pub fn run_rods_oracle(
     mode: OracleMode,
     kerf_mm: f64,
 ) -> Result<RodsOutput> {
+    run_rods_oracle_at(problem, truth, None, mode, kerf_mm, &[])
+}
+
+/// [`run_rods_oracle`] with the ground truth at the particles from `truth_at` (None: P1 of `truth`), also
+/// reading the result at `queries`.
+pub fn run_rods_oracle_at(
+    problem: &RodsProblem,
+    truth: &[Vector3<f64>],
+    truth_at: Option<TruthAt>,
+    mode: OracleMode,
+    kerf_mm: f64,
+    queries: Queries,
+) -> Result<RodsOutput> {
     if truth.len() != problem.nodes.len() {
         return Err(RegisterError::bad(
             "ground truth",
@@ -289,8 +337,19 @@ pub fn run_rods_oracle(
     let Prepared { mut organ, points, side, samples, loss, mut notes } = prepare(problem, kerf_mm)?;
     let off = organ.offset;
     // ground-truth displacement at every particle, barycentric in its tetrahedron
-    let u: Vec<Vector3<f64>> =
-        samples.iter().map(|(x, t)| interpolate(problem, x, *t, |i| truth[i] - problem.nodes[i])).collect();
+    let u: Vec<Vector3<f64>> = match truth_at {
+        Some(f) => {
+            let y = f(&samples)?;
+            if y.len() != samples.len() {
+                return Err(RegisterError::bad(
+                    "ground truth at the particles",
+                    format!("{} for {} particles", y.len(), samples.len()),
+                ));
+            }
+            y.iter().zip(&samples).map(|(y, (x, _))| y - x).collect()
+        }
+        None => samples.iter().map(|(x, t)| interpolate(problem, x, *t, |i| truth[i] - problem.nodes[i])).collect(),
+    };
     let held = |p: usize| organ.scene.fixed.get(p).copied().unwrap_or(false);
     let before = loss.mean_distance(&organ.scene.positions);
     let (final_x, iterations) = match mode {
@@ -328,8 +387,15 @@ pub fn run_rods_oracle(
     };
     let after = loss.mean_distance(&final_x);
     let deformed: Vec<Vector3<f64>> = final_x.iter().map(|p| p - off).collect();
-    let nodes = transfer_nodes(problem, &points, &side, &deformed, kerf_mm, &mut notes)?;
-    Ok(RodsOutput { nodes, particles: points.len(), landmark_distance_mm: [before, after], iterations, notes })
+    let (nodes, read) = transfer_nodes(problem, queries, &points, &side, &deformed, kerf_mm, &mut notes)?;
+    Ok(RodsOutput {
+        nodes,
+        points: read,
+        particles: points.len(),
+        landmark_distance_mm: [before, after],
+        iterations,
+        notes,
+    })
 }
 
 /// A nodal field `f` interpolated at `x` by its barycentric coordinates in tetrahedron `t` (sampled
@@ -362,46 +428,80 @@ fn fixed_particles(problem: &RodsProblem, samples: &[(Vector3<f64>, usize)]) -> 
     Ok(samples.iter().map(|(x, t)| interpolate(problem, x, *t, |i| ind[i]) >= 0.5).collect())
 }
 
-/// Node positions from the registered particles (see the module docs).
+/// Node positions, and positions of the `queries`, from the registered particles: one particle→point
+/// transfer for every point (see the module docs). A point on an incision side (side ≠ 0) takes a
+/// least-squares affine fit of its own side's particles within 2.5 spacings (beyond the kerf), so the two
+/// lips are read apart; every other point (and a side point without 4 such particles) the §5.4.3 lattice
+/// transfer. Points outside the region of interest stay at rest.
 fn transfer_nodes(
     problem: &RodsProblem,
+    queries: Queries,
     rest: &[Vector3<f64>],
     side: &[u8],
     deformed: &[Vector3<f64>],
     kerf_mm: f64,
     notes: &mut Vec<String>,
-) -> Result<Vec<Vector3<f64>>> {
+) -> Result<(Vec<Vector3<f64>>, Vec<Vector3<f64>>)> {
     let s = problem.organ.spacing_mm;
-    // a crack node's own-side particles: within 2.5 spacings, beyond the kerf when particles were removed
+    // a crack point's own-side particles: within 2.5 spacings, beyond the kerf when particles were removed
     let reach = 2.5 * s + 0.5 * kerf_mm;
     let transfer = Transfer::new(rest, s)?;
     let tree = build_tree(rest);
-    let mut extrapolated = 0usize;
-    let mut out = Vec::with_capacity(problem.nodes.len());
-    for (i, x) in problem.nodes.iter().enumerate() {
+    let read = |x: &Vector3<f64>, sd: u8| -> Result<(Vector3<f64>, bool)> {
         if let Some(roi) = &problem.organ.roi {
             if !roi.inside(x) {
-                out.push(*x);
-                continue;
+                return Ok((*x, false));
             }
         }
-        let sd = problem.node_side[i];
         if sd != 0 {
-            let near = tree.within::<SquaredEuclidean>(&[x[0], x[1], x[2]], reach.powi(2));
-            let own: Vec<usize> = near.iter().map(|n| n.item as usize).filter(|&p| side[p] == sd).collect();
-            if let Some(p) = affine_fit(x, &own, rest, deformed) {
-                out.push(p);
-                continue;
+            // widen the reach until the own side has 4 non-coplanar particles (a thin flap near the mouth may
+            // hold few); failing that, the nearest own-side particle's displacement; never the lattice
+            // transfer, whose cell would straddle the two lips
+            let mut nearest: Option<(f64, usize)> = None;
+            for grow in [1.0, 1.6, 2.4] {
+                let near = tree.within::<SquaredEuclidean>(&[x[0], x[1], x[2]], (grow * reach).powi(2));
+                let own: Vec<usize> =
+                    near.iter().filter(|n| side[n.item as usize] == sd).map(|n| n.item as usize).collect();
+                if let Some(p) = affine_fit(x, &own, rest, deformed) {
+                    return Ok((p, false));
+                }
+                nearest = near
+                    .iter()
+                    .filter(|n| side[n.item as usize] == sd)
+                    .map(|n| (n.distance, n.item as usize))
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                if nearest.is_some() && grow > 1.0 {
+                    break;
+                }
+            }
+            if let Some((_, p)) = nearest {
+                return Ok((x + (deformed[p] - rest[p]), true));
             }
         }
         let t = transfer.apply(x, deformed)?;
-        extrapolated += t.extrapolated as usize;
-        out.push(t.position);
+        Ok((t.position, t.extrapolated))
+    };
+    let mut extrapolated = [0usize; 2];
+    let mut nodes = Vec::with_capacity(problem.nodes.len());
+    for (x, &sd) in problem.nodes.iter().zip(problem.node_side) {
+        let (p, e) = read(x, sd)?;
+        extrapolated[0] += e as usize;
+        nodes.push(p);
     }
-    if extrapolated > 0 {
-        notes.push(format!("{extrapolated} nodes extrapolated from the nearest complete lattice cell"));
+    let mut points = Vec::with_capacity(queries.len());
+    for (x, sd) in queries {
+        let (p, e) = read(x, *sd)?;
+        extrapolated[1] += e as usize;
+        points.push(p);
     }
-    Ok(out)
+    if extrapolated[0] > 0 {
+        notes.push(format!("{} nodes extrapolated from the nearest complete lattice cell", extrapolated[0]));
+    }
+    if extrapolated[1] > 0 {
+        notes
+            .push(format!("{} evaluation points extrapolated from the nearest complete lattice cell", extrapolated[1]));
+    }
+    Ok((nodes, points))
 }
 
 /// Least-squares affine map of the particles `idx` (rest → deformed) evaluated at `x`; None with fewer than
@@ -417,12 +517,16 @@ fn affine_fit(
     }
     let mut ata = Matrix4::<f64>::zeros();
     let mut atb = [Vector4::<f64>::zeros(); 3];
+    // moving least squares: a smooth compact weight (1 − r²/R²)² over the particles' reach R, so the fit is the
+    // field's local affine part at x, not an average over the whole ball
+    let r2max = idx.iter().map(|&p| (rest[p] - x).norm_squared()).fold(0.0, f64::max) * 1.0001 + 1e-12;
     for &p in idx {
         let r = rest[p] - x;
+        let w = (1.0 - r.norm_squared() / r2max).powi(2);
         let a = Vector4::new(1.0, r[0], r[1], r[2]);
-        ata += a * a.transpose();
+        ata += a * a.transpose() * w;
         for d in 0..3 {
-            atb[d] += a * deformed[p][d];
+            atb[d] += a * deformed[p][d] * w;
         }
     }
     // reject near-coplanar sets: the centred scatter must not be (nearly) rank-deficient
@@ -612,7 +716,8 @@ fn two_field_label(t: Option<TwoField>, sep: &str) -> String {
 fn method_output(out: RodsOutput) -> super::case::MethodOutput {
     let mut notes = out.notes;
     notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
-    super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes }
+    let points = (!out.points.is_empty()).then_some(out.points);
+    super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes, points }
 }
 
 impl super::case::Method for RodsMethod {
@@ -630,7 +735,11 @@ impl super::case::Method for RodsMethod {
         case: &super::case::BenchmarkCase,
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<super::case::MethodOutput> {
-        Ok(method_output(run_rods(&self.problem(case, landmarks)?, &mut |_| {})?))
+        let queries = case.points.as_ref().map(|p| p.queries()).unwrap_or_default();
+        Ok(method_output(run_rods_at(&self.problem(case, landmarks)?, &queries, &mut |_| {})?))
+    }
+    fn floor(&self) -> Option<String> {
+        Some(RodsOracle { inner: self.clone(), mode: OracleMode::Readback, kerf_mm: 0.0 }.name())
     }
 }
 
@@ -654,7 +763,9 @@ impl super::case::Method for RodsOracle {
         match self.mode {
             OracleMode::Ballistic => format!("RODS-MPM oracle (ballistic v0{kerf}{grid})"),
             OracleMode::Dense => format!("RODS-MPM oracle (dense targets{kerf}{grid})"),
-            OracleMode::Readback => format!("RODS-MPM oracle (read-back of u_GT{kerf})"),
+            OracleMode::Readback => {
+                format!("floor: RODS-MPM particles ({} mm, read-back of u_GT{kerf})", self.inner.organ.spacing_mm)
+            }
         }
     }
     fn settings(&self) -> String {
@@ -668,6 +779,66 @@ impl super::case::Method for RodsOracle {
         landmarks: &[super::case::LandmarkSet],
     ) -> Result<super::case::MethodOutput> {
         let problem = self.inner.problem(case, landmarks)?;
-        Ok(method_output(run_rods_oracle(&problem, &case.ground_truth, self.mode, self.kerf_mm)?))
+        let queries = case.points.as_ref().map(|p| p.queries()).unwrap_or_default();
+        // the ground truth at each particle in its own tetrahedron (TET10 when the case has it)
+        let truth_at = |samples: &[(Vector3<f64>, usize)]| -> Result<Vec<Vector3<f64>>> {
+            let element: Vec<(usize, [f64; 4])> = samples
+                .iter()
+                .map(|(x, t)| {
+                    let c = case.tets[*t].map(|i| case.rest[i]);
+                    let l = nalgebra::Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]])
+                        .try_inverse()
+                        .map_or_else(Vector3::zeros, |m| m * (x - c[0]));
+                    (*t, [1.0 - l.sum(), l.x, l.y, l.z])
+                })
+                .collect();
+            super::points::ground_truth_at(case, &element)
+        };
+        let out = run_rods_oracle_at(&problem, &case.ground_truth, Some(&truth_at), self.mode, self.kerf_mm, &queries)?;
+        Ok(method_output(out))
+    }
+    fn uses_landmarks(&self) -> bool {
+        // the read-back places the particles at the ground truth: no landmark enters it
+        self.mode != OracleMode::Readback
+    }
+}
+
+/// The thesis' RODS-MPM as a fidelity row (always reported beside the methods): one field, v₀ only from
+/// v₀ = 0, plain gradient descent ([`OptimizerConfig::thesis`]: 500 iterations, α halved whenever a step
+/// would raise the loss); with `kerf_mm` > 0 on a source whose blade volume is removed (labelled "uses the
+/// true crack").
+#[derive(Clone, Debug)]
+pub struct ThesisRods {
+    /// The set-up (organ, horizon); its optimiser should be the thesis one.
+    pub inner: RodsMethod,
+    /// Kerf width (mm) removed along the true crack (0 = none).
+    pub kerf_mm: f64,
+}
+
+impl super::case::Method for ThesisRods {
+    fn name(&self) -> String {
+        let it = self.inner.optimizer.iterations;
+        if self.kerf_mm > 0.0 {
+            format!("{RODS_MPM_NAME} thesis (GD {it} it, kerf {} mm: uses the true crack)", self.kerf_mm)
+        } else {
+            format!("{RODS_MPM_NAME} thesis (GD {it} it)")
+        }
+    }
+    fn settings(&self) -> String {
+        let mut m = self.clone();
+        m.inner.organ.memory_limit_bytes = None;
+        format!("{m:?}")
+    }
+    fn register(
+        &self,
+        case: &super::case::BenchmarkCase,
+        landmarks: &[super::case::LandmarkSet],
+    ) -> Result<super::case::MethodOutput> {
+        let queries = case.points.as_ref().map(|p| p.queries()).unwrap_or_default();
+        let problem = self.inner.problem(case, landmarks)?;
+        Ok(method_output(run_rods_kerfed(&problem, &queries, self.kerf_mm, &mut |_| {})?))
+    }
+    fn floor(&self) -> Option<String> {
+        super::case::Method::floor(&self.inner)
     }
 }

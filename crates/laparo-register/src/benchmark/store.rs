@@ -48,6 +48,16 @@ pub struct RunResult {
     /// What the run was made from: a stored run is resumed only for the same case and method settings.
     #[serde(default)]
     pub provenance: Provenance,
+    /// FNV-1a hash (hex) of the method's settings ([`config_hash`](super::case::config_hash)): any changed
+    /// hyperparameter changes it (empty in files written before it was recorded).
+    #[serde(default)]
+    pub config_hash: String,
+    /// Scores at the common evaluation points (v2 protocol; None for a case scored at its nodes only).
+    #[serde(default)]
+    pub points: Option<super::tre::PointScores>,
+    /// The floor row that bounds this method's representation (None for a floor itself and for "none").
+    #[serde(default)]
+    pub floor: Option<String>,
 }
 
 /// The inputs of a run beyond its [`RunKey`]: the case (mesh, ground truth, lips, fixed region; see
@@ -194,6 +204,9 @@ mod tests {
             seconds: 1.0,
             notes: vec![],
             provenance: Provenance { case: "c1".into(), settings: format!("{method} defaults") },
+            config_hash: String::new(),
+            points: None,
+            floor: None,
         }
     }
 

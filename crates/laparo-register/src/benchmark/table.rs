@@ -27,7 +27,48 @@ pub struct Cell {
     pub bin_means_mm: Vec<f64>,
     /// Mean wall time per run (s).
     pub seconds: f64,
+    /// The v2 figures at the common evaluation points (None for runs scored at the nodes only).
+    pub points: Option<PointCell>,
 }
+
+/// A [`Cell`]'s figures at the common evaluation points (v2 protocol), pooled over seeds like the cell.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct PointCell {
+    /// Mean over seeds of the TRE mean over every point (mm).
+    pub mean_mm: f64,
+    /// Mean over seeds of the crack-face points' TRE (mm).
+    pub crack_face_mean_mm: f64,
+    /// Per distance-to-lip bin: mean TRE (mm; NaN when empty) and point count.
+    pub lip_bin_means_mm: Vec<f64>,
+    /// Points per distance-to-lip bin.
+    pub lip_bin_n: Vec<usize>,
+    /// Per distance-to-crack bin: mean TRE (mm; NaN when empty).
+    pub crack_bin_means_mm: Vec<f64>,
+    /// Points per distance-to-crack bin.
+    pub crack_bin_n: Vec<usize>,
+    /// Mean TRE within 10 mm of the lips (the 0–5 and 5–10 mm bins pooled by count, mm).
+    pub near_lip_mm: f64,
+    /// Mean TRE within 10 mm of the true crack (mm).
+    pub near_crack_mm: f64,
+    /// Mean TRE at least 40 mm from the lips minus "none"'s there (mm; NaN without a "none" row).
+    pub far_excess_mm: f64,
+    /// The floor row bounding this method (None for floors and "none").
+    pub floor: Option<String>,
+    /// Per distance-to-lip bin: whether this row's floor is ≤ ¼ of "none"'s TRE there (true without a floor).
+    pub floor_ok: Vec<bool>,
+    /// Per-seed paired ratio of the 0–10 mm TRE to François et al.'s on the same seed: mean and 95 % interval
+    /// (Student t over seeds; the interval is the mean itself with one seed). None without a François row.
+    pub ratio_vs_francois: Option<[f64; 3]>,
+    /// Configuration hash of the runs (the first run's; every pooled run shares it).
+    pub config_hash: String,
+}
+
+/// The row name of the reference method of the paired ratios.
+pub const FRANCOIS_NAME: &str = "François et al.";
+/// The row name of no registration.
+pub const NONE_NAME: &str = "none (rest)";
+/// A bin is comparable only where every floor is at most this share of "none"'s TRE (issue: floors).
+pub const FLOOR_SHARE: f64 = 0.25;
 
 /// Pool the runs of each (scenario, method, column) in the order methods and columns first appear.
 pub fn aggregate(results: &[RunResult]) -> Vec<Cell> {
@@ -74,9 +115,133 @@ pub fn aggregate(results: &[RunResult]) -> Vec<Cell> {
                 surface_mean_mm: rs.iter().map(|r| r.tre_surface.mean).sum::<f64>() / n,
                 bin_means_mm,
                 seconds: rs.iter().map(|r| r.seconds).sum::<f64>() / n,
+                points: point_cell(&rs),
             }
         })
-        .collect()
+        .collect::<Vec<Cell>>()
+        .pipe(|cells| with_references(cells, results))
+}
+
+/// Pipe a value through a function (keeps [`aggregate`] one expression).
+trait Pipe: Sized {
+    fn pipe<T>(self, f: impl FnOnce(Self) -> T) -> T {
+        f(self)
+    }
+}
+impl<T> Pipe for T {}
+
+fn mean_of(v: impl Iterator<Item = f64>) -> f64 {
+    let v: Vec<f64> = v.filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// The seed-pooled point figures of one cell's runs (None when a run has no point scores).
+fn point_cell(rs: &[&RunResult]) -> Option<PointCell> {
+    let ps: Vec<&super::tre::PointScores> = rs.iter().map(|r| r.points.as_ref()).collect::<Option<_>>()?;
+    let first = ps.first()?;
+    let bins = |f: &dyn Fn(&super::tre::PointScores) -> &Vec<super::tre::BinStats>| -> (Vec<f64>, Vec<usize>) {
+        let nb = f(first).len();
+        let means = (0..nb).map(|b| mean_of(ps.iter().filter(|p| f(p)[b].stats.n > 0).map(|p| f(p)[b].stats.mean)));
+        (means.collect(), f(first).iter().map(|b| b.stats.n).collect())
+    };
+    let (lip_bin_means_mm, lip_bin_n) = bins(&|p| &p.bins_lip);
+    let (crack_bin_means_mm, crack_bin_n) = bins(&|p| &p.bins_crack);
+    Some(PointCell {
+        mean_mm: mean_of(ps.iter().map(|p| p.tre.mean)),
+        crack_face_mean_mm: mean_of(ps.iter().map(|p| p.crack_faces.mean)),
+        lip_bin_means_mm,
+        lip_bin_n,
+        crack_bin_means_mm,
+        crack_bin_n,
+        near_lip_mm: mean_of(ps.iter().map(|p| p.near_lip_mean_mm(10.0))),
+        near_crack_mm: mean_of(ps.iter().map(|p| p.near_crack_mean_mm(10.0))),
+        far_excess_mm: f64::NAN,
+        floor: rs[0].floor.clone(),
+        floor_ok: vec![true; first.bins_lip.len()],
+        ratio_vs_francois: None,
+        config_hash: rs[0].config_hash.clone(),
+    })
+}
+
+/// Fill the figures that compare a cell with other rows of its (scenario, column): the far-field excess over
+/// "none", the floor gate (the cell's floor row ≤ [`FLOOR_SHARE`] × "none" per bin) and the per-seed paired
+/// ratio to François et al.
+fn with_references(mut cells: Vec<Cell>, results: &[RunResult]) -> Vec<Cell> {
+    let snapshot = cells.clone();
+    let find = |sc: &str, m: &str, col: Column| {
+        snapshot.iter().find(|c| c.scenario == sc && c.method == m && c.column == col).and_then(|c| c.points.clone())
+    };
+    let near = |r: &RunResult| r.points.as_ref().map_or(f64::NAN, |p| p.near_lip_mean_mm(10.0));
+    for c in cells.iter_mut() {
+        let (sc, col, method) = (c.scenario.clone(), c.column, c.method.clone());
+        let none = find(&sc, NONE_NAME, col);
+        let Some(p) = c.points.as_mut() else { continue };
+        if let Some(nn) = &none {
+            let far_none = |cell: &PointCell| pooled_from(&cell.lip_bin_means_mm, &cell.lip_bin_n, 3);
+            p.far_excess_mm = far_none(p) - far_none(nn);
+            if let Some(floor) = p.floor.clone().and_then(|f| find(&sc, &f, col)) {
+                p.floor_ok = floor
+                    .lip_bin_means_mm
+                    .iter()
+                    .zip(&nn.lip_bin_means_mm)
+                    .map(|(f, n)| !(f > &(FLOOR_SHARE * n)))
+                    .collect();
+            }
+        }
+        // per-seed paired ratios to François et al. (the same seeds, the same landmarks)
+        let fr: Vec<(u64, f64)> = results
+            .iter()
+            .filter(|r| r.key.scenario == sc && r.key.column == col && r.key.method == FRANCOIS_NAME)
+            .map(|r| (r.key.seed, near(r)))
+            .collect();
+        let ratios: Vec<f64> = results
+            .iter()
+            .filter(|r| r.key.scenario == sc && r.key.column == col && r.key.method == method)
+            .filter_map(|r| fr.iter().find(|f| f.0 == r.key.seed).map(|f| near(r) / f.1))
+            .filter(|x| x.is_finite())
+            .collect();
+        if !ratios.is_empty() && !fr.is_empty() {
+            p.ratio_vs_francois = Some(mean_interval_95(&ratios));
+        }
+    }
+    cells
+}
+
+/// Mean over the bins from index `from` on, pooled by their counts (NaN without a point).
+fn pooled_from(means: &[f64], n: &[usize], from: usize) -> f64 {
+    let (k, s) = means
+        .iter()
+        .zip(n)
+        .skip(from)
+        .filter(|(m, n)| m.is_finite() && **n > 0)
+        .fold((0usize, 0.0), |(k, s), (m, n)| (k + n, s + m * *n as f64));
+    if k == 0 {
+        f64::NAN
+    } else {
+        s / k as f64
+    }
+}
+
+/// Mean and two-sided 95 % Student-t interval of `v` ([mean, lo, hi]; lo = hi = mean for one value).
+pub fn mean_interval_95(v: &[f64]) -> [f64; 3] {
+    let n = v.len();
+    let m = v.iter().sum::<f64>() / n.max(1) as f64;
+    if n < 2 {
+        return [m, m, m];
+    }
+    let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    // t_{0.975, n−1} for n − 1 = 1 … 30, then the normal quantile
+    const T: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
+        2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+    ];
+    let t = T.get(n - 2).copied().unwrap_or(1.96);
+    let h = t * sd / (n as f64).sqrt();
+    [m, m - h, m + h]
 }
 
 fn distinct<T: PartialEq + Clone>(it: impl Iterator<Item = T>) -> Vec<T> {
@@ -119,6 +284,105 @@ pub fn table_markdown(cells: &[Cell]) -> String {
         }
         s.push('\n');
     }
+    s.push_str(&ruler_markdown(cells));
+    s
+}
+
+fn fmt_mm(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.2}")
+    } else {
+        "–".into()
+    }
+}
+
+/// The v2 tables at the common evaluation points, one block per scenario (empty when no cell has points):
+/// the 0–10 mm TRE of every column, then per column the TRE by distance to the lips with the floor gate
+/// (a `†` marks a bin where the row's floor exceeds ¼ of "none"'s TRE: not comparable there), the crack
+/// distance, the far-field excess over "none" and the per-seed paired ratio to François et al.
+pub fn ruler_markdown(cells: &[Cell]) -> String {
+    let mut s = String::new();
+    let edges = super::tre::DISTANCE_BIN_EDGES_MM;
+    let bin = |k: usize| {
+        if edges[k + 1].is_finite() {
+            format!("{}–{}", edges[k], edges[k + 1])
+        } else {
+            format!("> {}", edges[k])
+        }
+    };
+    for scenario in distinct(cells.iter().map(|c| c.scenario.clone())) {
+        let cs: Vec<&Cell> = cells.iter().filter(|c| c.scenario == scenario && c.points.is_some()).collect();
+        if cs.is_empty() {
+            continue;
+        }
+        let methods = distinct(cs.iter().map(|c| c.method.clone()));
+        let columns = distinct(cs.iter().map(|c| c.column));
+        s.push_str(&format!(
+            "**{scenario}** — v2: TRE within 10 mm of the source lips at the common points, mean (mm); all points in brackets\n\n| method |"
+        ));
+        columns.iter().for_each(|c| s.push_str(&format!(" {} |", c.label())));
+        s.push_str("\n|---|");
+        s.push_str(&"---|".repeat(columns.len()));
+        s.push('\n');
+        for m in &methods {
+            s.push_str(&format!("| {m} |"));
+            for c in &columns {
+                match cs.iter().find(|x| &x.method == m && x.column == *c).and_then(|x| x.points.as_ref()) {
+                    Some(p) => s.push_str(&format!(" {} ({}) |", fmt_mm(p.near_lip_mm), fmt_mm(p.mean_mm))),
+                    None => s.push_str(" – |"),
+                }
+            }
+            s.push('\n');
+        }
+        s.push('\n');
+        for col in &columns {
+            let row: Vec<&Cell> = cs.iter().copied().filter(|c| c.column == *col).collect();
+            let Some(first) = row.first().and_then(|c| c.points.as_ref()) else { continue };
+            s.push_str(&format!(
+                "**{scenario}, {}** — TRE by distance to the source lips (mm; n points per bin); † = the row's floor exceeds ¼ of \"none\" there (not comparable)\n\n| method | all |",
+                col.label()
+            ));
+            for k in 0..first.lip_bin_n.len() {
+                s.push_str(&format!(" {} mm (n {}) |", bin(k), first.lip_bin_n[k]));
+            }
+            s.push_str(" ≤ 10 mm of crack | crack faces | far excess (≥ 40 mm) | 0–10 mm / François (95 % CI) | config |\n|---|---|");
+            s.push_str(&"---|".repeat(first.lip_bin_n.len() + 5));
+            s.push('\n');
+            let mut comparable = vec![true; first.lip_bin_n.len()];
+            for c in &row {
+                let Some(p) = &c.points else { continue };
+                s.push_str(&format!("| {} | {} |", c.method, fmt_mm(p.mean_mm)));
+                for (k, m) in p.lip_bin_means_mm.iter().enumerate() {
+                    let ok = p.floor_ok.get(k).copied().unwrap_or(true);
+                    comparable[k] &= ok;
+                    s.push_str(&format!(" {}{} |", fmt_mm(*m), if ok { "" } else { "†" }));
+                }
+                let ratio = match p.ratio_vs_francois {
+                    Some([m, lo, hi]) if lo < hi => format!("{m:.2} ({lo:.2}–{hi:.2})"),
+                    Some([m, ..]) => format!("{m:.2} (1 seed)"),
+                    None => "–".into(),
+                };
+                s.push_str(&format!(
+                    " {} | {} | {} | {ratio} | `{}` |\n",
+                    fmt_mm(p.near_crack_mm),
+                    fmt_mm(p.crack_face_mean_mm),
+                    if p.far_excess_mm.is_finite() { format!("{:+.2}", p.far_excess_mm) } else { "–".into() },
+                    &p.config_hash.get(..8).unwrap_or("")
+                ));
+            }
+            s.push_str(
+                "
+Comparable bins (every row's floor ≤ ¼ \"none\"): ",
+            );
+            let list: Vec<String> = comparable
+                .iter()
+                .enumerate()
+                .map(|(k, ok)| format!("{} mm {}", bin(k), if *ok { "yes" } else { "no" }))
+                .collect();
+            s.push_str(&list.join(", "));
+            s.push_str("\n\n");
+        }
+    }
     s
 }
 
@@ -130,6 +394,16 @@ pub fn table_csv(cells: &[Cell]) -> String {
     );
     for b in 0..nb {
         s.push_str(&format!(",bin{b}_mean_mm"));
+    }
+    let np = cells.iter().filter_map(|c| c.points.as_ref()).map(|p| p.lip_bin_means_mm.len()).max().unwrap_or(0);
+    if np > 0 {
+        s.push_str(",points_tre_mean_mm,near_lip_10mm_mm,near_crack_10mm_mm,crack_face_mean_mm,far_excess_mm,ratio_vs_francois,ratio_lo95,ratio_hi95,config_hash");
+        for b in 0..np {
+            s.push_str(&format!(",lip_bin{b}_mean_mm,lip_bin{b}_n,lip_bin{b}_floor_ok"));
+        }
+        for b in 0..np {
+            s.push_str(&format!(",crack_bin{b}_mean_mm,crack_bin{b}_n"));
+        }
     }
     s.push('\n');
     for c in cells {
@@ -148,6 +422,36 @@ pub fn table_csv(cells: &[Cell]) -> String {
         ));
         for b in 0..nb {
             s.push_str(&format!(",{:.6}", c.bin_means_mm.get(b).copied().unwrap_or(f64::NAN)));
+        }
+        if let (true, Some(p)) = (np > 0, &c.points) {
+            let r = p.ratio_vs_francois.unwrap_or([f64::NAN; 3]);
+            s.push_str(&format!(
+                ",{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{}",
+                p.mean_mm,
+                p.near_lip_mm,
+                p.near_crack_mm,
+                p.crack_face_mean_mm,
+                p.far_excess_mm,
+                r[0],
+                r[1],
+                r[2],
+                p.config_hash
+            ));
+            for b in 0..np {
+                s.push_str(&format!(
+                    ",{:.6},{},{}",
+                    p.lip_bin_means_mm.get(b).copied().unwrap_or(f64::NAN),
+                    p.lip_bin_n.get(b).copied().unwrap_or(0),
+                    p.floor_ok.get(b).copied().unwrap_or(true)
+                ));
+            }
+            for b in 0..np {
+                s.push_str(&format!(
+                    ",{:.6},{}",
+                    p.crack_bin_means_mm.get(b).copied().unwrap_or(f64::NAN),
+                    p.crack_bin_n.get(b).copied().unwrap_or(0)
+                ));
+            }
         }
         s.push('\n');
     }
@@ -197,6 +501,9 @@ mod tests {
             seconds: 2.0,
             notes: vec![],
             provenance: Default::default(),
+            config_hash: String::new(),
+            points: None,
+            floor: None,
         }
     }
 

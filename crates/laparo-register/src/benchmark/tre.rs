@@ -101,6 +101,75 @@ mod inf_as_null {
     }
 }
 
+/// The far field of the v2 protocol: points at least this far (mm) from the source lip polylines; a method's
+/// far-field figure is its excess TRE there over "none"'s.
+pub const FAR_FIELD_MM: f64 = 40.0;
+
+/// Scores of one run at the common evaluation points (v2 protocol).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PointScores {
+    /// TRE over every evaluation point (mm).
+    pub tre: Stats,
+    /// TRE over the crack-face points only (mm).
+    pub crack_faces: Stats,
+    /// TRE by distance to the continuous source lip polylines ([`DISTANCE_BIN_EDGES_MM`]).
+    pub bins_lip: Vec<BinStats>,
+    /// TRE by distance to the true crack surface ([`DISTANCE_BIN_EDGES_MM`]).
+    pub bins_crack: Vec<BinStats>,
+    /// Mean TRE over the points at least [`FAR_FIELD_MM`] from the lips (mm; 0 when there is none).
+    pub far_mean_mm: f64,
+    /// Points at least [`FAR_FIELD_MM`] from the lips.
+    pub far_n: usize,
+}
+
+impl PointScores {
+    /// Score registered point positions `x` against `points.ground_truth`.
+    pub fn of(points: &super::points::EvalPoints, x: &[Vector3<f64>]) -> Result<PointScores> {
+        let e = node_errors(x, &points.ground_truth)
+            .map_err(|err| RegisterError::bad("TRE at the evaluation points", err.to_string()))?;
+        let face: Vec<f64> = e
+            .iter()
+            .zip(&points.kind)
+            .filter(|(_, k)| **k == super::points::PointKind::CrackFace)
+            .map(|(e, _)| *e)
+            .collect();
+        let far: Vec<f64> =
+            e.iter().zip(&points.d_lip_mm).filter(|(_, d)| **d >= FAR_FIELD_MM).map(|(e, _)| *e).collect();
+        Ok(PointScores {
+            tre: Stats::of(&e),
+            crack_faces: Stats::of(&face),
+            bins_lip: binned(&e, &points.d_lip_mm, &DISTANCE_BIN_EDGES_MM),
+            bins_crack: binned(&e, &points.d_crack_mm, &DISTANCE_BIN_EDGES_MM),
+            far_mean_mm: Stats::of(&far).mean,
+            far_n: far.len(),
+        })
+    }
+
+    /// Mean TRE over the points within `hi_mm` of the lips (the bins below `hi_mm` pooled by count; NaN when
+    /// they hold no point). `hi_mm` must be a bin edge.
+    pub fn near_lip_mean_mm(&self, hi_mm: f64) -> f64 {
+        pooled_below(&self.bins_lip, hi_mm)
+    }
+
+    /// Mean TRE over the points within `hi_mm` of the true crack (as [`PointScores::near_lip_mean_mm`]).
+    pub fn near_crack_mean_mm(&self, hi_mm: f64) -> f64 {
+        pooled_below(&self.bins_crack, hi_mm)
+    }
+}
+
+/// The mean over the bins whose upper edge is ≤ `hi_mm`, pooled by their counts (NaN without a point).
+pub fn pooled_below(bins: &[BinStats], hi_mm: f64) -> f64 {
+    let (n, sum) = bins
+        .iter()
+        .filter(|b| b.hi_mm <= hi_mm)
+        .fold((0usize, 0.0), |(n, s), b| (n + b.stats.n, s + b.stats.mean * b.stats.n as f64));
+    if n == 0 {
+        f64::NAN
+    } else {
+        sum / n as f64
+    }
+}
+
 /// Errors grouped by the distance bins `edges` (ascending, mm): bin k holds edges[k] ≤ d < edges[k+1].
 pub fn binned(errors: &[f64], distances: &[f64], edges: &[f64]) -> Vec<BinStats> {
     (0..edges.len().saturating_sub(1))

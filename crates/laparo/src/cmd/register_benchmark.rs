@@ -11,8 +11,8 @@ use laparo_fem::mesh::{
 };
 use laparo_register::baselines::{ArapConfig, ArapEnergy, DrbcConfig, LddmmConfig};
 use laparo_register::benchmark::build::{
-    case_from, choose_roi, crack_gap_by_node_mm, fem_ground_truth, CrackResolution, GroundTruthConfig,
-    GroundTruthReport,
+    case_from, choose_roi, crack_gap_by_node_mm, fem_ground_truth_field, CrackResolution, GroundTruthConfig,
+    GroundTruthKind, GroundTruthReport,
 };
 use laparo_register::benchmark::figures::{
     write_crack_opening, write_distance_plot, write_sweep_plot, write_tre_map, SurfaceView, SweepPanel, SweepPoint,
@@ -59,8 +59,36 @@ pub struct BenchmarkArgs {
     /// ground truth read back from the particles to the nodes, the transfer's error floor). arap-roi,
     /// drbc-roi, francois-roi: the baseline with RODS-MPM's region of interest, its nodes outside held at
     /// rest (what RODS-MPM is told about where the tissue does not move; run where the case has a ball).
-    #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods,arap-roi,drbc-roi,francois-roi")]
+    /// The floors (floor-p1: the ground truth at the mesh nodes read by P1; floor-rods = rods-readback) and the
+    /// thesis fidelity rows (rods-thesis: one field, plain GD from v₀ = 0, 500 iterations; rods-thesis-kerf: the
+    /// same on a source with the blade volume (2 Δx) removed, which uses the true crack) are always added: the
+    /// floors in every column, the thesis rows in the 50-landmark column.
+    #[arg(long, default_value = "none,arap,drbc,francois,lddmm,rods")]
     pub methods: String,
+    /// Region of interest of every method (identical for all): a-priori (a ball of radius 1.5 × the source lip
+    /// length about the lip centroid: the mesh methods hold their nodes outside it at rest, RODS-MPM simulates
+    /// inside it), none (the whole organ), or ground-truth (v1: the smallest ball whose boundary the ground truth
+    /// barely moves, RODS-MPM only; chosen from the ground truth, so no headline may read it).
+    #[arg(long, default_value = "a-priori")]
+    pub roi: String,
+    /// Spacing (mm) of the common evaluation lattice inside the source organ (plus crack-face points at about
+    /// the same density, both sides).
+    #[arg(long, default_value_t = 2.0)]
+    pub eval_spacing_mm: f64,
+    /// Ground truths per scenario, comma separated: pressure (crack-face pressure), grasper (retraction by patch
+    /// loads on each lip), stiff-inclusion (the pressure loading on a liver with a 5× stiffer inclusion; every
+    /// method keeps Neo-Hookean 4.1 kPa / 0.49). Default all three (quick: pressure).
+    #[arg(long)]
+    pub ground_truths: Option<String>,
+    /// Run on even where RODS-MPM's floor (the ground truth read back through its particles) exceeds ¼ of
+    /// "none"'s TRE within 10 mm of the lips (else an error naming --spacing-mm): those bins are then marked
+    /// not comparable.
+    #[arg(long)]
+    pub allow_coarse_floor: bool,
+    /// Also write, for every run of the 50-landmark column (seed 0), `<case>/points/<method>.csv`: each
+    /// evaluation point's rest position (mm), side, kind, distances to the lips and the crack (mm) and TRE (mm).
+    #[arg(long)]
+    pub write_points: bool,
     /// RODS-MPM particle spacing (mm); default 3 (quick 6).
     #[arg(long)]
     pub spacing_mm: Option<f64>,
@@ -170,13 +198,16 @@ fn ground_truth(
     cfg: &GroundTruthConfig,
 ) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
     let path = dir.join("ground_truth.json");
-    let n = scn.cut.mesh.vertices.len();
-    let inputs = ground_truth_inputs(scn, cfg);
+    // the whole TET10 field: vertices first, then the edge nodes of Tet10Mesh::from_linear
+    let n = laparo_fem::solid::Tet10Mesh::from_linear(&scn.cut.mesh)?.n_nodes();
+    let inputs = format!("v2-p2 {}", ground_truth_inputs(scn, cfg));
     if path.exists() {
         let v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
-        let flat: Vec<f64> =
-            v["displacement_mm"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+        let flat: Vec<f64> = v["displacement_p2_mm"]
+            .as_array()
+            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+            .unwrap_or_default();
         if flat.len() == 3 * n && v["inputs"].as_str() == Some(inputs.as_str()) {
             let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
             let report: GroundTruthReport =
@@ -197,12 +228,15 @@ fn ground_truth(
     let pb = ProgressBar::new_spinner();
     pb.set_message(format!("{}: FEM ground truth (TET10 Neo-Hookean), calibrating the crack pressure", scn.name));
     pb.enable_steady_tick(std::time::Duration::from_millis(200));
-    let (u, report) = fem_ground_truth(scn, cfg, &mut |k, p, g| {
-        pb.suspend(|| eprintln!("{}: FEM solve {} at {p:.4} kPa → lip gap {g:.2} mm", scn.name, k + 1));
+    let (field, report) = fem_ground_truth_field(scn, cfg, &mut |k, p, g| {
+        pb.suspend(|| {
+            eprintln!("{}: FEM solve {} at load factor {p:.4} → calibration quantity {g:.2} mm", scn.name, k + 1)
+        });
     })?;
     pb.finish_and_clear();
+    let u = field.p2_displacement_mm;
     let flat: Vec<f64> = u.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
-    write_json(&path, &serde_json::json!({"inputs": inputs, "report": report, "displacement_mm": flat}))?;
+    write_json(&path, &serde_json::json!({"inputs": inputs, "report": report, "displacement_p2_mm": flat}))?;
     Ok((u, report))
 }
 
@@ -238,7 +272,36 @@ fn rods_organ(a: &BenchmarkArgs, quick: bool) -> Result<OrganConfig> {
     Ok(organ)
 }
 
+/// `--roi`: how the region of interest is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RoiMode {
+    /// 1.5 × the lip length about the lip centroid, every method.
+    APriori,
+    /// The whole organ.
+    None,
+    /// v1: chosen from the ground truth, RODS-MPM only.
+    GroundTruth,
+}
+
+fn roi_mode(a: &BenchmarkArgs) -> Result<RoiMode> {
+    match a.roi.as_str() {
+        "a-priori" => Ok(RoiMode::APriori),
+        "none" => Ok(RoiMode::None),
+        "ground-truth" => Ok(RoiMode::GroundTruth),
+        o => bail!("--roi {o:?}: expected a-priori, none or ground-truth"),
+    }
+}
+
+/// The a-priori region of interest: a ball of radius 1.5 × the source lip length about the lips' centroid.
+fn a_priori_roi(c: &laparo_register::benchmark::BenchmarkCase) -> laparo_register::organ::Roi {
+    let centre = incision_centre(c);
+    let lip = &c.lips[0];
+    let length: f64 = lip.windows(2).map(|w| (c.rest[w[1]] - c.rest[w[0]]).norm()).sum();
+    laparo_register::organ::Roi::Ball { center: [centre.x, centre.y, centre.z], radius_mm: 1.5 * length }
+}
+
 fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
+    let shared_roi = roi_mode(a)? == RoiMode::APriori;
     let organ = rods_organ(a, quick)?;
     if !(a.oracle_kerf_mm >= 0.0 && a.oracle_kerf_mm.is_finite()) {
         bail!("--oracle-kerf-mm {}: must be finite and >= 0", a.oracle_kerf_mm);
@@ -248,18 +311,27 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
     for m in a.methods.split(',').map(|s| s.trim().to_ascii_lowercase()) {
         // `-roi`: the baseline with RODS-MPM's region of interest (nodes outside it held at rest)
         let (base, hold_outside_roi) = match m.strip_suffix("-roi") {
-            Some(b) if ["arap", "drbc", "francois"].contains(&b) => (b, true),
+            Some(b) if ["arap", "drbc", "francois"].contains(&b) => {
+                if shared_roi {
+                    bail!("--methods {m}: with --roi a-priori every method already holds the same region of interest; give {b}");
+                }
+                (b, true)
+            }
             _ => (m.as_str(), false),
         };
         let b = |name: &str, baseline| {
             let name = if hold_outside_roi { format!("{name} (ROI)") } else { name.into() };
+            let hold_outside_roi = hold_outside_roi || shared_roi;
             Box::new(BaselineMethod { name, baseline, hold_outside_roi }) as Box<dyn Method>
         };
         out.push(match base {
             // per-element rotations (libigl's tet default): cotangent spokes are unreliable on obtuse tets
             "arap" => b("ARAP", Baseline::Arap(ArapConfig { energy: ArapEnergy::Elements, ..Default::default() })),
             // diagnostics that read the ground truth (not registration methods: see RodsOracle)
-            "rods-ballistic" | "rods-dense" | "rods-ballistic-two-field" | "rods-dense-two-field" | "rods-readback" => {
+            "floor-p1" => Box::new(laparo_register::benchmark::methods::P1Floor),
+            "rods-thesis" | "rods-thesis-kerf" => Box::new(thesis_row(a, quick, m.ends_with("-kerf"))?),
+            "rods-ballistic" | "rods-dense" | "rods-ballistic-two-field" | "rods-dense-two-field" | "rods-readback"
+            | "floor-rods" => {
                 Box::new(laparo_register::benchmark::rods::RodsOracle {
                     inner: RodsMethod {
                         organ: organ.clone(),
@@ -267,7 +339,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                         two_field: m.ends_with("-two-field").then(|| two_field(a)).transpose()?,
                     },
                     mode: match m.as_str() {
-                        "rods-readback" => OracleMode::Readback,
+                        "rods-readback" | "floor-rods" => OracleMode::Readback,
                         m if m.starts_with("rods-ballistic") => OracleMode::Ballistic,
                         _ => OracleMode::Dense,
                     },
@@ -294,13 +366,44 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                 optimizer: optimizer.clone(),
                 two_field: Some(two_field(a)?),
             }),
-            _ => bail!("--methods: unknown method {m:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback; arap-roi, drbc-roi, francois-roi hold RODS-MPM's region of interest)"),
+            _ => bail!("--methods: unknown method {m:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-thesis, rods-thesis-kerf, floor-p1, floor-rods, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback; arap-roi, drbc-roi, francois-roi hold RODS-MPM's region of interest with --roi none or ground-truth)"),
         });
     }
     if out.is_empty() {
         bail!("--methods: empty");
     }
+    // the floors of every listed method are always reported (a row without its floor cannot be read)
+    let mut names: Vec<String> = out.iter().map(|m| m.name()).collect();
+    let floors: Vec<String> = out.iter().filter_map(|m| m.floor()).collect();
+    for f in floors {
+        if names.contains(&f) {
+            continue;
+        }
+        names.push(f.clone());
+        if f == laparo_register::benchmark::methods::P1_FLOOR_NAME {
+            out.push(Box::new(laparo_register::benchmark::methods::P1Floor));
+        } else {
+            out.push(Box::new(laparo_register::benchmark::rods::RodsOracle {
+                inner: RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None },
+                mode: OracleMode::Readback,
+                kerf_mm: 0.0,
+            }));
+        }
+    }
     Ok(out)
+}
+
+/// A thesis fidelity row: one field, plain gradient descent from v₀ = 0 (500 iterations; quick: the quick
+/// tier's --iterations), optionally on a source with a 2 Δx kerf along the true crack.
+fn thesis_row(a: &BenchmarkArgs, quick: bool, kerf: bool) -> Result<laparo_register::benchmark::rods::ThesisRods> {
+    let organ = rods_organ(a, quick)?;
+    let iterations = if quick { a.iterations.unwrap_or(8) } else { 500 };
+    let optimizer = OptimizerConfig { iterations, ..OptimizerConfig::thesis() };
+    let dx = organ.dx_mm.unwrap_or(2.0 * organ.spacing_mm);
+    Ok(laparo_register::benchmark::rods::ThesisRods {
+        inner: RodsMethod { organ, optimizer, two_field: None },
+        kerf_mm: if kerf { 2.0 * dx } else { 0.0 },
+    })
 }
 
 /// Fig. 5.9 panels: axis label and whether the axis is logarithmic; a sweep setting names its panel by index.
@@ -463,6 +566,70 @@ impl Method for NamedRods {
     }
 }
 
+/// One evaluation point per line: rest position, side, kind, distances and TRE (mm).
+fn write_points_csv(path: &Path, p: &laparo_register::benchmark::EvalPoints, x: &[Vector3<f64>]) -> Result<()> {
+    use std::fmt::Write;
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    let mut s = String::from("x_mm,y_mm,z_mm,side,kind,d_lip_mm,d_crack_mm,tre_mm\n");
+    for i in 0..p.len() {
+        let r = p.rest[i];
+        let kind = if p.kind[i] == laparo_register::benchmark::PointKind::CrackFace { "crack-face" } else { "lattice" };
+        writeln!(
+            s,
+            "{:.4},{:.4},{:.4},{},{kind},{:.4},{:.4},{:.6}",
+            r.x,
+            r.y,
+            r.z,
+            p.side[i],
+            p.d_lip_mm[i],
+            p.d_crack_mm[i],
+            (x[i] - p.ground_truth[i]).norm()
+        )?;
+    }
+    laparo_core::atomic::write_atomic(path, s.as_bytes())?;
+    Ok(())
+}
+
+/// The row name of no registration.
+const NONE_NAME: &str = laparo_register::benchmark::table::NONE_NAME;
+
+/// Largest ground-truth displacement (mm) of a node the region of interest holds at rest (outside the ball).
+fn held_displacement_mm(x: &[Vector3<f64>], u: &[Vector3<f64>], roi: &laparo_register::organ::Roi) -> f64 {
+    x.iter().zip(u).filter(|(p, _)| !roi.inside(p)).map(|(_, u)| u.norm()).fold(0.0, f64::max)
+}
+
+/// The floor line: in every case and column, RODS-MPM's floor within 0–5 and 5–10 mm of the lips must be at
+/// most ¼ of "none"'s TRE there; else an error naming --spacing-mm (a warning with --allow-coarse-floor).
+fn check_floor_line(results: &[laparo_register::benchmark::RunResult], a: &BenchmarkArgs, quick: bool) -> Result<()> {
+    let spacing = rods_organ(a, quick)?.spacing_mm;
+    for r in results.iter().filter(|r| r.key.method.starts_with("floor: RODS")) {
+        let Some(none) = results
+            .iter()
+            .find(|n| n.key.method == NONE_NAME && n.key.scenario == r.key.scenario && n.key.column == r.key.column)
+        else {
+            continue;
+        };
+        let (Some(f), Some(n)) = (&r.points, &none.points) else { continue };
+        for k in 0..2 {
+            let (fl, nn) = (f.bins_lip[k].stats.mean, n.bins_lip[k].stats.mean);
+            if fl > 0.25 * nn {
+                let msg = format!(
+                    "--spacing-mm {spacing}: RODS-MPM's floor (the ground truth read back through its particles) is {fl:.2} mm within {}–{} mm of the lips of {}, above ¼ of \"none\"'s {nn:.2} mm: the particles cannot represent what the comparison reads there; choose a finer --spacing-mm (or --allow-coarse-floor to mark those bins not comparable)",
+                    f.bins_lip[k].lo_mm, f.bins_lip[k].hi_mm, r.key.scenario
+                );
+                if a.allow_coarse_floor {
+                    eprintln!("warning: {msg}");
+                } else {
+                    bail!(msg);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Mean rest position of the lip nodes.
 fn incision_centre(c: &laparo_register::benchmark::BenchmarkCase) -> Vector3<f64> {
     let ids: Vec<usize> = c.lips.iter().flatten().copied().collect();
@@ -524,10 +691,24 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     let store = ResultStore::new(a.out.join("runs"));
     let mut cases = Vec::new();
     let mut gt_reports = Vec::new();
-    for name in &scenarios {
-        let dir = a.out.join(name);
+    let kinds: Vec<GroundTruthKind> = a
+        .ground_truths
+        .clone()
+        .unwrap_or_else(|| if quick { "pressure".into() } else { "pressure,grasper,stiff-inclusion".into() })
+        .split(',')
+        .map(|k| k.trim().parse::<GroundTruthKind>().map_err(|e| anyhow::anyhow!("--ground-truths {k:?}: {e}")))
+        .collect::<Result<_>>()?;
+    let roi_mode = roi_mode(&a)?;
+    if !(a.eval_spacing_mm.is_finite() && a.eval_spacing_mm > 0.0) {
+        bail!("--eval-spacing-mm {}: must be finite and > 0", a.eval_spacing_mm);
+    }
+    for (name, kind) in scenarios.iter().flat_map(|n| kinds.iter().map(move |k| (*n, *k))) {
+        // the pressure ground truth keeps the scenario's name (and folder); the controls add their kind
+        let case_name =
+            if kind == GroundTruthKind::Pressure { name.to_string() } else { format!("{name}-{}", kind.name()) };
+        let dir = a.out.join(&case_name);
         std::fs::create_dir_all(&dir)?;
-        let (scn, blade) = if *name == "anatomical" {
+        let (scn, blade) = if name == "anatomical" {
             (anatomical_on(&mesh, &surface, &frame, &blades.1)?, serde_json::to_value(&blades.1)?)
         } else {
             (non_anatomical_on(&mesh, &surface, &frame, &blades.0)?, serde_json::to_value(&blades.0)?)
@@ -541,7 +722,8 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         resolution
             .check(edge, MIN_CRACK_AREA_FRACTION, MIN_LIP_SAMPLES)
             .with_context(|| format!("--edge-mm {edge}: the {name} incision"))?;
-        let mut gcfg = GroundTruthConfig::for_scenario(name);
+        let mut gcfg = GroundTruthConfig::control(&scn, kind)?;
+        scn.name = case_name.clone();
         if let Some(g) = target_gap {
             gcfg.target_gap_mm = g;
         }
@@ -553,15 +735,23 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         let t0 = std::time::Instant::now();
         let (u, rep) = ground_truth(&dir, &store, &scn, &gcfg)?;
         let x = &scn.cut.mesh.vertices;
+        let u_p2 = u;
+        let u: Vec<Vector3<f64>> = u_p2[..x.len()].to_vec();
         let crack: Vec<Vector3<f64>> = scn.cut.crack_faces.iter().flatten().flatten().map(|&i| x[i]).collect();
         let centre = crack.iter().sum::<Vector3<f64>>() / crack.len().max(1) as f64;
-        let roi = match a.roi_mm {
-            Some(r) if r > 0.0 && r.is_finite() => choose_roi(x, &u, centre, r, r, 6.0, f64::INFINITY),
-            Some(r) => bail!("--roi-mm {r}: must be a finite radius > 0"),
-            None => choose_roi(x, &u, centre, 50.0, 120.0, 6.0, 0.5),
+        let roi = match (roi_mode, a.roi_mm) {
+            (_, Some(r)) if !(r > 0.0 && r.is_finite()) => bail!("--roi-mm {r}: must be a finite radius > 0"),
+            (RoiMode::APriori, Some(r)) => bail!("--roi-mm {r} with --roi a-priori: the a-priori ball's radius is 1.5 × the lip length; give --roi ground-truth to force a radius"),
+            (RoiMode::APriori, None) => {
+                let ball = a_priori_roi(&case_from(&scn, &u, None));
+                Some((ball, held_displacement_mm(x, &u, &ball)))
+            }
+            (RoiMode::None, _) => None,
+            (RoiMode::GroundTruth, Some(r)) => choose_roi(x, &u, centre, r, r, 6.0, f64::INFINITY),
+            (RoiMode::GroundTruth, None) => choose_roi(x, &u, centre, 50.0, 120.0, 6.0, 0.5),
         };
         println!(
-            "{name}: {} nodes after the cut (crack nodes duplicated), lip gap {:.2} mm at {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm (p95 {:.3} mm, {:.1} % of those nodes above 1 mm), min J {:.3} ({:.1} s); ROI {}",
+            "{case_name}: {} nodes after the cut (crack nodes duplicated), largest lip gap {:.2} mm at load {:.4} kPa, max |u| {:.2} mm, |u| beyond 60 mm {:.3} mm (p95 {:.3} mm, {:.1} % of those nodes above 1 mm), min J {:.3} ({:.1} s); ROI {}",
             x.len(),
             rep.max_gap_mm,
             rep.pressure_kpa,
@@ -571,12 +761,29 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             100.0 * rep.far_share_over_1mm,
             rep.min_j,
             t0.elapsed().as_secs_f64(),
-            match &roi {
-                Some((laparo_register::organ::Roi::Ball { radius_mm, .. }, w)) => format!("ball {radius_mm} mm (ground-truth |u| ≤ {w:.3} mm on its boundary shell and outside, where it holds the tissue at rest)"),
+            match (&roi, roi_mode) {
+                (Some((laparo_register::organ::Roi::Ball { radius_mm, .. }, w)), RoiMode::APriori) => format!("a priori ball {radius_mm:.1} mm = 1.5 × the lip length (ground-truth |u| up to {w:.3} mm on its boundary shell and outside, where every method holds the tissue at rest)"),
+                (Some((laparo_register::organ::Roi::Ball { radius_mm, .. }, w)), _) => format!("ball {radius_mm} mm (ground-truth |u| ≤ {w:.3} mm on its boundary shell and outside, where it holds the tissue at rest)"),
+                (None, RoiMode::None) => "whole organ (--roi none)".into(),
                 _ => "whole organ (no ball up to 120 mm keeps the displacement on its boundary shell and outside < 0.5 mm)".into(),
             }
         );
-        let case = case_from(&scn, &u, roi.map(|r| r.0));
+        let mut case = case_from(&scn, &u, roi.map(|r| r.0));
+        case.ground_truth_p2 = Some(u_p2.clone());
+        let t0 = std::time::Instant::now();
+        let case = case
+            .with_points(a.eval_spacing_mm)
+            .with_context(|| format!("{case_name}: the evaluation points (--eval-spacing-mm {})", a.eval_spacing_mm))?;
+        if let Some(p) = &case.points {
+            let faces = p.kind.iter().filter(|k| **k == laparo_register::benchmark::PointKind::CrackFace).count();
+            println!(
+                "{case_name}: {} evaluation points ({} on the lattice at {} mm, {faces} on the crack faces; {:.1} s)",
+                p.len(),
+                p.len() - faces,
+                a.eval_spacing_mm,
+                t0.elapsed().as_secs_f64()
+            );
+        }
         // the ground truth on the surface, for people to look at
         let mag: Vec<f64> = u.iter().map(|v| v.norm()).collect();
         let view = SurfaceView { direction: -Vector3::from(frame.anterior), up: Vector3::z(), size_px: 420 };
@@ -619,7 +826,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             };
             d.write(&dir.join("deformation"))?;
         }
-        gt_reports.push(serde_json::json!({"scenario": name, "blade": blade, "fixed_fraction": frame.fixed_fraction, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped, "crack_resolution": resolution}));
+        gt_reports.push(serde_json::json!({"scenario": name, "case": case_name, "ground_truth_kind": kind.name(), "config": gcfg, "blade": blade, "fixed_fraction": frame.fixed_fraction, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped, "crack_resolution": resolution}));
         cases.push(case);
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
@@ -647,6 +854,17 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
             e.result.tre_volume.mean,
             if e.registered.is_none() { " (resumed)" } else { "" }
         ));
+        if let (Some(x), Some(p), true) =
+            (e.registered_points, &e.case.points, a.write_points && k.column == map_column && k.seed == 0)
+        {
+            let path = a.out.join(&k.scenario).join("points").join(format!(
+                "{}.csv",
+                k.method.replace(|c: char| !(c.is_ascii_alphanumeric() || c == '-' || c == '.'), "_")
+            ));
+            if let Err(x) = write_points_csv(&path, p, x) {
+                map_err.get_or_insert(x);
+            }
+        }
         if let (Some(nodes), true) = (e.registered, k.column == map_column && k.seed == 0) {
             let err: Vec<f64> = nodes.iter().zip(&e.case.ground_truth).map(|(a, b)| (a - b).norm()).collect();
             let dir = a.out.join(&k.scenario).join("maps");
@@ -688,7 +906,17 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     // the registration baselines (not RODS-MPM, not the rest mesh): Fig. 5.9's reference is the best of them
     let baselines: Vec<String> =
         refs.iter().map(|m| m.name()).filter(|n| !n.starts_with(RODS_MPM_NAME) && !n.starts_with("none")).collect();
-    let mut results = run_protocol(&cases, &refs, &columns, n_seeds, &store, &mut on_event)?;
+    // the floors and "none" first (cheap, landmark-free): a RODS-MPM floor above ¼ of "none" within 10 mm of
+    // the lips means the chosen spacing cannot resolve what the comparison reads there
+    let (first, rest_methods): (Vec<&dyn Method>, Vec<&dyn Method>) =
+        refs.iter().partition(|m| !m.uses_landmarks() || m.name() == NONE_NAME);
+    let mut results = run_protocol(&cases, &first, &columns, n_seeds, &store, &mut on_event)?;
+    check_floor_line(&results, &a, quick)?;
+    results.extend(run_protocol(&cases, &rest_methods, &columns, n_seeds, &store, &mut on_event)?);
+    // the thesis fidelity rows, in the 50-landmark column
+    let thesis = [thesis_row(&a, quick, false)?, thesis_row(&a, quick, true)?];
+    let trefs: Vec<&dyn Method> = thesis.iter().map(|m| m as &dyn Method).collect();
+    results.extend(run_protocol(&cases, &trefs, &[map_column], 1, &store, &mut on_event)?);
     if a.sweeps {
         let srefs: Vec<&dyn Method> = sweeps.0.iter().map(|s| s.method.as_ref()).collect();
         results.extend(run_protocol(&cases, &srefs, &[map_column], 1, &store, &mut on_event)?);
@@ -703,7 +931,8 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     laparo_core::atomic::write_atomic(&a.out.join("table51.md"), md.as_bytes())?;
     laparo_core::atomic::write_atomic(&a.out.join("table51.csv"), table_csv(&cells).as_bytes())?;
     laparo_core::atomic::write_atomic(&a.out.join("table51.json"), table_json(&cells).as_bytes())?;
-    for name in &scenarios {
+    for case in &cases {
+        let name = &case.scenario;
         let main: Vec<&laparo_register::benchmark::Cell> = cells
             .iter()
             .filter(|c| c.scenario == *name && c.column == map_column && refs.iter().any(|m| m.name() == c.method))
@@ -711,8 +940,10 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         write_distance_plot(
             &a.out.join(name).join("fig58_tre_vs_distance.png"),
             &main,
-            &format!("{name}: TRE vs distance to the incision (50 landmarks)"),
+            &format!("{name}: TRE vs distance to the source lips (50 landmarks; dashed: floors)"),
         )?;
+    }
+    for name in &scenarios {
         if a.sweeps {
             let fig = a.out.join(name).join("fig59_sensitivity.png");
             write_fig59(&fig, name, &cells, &sweeps.0, &sweeps.1, map_column, &baselines)?;
