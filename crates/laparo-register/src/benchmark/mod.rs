@@ -7,6 +7,7 @@
 //! from `laparo-mpm`; this module only scores positions against it.
 pub mod build;
 pub mod case;
+pub mod convergence;
 pub mod figures;
 pub mod methods;
 pub mod points;

@@ -12,5 +12,6 @@ pub mod mesh;
 pub mod mpm;
 pub mod register;
 pub mod register_benchmark;
+pub mod register_convergence;
 pub mod stereo;
 pub mod stereo_match;

@@ -30,6 +30,9 @@ pub enum RegisterSub {
     /// The in-silico incision benchmark (§5.4.2, Table 5.1, Figs. 5.7–5.9): FEM ground truth on a real liver,
     /// ARAP, DRBC, François et al., LDDMM and RODS-MPM scored by TRE at every node.
     Benchmark(Box<crate::cmd::register_benchmark::BenchmarkArgs>),
+    /// Mesh convergence of the benchmark's FEM ground truth: one scenario on two tetrahedron sizes, compared
+    /// at the coarse mesh's evaluation points (issue 46).
+    Convergence(Box<crate::cmd::register_convergence::ConvergenceArgs>),
     /// Fig. 5.5 in 2D: the four cases (stretch, curve, rupture, rupture + stretch) as PNGs + metrics.
     Fig55 {
         /// Output folder.
@@ -254,6 +257,7 @@ pub fn run(a: RegisterArgs) -> Result<()> {
         Some(RegisterSub::Rigid(r)) => rigid(r),
         Some(RegisterSub::SynthTargets(s)) => synth(s),
         Some(RegisterSub::Benchmark(b)) => crate::cmd::register_benchmark::run(*b),
+        Some(RegisterSub::Convergence(c)) => crate::cmd::register_convergence::run(*c),
         Some(RegisterSub::Fig55 { out, iterations, optimizer }) => {
             let cfg = OptimizerConfig { iterations, ..optimizer_base(&optimizer)? };
             for m in fig55_figures(&out, &cfg)? {
