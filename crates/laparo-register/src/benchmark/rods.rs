@@ -428,11 +428,70 @@ fn fixed_particles(problem: &RodsProblem, samples: &[(Vector3<f64>, usize)]) -> 
     Ok(samples.iter().map(|(x, t)| interpolate(problem, x, *t, |i| ind[i]) >= 0.5).collect())
 }
 
+/// The crack a read-back must not reach across: the case's crack faces (side-1 faces wound towards side 2), a
+/// k-d tree over their centroids for segment tests, and the closest-point structure.
+struct CrackGuard {
+    surface: crate::distance::TriangleSurface,
+    centroids: crate::distance::Tree<3>,
+    r_max: f64,
+}
+
+impl CrackGuard {
+    fn new(problem: &RodsProblem) -> Option<CrackGuard> {
+        let c = true_crack(problem.nodes, problem.tets, problem.node_side);
+        if c.faces.is_empty() {
+            return None;
+        }
+        let cent: Vec<Vector3<f64>> =
+            c.faces.iter().map(|f| (c.vertices[f[0]] + c.vertices[f[1]] + c.vertices[f[2]]) / 3.0).collect();
+        let r_max = c
+            .faces
+            .iter()
+            .zip(&cent)
+            .map(|(f, m)| f.iter().map(|&i| (c.vertices[i] - m).norm()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        Some(CrackGuard {
+            surface: crate::distance::TriangleSurface::new(c.vertices, c.faces),
+            centroids: build_tree(&cent),
+            r_max,
+        })
+    }
+
+    /// Distance (mm) from `x` to the crack, and `x` moved 1e-6 mm off it towards `side` (1: against the
+    /// faces' normals, 2: along them) when it lies on it, so a segment from it starts on its own side.
+    fn locate(&self, x: &Vector3<f64>, side: u8) -> (f64, Vector3<f64>) {
+        use crate::distance::ClosestPoint;
+        let (c, f) = self.surface.closest(x);
+        let d = (c - x).norm();
+        if d > 1e-6 || side == 0 {
+            return (d, *x);
+        }
+        let t = self.surface.faces[f].map(|i| self.surface.vertices[i]);
+        let n = (t[1] - t[0]).cross(&(t[2] - t[0])).normalize();
+        (d, if side == 1 { x - n * 1e-6 } else { x + n * 1e-6 })
+    }
+
+    /// Whether the open segment a → b crosses a crack face.
+    fn crosses(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
+        let m = 0.5 * (a + b);
+        let r = 0.5 * (b - a).norm() + self.r_max;
+        let d = b - a;
+        self.centroids.within_unsorted::<SquaredEuclidean>(&[m.x, m.y, m.z], r * r).iter().any(|hit| {
+            let f = self.surface.faces[hit.item as usize];
+            let v = f.map(|i| self.surface.vertices[i]);
+            laparo_core::geometry::ray_triangle(a, &d, &v[0], &v[1], &v[2]).is_some_and(|t| t > 1e-9 && t < 1.0 - 1e-9)
+        })
+    }
+}
+
 /// Node positions, and positions of the `queries`, from the registered particles: one particle→point
-/// transfer for every point (see the module docs). A point on an incision side (side ≠ 0) takes a
-/// least-squares affine fit of its own side's particles within 2.5 spacings (beyond the kerf), so the two
-/// lips are read apart; every other point (and a side point without 4 such particles) the §5.4.3 lattice
-/// transfer. Points outside the region of interest stay at rest.
+/// transfer for every point (see the module docs). A point on an incision side (side ≠ 0), and any point
+/// within reach (2.5 spacings, plus half the kerf) of the crack, takes a moving-least-squares affine fit of the
+/// particles it sees through material: its own side's particles and the unlabelled ones the segment to which
+/// crosses no crack face (never the other lip's), the reach widened until 4 non-coplanar particles are found,
+/// else the nearest such particle's displacement; every other point the §5.4.3 lattice transfer. Points
+/// outside the region of interest stay at rest. (The particles' side labels come from the case's tetrahedra, as
+/// RODS-MPM's landmark particles do.)
 fn transfer_nodes(
     problem: &RodsProblem,
     queries: Queries,
@@ -443,33 +502,37 @@ fn transfer_nodes(
     notes: &mut Vec<String>,
 ) -> Result<(Vec<Vector3<f64>>, Vec<Vector3<f64>>)> {
     let s = problem.organ.spacing_mm;
-    // a crack point's own-side particles: within 2.5 spacings, beyond the kerf when particles were removed
     let reach = 2.5 * s + 0.5 * kerf_mm;
     let transfer = Transfer::new(rest, s)?;
     let tree = build_tree(rest);
+    let guard = CrackGuard::new(problem);
     let read = |x: &Vector3<f64>, sd: u8| -> Result<(Vector3<f64>, bool)> {
         if let Some(roi) = &problem.organ.roi {
             if !roi.inside(x) {
                 return Ok((*x, false));
             }
         }
-        if sd != 0 {
-            // widen the reach until the own side has 4 non-coplanar particles (a thin flap near the mouth may
-            // hold few); failing that, the nearest own-side particle's displacement; never the lattice
-            // transfer, whose cell would straddle the two lips
+        let (d_crack, from) = guard.as_ref().map_or((f64::INFINITY, *x), |g| g.locate(x, sd));
+        if sd != 0 || d_crack < reach {
+            let other = match sd {
+                1 => 2,
+                2 => 1,
+                _ => u8::MAX,
+            };
+            let seen = |p: usize| {
+                side[p] == sd && sd != 0
+                    || side[p] != other && !guard.as_ref().is_some_and(|g| g.crosses(&from, &rest[p]))
+            };
             let mut nearest: Option<(f64, usize)> = None;
             for grow in [1.0, 1.6, 2.4] {
                 let near = tree.within::<SquaredEuclidean>(&[x[0], x[1], x[2]], (grow * reach).powi(2));
-                let own: Vec<usize> =
-                    near.iter().filter(|n| side[n.item as usize] == sd).map(|n| n.item as usize).collect();
-                if let Some(p) = affine_fit(x, &own, rest, deformed) {
+                let own: Vec<(f64, usize)> =
+                    near.iter().map(|n| (n.distance, n.item as usize)).filter(|&(_, p)| seen(p)).collect();
+                let idx: Vec<usize> = own.iter().map(|o| o.1).collect();
+                if let Some(p) = affine_fit(x, &idx, rest, deformed) {
                     return Ok((p, false));
                 }
-                nearest = near
-                    .iter()
-                    .filter(|n| side[n.item as usize] == sd)
-                    .map(|n| (n.distance, n.item as usize))
-                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                nearest = own.into_iter().min_by(|a, b| a.0.total_cmp(&b.0));
                 if nearest.is_some() && grow > 1.0 {
                     break;
                 }
@@ -495,11 +558,13 @@ fn transfer_nodes(
         points.push(p);
     }
     if extrapolated[0] > 0 {
-        notes.push(format!("{} nodes extrapolated from the nearest complete lattice cell", extrapolated[0]));
+        notes.push(format!("{} nodes extrapolated (lattice cell or nearest visible particle)", extrapolated[0]));
     }
     if extrapolated[1] > 0 {
-        notes
-            .push(format!("{} evaluation points extrapolated from the nearest complete lattice cell", extrapolated[1]));
+        notes.push(format!(
+            "{} evaluation points extrapolated (lattice cell or nearest visible particle)",
+            extrapolated[1]
+        ));
     }
     Ok((nodes, points))
 }

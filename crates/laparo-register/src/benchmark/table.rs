@@ -211,6 +211,36 @@ fn with_references(mut cells: Vec<Cell>, results: &[RunResult]) -> Vec<Cell> {
     cells
 }
 
+/// The floor line of the v2 protocol: in every case and column, each RODS-MPM floor row (a method name
+/// starting with `floor: RODS`) within 0–5 and 5–10 mm of the lips must be at most [`FLOOR_SHARE`] × "none"'s
+/// TRE there. The first violation is an [`RegisterError::InvalidParameter`] on `spacing_mm` naming the case,
+/// the bin and both figures (the particles cannot represent what the comparison reads there).
+pub fn check_floor_line(results: &[RunResult], spacing_mm: f64) -> crate::error::Result<()> {
+    for r in results.iter().filter(|r| r.key.method.starts_with("floor: RODS")) {
+        let none = results
+            .iter()
+            .find(|n| n.key.method == NONE_NAME && n.key.scenario == r.key.scenario && n.key.column == r.key.column);
+        let (Some(f), Some(n)) = (r.points.as_ref(), none.and_then(|n| n.points.as_ref())) else { continue };
+        for k in 0..2.min(f.bins_lip.len()).min(n.bins_lip.len()) {
+            let (fl, nn) = (f.bins_lip[k].stats.mean, n.bins_lip[k].stats.mean);
+            if fl > FLOOR_SHARE * nn {
+                return Err(crate::error::RegisterError::param(
+                    "spacing_mm",
+                    spacing_mm,
+                    format!(
+                        "RODS-MPM's floor (the ground truth read back through its particles) is {fl:.3} mm within {}–{} mm of the lips of {} ({}), above {FLOOR_SHARE} × \"none\"'s {nn:.3} mm: the particles cannot represent what the comparison reads there; choose a finer spacing",
+                        f.bins_lip[k].lo_mm,
+                        f.bins_lip[k].hi_mm,
+                        r.key.scenario,
+                        r.key.column.label()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Mean over the bins from index `from` on, pooled by their counts (NaN without a point).
 fn pooled_from(means: &[f64], n: &[usize], from: usize) -> f64 {
     let (k, s) = means
