@@ -113,6 +113,8 @@ pub struct SolidProblem {
     pub(crate) cols: Vec<usize>,
     /// Per element, block index of each (a, b) pair (row-major 10×10).
     elem_blocks: Vec<[u32; 100]>,
+    /// Per element, the factor s_e on both Lamé constants (μ s_e, λ s_e); empty: 1 everywhere.
+    element_scale: Vec<f64>,
 }
 
 const CHUNK: usize = 2048;
@@ -242,7 +244,44 @@ impl SolidProblem {
         if cols.len() > u32::MAX as usize {
             return Err(FemError::bad("tet mesh", "too large (block count exceeds u32)"));
         }
-        Ok(Self { mesh, material, quadrature, prescribed, f_ext, qp, row_ptr, cols, elem_blocks })
+        Ok(Self {
+            mesh,
+            material,
+            quadrature,
+            prescribed,
+            f_ext,
+            qp,
+            row_ptr,
+            cols,
+            elem_blocks,
+            element_scale: Vec::new(),
+        })
+    }
+
+    /// A heterogeneous material: element `e` gets the Lamé constants (s_e μ, s_e λ) of [`Self::material`]
+    /// (e.g. a stiffer inclusion; ν unchanged). The Neo-Hookean energy density of eq. 5.3 is linear in
+    /// (μ, λ), so ψ, P and ∂P/∂F of element `e` are those of the base material times s_e: the factor
+    /// multiplies the element's quadrature weights, with no other change to the assembly. One factor per
+    /// element, each finite and > 0 ([`FemError::InvalidParameter`] naming `element_scale` else).
+    pub fn with_element_scale(mut self, scale: Vec<f64>) -> Result<Self> {
+        let ne = self.mesh.elements.len();
+        if scale.len() != ne {
+            return Err(FemError::param(
+                "element_scale",
+                scale.len() as f64,
+                format!("need one factor per element ({ne} elements)"),
+            ));
+        }
+        if let Some((e, &s)) = scale.iter().enumerate().find(|(_, s)| !(s.is_finite() && **s > 0.0)) {
+            return Err(FemError::param("element_scale", s, format!("element {e}: must be finite and > 0")));
+        }
+        self.element_scale = scale;
+        Ok(self)
+    }
+
+    /// Stiffness factor of element `e` (1 unless set by [`Self::with_element_scale`]).
+    pub fn element_scale(&self, e: usize) -> f64 {
+        self.element_scale.get(e).copied().unwrap_or(1.0)
     }
 
     /// Zero displacement on the given linear-mesh vertices and on the mid-edge nodes of edges
@@ -287,7 +326,8 @@ impl SolidProblem {
     pub(crate) fn element(&self, e: usize, u: &[f64], want: Want) -> Option<ElemOut> {
         let el = &self.mesh.elements[e];
         let jinv = &self.mesh.jac_inv[e];
-        let det = self.mesh.jac_det[e];
+        // the element's stiffness factor scales ψ, P and ∂P/∂F alike: fold it into the volume weight
+        let det = self.mesh.jac_det[e] * self.element_scale(e);
         let mut ue = SMatrix::<f64, 3, 10>::zeros();
         for (a, &node) in el.iter().enumerate() {
             for c in 0..3 {
