@@ -51,11 +51,14 @@ pub struct ConvergenceArgs {
     /// FEM load increments per solve (default: the benchmark's 20).
     #[arg(long)]
     pub fem_steps: Option<usize>,
-    /// Also solve the fine mesh at the coarse mesh's calibrated load (one solve, no calibration;
-    /// <edge>mm-at-coarse-load/ground_truth.json) and compare that too: the mesh's effect without the
-    /// calibration's (each mesh is otherwise calibrated to the same opening range on its own).
+    /// The fine mesh's load: calibrated (on its own, to the same opening range as the benchmark does), coarse
+    /// (one solve at the coarse mesh's calibrated load, <edge>mm-at-coarse-load/ground_truth.json: the mesh's
+    /// effect without the calibration's spread) or both (two comparisons).
+    #[arg(long, default_value = "calibrated")]
+    pub fine_load: String,
+    /// FEM load increments per solve of the fine mesh (default: --fem-steps).
     #[arg(long)]
-    pub same_load: bool,
+    pub fine_fem_steps: Option<usize>,
     /// Another blade or fixed region than the benchmark's.
     #[command(flatten)]
     pub cut: crate::cmd::mesh::CutArgs,
@@ -168,9 +171,15 @@ pub fn run(a: ConvergenceArgs) -> Result<()> {
     if !(a.outside_tolerance_mm.is_finite() && a.outside_tolerance_mm >= 0.0) {
         bail!("--outside-tolerance-mm {}: must be finite and >= 0", a.outside_tolerance_mm);
     }
-    if a.fem_steps == Some(0) {
-        bail!("--fem-steps 0: need at least one load increment");
+    if a.fem_steps == Some(0) || a.fine_fem_steps == Some(0) {
+        bail!("--fem-steps / --fine-fem-steps 0: need at least one load increment");
     }
+    let (fine_calibrated, fine_at_coarse) = match a.fine_load.as_str() {
+        "calibrated" => (true, false),
+        "coarse" => (false, true),
+        "both" => (true, true),
+        o => bail!("--fine-load {o:?}: expected calibrated, coarse or both"),
+    };
     let frame = a.cut.frame(ScenarioFrame::default())?;
     a.cut.check_for(&[name])?;
     let blade = if name == "anatomical" {
@@ -204,10 +213,13 @@ pub fn run(a: ConvergenceArgs) -> Result<()> {
     let organ = laparo_fem::mesh::Surface::new(surface.clone(), &liver.display().to_string())?;
     let case_name =
         if kind == GroundTruthKind::Pressure { name.to_string() } else { format!("{name}-{}", kind.name()) };
-    let mut built: Vec<Built> = Vec::new();
-    let mut scenarios: Vec<Scenario> = Vec::new();
-    let mut configs: Vec<GroundTruthConfig> = Vec::new();
-    for edge in edges {
+    let cfg = ConvergenceConfig { outside_tolerance_mm: a.outside_tolerance_mm, ..Default::default() };
+    let mut meshes: Vec<serde_json::Value> = Vec::new();
+    let mut coarse: Option<Built> = None;
+    let mut comparisons: Vec<serde_json::Value> = Vec::new();
+    let mut md = String::new();
+    let mut compare_s = 0.0;
+    for (k, edge) in edges.into_iter().enumerate() {
         let t0 = Instant::now();
         let (mesh, quality) = tetrahedralize_surface(
             surface.clone(),
@@ -230,107 +242,104 @@ pub fn run(a: ConvergenceArgs) -> Result<()> {
             .with_context(|| format!("--edge-mm {edge}: the {name} incision"))?;
         let mut gcfg = GroundTruthConfig::control(&scn, kind)?;
         scn.name = case_name.clone();
-        if let Some(s) = a.fem_steps {
+        if let Some(s) = if k == 0 { a.fem_steps } else { a.fine_fem_steps.or(a.fem_steps) } {
             gcfg.steps = s;
         }
-        let dir = a.out.join(format!("{edge}mm"));
-        let t1 = Instant::now();
-        let (u_p2, rep, cached) = ground_truth(&dir, &scn, &gcfg)?;
-        let gt_s = t1.elapsed().as_secs_f64();
-        let t2 = Instant::now();
-        let case = build_case(&scn, u_p2, a.eval_spacing_mm)?;
-        let points_s = t2.elapsed().as_secs_f64();
-        let p = case.points.as_ref().map_or(0, |p| p.len());
         println!(
-            "{edge} mm: {} nodes, {} tets (min dihedral {:.1}°, {mesh_s:.1} s); ground truth {} ({:.1} s{}): load {:.4} kPa, \
-             mean mouth opening {:.2} mm, largest gap {:.2} mm, max |u| {:.2} mm, min J {:.3}, {} solver; {p} evaluation points ({points_s:.1} s); peak {:.0} MiB",
-            case.rest.len(),
-            case.tets.len(),
-            quality.min_dihedral_deg,
-            if cached { "reused" } else { "solved" },
-            if cached { rep.seconds } else { gt_s },
-            if cached { " when solved" } else { "" },
-            rep.pressure_kpa,
-            rep.mean_mouth_opening_mm,
-            rep.max_gap_mm,
-            rep.max_displacement_mm,
-            rep.min_j,
-            rep.linear_solver,
-            laparo_register::pipeline::peak_memory_mib().unwrap_or(f64::NAN)
+            "{edge} mm: {} nodes, {} tets after the cut (min dihedral {:.1}°, {mesh_s:.1} s)",
+            scn.cut.mesh.vertices.len(),
+            scn.cut.mesh.tets.len(),
+            quality.min_dihedral_deg
         );
-        let summary = serde_json::json!({
-            "edge_mm": edge, "nodes": case.rest.len(), "tets": case.tets.len(), "mesh_quality": quality,
-            "fragment_nodes_removed": dropped, "crack_resolution": resolution, "config": gcfg,
-            "ground_truth": rep, "ground_truth_reused": cached, "ground_truth_wall_s": gt_s, "mesh_s": mesh_s,
-            "points_s": points_s, "evaluation_points": p,
-        });
-        built.push(Built { edge_mm: edge, case, report: rep, summary });
-        scenarios.push(scn);
-        configs.push(gcfg);
+        meshes.push(serde_json::json!({
+            "edge_mm": edge, "nodes": scn.cut.mesh.vertices.len(), "tets": scn.cut.mesh.tets.len(),
+            "mesh_quality": quality, "fragment_nodes_removed": dropped, "crack_resolution": resolution, "mesh_s": mesh_s,
+        }));
+        // the ground truths of this mesh: A calibrated; B calibrated and / or at A's calibrated load
+        let mut runs: Vec<(&str, GroundTruthConfig, PathBuf)> = Vec::new();
+        if k == 0 || fine_calibrated {
+            runs.push(("calibrated", gcfg.clone(), a.out.join(format!("{edge}mm"))));
+        }
+        if let (1, true, Some(c)) = (k, fine_at_coarse, coarse.as_ref()) {
+            let mut at = gcfg.clone();
+            at.initial_pressure_kpa = c.report.pressure_kpa;
+            at.target_gap_mm = [1e-9, 1e9];
+            at.max_solves = 1;
+            runs.push(("at the coarse load", at, a.out.join(format!("{edge}mm-at-coarse-load"))));
+        }
+        for (label, gcfg, dir) in runs {
+            let t1 = Instant::now();
+            let (u_p2, rep, cached) = ground_truth(&dir, &scn, &gcfg)?;
+            let gt_s = t1.elapsed().as_secs_f64();
+            let t2 = Instant::now();
+            let case = build_case(&scn, u_p2, a.eval_spacing_mm)?;
+            let points_s = t2.elapsed().as_secs_f64();
+            let p = case.points.as_ref().map_or(0, |p| p.len());
+            println!(
+                "{edge} mm {label}: ground truth {} ({:.1} s{}): load {:.4} kPa, mean mouth opening {:.2} mm, largest gap \
+                 {:.2} mm, max |u| {:.2} mm, min J {:.3}, {} solver, {} steps; {p} evaluation points ({points_s:.1} s); peak {:.0} MiB",
+                if cached { "reused" } else { "solved" },
+                if cached { rep.seconds } else { gt_s },
+                if cached { " when solved" } else { "" },
+                rep.pressure_kpa,
+                rep.mean_mouth_opening_mm,
+                rep.max_gap_mm,
+                rep.max_displacement_mm,
+                rep.min_j,
+                rep.linear_solver,
+                gcfg.steps,
+                laparo_register::pipeline::peak_memory_mib().unwrap_or(f64::NAN)
+            );
+            let summary = serde_json::json!({
+                "edge_mm": edge, "load": label, "config": gcfg, "ground_truth": rep, "ground_truth_reused": cached,
+                "ground_truth_wall_s": gt_s, "points_s": points_s, "evaluation_points": p,
+                "folder": dir.display().to_string(),
+            });
+            let b = Built { edge_mm: edge, case, report: rep, summary };
+            let Some(c) = coarse.as_ref() else {
+                coarse = Some(b);
+                continue;
+            };
+            let t3 = Instant::now();
+            let report = compare_ground_truths(&c.case, &b.case, &cfg)?;
+            compare_s += t3.elapsed().as_secs_f64();
+            let what = format!("B {label}");
+            print_figures(&what, &report);
+            md.push_str(&format!(
+                "\n## {} mm (A) vs {} mm (B), B {label}\n\nGround truth {} ({}): A {:.4} kPa → mean mouth opening {:.2} mm \
+                 (calibrated); B {:.4} kPa → {:.2} mm. Evaluation points: A's, {} mm lattice plus crack-face points.\n\n{}",
+                c.edge_mm,
+                b.edge_mm,
+                kind.name(),
+                c.report.calibration_quantity,
+                c.report.pressure_kpa,
+                c.report.mean_mouth_opening_mm,
+                b.report.pressure_kpa,
+                b.report.mean_mouth_opening_mm,
+                a.eval_spacing_mm,
+                report.markdown()
+            ));
+            comparisons.push(
+                serde_json::json!({"fine_load": label, "coarse": c.summary, "fine": b.summary, "report": report}),
+            );
+        }
     }
-    let cfg = ConvergenceConfig { outside_tolerance_mm: a.outside_tolerance_mm, ..Default::default() };
-    let t0 = Instant::now();
-    let report = compare_ground_truths(&built[0].case, &built[1].case, &cfg)?;
-    let compare_s = t0.elapsed().as_secs_f64();
-    let mut md = format!(
-        "# Ground-truth mesh convergence: {case_name}, {} mm (A) vs {} mm (B)\n\n\
-         Ground truth {} ({}), each mesh calibrated on its own: A {:.4} kPa → mean mouth opening {:.2} mm; B {:.4} kPa → {:.2} mm. \
-         Evaluation points: A's, {} mm lattice plus crack-face points.\n\n{}",
-        built[0].edge_mm,
-        built[1].edge_mm,
-        kind.name(),
-        built[0].report.calibration_quantity,
-        built[0].report.pressure_kpa,
-        built[0].report.mean_mouth_opening_mm,
-        built[1].report.pressure_kpa,
-        built[1].report.mean_mouth_opening_mm,
-        a.eval_spacing_mm,
-        report.markdown()
-    );
-    print_figures("calibrated on each mesh", &report);
-    // optionally: B solved at A's calibrated load, so the calibration's own spread is out of the comparison
-    let same_load = if a.same_load {
-        let mut cfg_b = configs[1].clone();
-        cfg_b.initial_pressure_kpa = built[0].report.pressure_kpa;
-        cfg_b.target_gap_mm = [1e-9, 1e9];
-        cfg_b.max_solves = 1;
-        let dir = a.out.join(format!("{}mm-at-coarse-load", built[1].edge_mm));
-        let t1 = Instant::now();
-        let (u_p2, rep, cached) = ground_truth(&dir, &scenarios[1], &cfg_b)?;
-        let case_b = build_case(&scenarios[1], u_p2, a.eval_spacing_mm)?;
-        let r = compare_ground_truths(&built[0].case, &case_b, &cfg)?;
-        println!(
-            "{} mm at A's load {:.4} kPa: mean mouth opening {:.2} mm ({}, {:.1} s)",
-            built[1].edge_mm,
-            rep.pressure_kpa,
-            rep.mean_mouth_opening_mm,
-            if cached { "reused" } else { "solved" },
-            t1.elapsed().as_secs_f64()
-        );
-        print_figures("B at A's load", &r);
-        md.push_str(&format!(
-            "\n## B solved at A's calibrated load ({:.4} kPa; B's mean mouth opening {:.2} mm)\n\n{}",
-            rep.pressure_kpa,
-            rep.mean_mouth_opening_mm,
-            r.markdown()
-        ));
-        Some(serde_json::json!({"ground_truth": rep, "report": r}))
-    } else {
-        None
-    };
     let peak = laparo_register::pipeline::peak_memory_mib().unwrap_or(f64::NAN);
     let total_s = t_all.elapsed().as_secs_f64();
-    md.push_str(&format!(
-        "\nWall time {:.1} min (comparison {compare_s:.1} s), peak memory {peak:.0} MiB.\n",
+    let md = format!(
+        "# Ground-truth mesh convergence: {case_name}, {} mm vs {} mm\n{md}\nWall time {:.1} min (comparisons {compare_s:.1} s), \
+         peak memory {peak:.0} MiB.\n",
+        edges[0],
+        edges[1],
         total_s / 60.0
-    ));
+    );
     write_json(
         &a.out.join("convergence.json"),
         &serde_json::json!({
             "scenario": name, "case": case_name, "ground_truth_kind": kind.name(), "blade": blade,
             "fixed_fraction": frame.fixed_fraction, "edges_mm": edges, "eval_spacing_mm": a.eval_spacing_mm,
-            "liver": liver.display().to_string(), "meshes": built.iter().map(|b| &b.summary).collect::<Vec<_>>(),
-            "report": report, "same_load": same_load, "compare_s": compare_s, "wall_s": total_s, "peak_memory_mib": peak,
+            "liver": liver.display().to_string(), "meshes": meshes, "comparisons": comparisons,
+            "compare_s": compare_s, "wall_s": total_s, "peak_memory_mib": peak,
         }),
     )?;
     laparo_core::atomic::write_atomic(&a.out.join("convergence.md"), md.as_bytes())?;
