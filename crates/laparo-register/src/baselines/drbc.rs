@@ -30,6 +30,8 @@ pub struct DrbcConfig {
     /// 0.01 K L² / (V μ) with K landmarks, L the rest bounding-box diagonal (mm), V the mesh volume
     /// (mm³) and μ the shear modulus (kPa).
     pub lambda: Option<f64>,
+    /// Factor on the default λ (used when `lambda` is `None`; the benchmark's tuned hyperparameter), 1 = the default.
+    pub lambda_factor: f64,
     /// Maximum Newton iterations.
     pub iterations: usize,
     /// Stop when the largest free gradient component |∂Φ/∂x| falls below this (mm).
@@ -45,6 +47,7 @@ impl Default for DrbcConfig {
         DrbcConfig {
             material: NeoHookean::liver(),
             lambda: None,
+            lambda_factor: 1.0,
             iterations: 50,
             gradient_tolerance: 1e-8,
             step_tolerance_mm: 1e-4,
@@ -211,7 +214,10 @@ fn setup<'a>(problem: &'a BaselineProblem, cfg: &DrbcConfig) -> Result<Drbc<'a>>
     let lambda = match cfg.lambda {
         Some(v) if v.is_finite() && v > 0.0 => v,
         Some(v) => return Err(RegisterError::param("DRBC lambda", v, "must be finite and > 0")),
-        None => 0.01 * k * l * l / (problem.total_volume() * cfg.material.mu_kpa),
+        None if cfg.lambda_factor.is_finite() && cfg.lambda_factor > 0.0 => {
+            cfg.lambda_factor * 0.01 * k * l * l / (problem.total_volume() * cfg.material.mu_kpa)
+        }
+        None => return Err(RegisterError::param("DRBC lambda_factor", cfg.lambda_factor, "must be finite and > 0")),
     };
     Ok(Drbc { p: problem, mat: cfg.material, lambda, grads: shape_gradients(&problem.mesh) })
 }

@@ -16,6 +16,7 @@ pub mod rods;
 pub mod store;
 pub mod table;
 pub mod tre;
+pub mod tuning;
 
 pub use case::{
     column_landmarks, config_hash, run_protocol, score, BenchmarkCase, LandmarkSet, MaterialPoint, Method,

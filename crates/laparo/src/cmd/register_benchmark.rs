@@ -89,6 +89,19 @@ pub struct BenchmarkArgs {
     /// evaluation point's rest position (mm), side, kind, distances to the lips and the crack (mm) and TRE (mm).
     #[arg(long)]
     pub write_points: bool,
+    /// DRBC (and François et al.'s DRBC): factor on DRBC's default elastic weight λ.
+    #[arg(long, default_value_t = 1.0)]
+    pub drbc_lambda_factor: f64,
+    /// Frozen hyperparameters (a `frozen.json` written by --tune on ANOTHER case): they replace
+    /// --francois-depth-mm, --drbc-lambda-factor, --lddmm-sigma-mm and --kinetic-weight; a test case equal to the
+    /// tuning case (the same cut mesh) is refused.
+    #[arg(long)]
+    pub frozen: Option<PathBuf>,
+    /// Tune instead of test: run the tuning grid (François depth, DRBC λ factor, LDDMM σ, RODS-MPM κ, one at a
+    /// time, 50 noiseless landmarks) on this case, keep each value with the lowest mean TRE within 10 mm of the
+    /// lips, and write OUT/frozen.json for a test run on another case (e.g. another --cut-offset-mm).
+    #[arg(long)]
+    pub tune: bool,
     /// RODS-MPM particle spacing (mm); default 3 (quick 4: at 6 mm its floor within 5 mm of the lips exceeds ¼ of "none"'s TRE).
     #[arg(long)]
     pub spacing_mm: Option<f64>,
@@ -347,11 +360,11 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                 })
             }
             "none" => Box::new(laparo_register::benchmark::methods::NoRegistration),
-            "drbc" => b("DRBC", Baseline::Drbc(DrbcConfig::default())),
+            "drbc" => b("DRBC", Baseline::Drbc(drbc_config(a))),
             "francois" => b(
                 "François et al.",
                 Baseline::Francois {
-                    drbc: DrbcConfig::default(),
+                    drbc: drbc_config(a),
                     assumed_depth_mm: a.francois_depth_mm,
                     direction: cut_direction(a)?,
                 },
@@ -391,6 +404,89 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
         }
     }
     Ok(out)
+}
+
+/// DRBC's settings (`--drbc-lambda-factor`).
+fn drbc_config(a: &BenchmarkArgs) -> DrbcConfig {
+    DrbcConfig { lambda_factor: a.drbc_lambda_factor, ..Default::default() }
+}
+
+/// Fingerprint of a case's cut mesh (vertices, tetrahedra, crack faces): equal for two ground truths of one
+/// blade on one mesh whatever their loading, so a tuning case and a test case are told apart by their cut.
+fn cut_fingerprint(scn: &Scenario) -> String {
+    let mut b: Vec<u8> = Vec::new();
+    scn.cut.mesh.vertices.iter().flat_map(|p| p.iter()).for_each(|c| b.extend(c.to_bits().to_le_bytes()));
+    let ids = scn.cut.mesh.tets.iter().flatten().chain(scn.cut.crack_faces.iter().flatten().flatten());
+    ids.for_each(|&i| b.extend((i as u64).to_le_bytes()));
+    laparo_core::atomic::fnv1a64_hex(&b)
+}
+
+/// `--tune`: the tuning grid's rows on `cases` (50 noiseless landmarks), the selection, OUT/frozen.json.
+fn tune(
+    a: &BenchmarkArgs,
+    quick: bool,
+    cases: &[laparo_register::benchmark::BenchmarkCase],
+    fingerprints: Vec<String>,
+    store: &ResultStore,
+) -> Result<()> {
+    use laparo_register::benchmark::tuning::{select, tuning_row_name, FrozenSettings, Knob, TuningGrid};
+    let grid = TuningGrid::default();
+    let shared_roi = roi_mode(a)? == RoiMode::APriori;
+    let mut rows: Vec<Box<dyn Method>> = Vec::new();
+    for (knob, v) in grid.candidates() {
+        let name = tuning_row_name(knob, v);
+        let baseline = |baseline| -> Box<dyn Method> {
+            Box::new(BaselineMethod { name: name.clone(), baseline, hold_outside_roi: shared_roi })
+        };
+        rows.push(match knob {
+            Knob::FrancoisDepth => {
+                baseline(Baseline::Francois { drbc: drbc_config(a), assumed_depth_mm: v, direction: cut_direction(a)? })
+            }
+            Knob::DrbcLambda => baseline(Baseline::Drbc(DrbcConfig { lambda_factor: v, ..Default::default() })),
+            Knob::LddmmSigma => baseline(Baseline::Lddmm(LddmmConfig { sigma_mm: v, ..Default::default() })),
+            Knob::RodsKinetic => Box::new(NamedRods {
+                name: name.clone(),
+                inner: RodsMethod {
+                    organ: rods_organ(a, quick)?,
+                    optimizer: OptimizerConfig { kinetic_weight: v, ..rods_optimizer(a, quick)? },
+                    two_field: None,
+                },
+            }),
+        });
+    }
+    let refs: Vec<&dyn Method> = rows.iter().map(|m| m.as_ref()).collect();
+    let pb = ProgressBar::new(refs.len() as u64 * cases.len() as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} tuning runs  {msg}  [{elapsed_precise}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let column = Column { landmarks: 50, noise_sigma_mm: 0.0 };
+    let results = run_protocol(cases, &refs, &[column], 1, store, &mut |e| {
+        pb.set_position(e.done as u64);
+        pb.set_message(e.result.key.method.clone());
+    })?;
+    pb.finish_and_clear();
+    let cells = aggregate(&results);
+    let (hyperparameters, candidates) = select(&grid, &cells)?;
+    let frozen = FrozenSettings {
+        hyperparameters,
+        tuning_case_fingerprints: fingerprints,
+        tuning_case: format!(
+            "{}: {} ({:?}, edge {} mm)",
+            cases.iter().map(|c| c.scenario.as_str()).collect::<Vec<_>>().join(", "),
+            a.liver.clone().or_else(default_liver).map(|p| p.display().to_string()).unwrap_or_default(),
+            a.cut,
+            a.edge_mm.unwrap_or(if quick { 16.0 } else { 10.0 })
+        ),
+        candidates,
+    };
+    let path = a.out.join("frozen.json");
+    write_json(&path, &frozen)?;
+    for (name, score) in &frozen.candidates {
+        println!("{name}: {score:.3} mm within 10 mm of the lips");
+    }
+    println!("frozen: {:?}\nwrote {}", frozen.hyperparameters, path.display());
+    Ok(())
 }
 
 /// A thesis fidelity row: one field, plain gradient descent from v₀ = 0 (500 iterations; quick: the quick
@@ -625,8 +721,27 @@ const MIN_CRACK_AREA_FRACTION: f64 = 0.6;
 /// ... and the mouth this many lip samples, else the mesh is too coarse for the incision.
 const MIN_LIP_SAMPLES: usize = 5;
 
-pub fn run(a: BenchmarkArgs) -> Result<()> {
+pub fn run(mut a: BenchmarkArgs) -> Result<()> {
     let quick = a.quick;
+    let frozen = match &a.frozen {
+        Some(p) => {
+            if a.tune {
+                bail!("--frozen with --tune: tune on a case, then test another with its frozen.json");
+            }
+            let f = laparo_register::benchmark::tuning::FrozenSettings::read(p)?;
+            let h = &f.hyperparameters;
+            a.francois_depth_mm = h.francois_depth_mm;
+            a.drbc_lambda_factor = h.drbc_lambda_factor;
+            a.lddmm_sigma_mm = h.lddmm_sigma_mm;
+            a.kinetic_weight = h.rods_kinetic_weight;
+            println!("frozen hyperparameters from {} (tuned on {}): {h:?}", p.display(), f.tuning_case);
+            Some(f)
+        }
+        None => None,
+    };
+    if !(a.drbc_lambda_factor.is_finite() && a.drbc_lambda_factor > 0.0) {
+        bail!("--drbc-lambda-factor {}: must be finite and > 0", a.drbc_lambda_factor);
+    }
     let scenario = a.scenario.clone().unwrap_or_else(|| if quick { "non-anatomical".into() } else { "all".into() });
     let scenarios: Vec<&str> = match scenario.as_str() {
         "all" => vec!["non-anatomical", "anatomical"],
@@ -674,6 +789,7 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
     let organ = laparo_fem::mesh::Surface::new(surface.clone(), &liver.display().to_string())?;
     let store = ResultStore::new(a.out.join("runs"));
     let mut cases = Vec::new();
+    let mut cut_fingerprints = Vec::new();
     let mut gt_reports = Vec::new();
     let kinds: Vec<GroundTruthKind> = a
         .ground_truths
@@ -706,6 +822,11 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         resolution
             .check(edge, MIN_CRACK_AREA_FRACTION, MIN_LIP_SAMPLES)
             .with_context(|| format!("--edge-mm {edge}: the {name} incision"))?;
+        let cut_fp = cut_fingerprint(&scn);
+        if let Some(f) = &frozen {
+            f.check_test_case(&cut_fp, &format!("the {name} case (--cut-*, --edge-mm, --liver)"))?;
+        }
+        cut_fingerprints.push(cut_fp);
         let mut gcfg = GroundTruthConfig::control(&scn, kind)?;
         scn.name = case_name.clone();
         if let Some(g) = target_gap {
@@ -814,6 +935,10 @@ pub fn run(a: BenchmarkArgs) -> Result<()> {
         cases.push(case);
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
+    if a.tune {
+        cut_fingerprints.dedup();
+        return tune(&a, quick, &cases, cut_fingerprints, &store);
+    }
     // 2. the protocol
     let n_seeds = a.seeds.unwrap_or(if quick { 1 } else { 5 });
     let refs: Vec<&dyn Method> = ms.iter().map(|m| m.as_ref()).collect();
