@@ -834,6 +834,13 @@ impl super::case::Method for RodsOracle {
         }
     }
     fn settings(&self) -> String {
+        if self.mode == OracleMode::Readback {
+            // no simulation: only the particles (spacing, kerf) and the transfer enter the floor
+            return format!(
+                "read-back floor: spacing {:?} mm, kerf {:?} mm",
+                self.inner.organ.spacing_mm, self.kerf_mm
+            );
+        }
         let mut m = self.clone();
         m.inner.organ.memory_limit_bytes = None;
         format!("{m:?}")
