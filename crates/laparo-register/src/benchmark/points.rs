@@ -123,6 +123,28 @@ impl EvalPoints {
         self.element.iter().map(|(t, w)| tets[*t].iter().zip(w).map(|(&i, &w)| nodes[i] * w).sum()).collect()
     }
 
+    /// The same points read in another mesh of the same organ (the methods' independent mesh): each point's
+    /// element becomes the tetrahedron of `case` that holds it on its own side
+    /// ([`super::convergence::locate_on_side`]); the ground truth and the distances stay. Points farther than
+    /// `tolerance_mm` outside `case`'s mesh (the two meshes approximate the surface differently) are dropped;
+    /// returns the points and how many were dropped.
+    pub fn relocated(&self, case: &BenchmarkCase, tolerance_mm: f64) -> Result<(EvalPoints, usize)> {
+        let loc = super::convergence::locate_on_side(case, &self.queries(), tolerance_mm)?;
+        let keep: Vec<usize> = (0..self.len()).filter(|&i| loc[i].is_some()).collect();
+        let pick = |i: &usize| *i;
+        let out = EvalPoints {
+            spacing_mm: self.spacing_mm,
+            rest: keep.iter().map(|i| self.rest[pick(i)]).collect(),
+            side: keep.iter().map(|i| self.side[*i]).collect(),
+            kind: keep.iter().map(|i| self.kind[*i]).collect(),
+            element: keep.iter().filter_map(|i| loc[*i].map(|l| l.element)).collect(),
+            ground_truth: keep.iter().map(|i| self.ground_truth[*i]).collect(),
+            d_lip_mm: keep.iter().map(|i| self.d_lip_mm[*i]).collect(),
+            d_crack_mm: keep.iter().map(|i| self.d_crack_mm[*i]).collect(),
+        };
+        Ok((out, self.len() - keep.len()))
+    }
+
     /// The points as (rest position, side) queries.
     pub fn queries(&self) -> Vec<(Vector3<f64>, u8)> {
         self.rest.iter().copied().zip(self.side.iter().copied()).collect()
@@ -265,4 +287,29 @@ mod tests {
             assert!(c.iter().all(|&(a, b)| a > 0.0 && b > 0.0 && a + b < 1.0));
         }
     }
+}
+
+/// The ground truth of `gt` (TET10 when it has it) at `queries` (rest position mm, side) given in another mesh of
+/// the same organ: each read in `gt`'s tetrahedron that holds it on its own side, extrapolated from the nearest
+/// one for a query outside `gt`'s mesh by at most `tolerance_mm`; farther out is an error naming the query.
+pub fn ground_truth_of(
+    gt: &BenchmarkCase,
+    queries: &[(Vector3<f64>, u8)],
+    tolerance_mm: f64,
+) -> Result<Vec<Vector3<f64>>> {
+    let loc = super::convergence::locate_on_side(gt, queries, tolerance_mm)?;
+    let mut element = Vec::with_capacity(queries.len());
+    for (i, l) in loc.iter().enumerate() {
+        let Some(l) = l else {
+            return Err(RegisterError::bad(
+                format!("benchmark case `{}`: point {i} of the methods' mesh", gt.scenario),
+                format!(
+                    "{:?} lies more than {tolerance_mm} mm outside the ground truth's mesh",
+                    queries[i].0.as_slice()
+                ),
+            ));
+        };
+        element.push(l.element);
+    }
+    ground_truth_at(gt, &element)
 }

@@ -103,6 +103,12 @@ pub struct BenchmarkArgs {
     /// lips, and write OUT/frozen.json for a test run on another case (e.g. another --cut-offset-mm).
     #[arg(long)]
     pub tune: bool,
+    /// Tetrahedron edge (mm) of the methods' own mesh: an independent tetrahedralisation of the same surface, cut
+    /// by the same blade, so no method registers on the ground truth's mesh (the ground truth is read at its nodes
+    /// on their own side, the common points are located in it); default 0.85 × --edge-mm. Equal to --edge-mm:
+    /// the methods run on the ground truth's mesh (the v1 protocol).
+    #[arg(long)]
+    pub method_edge_mm: Option<f64>,
     /// RODS-MPM particle spacing (mm); default 3 (quick 4: at 6 mm its floor within 5 mm of the lips exceeds ¼ of "none"'s TRE).
     #[arg(long)]
     pub spacing_mm: Option<f64>,
@@ -788,6 +794,25 @@ pub fn run(mut a: BenchmarkArgs) -> Result<()> {
         quality.nodes, quality.tets, quality.min_dihedral_deg
     );
     let organ = laparo_fem::mesh::Surface::new(surface.clone(), &liver.display().to_string())?;
+    // the methods' own mesh (another tetrahedralisation of the same surface)
+    let method_edge = a.method_edge_mm.unwrap_or(0.85 * edge);
+    if !(method_edge.is_finite() && method_edge > 0.0) {
+        bail!("--method-edge-mm {method_edge}: must be finite and > 0");
+    }
+    let method_mesh = if (method_edge - edge).abs() > 1e-9 {
+        let (m, q) = tetrahedralize_surface(
+            surface.clone(),
+            &liver.display().to_string(),
+            &TetraParams { edge_mm: method_edge, ..Default::default() },
+        )?;
+        println!(
+            "methods' mesh: {} nodes, {} tets, min dihedral {:.1}°, edge {method_edge} mm (independent of the ground truth's)",
+            q.nodes, q.tets, q.min_dihedral_deg
+        );
+        Some(m)
+    } else {
+        None
+    };
     let store = ResultStore::new(a.out.join("runs"));
     let mut cases = Vec::new();
     let mut cut_fingerprints = Vec::new();
@@ -933,6 +958,43 @@ pub fn run(mut a: BenchmarkArgs) -> Result<()> {
             d.write(&dir.join("deformation"))?;
         }
         gt_reports.push(serde_json::json!({"scenario": name, "case": case_name, "ground_truth_kind": kind.name(), "config": gcfg, "blade": blade, "fixed_fraction": frame.fixed_fraction, "ground_truth": rep, "roi": roi.map(|r| r.0), "fragment_nodes_removed": dropped, "crack_resolution": resolution}));
+        let case = match &method_mesh {
+            None => case,
+            Some(mm) => {
+                let mut mscn = if name == "anatomical" {
+                    anatomical_on(mm, &surface, &frame, &blades.1)?
+                } else {
+                    non_anatomical_on(mm, &surface, &frame, &blades.0)?
+                };
+                laparo_register::benchmark::build::drop_detached_fragments(&mut mscn);
+                CrackResolution::of(&mscn, &organ)
+                    .check(method_edge, MIN_CRACK_AREA_FRACTION, MIN_LIP_SAMPLES)
+                    .with_context(|| {
+                        format!("--method-edge-mm {method_edge}: the {name} incision on the methods' mesh")
+                    })?;
+                mscn.name = case_name.clone();
+                // the ground truth at the methods' nodes, each read on its own side (0.5 × the coarser edge
+                // covers where the two meshes approximate the surface differently)
+                let tol = 0.5 * edge.max(method_edge);
+                let sides = laparo_register::benchmark::build::node_sides(&mscn.cut);
+                let q: Vec<(Vector3<f64>, u8)> =
+                    mscn.cut.mesh.vertices.iter().copied().zip(sides.iter().copied()).collect();
+                let gt_nodes = laparo_register::benchmark::points::ground_truth_of(&case, &q, tol)
+                    .context("the ground truth at the methods' mesh nodes")?;
+                let u_m: Vec<Vector3<f64>> = gt_nodes.iter().zip(&q).map(|(g, (x, _))| g - x).collect();
+                let mut mcase = case_from(&mscn, &u_m, case.roi);
+                let pts = case.points.as_ref().context("the ground truth's evaluation points")?;
+                let (moved, dropped) = pts.relocated(&mcase, tol)?;
+                println!(
+                    "{case_name}: methods' mesh {} nodes after the cut; {} of {} evaluation points located in it on their own side ({dropped} beyond {tol} mm outside it dropped)",
+                    mcase.rest.len(),
+                    moved.len(),
+                    pts.len()
+                );
+                mcase.points = Some(std::sync::Arc::new(moved));
+                mcase
+            }
+        };
         cases.push(case);
     }
     write_json(&a.out.join("ground_truth.json"), &gt_reports)?;
