@@ -58,6 +58,8 @@ fn quick_tier_end_to_end_and_resume() {
         assert!(stdout.contains(&format!("| {m} |")), "{m} row missing:\n{stdout}");
     }
     assert!(stdout.contains("a priori ball") && stdout.contains("evaluation points"), "{stdout}");
+    // the methods run on their own mesh (13.6 mm), the common points located in it on their own side
+    assert!(stdout.contains("methods' mesh:") && stdout.contains("edge 13.6 mm (independent"), "{stdout}");
     assert!(stdout.contains("Comparable bins (every row's floor ≤ ¼ \"none\"): 0–5 mm yes, 5–10 mm yes"), "{stdout}");
     let gt: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("ground_truth.json")).unwrap()).unwrap();

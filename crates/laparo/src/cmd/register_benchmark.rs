@@ -976,13 +976,22 @@ pub fn run(mut a: BenchmarkArgs) -> Result<()> {
                 // the ground truth at the methods' nodes, each read on its own side (0.5 × the coarser edge
                 // covers where the two meshes approximate the surface differently)
                 let tol = 0.5 * edge.max(method_edge);
+                // ... at every TET10 node of the methods' mesh (an edge node on the side of its vertices), so
+                // the particles' read-back floor is not the P1 floor again
                 let sides = laparo_register::benchmark::build::node_sides(&mscn.cut);
-                let q: Vec<(Vector3<f64>, u8)> =
-                    mscn.cut.mesh.vertices.iter().copied().zip(sides.iter().copied()).collect();
+                let t10 = laparo_fem::solid::Tet10Mesh::from_linear(&mscn.cut.mesh)?;
+                let mut q: Vec<(Vector3<f64>, u8)> = t10.nodes.iter().map(|x| (*x, 0u8)).collect();
+                for (i, s) in sides.iter().enumerate() {
+                    q[i].1 = *s;
+                }
+                for (&(a, b), &e) in &t10.edge_nodes {
+                    q[e].1 = sides[a].max(sides[b]);
+                }
                 let gt_nodes = laparo_register::benchmark::points::ground_truth_of(&case, &q, tol)
                     .context("the ground truth at the methods' mesh nodes")?;
-                let u_m: Vec<Vector3<f64>> = gt_nodes.iter().zip(&q).map(|(g, (x, _))| g - x).collect();
-                let mut mcase = case_from(&mscn, &u_m, case.roi);
+                let u_p2m: Vec<Vector3<f64>> = gt_nodes.iter().zip(&q).map(|(g, (x, _))| g - x).collect();
+                let mut mcase = case_from(&mscn, &u_p2m[..t10.n_vertices], case.roi);
+                mcase.ground_truth_p2 = Some(u_p2m);
                 let pts = case.points.as_ref().context("the ground truth's evaluation points")?;
                 let (moved, dropped) = pts.relocated(&mcase, tol)?;
                 println!(
