@@ -496,6 +496,7 @@ mod tests {
             bin_means_mm: bins.to_vec(),
             seeds: 1,
             seconds: 1.0,
+            points: None,
         };
         // the second method's last point lies where an in-chart legend (upper right) used to be drawn
         let a = cell("none (rest)", [5.0, 2.7, 1.7, 0.8, 0.5, 0.1]);

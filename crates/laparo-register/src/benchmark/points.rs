@@ -270,25 +270,6 @@ pub fn ground_truth_at(case: &BenchmarkCase, element: &[(usize, [f64; 4])]) -> R
         .collect())
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sub_triangles_cover_the_triangle_once() {
-        for k in 1..6 {
-            let c = sub_triangle_centroids(k);
-            assert_eq!(c.len(), k * k);
-            // the centroids of a uniform split average to the triangle's centroid
-            let m = c.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-            assert!(
-                (m.0 / c.len() as f64 - 1.0 / 3.0).abs() < 1e-12 && (m.1 / c.len() as f64 - 1.0 / 3.0).abs() < 1e-12
-            );
-            assert!(c.iter().all(|&(a, b)| a > 0.0 && b > 0.0 && a + b < 1.0));
-        }
-    }
-}
-
 /// The ground truth of `gt` (TET10 when it has it) at `queries` (rest position mm, side) given in another mesh of
 /// the same organ: each read in `gt`'s tetrahedron that holds it on its own side, extrapolated from the nearest
 /// one for a query outside `gt`'s mesh by at most `tolerance_mm`; farther out is an error naming the query.
@@ -312,4 +293,23 @@ pub fn ground_truth_of(
         element.push(l.element);
     }
     ground_truth_at(gt, &element)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sub_triangles_cover_the_triangle_once() {
+        for k in 1..6 {
+            let c = sub_triangle_centroids(k);
+            assert_eq!(c.len(), k * k);
+            // the centroids of a uniform split average to the triangle's centroid
+            let m = c.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+            assert!(
+                (m.0 / c.len() as f64 - 1.0 / 3.0).abs() < 1e-12 && (m.1 / c.len() as f64 - 1.0 / 3.0).abs() < 1e-12
+            );
+            assert!(c.iter().all(|&(a, b)| a > 0.0 && b > 0.0 && a + b < 1.0));
+        }
+    }
 }

@@ -484,6 +484,9 @@ impl CrackGuard {
     }
 }
 
+/// Registered node positions and query-point positions (mm).
+type NodesAndPoints = (Vec<Vector3<f64>>, Vec<Vector3<f64>>);
+
 /// Node positions, and positions of the `queries`, from the registered particles: one particle→point
 /// transfer for every point (see the module docs). A point on an incision side (side ≠ 0), and any point
 /// within reach (2.5 spacings, plus half the kerf) of the crack, takes a moving-least-squares affine fit of the
@@ -500,7 +503,7 @@ fn transfer_nodes(
     deformed: &[Vector3<f64>],
     kerf_mm: f64,
     notes: &mut Vec<String>,
-) -> Result<(Vec<Vector3<f64>>, Vec<Vector3<f64>>)> {
+) -> Result<NodesAndPoints> {
     let s = problem.organ.spacing_mm;
     let reach = 2.5 * s + 0.5 * kerf_mm;
     let transfer = Transfer::new(rest, s)?;

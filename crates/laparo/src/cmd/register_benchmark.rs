@@ -676,8 +676,7 @@ fn write_points_csv(path: &Path, p: &laparo_register::benchmark::EvalPoints, x: 
         std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
     }
     let mut s = String::from("x_mm,y_mm,z_mm,side,kind,d_lip_mm,d_crack_mm,tre_mm\n");
-    for i in 0..p.len() {
-        let r = p.rest[i];
+    for (i, (r, xi)) in p.rest.iter().zip(x).enumerate() {
         let kind = if p.kind[i] == laparo_register::benchmark::PointKind::CrackFace { "crack-face" } else { "lattice" };
         writeln!(
             s,
@@ -688,7 +687,7 @@ fn write_points_csv(path: &Path, p: &laparo_register::benchmark::EvalPoints, x: 
             p.side[i],
             p.d_lip_mm[i],
             p.d_crack_mm[i],
-            (x[i] - p.ground_truth[i]).norm()
+            (xi - p.ground_truth[i]).norm()
         )?;
     }
     laparo_core::atomic::write_atomic(path, s.as_bytes())?;
