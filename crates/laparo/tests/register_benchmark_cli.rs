@@ -83,7 +83,9 @@ fn quick_tier_end_to_end_and_resume() {
     let runs = if runs.exists() { runs } else { out.join("runs/non-anatomical/none__rest_/lm50_seed0.json") };
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&runs).unwrap()).unwrap();
     let umax = g["max_displacement_mm"].as_f64().unwrap();
-    assert!((r["tre_volume"]["max"].as_f64().unwrap() - umax).abs() < 1e-9 * umax.max(1.0));
+    // (read at the methods' own mesh nodes, which the ground truth's largest node displacement need not hit)
+    let none_max = r["tre_volume"]["max"].as_f64().unwrap();
+    assert!(none_max > 0.5 * umax && none_max <= 1.1 * umax, "none's node TRE max {none_max} vs max |u| {umax}");
     // at the common points "none"'s TRE is |u_GT| there: never above the largest node displacement by more
     // than the P2 field's overshoot between nodes, and every run records its config hash and its points' n
     let pts = &r["points"];

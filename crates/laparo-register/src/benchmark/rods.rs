@@ -471,7 +471,8 @@ impl CrackGuard {
         (d, if side == 1 { x - n * 1e-6 } else { x + n * 1e-6 })
     }
 
-    /// Whether the open segment a → b crosses a crack face.
+    /// Whether the segment a → b crosses a crack face after leaving `a` (a `b` lying on the crack counts as
+    /// across it: a particle on the crack plane belongs to the side its tetrahedron gave it).
     fn crosses(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
         let m = 0.5 * (a + b);
         let r = 0.5 * (b - a).norm() + self.r_max;
@@ -479,7 +480,7 @@ impl CrackGuard {
         self.centroids.within_unsorted::<SquaredEuclidean>(&[m.x, m.y, m.z], r * r).iter().any(|hit| {
             let f = self.surface.faces[hit.item as usize];
             let v = f.map(|i| self.surface.vertices[i]);
-            laparo_core::geometry::ray_triangle(a, &d, &v[0], &v[1], &v[2]).is_some_and(|t| t > 1e-9 && t < 1.0 - 1e-9)
+            laparo_core::geometry::ray_triangle(a, &d, &v[0], &v[1], &v[2]).is_some_and(|t| t > 1e-9 && t <= 1.0 + 1e-9)
         })
     }
 }
