@@ -139,7 +139,7 @@ impl<'a> TetLocator<'a> {
 
 /// The closest point of tetrahedron `c` to `p` and its barycentric weights (≥ 0, sum 1); `None` for a
 /// degenerate tetrahedron. Inside: `p` itself; outside: the closest point over the four faces.
-fn closest_point_in_tet(c: &[Vector3<f64>; 4], p: &Vector3<f64>) -> Option<(Vector3<f64>, [f64; 4])> {
+pub(crate) fn closest_point_in_tet(c: &[Vector3<f64>; 4], p: &Vector3<f64>) -> Option<(Vector3<f64>, [f64; 4])> {
     let inv = Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]]).try_inverse()?;
     let weights = |q: &Vector3<f64>| {
         let l = inv * (q - c[0]);

@@ -30,7 +30,7 @@ use super::tre::DISTANCE_BIN_EDGES_MM;
 use crate::baselines::TetLocator;
 use crate::error::{RegisterError, Result};
 use laparo_core::mesh::TetMesh;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 /// Default tolerance (mm) for a point of A outside B's rest mesh before it is skipped.
@@ -170,24 +170,10 @@ pub struct SideLocation {
     pub element_distance_mm: f64,
 }
 
-/// Closest point of tetrahedron `c` to `p`: (distance mm, its barycentric weights); None when degenerate.
+/// Distance (mm) from `p` to tetrahedron `c` (0 inside) and the barycentric weights of its closest point; None
+/// when degenerate.
 fn closest_in_tet(c: &[Vector3<f64>; 4], p: &Vector3<f64>) -> Option<(f64, [f64; 4])> {
-    let inv = Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]]).try_inverse()?;
-    let weights = |q: &Vector3<f64>| {
-        let l = inv * (q - c[0]);
-        [1.0 - l.x - l.y - l.z, l.x, l.y, l.z]
-    };
-    let w = weights(p);
-    if w.iter().all(|&v| v >= 0.0) {
-        return Some((0.0, w));
-    }
-    let q = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]
-        .iter()
-        .map(|f| laparo_core::geometry::closest_point_on_triangle(p, &c[f[0]], &c[f[1]], &c[f[2]]))
-        .min_by(|a, b| (a - p).norm_squared().total_cmp(&(b - p).norm_squared()))?;
-    let w = weights(&q).map(|v| v.max(0.0));
-    let s: f64 = w.iter().sum();
-    Some(((q - p).norm(), w.map(|v| v / s)))
+    crate::baselines::closest_point_in_tet(c, p).map(|(q, w)| ((q - p).norm(), w))
 }
 
 /// Locate `queries` (rest position mm, incision side) in `case`'s rest mesh on their own side (see the

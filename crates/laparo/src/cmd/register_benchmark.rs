@@ -188,24 +188,49 @@ fn parse_gap(s: &str) -> Result<[f64; 2]> {
     }
 }
 
-fn default_liver() -> Option<PathBuf> {
+pub(crate) fn default_liver() -> Option<PathBuf> {
     let p = PathBuf::from("../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
     p.exists().then_some(p)
 }
 
-fn write_json(path: &Path, v: &impl serde::Serialize) -> Result<()> {
+pub(crate) fn write_json(path: &Path, v: &impl serde::Serialize) -> Result<()> {
     laparo_core::atomic::write_atomic(path, (serde_json::to_string_pretty(v)? + "\n").as_bytes())?;
     Ok(())
 }
 
 /// Fingerprint of everything the FEM ground truth is solved from: the cut mesh, its crack faces (where the
 /// pressure acts), the fixed nodes and the solver configuration.
-fn ground_truth_inputs(scn: &Scenario, cfg: &GroundTruthConfig) -> String {
+pub(crate) fn ground_truth_inputs(scn: &Scenario, cfg: &GroundTruthConfig) -> String {
     let mut b: Vec<u8> = format!("{cfg:?}").into_bytes();
     scn.cut.mesh.vertices.iter().flat_map(|p| p.iter()).for_each(|c| b.extend(c.to_bits().to_le_bytes()));
     let ids = scn.cut.mesh.tets.iter().flatten().chain(scn.cut.crack_faces.iter().flatten().flatten());
     ids.chain(&scn.fixed_nodes).for_each(|&i| b.extend((i as u64).to_le_bytes()));
     laparo_core::atomic::fnv1a64_hex(&b)
+}
+
+/// A stored TET10 ground truth: every TET10 node's displacement (mm) and its report.
+pub(crate) type StoredGroundTruth = (Vec<Vector3<f64>>, GroundTruthReport);
+
+/// The TET10 ground truth stored at `path` (`{"inputs", "report", "displacement_p2_mm"}`) when it was solved
+/// from `inputs` for `scn`'s mesh: Ok(Ok(field, report)); Ok(Err(the inputs it was solved from)) otherwise.
+pub(crate) fn cached_ground_truth(
+    path: &Path,
+    scn: &Scenario,
+    inputs: &str,
+) -> Result<std::result::Result<StoredGroundTruth, String>> {
+    // the whole TET10 field: vertices first, then the edge nodes of Tet10Mesh::from_linear
+    let n = laparo_fem::solid::Tet10Mesh::from_linear(&scn.cut.mesh)?.n_nodes();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path)?).with_context(|| path.display().to_string())?;
+    let flat: Vec<f64> =
+        v["displacement_p2_mm"].as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).collect()).unwrap_or_default();
+    if flat.len() == 3 * n && v["inputs"].as_str() == Some(inputs) {
+        let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
+        let report: GroundTruthReport =
+            serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
+        return Ok(Ok((u, report)));
+    }
+    Ok(Err(v["inputs"].as_str().unwrap_or("none recorded").to_string()))
 }
 
 /// Ground truth from `dir/ground_truth.json` when it was solved from the same inputs ([`ground_truth_inputs`]),
@@ -218,23 +243,12 @@ fn ground_truth(
     cfg: &GroundTruthConfig,
 ) -> Result<(Vec<Vector3<f64>>, GroundTruthReport)> {
     let path = dir.join("ground_truth.json");
-    // the whole TET10 field: vertices first, then the edge nodes of Tet10Mesh::from_linear
-    let n = laparo_fem::solid::Tet10Mesh::from_linear(&scn.cut.mesh)?.n_nodes();
     let inputs = format!("v2-p2 {}", ground_truth_inputs(scn, cfg));
     if path.exists() {
-        let v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
-        let flat: Vec<f64> = v["displacement_p2_mm"]
-            .as_array()
-            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-            .unwrap_or_default();
-        if flat.len() == 3 * n && v["inputs"].as_str() == Some(inputs.as_str()) {
-            let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
-            let report: GroundTruthReport =
-                serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
-            return Ok((u, report));
-        }
-        let stored = v["inputs"].as_str().unwrap_or("none recorded");
+        let stored = match cached_ground_truth(&path, scn, &inputs)? {
+            Ok(hit) => return Ok(hit),
+            Err(stored) => stored,
+        };
         if store.holds_runs(&scn.name) {
             bail!(
                 "{}: solved from other inputs (mesh, blade, fixed region or FEM settings: {stored:?}, now {inputs:?}) \
@@ -723,9 +737,9 @@ fn incision_centre(c: &laparo_register::benchmark::BenchmarkCase) -> Vector3<f64
 }
 
 /// The crack must cover this fraction of the blade inside the organ ...
-const MIN_CRACK_AREA_FRACTION: f64 = 0.6;
+pub(crate) const MIN_CRACK_AREA_FRACTION: f64 = 0.6;
 /// ... and the mouth this many lip samples, else the mesh is too coarse for the incision.
-const MIN_LIP_SAMPLES: usize = 5;
+pub(crate) const MIN_LIP_SAMPLES: usize = 5;
 
 pub fn run(mut a: BenchmarkArgs) -> Result<()> {
     let quick = a.quick;

@@ -64,24 +64,9 @@ pub struct ConvergenceArgs {
     pub cut: crate::cmd::mesh::CutArgs,
 }
 
-/// The crack must cover this fraction of the blade inside the organ (as `register benchmark`) ...
-const MIN_CRACK_AREA_FRACTION: f64 = 0.6;
-/// ... and the mouth this many lip samples.
-const MIN_LIP_SAMPLES: usize = 5;
-
-fn write_json(path: &Path, v: &impl serde::Serialize) -> Result<()> {
-    laparo_core::atomic::write_atomic(path, (serde_json::to_string_pretty(v)? + "\n").as_bytes())?;
-    Ok(())
-}
-
-/// Fingerprint of everything the FEM ground truth is solved from (as `register benchmark`'s).
-fn ground_truth_inputs(scn: &Scenario, cfg: &GroundTruthConfig) -> String {
-    let mut b: Vec<u8> = format!("{cfg:?}").into_bytes();
-    scn.cut.mesh.vertices.iter().flat_map(|p| p.iter()).for_each(|c| b.extend(c.to_bits().to_le_bytes()));
-    let ids = scn.cut.mesh.tets.iter().flatten().chain(scn.cut.crack_faces.iter().flatten().flatten());
-    ids.chain(&scn.fixed_nodes).for_each(|&i| b.extend((i as u64).to_le_bytes()));
-    laparo_core::atomic::fnv1a64_hex(&b)
-}
+use crate::cmd::register_benchmark::{
+    cached_ground_truth, ground_truth_inputs, write_json, MIN_CRACK_AREA_FRACTION, MIN_LIP_SAMPLES,
+};
 
 /// The TET10 ground truth from `dir/ground_truth.json` when solved from the same inputs, else solved (with a
 /// spinner) and saved in `register benchmark`'s format.
@@ -92,26 +77,14 @@ fn ground_truth(
 ) -> Result<(Vec<Vector3<f64>>, GroundTruthReport, bool)> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join("ground_truth.json");
-    let n = laparo_fem::solid::Tet10Mesh::from_linear(&scn.cut.mesh)?.n_nodes();
     let inputs = format!("v2-p2 {}", ground_truth_inputs(scn, cfg));
     if path.exists() {
-        let v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&path)?).with_context(|| path.display().to_string())?;
-        let flat: Vec<f64> = v["displacement_p2_mm"]
-            .as_array()
-            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-            .unwrap_or_default();
-        if flat.len() == 3 * n && v["inputs"].as_str() == Some(inputs.as_str()) {
-            let u = (0..n).map(|i| Vector3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2])).collect();
-            let report: GroundTruthReport =
-                serde_json::from_value(v["report"].clone()).with_context(|| path.display().to_string())?;
-            return Ok((u, report, true));
+        match cached_ground_truth(&path, scn, &inputs)? {
+            Ok((u, report)) => return Ok((u, report, true)),
+            Err(stored) => {
+                eprintln!("{}: solved from other inputs ({stored:?}, now {inputs:?}): solving again", path.display())
+            }
         }
-        eprintln!(
-            "{}: solved from other inputs ({:?}, now {inputs:?}): solving again",
-            path.display(),
-            v["inputs"].as_str().unwrap_or("none recorded")
-        );
     }
     let pb = ProgressBar::new_spinner();
     pb.set_message(format!("{}: FEM ground truth (TET10 Neo-Hookean) in {}", scn.name, dir.display()));
@@ -187,15 +160,11 @@ pub fn run(a: ConvergenceArgs) -> Result<()> {
     } else {
         serde_json::to_value(a.cut.non_anatomical()?)?
     };
-    let liver = match a.liver.clone() {
+    let liver = match a.liver.clone().or_else(crate::cmd::register_benchmark::default_liver) {
         Some(p) => p,
-        None => {
-            let p = PathBuf::from("../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj");
-            if !p.exists() {
-                bail!("--liver: no liver surface given and {} is absent", p.display());
-            }
-            p
-        }
+        None => bail!(
+            "--liver: no liver surface given and ../shared/data/meshes/p2ilf/patient2_1_3d-liver-model.obj is absent"
+        ),
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     // never write over the input: the liver must be none of the files written here
