@@ -1108,7 +1108,7 @@ pub fn run(mut a: BenchmarkArgs) -> Result<()> {
     check_floor_line(&results, &a, quick)?;
     results.extend(run_protocol(&cases, &rest_methods, &columns, n_seeds, &store, &mut on_event)?);
     // the thesis fidelity rows beside RODS-MPM, in the 50-landmark column
-    let with_rods = refs.iter().any(|m| m.name().starts_with(RODS_MPM_NAME));
+    let with_rods = a.methods.split(',').any(|m| ["rods", "rods-mpm", "rods-two-field"].contains(&m.trim()));
     let thesis = if with_rods { vec![thesis_row(&a, quick, false)?, thesis_row(&a, quick, true)?] } else { vec![] };
     let trefs: Vec<&dyn Method> = thesis.iter().map(|m| m as &dyn Method).collect();
     results.extend(run_protocol(&cases, &trefs, &[map_column], 1, &store, &mut on_event)?);
