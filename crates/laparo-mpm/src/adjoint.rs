@@ -197,7 +197,13 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     let final_state = states[if t == 0 { 0 } else { (t - 1) % k + 1 }].clone();
     // ---- reverse pass, segment by segment (the last one is still in the buffers) ----
     let mut x_bar = loss_grads[t].take().unwrap_or_else(|| vec![Vector::<D>::zeros(); n]);
+    // terminal condition v̄_T = ∂L/∂v_T (zero unless the loss has a velocity term)
     let mut v_bar = vec![Vector::<D>::zeros(); n];
+    let vt = loss.terminal_velocity(&final_state.v, &mut v_bar);
+    if !vt.is_finite() || !v_bar.iter().all(|g| g.iter().all(|c| c.is_finite())) {
+        return Err(MpmError::Loss("non-finite terminal velocity term or gradient".into()));
+    }
+    total += vt;
     let mut c_bar = vec![Matrix::<D>::zeros(); n];
     let mut f_bar = vec![Matrix::<D>::zeros(); n];
     x_bar_g2p.resize(n, Vector::<D>::zeros());

@@ -9,6 +9,11 @@ pub trait Loss<const D: usize>: Sync {
     }
     /// The loss term of step `step`; adds ∂L/∂x_p into `grad` (same length as `x`).
     fn evaluate(&self, step: usize, x: &[Vector<D>], grad: &mut [Vector<D>]) -> f64;
+    /// A term on the final particle velocities v_T (e.g. a terminal kinetic energy); adds ∂L/∂v_T,p into
+    /// `grad` (the adjoint's terminal condition v̄_T). Default: none.
+    fn terminal_velocity(&self, _v: &[Vector<D>], _grad: &mut [Vector<D>]) -> f64 {
+        0.0
+    }
 }
 
 /// Mean Euclidean landmark-to-target distance at the final step, (1/K) Σ_k sqrt(‖x_{l_k} − t_k‖² + 1e-12)
