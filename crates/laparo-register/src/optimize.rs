@@ -74,6 +74,63 @@ pub struct OptimizerConfig {
     /// written as the ballistic displacement v₀ T Δt (length units). Among the initial velocities that
     /// bring the landmarks equally close it prefers the one that moves the least tissue.
     pub kinetic_weight: f64,
+    /// At-rest prior λ (L2 of the RODS-MPM ladder; 0 = off): adds the terminal kinetic energy
+    /// λ · Σ_p m_p |v_T,p T Δt|² / (2 M Δx) (M: free mass) to the objective — λ Δx KE(T)/KE_ref with
+    /// KE_ref = ½ M (Δx / T Δt)², the energy of the body moving one cell over the horizon — so that the
+    /// registered state is a shape at rest, not a snapshot of a swing (adjoint terminal condition
+    /// v̄_T = λ m v_T (T Δt)² / (M Δx)).
+    pub terminal_kinetic_weight: f64,
+    /// With a two-field grid (`Scene::crack_side`), blur the gradient within each side of the crack and the
+    /// uncut material, never across it ([`Smoother::with_sides`]; L1 of the ladder). Without a crack: no effect.
+    pub side_aware_smoothing: bool,
+}
+
+/// Energies of a registered run (scene units: the organ's mass × length² / time²), the audit every RODS-MPM
+/// run reports: what the initial velocities put in, what is still moving at T, what is stored elastically,
+/// and the rest (dissipated by the grid transfers or absorbed by held particles).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct EnergyAudit {
+    /// Kinetic energy of v₀, Σ ½ m |v₀|².
+    pub kinetic_initial: f64,
+    /// Kinetic energy at T, Σ ½ m |v_T|².
+    pub kinetic_final: f64,
+    /// Elastic energy at T, Σ V ψ(F_T).
+    pub elastic_final: f64,
+    /// KE(0) + Ψ(0) − KE(T) − Ψ(T): lost to the transfers' numerical dissipation and the held particles.
+    pub dissipated: f64,
+}
+
+impl EnergyAudit {
+    /// The audit of a run from `scene` (with its v₀) to `final_state`.
+    pub fn of<const D: usize>(scene: &Scene<D>, final_state: &ParticleState<D>) -> Self {
+        let d0 = laparo_mpm::diagnostics(scene, &ParticleState::initial(scene));
+        let d1 = laparo_mpm::diagnostics(scene, final_state);
+        EnergyAudit {
+            kinetic_initial: d0.kinetic_energy,
+            kinetic_final: d1.kinetic_energy,
+            elastic_final: d1.elastic_energy,
+            dissipated: d0.kinetic_energy + d0.elastic_energy - d1.kinetic_energy - d1.elastic_energy,
+        }
+    }
+    /// KE(T) / KE(0) (0 when nothing moved).
+    pub fn kinetic_ratio(&self) -> f64 {
+        if self.kinetic_initial > 0.0 {
+            self.kinetic_final / self.kinetic_initial
+        } else {
+            0.0
+        }
+    }
+    /// One line for notes and logs.
+    pub fn note(&self) -> String {
+        format!(
+            "energy audit: KE(0) {:.4e}, KE(T) {:.4e} ({:.1} % of KE(0)), elastic at T {:.4e}, dissipated {:.4e}",
+            self.kinetic_initial,
+            self.kinetic_final,
+            100.0 * self.kinetic_ratio(),
+            self.elastic_final,
+            self.dissipated
+        )
+    }
 }
 
 /// Line search along an L-BFGS direction.
@@ -109,6 +166,8 @@ impl Default for OptimizerConfig {
             epsilon_ratio: 0.0,
             wolfe_c2: 0.9,
             kinetic_weight: 0.0,
+            terminal_kinetic_weight: 0.0,
+            side_aware_smoothing: true,
         }
     }
 }
@@ -183,6 +242,8 @@ pub struct Registration<const D: usize> {
     pub final_state: ParticleState<D>,
     /// Why the optimiser stopped.
     pub stop_reason: String,
+    /// Energies from v₀ to the final state.
+    pub energy: EnergyAudit,
 }
 
 struct Eval<const D: usize> {
@@ -206,6 +267,8 @@ struct Problem<'a, const D: usize> {
     joint: bool,
     /// Least-action prior κ ([`OptimizerConfig::kinetic_weight`]).
     kinetic: f64,
+    /// Per-particle coefficient c_p of the at-rest prior ½ Σ c_p |v_T,p|² (empty = off).
+    terminal: Vec<f64>,
     ws: GradientWorkspace<D>,
     evaluations: usize,
 }
@@ -238,8 +301,10 @@ impl<const D: usize> Problem<'_, D> {
         if self.joint {
             self.scene.material.youngs_modulus = self.e0 * x[self.n() * D].exp();
         }
-        let mut g = simulate_with_gradient_in(&mut self.ws, &self.scene, &self.loss)?;
+        let at_rest = AtRest { inner: &self.loss, coef: &self.terminal };
+        let mut g = simulate_with_gradient_in(&mut self.ws, &self.scene, &at_rest)?;
         self.evaluations += 1;
+        let terminal = at_rest.value(&g.final_state.v);
         if !g.loss.is_finite() {
             return Err(RegisterError::bad("registration", "the loss became non-finite (simulation unstable)"));
         }
@@ -253,7 +318,7 @@ impl<const D: usize> Problem<'_, D> {
             grad.push(self.scene.material.youngs_modulus * g.d_youngs_modulus);
         }
         let reported = if self.loss.epsilon == self.user.epsilon {
-            g.loss
+            g.loss - terminal
         } else {
             let mut scratch = vec![Vector::<D>::zeros(); self.n()];
             self.user.value_and_gradient(&g.final_state.x, &mut scratch)
@@ -322,6 +387,11 @@ pub fn register<const D: usize>(
     check("smoothing_dx", cfg.smoothing_dx, cfg.smoothing_dx >= 0.0)?;
     check("thesis_decay", cfg.thesis_decay, cfg.thesis_decay > 0.0 && cfg.thesis_decay < 1.0)?;
     check("kinetic_weight", cfg.kinetic_weight, cfg.kinetic_weight >= 0.0 && cfg.kinetic_weight.is_finite())?;
+    check(
+        "terminal_kinetic_weight",
+        cfg.terminal_kinetic_weight,
+        cfg.terminal_kinetic_weight >= 0.0 && cfg.terminal_kinetic_weight.is_finite(),
+    )?;
     let thesis = cfg.kind == OptimizerKind::ThesisGd;
     let warm: Vec<Vector<D>> = match warm {
         Some(w) if w.len() == n => w.to_vec(),
@@ -332,8 +402,11 @@ pub fn register<const D: usize>(
         None => scene.velocities.clone(),
     };
     let dxl = scene.grid.dx;
-    let smoother = if thesis { None } else { Smoother::new(&scene.positions, cfg.smoothing_dx * dxl, dxl) };
+    let sides: &[i8] = if cfg.side_aware_smoothing { &scene.crack_side } else { &[] };
+    let smoother =
+        if thesis { None } else { Smoother::with_sides(&scene.positions, sides, cfg.smoothing_dx * dxl, dxl) };
     let joint = cfg.joint_youngs_modulus;
+    let terminal = at_rest_coefficients(scene, cfg.terminal_kinetic_weight);
     let mut pb = Problem {
         scene: scene.clone(),
         user: loss,
@@ -343,6 +416,7 @@ pub fn register<const D: usize>(
         e0: scene.material.youngs_modulus,
         joint,
         kinetic: cfg.kinetic_weight,
+        terminal,
         ws: GradientWorkspace::new(),
         evaluations: 0,
     };
@@ -390,7 +464,7 @@ pub fn register<const D: usize>(
         }
         if history.len() > cfg.patience && cfg.patience > 0 {
             // with the least-action prior the objective, not eq. 5.10 alone, must keep falling
-            let prior = cfg.kinetic_weight > 0.0;
+            let prior = cfg.kinetic_weight > 0.0 || cfg.terminal_kinetic_weight > 0.0;
             let r = &history[history.len() - 1 - cfg.patience];
             let (old, now) = if prior { (r.objective, cur.loss) } else { (r.loss, cur.reported) };
             if old - now <= cfg.rel_tol * old.abs() {
@@ -574,7 +648,54 @@ pub fn register<const D: usize>(
     let dv = pb.dv(&x);
     let velocities: Vec<Vector<D>> = (0..n).map(|p| pb.warm[p] + dv[p]).collect();
     let youngs_modulus = if joint { pb.e0 * x[dim - 1].exp() } else { pb.e0 };
-    Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason })
+    let mut at_v0 = scene.clone();
+    at_v0.velocities.clone_from(&velocities);
+    at_v0.material.youngs_modulus = youngs_modulus;
+    let energy = EnergyAudit::of(&at_v0, &cur.state);
+    Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason, energy })
+}
+
+/// The at-rest prior's per-particle coefficients c_p = λ m_p (T Δt)² / (M Δx) (0 for held particles; empty
+/// when λ = 0), so that the term is ½ Σ c_p |v_T,p|² ([`OptimizerConfig::terminal_kinetic_weight`]).
+fn at_rest_coefficients<const D: usize>(scene: &Scene<D>, lambda: f64) -> Vec<f64> {
+    if !(lambda > 0.0) {
+        return Vec::new();
+    }
+    let free = |p: usize| !scene.fixed.get(p).copied().unwrap_or(false);
+    let mass: f64 = (0..scene.n_particles()).filter(|&p| free(p)).map(|p| scene.masses[p]).sum();
+    if !(mass > 0.0) {
+        return Vec::new();
+    }
+    let t = scene.steps as f64 * scene.dt;
+    let c = lambda * t * t / (mass * scene.grid.dx);
+    (0..scene.n_particles()).map(|p| if free(p) { c * scene.masses[p] } else { 0.0 }).collect()
+}
+
+/// The registration loss with the at-rest prior ½ Σ c_p |v_T,p|² on the final velocities.
+struct AtRest<'a, const D: usize> {
+    inner: &'a RegistrationLoss<D>,
+    coef: &'a [f64],
+}
+
+impl<const D: usize> AtRest<'_, D> {
+    fn value(&self, v: &[Vector<D>]) -> f64 {
+        self.coef.iter().zip(v).map(|(c, v)| 0.5 * c * v.norm_squared()).sum()
+    }
+}
+
+impl<const D: usize> laparo_mpm::Loss<D> for AtRest<'_, D> {
+    fn observes(&self, step: usize, n_steps: usize) -> bool {
+        self.inner.observes(step, n_steps)
+    }
+    fn evaluate(&self, step: usize, x: &[Vector<D>], grad: &mut [Vector<D>]) -> f64 {
+        self.inner.evaluate(step, x, grad)
+    }
+    fn terminal_velocity(&self, v: &[Vector<D>], grad: &mut [Vector<D>]) -> f64 {
+        for ((g, c), v) in grad.iter_mut().zip(self.coef).zip(v) {
+            *g += v * *c;
+        }
+        self.value(v)
+    }
 }
 
 /// One line-search trial: φ(α), φ'(α) and a payload, or None when the step is infeasible.

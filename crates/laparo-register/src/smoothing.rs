@@ -4,6 +4,12 @@
 //!
 //! Per-particle initial velocities are ill-conditioned (P2G averages ≈ 2^D particles per cell;
 //! `register.md` pitfall 2): smoothing over 2–4 Δx removes the directions the simulation cannot see.
+//!
+//! **Side-aware** ([`Smoother::with_sides`], the preconditioner of a two-field grid): particles labelled by
+//! a crack Σ (−1 / +1; 0 = uncut) are blurred on one lattice per side, each holding that side's particles
+//! and the uncut ones, S = N^{-1/2} (Σ_k D_k Pᵀ B P D_k) N^{-1/2} with D_k the indicator of side k or uncut:
+//! still symmetric, but a particle only ever receives from its own side and the uncut material, never
+//! across Σ (a plain Gaussian over the two lips averages their opposite pulls away).
 use laparo_mpm::Vector;
 
 /// The smoothing operator over fixed rest positions.
@@ -13,15 +19,40 @@ pub struct Smoother<const D: usize> {
     frac: Vec<[f64; D]>,
     taps: Vec<f64>,
     scale: Vec<f64>,
+    /// Lattices each particle belongs to (bit k: lattice k); all 1 without sides.
+    member: Vec<u8>,
+    /// Number of lattices (1, or 2 with sides).
+    lattices: usize,
 }
 
 impl<const D: usize> Smoother<D> {
     /// Smoothing of standard deviation `sigma` (length units) over `positions`, lattice spacing `h`.
     /// `sigma <= 0` gives the identity.
     pub fn new(positions: &[Vector<D>], sigma: f64, h: f64) -> Option<Self> {
+        Self::with_sides(positions, &[], sigma, h)
+    }
+
+    /// [`Self::new`] blurring within each side of a crack: `sides` per particle (−1, +1, or 0 = uncut;
+    /// empty = no crack, the plain smoother). A side-k particle receives only from side-k and uncut particles.
+    pub fn with_sides(positions: &[Vector<D>], sides: &[i8], sigma: f64, h: f64) -> Option<Self> {
         if !(sigma > 0.0) || positions.is_empty() {
             return None;
         }
+        let sided = sides.len() == positions.len() && sides.iter().any(|&s| s != 0);
+        let member: Vec<u8> = (0..positions.len())
+            .map(|p| {
+                if !sided {
+                    1
+                } else {
+                    match sides[p] {
+                        s if s < 0 => 1,
+                        s if s > 0 => 2,
+                        _ => 3,
+                    }
+                }
+            })
+            .collect();
+        let lattices = if sided { 2 } else { 1 };
         let radius = (3.0 * sigma / h).ceil() as usize;
         let mut lo = positions[0];
         let mut hi = positions[0];
@@ -48,7 +79,7 @@ impl<const D: usize> Smoother<D> {
         let taps: Vec<f64> = (0..=2 * radius)
             .map(|k| (-((k as f64 - radius as f64) * h).powi(2) / (2.0 * sigma * sigma)).exp())
             .collect();
-        let mut s = Smoother { dims, base, frac, taps, scale: vec![1.0; positions.len()] };
+        let mut s = Smoother { dims, base, frac, taps, scale: vec![1.0; positions.len()], member, lattices };
         let ones = vec![Vector::<D>::repeat(1.0); positions.len()];
         let rows = s.apply_raw(&ones);
         s.scale = rows.iter().map(|r| 1.0 / r[0].max(1e-300).sqrt()).collect();
@@ -80,10 +111,29 @@ impl<const D: usize> Smoother<D> {
         })
     }
 
+    /// Σ_k D_k Pᵀ B P D_k g: one splat–blur–gather per lattice.
     fn apply_raw(&self, g: &[Vector<D>]) -> Vec<Vector<D>> {
+        let mut out = vec![Vector::<D>::zeros(); g.len()];
+        for k in 0..self.lattices {
+            let bit = 1u8 << k;
+            let grid = self.blur_lattice(g, bit);
+            for (p, o) in out.iter_mut().enumerate() {
+                if self.member[p] & bit != 0 {
+                    *o += self.corners(p).fold(Vector::<D>::zeros(), |a, (i, w)| a + grid[i] * w);
+                }
+            }
+        }
+        out
+    }
+
+    /// B P D_k g on the lattice of membership bit `bit`.
+    fn blur_lattice(&self, g: &[Vector<D>], bit: u8) -> Vec<Vector<D>> {
         let n_nodes: usize = self.dims.iter().product();
         let mut grid = vec![Vector::<D>::zeros(); n_nodes];
         for (p, gp) in g.iter().enumerate() {
+            if self.member[p] & bit == 0 {
+                continue;
+            }
             for (o, w) in self.corners(p) {
                 grid[o] += gp * w;
             }
@@ -105,7 +155,7 @@ impl<const D: usize> Smoother<D> {
             }
             std::mem::swap(&mut grid, &mut tmp);
         }
-        (0..g.len()).map(|p| self.corners(p).fold(Vector::<D>::zeros(), |a, (o, w)| a + grid[o] * w)).collect()
+        grid
     }
 
     /// S g.
