@@ -94,6 +94,7 @@ impl<'p> LoadPath<'p> {
         let target = load_factor;
         let (t_from, u_from) =
             self.states.iter().rev().find(|(t, _)| *t <= target * (1.0 + 1e-12)).expect("rest is stored");
+        let from_rest = *t_from == 0.0;
         let mut t = *t_from;
         let mut u = u_from.clone();
         let n_inc = ((target - t) / (target / self.settings.steps as f64) - 1e-9).ceil().max(0.0) as usize;
@@ -139,12 +140,19 @@ impl<'p> LoadPath<'p> {
                 }
             }
         }
+        timings.newton_iterations = steps.iter().map(|s| s.iterations).sum();
+        if from_rest && timings.newton_iterations == 0 {
+            // From rest, the first residual is the load on the free nodes: non-zero means Newton must move.
+            let first = steps.first().and_then(|s| s.residual_history.first().map(|&r| (r, s.tolerance)));
+            if let Some((free_load_mn, tolerance_mn)) = first.filter(|&(r, _)| r > 0.0) {
+                return Err(FemError::NoNewtonStep { free_load_mn, tolerance_mn });
+            }
+        }
         let nn = self.problem.mesh.n_nodes();
         let displacement: Vec<Vector3<f64>> =
             (0..nn).map(|i| Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2])).collect();
         let min_j = steps.last().map_or(1.0, |s| s.min_j);
         timings.total_s = t_start.elapsed().as_secs_f64() + timings.symbolic_s;
-        timings.newton_iterations = steps.iter().map(|s| s.iterations).sum();
         Ok(Solution {
             max_displacement_mm: displacement.iter().map(|d| d.norm()).fold(0.0, f64::max),
             displacement,

@@ -23,4 +23,4 @@ pub use newton::{
 };
 pub use problem::{Assembled, BodyForce, Dirichlet, FaceTraction, Loads, NodalForce, SolidProblem};
 pub use quadrature::{tet10_shape, tet10_shape_grad, QuadPoint, Quadrature, TET10_EDGES};
-pub use tet10::Tet10Mesh;
+pub use tet10::{check_elements, Tet10Mesh};

@@ -224,6 +224,7 @@ impl SolidProblem {
                 return Err(FemError::bad("loads", "body force is not finite"));
             }
         }
+        check_load_scale(&mesh, &material, &f_ext)?;
         let qp = quadrature.points().iter().map(|q| (q.weight, tet10_shape_grad(&q.xi))).collect();
         let (row_ptr, cols) = node_adjacency(n, mesh.elements.iter().map(|el| &el[..]));
         let elem_blocks = mesh
@@ -496,6 +497,43 @@ impl SolidProblem {
 
 /// Every connected piece of the mesh needs ≥ 3 non-collinear prescribed nodes, else rigid-body
 /// modes make the stiffness singular.
+/// Loads above this multiple of E·L² (E Young's modulus, L the mesh's bounding-box diagonal) are refused
+/// by [`SolidProblem::new`]: they would mean strains of that order, a unit or sign error, not a load.
+pub const MAX_LOAD_RATIO: f64 = 1e3;
+
+/// [`FemError::LoadOutOfScale`] when the total external force Σ_nodes |f| is not finite or exceeds
+/// [`MAX_LOAD_RATIO`] × E·L².
+fn check_load_scale(mesh: &Tet10Mesh, material: &NeoHookean, f_ext: &[f64]) -> Result<()> {
+    // hypot: components of 1e300 give 1.7e300, not an overflow to infinity.
+    let total: f64 = f_ext.chunks(3).map(|c| c[0].hypot(c[1]).hypot(c[2])).sum();
+    let (mu, la) = (material.mu_kpa, material.lambda_kpa);
+    let young_kpa = mu * (3.0 * la + 2.0 * mu) / (la + mu);
+    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    for p in &mesh.nodes[..mesh.n_vertices] {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    let size_mm = (hi - lo).norm();
+    let scale = young_kpa * size_mm * size_mm;
+    let limit_mn = MAX_LOAD_RATIO * scale;
+    let what = if !total.is_finite() {
+        "not finite"
+    } else if total > limit_mn {
+        "absurd"
+    } else {
+        return Ok(());
+    };
+    Err(FemError::LoadOutOfScale {
+        total_mn: total,
+        limit_mn,
+        max_ratio: MAX_LOAD_RATIO,
+        young_kpa,
+        size_mm,
+        strain: total / scale,
+        what,
+    })
+}
+
 fn check_rigid_modes(mesh: &Tet10Mesh, prescribed: &[Option<Vector3<f64>>]) -> Result<()> {
     let n = mesh.n_nodes();
     if prescribed.iter().all(Option::is_none) {

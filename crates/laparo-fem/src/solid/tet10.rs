@@ -32,8 +32,47 @@ fn key(a: usize, b: usize) -> (usize, usize) {
     }
 }
 
+/// Refuse duplicated tetrahedra ([`FemError::DuplicateElement`]) and tetrahedra folded over a
+/// neighbour ([`FemError::InvertedElement`]: two tetrahedra sharing a face on the same side of it, or
+/// a face shared by more than two). A consistent global orientation is not required (from_linear
+/// reorders negative tets); what is refused is an overlap, whatever the convention.
+pub fn check_elements(mesh: &TetMesh) -> Result<()> {
+    use rayon::slice::ParallelSliceMut;
+    // (sorted face, tet, opposite vertex) for every face of every tet; a face's tets are adjacent after sorting.
+    let mut faces: Vec<([usize; 3], usize, usize)> = Vec::with_capacity(4 * mesh.tets.len());
+    for (ti, t) in mesh.tets.iter().enumerate() {
+        for j in 0..4 {
+            let mut f = [t[(j + 1) % 4], t[(j + 2) % 4], t[(j + 3) % 4]];
+            f.sort_unstable();
+            faces.push((f, ti, t[j]));
+        }
+    }
+    faces.par_sort_unstable();
+    let x = &mesh.vertices;
+    let side = |f: &[usize; 3], o: usize| (x[f[1]] - x[f[0]]).cross(&(x[f[2]] - x[f[0]])).dot(&(x[o] - x[f[0]]));
+    for g in faces.chunk_by(|a, b| a.0 == b.0) {
+        for (k, &(f, tb, ob)) in g.iter().enumerate().skip(1) {
+            for &(_, ta, oa) in &g[..k] {
+                if oa == ob {
+                    let (first, second) = (ta.min(tb), ta.max(tb));
+                    return Err(FemError::DuplicateElement { first, second, vertices: mesh.tets[second] });
+                }
+                if side(&f, oa) * side(&f, ob) >= 0.0 {
+                    return Err(FemError::InvertedElement { first: ta.min(tb), second: ta.max(tb), face: f });
+                }
+            }
+            if k >= 2 {
+                // Three tetrahedra on one face: two of them overlap (caught above unless degenerate).
+                return Err(FemError::InvertedElement { first: g[0].1, second: tb, face: f });
+            }
+        }
+    }
+    Ok(())
+}
+
 impl Tet10Mesh {
-    /// Build the TET10 mesh; negatively oriented tets are reordered, degenerate ones are an error.
+    /// Build the TET10 mesh; negatively oriented tets are reordered; degenerate, duplicated and
+    /// inverted (folded) ones are an error ([`check_elements`]).
     pub fn from_linear(mesh: &TetMesh) -> Result<Self> {
         if mesh.tets.is_empty() {
             return Err(FemError::bad("tet mesh", "has no tetrahedra"));
@@ -77,6 +116,7 @@ impl Tet10Mesh {
             );
             jac_det.push(det);
         }
+        check_elements(mesh)?;
         Ok(Self { nodes, n_vertices, elements, edge_nodes, jac_inv, jac_det })
     }
 
