@@ -85,7 +85,12 @@ pub fn remove_stale_temps(dir: &Path) -> Result<usize> {
 
 /// Refuse an output that would overwrite (or, for a folder, be or lie inside) an input:
 /// `output` is a file or folder about to be written, `inputs` the files or folders read.
-/// Paths are compared after resolving symbolic links and `..` (of their existing part).
+/// Paths are compared after resolving symbolic links and `..` (of their existing part); a file
+/// output is also refused when it is a hard link to an input (same device and inode), since
+/// writing it would replace the input's content under another name. The error names both.
+///
+/// A folder output only checks the folder: call [`refuse_overwrite_in`] (or this function with
+/// `output_is_dir = false`) for every file the command writes into it.
 pub fn refuse_overwrite(output: &Path, inputs: &[&Path], output_is_dir: bool) -> Result<()> {
     let out = resolve(output);
     for &i in inputs {
@@ -103,8 +108,61 @@ pub fn refuse_overwrite(output: &Path, inputs: &[&Path], output_is_dir: bool) ->
                 format!("{} would overwrite the input {}; choose another output", output.display(), i.display()),
             ));
         }
+        if !output_is_dir && same_file(output, i) {
+            return Err(CoreError::invalid(
+                "output",
+                format!(
+                    "{} is a hard link to the input {} (the same file): writing it would change the input; \
+                     choose another output",
+                    output.display(),
+                    i.display()
+                ),
+            ));
+        }
     }
     Ok(())
+}
+
+/// [`refuse_overwrite`] for a command that writes the files `names` into the folder `dir`: the
+/// folder itself, then every file `dir/name`, against every input. Also refuses two outputs
+/// that are the same file (a name given twice).
+pub fn refuse_overwrite_in(dir: &Path, names: &[&str], inputs: &[&Path]) -> Result<()> {
+    refuse_overwrite(dir, inputs, true)?;
+    let files: Vec<PathBuf> = names.iter().map(|n| dir.join(n)).collect();
+    let refs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    refuse_overwrite_files(&refs, inputs)
+}
+
+/// [`refuse_overwrite`] for every file in `outputs` (files, not folders), and refuses two outputs
+/// that resolve to the same file (the second would replace the first).
+pub fn refuse_overwrite_files(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
+    for (k, &o) in outputs.iter().enumerate() {
+        refuse_overwrite(o, inputs, false)?;
+        if let Some(&prev) = outputs[..k].iter().find(|&&p| resolve(p) == resolve(o) || same_file(p, o)) {
+            return Err(CoreError::invalid(
+                "output",
+                format!("{} and {} are the same file: choose two different outputs", prev.display(), o.display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// True when `a` and `b` both exist and are the same file: same device and inode on unix (hard
+/// links, bind mounts), the same resolved path elsewhere.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        a.exists() && b.exists() && resolve(a) == resolve(b)
+    }
 }
 
 /// Absolute, symlink-free form of `p`: the longest existing ancestor is canonicalised and the
@@ -218,6 +276,32 @@ mod tests {
         assert!(refuse_overwrite(&data.join("aug"), &[&data], true).is_err());
         assert!(refuse_overwrite(&d.join("aug"), &[&data], true).is_ok());
         assert_eq!(fnv1a64_hex(b""), "cbf29ce484222325");
+        // A file written into the output folder that is an input (`--out .` next to the input).
+        let err = refuse_overwrite_in(d, &["report.json", "in.toml"], &[&inp]).unwrap_err().to_string();
+        assert!(err.contains("in.toml") && err.contains("overwrite"), "{err}");
+        assert!(refuse_overwrite_in(d, &["report.json"], &[&inp]).is_ok());
+        // Two outputs that are the same file.
+        let err = refuse_overwrite_files(&[&d.join("a.json"), &d.join("x/../a.json")], &[&inp]).unwrap_err();
+        assert!(err.to_string().contains("same file"), "{err}");
         assert_eq!(fnv1a64_hex(b"a"), "af63dc4c8601ec8c");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn hard_links_to_inputs_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let inp = dir.path().join("liver.obj");
+        std::fs::write(&inp, b"v 0 0 0").unwrap();
+        let link = dir.path().join("out").join("landmarks.json");
+        std::fs::create_dir_all(link.parent().unwrap()).unwrap();
+        std::fs::hard_link(&inp, &link).unwrap();
+        let err = refuse_overwrite(&link, &[&inp], false).unwrap_err().to_string();
+        assert!(err.contains("hard link") && err.contains("liver.obj") && err.contains("landmarks.json"), "{err}");
+        let err = refuse_overwrite_in(&dir.path().join("out"), &["landmarks.json"], &[&inp]).unwrap_err();
+        assert!(err.to_string().contains("hard link"), "{err}");
+        assert!(same_file(&inp, &link) && !same_file(&inp, &dir.path().join("absent")));
+        let other = dir.path().join("copy.obj");
+        std::fs::copy(&inp, &other).unwrap();
+        assert!(refuse_overwrite(&other, &[&inp], false).is_ok());
     }
 }

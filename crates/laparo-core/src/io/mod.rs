@@ -31,7 +31,7 @@ pub use depth_io::{read_depth, read_float_map, read_mask, write_depth, write_flo
 pub use exr::{read_exr, write_exr};
 pub use npy::{read_npy, read_npz, read_npz_names, write_npy_f32, write_npy_f64, write_npz_f64};
 pub use pfm::{read_pfm, write_pfm};
-pub use png::{read_image, read_png16, read_rgb8, write_jpeg, write_png, write_png16};
+pub use png::{image_size, read_image, read_png16, read_rgb8, write_jpeg, write_png, write_png16};
 pub use tiff::{read_tiff_f32, write_tiff_f32};
 
 use crate::error::{CoreError, Result};

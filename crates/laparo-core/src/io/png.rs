@@ -51,6 +51,21 @@ fn wrap<T: Copy>(path: &Path, w: u32, h: u32, c: usize, data: Vec<T>) -> Result<
     Image::from_vec(w as usize, h as usize, c, data).map_err(|e| CoreError::format(path, e.to_string()))
 }
 
+/// Width and height (px) of the image at `path` from its header, without decoding the pixels: a
+/// command checks its memory budget with it before a large image is decoded.
+pub fn image_size(path: impl AsRef<Path>) -> Result<(usize, usize)> {
+    let path = path.as_ref();
+    let reader = image::ImageReader::open(path)
+        .map_err(|e| CoreError::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| CoreError::io(path, e))?;
+    if reader.format().is_none() {
+        return Err(CoreError::format(path, "not a recognised image format (expected PNG, JPEG or TIFF)"));
+    }
+    let (w, h) = reader.into_dimensions().map_err(|e| CoreError::format(path, format!("cannot read the size: {e}")))?;
+    Ok((w as usize, h as usize))
+}
+
 /// Read an 8-bit image (PNG, JPEG, TIFF, ...) with its channels as stored: 1 (gray), 3 (RGB)
 /// or 4 (RGBA; gray+alpha is expanded to RGBA). Deeper images are rounded to 8 bits.
 pub fn read_image(path: impl AsRef<Path>) -> Result<Image<u8>> {
@@ -181,7 +196,11 @@ mod tests {
             let rgb = read_rgb8(&p).unwrap();
             assert_eq!(rgb.channels, 3);
             assert_eq!(rgb.pixel(4, 2)[0], img.pixel(4, 2)[0]);
+            assert_eq!(image_size(&p).unwrap(), (5, 3), "size from the header");
         }
+        let bad = dir.path().join("x.png");
+        std::fs::write(&bad, b"not an image").unwrap();
+        assert!(image_size(&bad).unwrap_err().to_string().contains("x.png"));
     }
 
     #[test]
