@@ -30,7 +30,7 @@ pub fn crack_sides(
     if crack.faces.is_empty() {
         return Err(RegisterError::bad("crack surface", "no triangle"));
     }
-    if !(band_mm > 0.0 && band_mm.is_finite()) {
+    if !(band_mm > 0.0 && !band_mm.is_nan()) {
         return Err(RegisterError::param("crack band (mm)", band_mm, "must be finite and > 0"));
     }
     if let Some(f) = crack.faces.iter().find(|f| f.iter().any(|&i| i >= crack.vertices.len())) {
@@ -137,5 +137,7 @@ pub fn label_organ(
         ));
     }
     organ.scene.crack_side = sides;
+    // the preconditioner's sides: the same test without the band (the whole material in front of Σ)
+    organ.smoothing_sides = crack_sides(points, inside, crack, f64::MAX)?;
     Ok(labels)
 }

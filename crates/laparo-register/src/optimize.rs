@@ -88,7 +88,7 @@ pub struct OptimizerConfig {
 /// Energies of a registered run (scene units: the organ's mass × length² / time²), the audit every RODS-MPM
 /// run reports: what the initial velocities put in, what is still moving at T, what is stored elastically,
 /// and the rest (dissipated by the grid transfers or absorbed by held particles).
-#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EnergyAudit {
     /// Kinetic energy of v₀, Σ ½ m |v₀|².
     pub kinetic_initial: f64,
@@ -368,7 +368,27 @@ pub fn register<const D: usize>(
     warm: Option<&[Vector<D>]>,
     observer: &mut dyn FnMut(&IterationRecord, &[Vector<D>]) -> bool,
 ) -> Result<Registration<D>> {
+    register_sided(scene, loss, cfg, warm, &scene.crack_side, observer)
+}
+
+/// [`register`] with the side of a crack Σ of every particle for the side-aware preconditioner
+/// ([`OptimizerConfig::side_aware_smoothing`]; e.g. `Organ::smoothing_sides`, which reach beyond the grid's
+/// labelling band; empty = none).
+pub fn register_sided<const D: usize>(
+    scene: &Scene<D>,
+    loss: &RegistrationLoss<D>,
+    cfg: &OptimizerConfig,
+    warm: Option<&[Vector<D>]>,
+    smoothing_sides: &[i8],
+    observer: &mut dyn FnMut(&IterationRecord, &[Vector<D>]) -> bool,
+) -> Result<Registration<D>> {
     scene.validate()?;
+    if !smoothing_sides.is_empty() && smoothing_sides.len() != scene.n_particles() {
+        return Err(RegisterError::bad(
+            "smoothing sides",
+            format!("{} sides for {} particles", smoothing_sides.len(), scene.n_particles()),
+        ));
+    }
     let n = scene.n_particles();
     if loss.groups.iter().all(|g| g.particles.is_empty()) && loss.region.is_none() {
         return Err(RegisterError::bad("landmarks", "no landmark and no region term: nothing to register"));
@@ -402,7 +422,7 @@ pub fn register<const D: usize>(
         None => scene.velocities.clone(),
     };
     let dxl = scene.grid.dx;
-    let sides: &[i8] = if cfg.side_aware_smoothing { &scene.crack_side } else { &[] };
+    let sides: &[i8] = if cfg.side_aware_smoothing { smoothing_sides } else { &[] };
     let smoother =
         if thesis { None } else { Smoother::with_sides(&scene.positions, sides, cfg.smoothing_dx * dxl, dxl) };
     let joint = cfg.joint_youngs_modulus;

@@ -129,6 +129,10 @@ pub struct Organ {
     pub fixed_count: usize,
     /// Non-fatal findings.
     pub warnings: Vec<String>,
+    /// Side of a crack Σ for the side-aware preconditioner, unbounded (±1 wherever the particle's closest
+    /// point on Σ is interior, 0 beyond the crack front; the grid's `scene.crack_side` is only the band near
+    /// Σ); empty without a crack. Set by [`crate::crack::label_organ`].
+    pub smoothing_sides: Vec<i8>,
 }
 
 impl Organ {
@@ -375,5 +379,5 @@ pub fn organ_from_points(mut points: Vec<Vector<3>>, cfg: &OrganConfig, input: &
         warnings.push(format!("fewer than 2 particles per cell (Δx {dx} mm, spacing {} mm)", cfg.spacing_mm));
     }
     scene.validate()?;
-    Ok(Organ { scene, offset, spacing_mm: cfg.spacing_mm, fixed_count, warnings })
+    Ok(Organ { scene, offset, spacing_mm: cfg.spacing_mm, fixed_count, warnings, smoothing_sides: Vec::new() })
 }

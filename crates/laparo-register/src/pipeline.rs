@@ -4,7 +4,7 @@
 use crate::error::{RegisterError, Result};
 use crate::io::{SourceGroup, TargetSpec};
 use crate::loss::{GroupResidual, LandmarkGroup, RegionTerm, RegistrationLoss};
-use crate::optimize::{register, IterationRecord, OptimizerConfig};
+use crate::optimize::{register_sided, IterationRecord, OptimizerConfig};
 use crate::organ::{organ_from_mesh, HorizonReport, Organ, OrganConfig};
 use crate::surface::{particle_surface, SurfaceConfig};
 use crate::transfer::Transfer;
@@ -88,6 +88,8 @@ pub struct Report {
     pub stop_reason: String,
     /// Diagnostics of the final state (energies, momenta, min J).
     pub final_diagnostics: Diagnostics,
+    /// Energy audit from v₀ to the final state: KE(0), KE(T), elastic energy at T, dissipated.
+    pub energy: crate::optimize::EnergyAudit,
     /// Tumour points outside every complete lattice cell (extrapolated) / in cells straddling a separation.
     pub tumour_flags: Option<[usize; 2]>,
     /// Display-surface size (vertices, faces).
@@ -229,7 +231,7 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
         true
     };
     let t0 = std::time::Instant::now();
-    let reg = register(&scene, &loss, &job.optimizer, warm.as_deref(), &mut obs)?;
+    let reg = register_sided(&scene, &loss, &job.optimizer, warm.as_deref(), &organ.smoothing_sides, &mut obs)?;
     if let Some(e) = ck_err {
         return Err(e);
     }
@@ -343,6 +345,7 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
         peak_memory_mib: peak_memory_mib(),
         stop_reason: reg.stop_reason.clone(),
         final_diagnostics: diag,
+        energy: reg.energy,
         tumour_flags,
         surface: [sv.len(), sf.len()],
         warnings,

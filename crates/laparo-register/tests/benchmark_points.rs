@@ -136,7 +136,7 @@ fn floors_vanish_for_a_field_each_representation_holds_exactly() {
     // RODS-MPM's floor: the particles at the ground truth, read back by its transfer: exact for an affine field
     let organ = OrganConfig { spacing_mm: 2.0, steps: 4, ..OrganConfig::default() };
     let readback = RodsOracle {
-        inner: RodsMethod { organ, optimizer: OptimizerConfig::default(), two_field: None },
+        inner: RodsMethod { organ, optimizer: OptimizerConfig::default(), two_field: None, rung: None },
         mode: OracleMode::Readback,
         kerf_mm: 0.0,
     };
@@ -149,8 +149,12 @@ fn floors_vanish_for_a_field_each_representation_holds_exactly() {
 #[test]
 fn the_config_hash_changes_with_every_hyperparameter() {
     let rods = |f: &dyn Fn(&mut RodsMethod)| {
-        let mut m =
-            RodsMethod { organ: OrganConfig::default(), optimizer: OptimizerConfig::default(), two_field: None };
+        let mut m = RodsMethod {
+            organ: OrganConfig::default(),
+            optimizer: OptimizerConfig::default(),
+            two_field: None,
+            rung: None,
+        };
         f(&mut m);
         config_hash(&m.settings())
     };
@@ -215,7 +219,7 @@ fn a_lip_leaving_the_organ_and_a_coarse_floor_are_named() {
     let store = ResultStore::new(dir.path());
     let organ = OrganConfig { spacing_mm: 8.0, steps: 4, ..OrganConfig::default() };
     let readback = RodsOracle {
-        inner: RodsMethod { organ, optimizer: OptimizerConfig::default(), two_field: None },
+        inner: RodsMethod { organ, optimizer: OptimizerConfig::default(), two_field: None, rung: None },
         mode: OracleMode::Readback,
         kerf_mm: 0.0,
     };

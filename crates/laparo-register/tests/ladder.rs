@@ -5,7 +5,6 @@ use laparo_mpm::{diagnostics, simulate_with_gradient};
 use laparo_register::optimize::EnergyAudit;
 use laparo_register::prelude::*;
 use laparo_register::smoothing::Smoother;
-use std::sync::Arc;
 
 /// A 2D block of 16×8 particles (2 per cell per axis) labelled by a crack at x = x_mid: above y_front the
 /// left half is side −1 and the right half +1, below it uncut (0). `y_front` below the block = fully split.
@@ -20,7 +19,17 @@ fn block(y_front: f64) -> Scene<2> {
     scene.crack_side = scene
         .positions
         .iter()
-        .map(|x| if x[1] > y_front { if x[0] < mid { -1 } else { 1 } } else { 0 })
+        .map(|x| {
+            if x[1] > y_front {
+                if x[0] < mid {
+                    -1
+                } else {
+                    1
+                }
+            } else {
+                0
+            }
+        })
         .collect();
     scene
 }
@@ -28,9 +37,8 @@ fn block(y_front: f64) -> Scene<2> {
 /// Landmarks: the left (side −1) particles of the top row, each asked to move up-left by 0.3 Δx.
 fn side_a_loss(scene: &Scene<2>) -> RegistrationLoss<2> {
     let top = scene.positions.iter().map(|x| x[1]).fold(f64::MIN, f64::max);
-    let particles: Vec<usize> = (0..scene.n_particles())
-        .filter(|&p| scene.crack_side[p] == -1 && scene.positions[p][1] > top - 1e-9)
-        .collect();
+    let particles: Vec<usize> =
+        (0..scene.n_particles()).filter(|&p| scene.crack_side[p] == -1 && scene.positions[p][1] > top - 1e-9).collect();
     assert!(particles.len() >= 4);
     let targets = particles.iter().map(|&p| scene.positions[p] + Vector::<2>::new(-0.3, 0.3) * scene.grid.dx).collect();
     RegistrationLoss::new(vec![LandmarkGroup {
@@ -86,7 +94,8 @@ fn side_aware_preconditioner_reaches_uncut_material_but_not_the_other_lip() {
     assert!(max_norm(&out, |p| scene.crack_side[p] == 0) > 0.0, "the uncut material below the front is reached");
     // S is symmetric: <a, S b> = <S a, b>
     let a: Vec<Vector<2>> = (0..g.len()).map(|p| Vector::<2>::new((p as f64 * 0.37).sin(), (p as f64).cos())).collect();
-    let b: Vec<Vector<2>> = (0..g.len()).map(|p| Vector::<2>::new((p as f64 * 1.3).cos(), (p as f64 * 0.7).sin())).collect();
+    let b: Vec<Vector<2>> =
+        (0..g.len()).map(|p| Vector::<2>::new((p as f64 * 1.3).cos(), (p as f64 * 0.7).sin())).collect();
     let dot = |u: &[Vector<2>], v: &[Vector<2>]| u.iter().zip(v).map(|(x, y)| x.dot(y)).sum::<f64>();
     let (l, r) = (dot(&a, &sm.apply(&b)), dot(&sm.apply(&a), &b));
     assert!((l - r).abs() < 1e-12 * l.abs().max(1.0), "{l} vs {r}");
@@ -113,11 +122,15 @@ fn at_rest_prior_is_the_terminal_kinetic_energy_and_slows_the_final_state() {
     let t = scene.steps as f64 * scene.dt;
     let m: f64 = scene.masses.iter().sum();
     let v_t = &rest.final_state.v;
-    let hand: f64 =
-        lambda * (0..v_t.len()).map(|p| scene.masses[p] * (v_t[p] * t).norm_squared()).sum::<f64>() / (2.0 * m * scene.grid.dx);
+    let hand: f64 = lambda * (0..v_t.len()).map(|p| scene.masses[p] * (v_t[p] * t).norm_squared()).sum::<f64>()
+        / (2.0 * m * scene.grid.dx);
     let last = rest.history.last().unwrap();
     assert!(hand > 0.0);
-    assert!(((last.objective - last.loss) - hand).abs() < 1e-10 * hand.max(1e-12), "{} vs {hand}", last.objective - last.loss);
+    assert!(
+        ((last.objective - last.loss) - hand).abs() < 1e-10 * hand.max(1e-12),
+        "{} vs {hand}",
+        last.objective - last.loss
+    );
     // the audit by hand
     let ke0: f64 = (0..v_t.len()).map(|p| 0.5 * scene.masses[p] * rest.velocities[p].norm_squared()).sum();
     let ket: f64 = (0..v_t.len()).map(|p| 0.5 * scene.masses[p] * v_t[p].norm_squared()).sum();

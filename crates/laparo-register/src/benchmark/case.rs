@@ -74,6 +74,8 @@ pub struct MethodOutput {
     /// (RODS-MPM: the particle→point transfer); None: the nodes are interpolated linearly in each point's
     /// element ([`EvalPoints::p1`], how every mesh method is read).
     pub points: Option<Vec<Vector3<f64>>>,
+    /// Energy audit of a simulating method (None for mesh methods).
+    pub energy: Option<crate::optimize::EnergyAudit>,
 }
 
 /// A registration method under test.
@@ -257,6 +259,7 @@ pub fn score(
         provenance,
         points,
         floor: None,
+        energy: out.energy,
     })
 }
 
@@ -392,7 +395,13 @@ mod tests {
             String::new()
         }
         fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
-            Ok(MethodOutput { nodes: case.rest.clone(), landmark_distance_mm: 0.0, notes: vec![], points: None })
+            Ok(MethodOutput {
+                nodes: case.rest.clone(),
+                landmark_distance_mm: 0.0,
+                notes: vec![],
+                points: None,
+                energy: None,
+            })
         }
     }
     struct Oracle;
@@ -409,6 +418,7 @@ mod tests {
                 landmark_distance_mm: 0.0,
                 notes: vec![],
                 points: None,
+                energy: None,
             })
         }
     }

@@ -230,6 +230,7 @@ impl Method for BaselineMethod {
             landmark_distance_mm: r.report.mean_distance_mm,
             notes,
             points: None,
+            energy: None,
         })
     }
     fn floor(&self) -> Option<String> {
@@ -254,7 +255,13 @@ impl Method for P1Floor {
         "P1 interpolation of the nodal ground truth".into()
     }
     fn register(&self, case: &BenchmarkCase, _: &[LandmarkSet]) -> Result<MethodOutput> {
-        Ok(MethodOutput { nodes: case.ground_truth.clone(), landmark_distance_mm: 0.0, notes: vec![], points: None })
+        Ok(MethodOutput {
+            nodes: case.ground_truth.clone(),
+            landmark_distance_mm: 0.0,
+            notes: vec![],
+            points: None,
+            energy: None,
+        })
     }
     fn uses_landmarks(&self) -> bool {
         false
@@ -288,6 +295,7 @@ impl Method for NoRegistration {
             landmark_distance_mm: sum / n.max(1) as f64,
             notes: vec![],
             points,
+            energy: None,
         })
     }
 }

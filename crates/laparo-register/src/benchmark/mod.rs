@@ -24,7 +24,7 @@ pub use case::{
 };
 pub use points::{EvalPoints, PointKind};
 pub use protocol::{noisy_targets, table51_columns, Column};
-pub use rods::{OracleMode, RodsMethod, RodsOracle, TwoField, RODS_MPM_NAME};
+pub use rods::{OracleMode, RodsMethod, RodsOracle, Rung, TwoField, RODS_MPM_NAME};
 pub use store::{ResultStore, RunKey, RunResult};
 pub use table::{aggregate, table_csv, table_json, table_markdown, Cell};
 pub use tre::{

@@ -7,7 +7,7 @@
 use crate::distance::{build_tree, Polyline};
 use crate::error::{RegisterError, Result};
 use crate::loss::{GroupTarget, LandmarkGroup, RegistrationLoss};
-use crate::optimize::{register, IterationRecord, OptimizerConfig};
+use crate::optimize::{register, register_sided, IterationRecord, OptimizerConfig};
 use crate::organ::{organ_from_points, OrganConfig};
 use crate::transfer::Transfer;
 use kiddo::SquaredEuclidean;
@@ -63,8 +63,10 @@ pub struct RodsOutput {
     pub landmark_distance_mm: [f64; 2],
     /// Iterations run.
     pub iterations: usize,
-    /// Findings (horizon, extrapolated nodes, optimiser stop reason).
+    /// Findings (horizon, extrapolated nodes, optimiser stop reason, energy audit).
     pub notes: Vec<String>,
+    /// Energy audit of the simulated run (None for the read-back floor, which does not simulate).
+    pub energy: Option<crate::optimize::EnergyAudit>,
     /// Registered positions (mm) of the query points of [`run_rods_at`] / [`run_rods_oracle_at`], read by the
     /// same particle→point transfer as the nodes (empty without queries).
     pub points: Vec<Vector3<f64>>,
@@ -271,9 +273,10 @@ pub fn run_rods_kerfed(
         progress(r);
         true
     };
-    let reg = register(&organ.scene, &loss, &problem.optimizer, None, &mut obs)?;
+    let reg = register_sided(&organ.scene, &loss, &problem.optimizer, None, &organ.smoothing_sides, &mut obs)?;
     let after = loss.mean_distance(&reg.final_state.x);
     notes.push(format!("optimiser: {}", reg.stop_reason));
+    notes.push(reg.energy.note());
     let deformed: Vec<Vector3<f64>> = reg.final_state.x.iter().map(|p| p - off).collect();
     let (nodes, read) = transfer_nodes(problem, queries, &points, &side, &deformed, kerf_mm, &mut notes)?;
     Ok(RodsOutput {
@@ -283,6 +286,7 @@ pub fn run_rods_kerfed(
         landmark_distance_mm: [before, after],
         iterations: reg.history.last().map(|r| r.iteration).unwrap_or(0),
         notes,
+        energy: Some(reg.energy),
     })
 }
 
@@ -352,18 +356,19 @@ pub fn run_rods_oracle_at(
     };
     let held = |p: usize| organ.scene.fixed.get(p).copied().unwrap_or(false);
     let before = loss.mean_distance(&organ.scene.positions);
-    let (final_x, iterations) = match mode {
+    let (final_x, iterations, energy) = match mode {
         OracleMode::Ballistic => {
             let t = organ.scene.steps as f64 * organ.scene.dt;
             organ.scene.velocities =
                 (0..points.len()).map(|p| if held(p) { Vector3::zeros() } else { u[p] / t }).collect();
             let sim = laparo_mpm::simulate(&organ.scene)?;
             notes.push("oracle: ballistic v₀ = u_GT / (T Δt)".into());
-            (sim.final_state.x, 0)
+            let energy = crate::optimize::EnergyAudit::of(&organ.scene, &sim.final_state);
+            (sim.final_state.x, 0, Some(energy))
         }
         OracleMode::Readback => {
             notes.push("oracle: particles at their ground-truth positions, no simulation".into());
-            (points.iter().zip(&u).map(|(x, u)| x + u + off).collect(), 0)
+            (points.iter().zip(&u).map(|(x, u)| x + u + off).collect(), 0, None)
         }
         OracleMode::Dense => {
             let particles: Vec<usize> = (0..points.len()).filter(|&p| !held(p)).collect();
@@ -382,7 +387,7 @@ pub fn run_rods_oracle_at(
                 reg.stop_reason
             ));
             let it = reg.history.last().map(|r| r.iteration).unwrap_or(0);
-            (reg.final_state.x, it)
+            (reg.final_state.x, it, Some(reg.energy))
         }
     };
     let after = loss.mean_distance(&final_x);
@@ -395,6 +400,7 @@ pub fn run_rods_oracle_at(
         landmark_distance_mm: [before, after],
         iterations,
         notes,
+        energy,
     })
 }
 
@@ -656,6 +662,64 @@ pub struct RodsMethod {
     pub optimizer: OptimizerConfig,
     /// Simulate with laparo-mpm's two-field grid along a known crack; None = the thesis' one-field MLS-MPM.
     pub two_field: Option<TwoField>,
+    /// The rung of the method ladder this row stands for (named in the tables); None = a plain row named by
+    /// its grid alone.
+    pub rung: Option<Rung>,
+}
+
+/// The rungs of the RODS-MPM method ladder the benchmark compares (each a setting of the same method;
+/// `laparo register benchmark --methods rods-l0,rods-l1,…`). Every rung uses only intraoperative
+/// information: the lips' source and target polylines and the cut surface Σ François et al. also assume.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Rung {
+    /// L0, the thesis: one field, v₀ only, Gaussian-preconditioned L-BFGS.
+    L0,
+    /// L1 ablation: two fields on Σ with the side-blind Gaussian of L0 (the lips' opposite pulls averaged).
+    L1SideBlind,
+    /// L1: two fields on Σ, side-aware preconditioner.
+    L1,
+    /// L2: L1 plus the at-rest prior on KE(T) (`OptimizerConfig::terminal_kinetic_weight`).
+    L2,
+}
+
+impl Rung {
+    /// Every rung, in ladder order.
+    pub const ALL: [Rung; 4] = [Rung::L0, Rung::L1SideBlind, Rung::L1, Rung::L2];
+    /// The `--methods` name (`rods-l0`, `rods-l1-blind`, `rods-l1`, `rods-l2`).
+    pub fn method_name(self) -> &'static str {
+        match self {
+            Rung::L0 => "rods-l0",
+            Rung::L1SideBlind => "rods-l1-blind",
+            Rung::L1 => "rods-l1",
+            Rung::L2 => "rods-l2",
+        }
+    }
+    /// The rung of a `--methods` name.
+    pub fn from_method_name(name: &str) -> Option<Rung> {
+        Rung::ALL.into_iter().find(|r| r.method_name() == name)
+    }
+    /// The label in the tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Rung::L0 => "L0",
+            Rung::L1SideBlind => "L1 side-blind",
+            Rung::L1 => "L1",
+            Rung::L2 => "L2",
+        }
+    }
+    /// Whether the rung simulates on two fields along Σ.
+    pub fn two_field(self) -> bool {
+        self != Rung::L0
+    }
+    /// The rung's optimiser from a base: the side-aware switch and the at-rest weight `at_rest` (used by L2
+    /// only; the others run with 0).
+    pub fn optimizer(self, base: &OptimizerConfig, at_rest: f64) -> OptimizerConfig {
+        OptimizerConfig {
+            side_aware_smoothing: self != Rung::L1SideBlind,
+            terminal_kinetic_weight: if self == Rung::L2 { at_rest } else { 0.0 },
+            ..base.clone()
+        }
+    }
 }
 
 /// Which crack RODS-MPM's two-field grid separates along.
@@ -786,12 +850,21 @@ fn method_output(out: RodsOutput) -> super::case::MethodOutput {
     let mut notes = out.notes;
     notes.push(format!("{} particles, {} iterations", out.particles, out.iterations));
     let points = (!out.points.is_empty()).then_some(out.points);
-    super::case::MethodOutput { nodes: out.nodes, landmark_distance_mm: out.landmark_distance_mm[1], notes, points }
+    super::case::MethodOutput {
+        nodes: out.nodes,
+        landmark_distance_mm: out.landmark_distance_mm[1],
+        notes,
+        points,
+        energy: out.energy,
+    }
 }
 
 impl super::case::Method for RodsMethod {
     fn name(&self) -> String {
-        format!("{RODS_MPM_NAME}{}", two_field_label(self.two_field, " "))
+        match self.rung {
+            Some(r) => format!("{RODS_MPM_NAME} {}{}", r.label(), two_field_label(self.two_field, " ")),
+            None => format!("{RODS_MPM_NAME}{}", two_field_label(self.two_field, " ")),
+        }
     }
     fn settings(&self) -> String {
         // the memory budget only chooses how the adjoint is checkpointed, never the result

@@ -58,6 +58,10 @@ pub struct RunResult {
     /// The floor row that bounds this method's representation (None for a floor itself and for "none").
     #[serde(default)]
     pub floor: Option<String>,
+    /// Energy audit of a simulating method (RODS-MPM: KE(0), KE(T), elastic at T, dissipated); None for the
+    /// mesh methods, which do not simulate a trajectory.
+    #[serde(default)]
+    pub energy: Option<crate::optimize::EnergyAudit>,
 }
 
 /// The inputs of a run beyond its [`RunKey`]: the case (mesh, ground truth, lips, fixed region; see
@@ -207,6 +211,7 @@ mod tests {
             config_hash: String::new(),
             points: None,
             floor: None,
+            energy: None,
         }
     }
 

@@ -534,6 +534,7 @@ mod tests {
             config_hash: String::new(),
             points: None,
             floor: None,
+            energy: None,
         }
     }
 

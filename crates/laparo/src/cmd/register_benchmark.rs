@@ -20,7 +20,7 @@ use laparo_register::benchmark::figures::{
 use laparo_register::benchmark::methods::{Baseline, BaselineMethod, CutDirection};
 use laparo_register::benchmark::{
     aggregate, run_protocol, table51_columns, table_csv, table_json, table_markdown, Column, Method, OracleMode,
-    ResultStore, RodsMethod, TwoField, RODS_MPM_NAME,
+    ResultStore, RodsMethod, Rung, TwoField, RODS_MPM_NAME,
 };
 use laparo_register::optimize::OptimizerConfig;
 use laparo_register::organ::OrganConfig;
@@ -133,6 +133,11 @@ pub struct BenchmarkArgs {
     /// κ · mean |v₀ T Δt|² / (2 Δx) over the free particles to eq. 5.10.
     #[arg(long, default_value_t = 0.0)]
     pub kinetic_weight: f64,
+    /// At-rest prior λ of the ladder's rung L2 (`--methods rods-l2`; the other rungs run with 0): adds
+    /// λ · Σ m |v_T T Δt|² / (2 M Δx), the terminal kinetic energy, so the registered state is at rest.
+    /// Fixed a priori at 1 (the scale of κ), not tuned on the test case.
+    #[arg(long, default_value_t = 1.0)]
+    pub at_rest_weight: f64,
     /// RODS-MPM region of interest: a ball of this radius (mm) around the crack, its boundary particles
     /// fixed, whatever the ground truth moves there (reported); default: the smallest ball from 50 to
     /// 120 mm whose boundary moves < 0.5 mm in the ground truth, else the whole organ.
@@ -280,6 +285,9 @@ fn rods_optimizer(a: &BenchmarkArgs, quick: bool) -> Result<OptimizerConfig> {
     if !(a.kinetic_weight >= 0.0 && a.kinetic_weight.is_finite()) {
         bail!("--kinetic-weight {}: must be finite and >= 0", a.kinetic_weight);
     }
+    if !(a.at_rest_weight >= 0.0 && a.at_rest_weight.is_finite()) {
+        bail!("--at-rest-weight {}: must be finite and >= 0", a.at_rest_weight);
+    }
     Ok(OptimizerConfig {
         iterations: a.iterations.unwrap_or(if quick { 8 } else { 60 }),
         kinetic_weight: a.kinetic_weight,
@@ -371,6 +379,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
                         organ: organ.clone(),
                         optimizer: optimizer.clone(),
                         two_field: m.ends_with("-two-field").then(|| two_field(a)).transpose()?,
+                        rung: None,
                     },
                     mode: match m.as_str() {
                         "rods-readback" | "floor-rods" => OracleMode::Readback,
@@ -392,15 +401,26 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             ),
             "lddmm" => b("LDDMM", Baseline::Lddmm(LddmmConfig { sigma_mm: a.lddmm_sigma_mm, ..Default::default() })),
             "rods" | "rods-mpm" => {
-                Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None })
+                Box::new(RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None, rung: None })
             }
             // laparo-mpm's two-field grid along the crack of --two-field-crack (assumed: François et al.'s cut)
             "rods-two-field" => Box::new(RodsMethod {
                 organ: organ.clone(),
                 optimizer: optimizer.clone(),
                 two_field: Some(two_field(a)?),
+                rung: None,
             }),
-            _ => bail!("--methods: unknown method {m:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-thesis, rods-thesis-kerf, floor-p1, floor-rods, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback; arap-roi, drbc-roi, francois-roi hold RODS-MPM's region of interest with --roi none or ground-truth)"),
+            // the RODS-MPM ladder (L0 thesis, L1 two fields on the assumed Σ, L2 at rest)
+            r if Rung::from_method_name(r).is_some() => {
+                let rung = Rung::from_method_name(r).expect("matched");
+                Box::new(RodsMethod {
+                    organ: organ.clone(),
+                    optimizer: rung.optimizer(&optimizer, a.at_rest_weight),
+                    two_field: rung.two_field().then(|| two_field(a)).transpose()?,
+                    rung: Some(rung),
+                })
+            }
+            _ => bail!("--methods: unknown method {m:?} (expected none, arap, drbc, francois, lddmm, rods, rods-two-field, rods-l0, rods-l1-blind, rods-l1, rods-l2, rods-thesis, rods-thesis-kerf, floor-p1, floor-rods, rods-ballistic, rods-dense, rods-ballistic-two-field, rods-dense-two-field, rods-readback; arap-roi, drbc-roi, francois-roi hold RODS-MPM's region of interest with --roi none or ground-truth)"),
         });
     }
     if out.is_empty() {
@@ -418,7 +438,7 @@ fn methods(a: &BenchmarkArgs, quick: bool) -> Result<Vec<Box<dyn Method>>> {
             out.push(Box::new(laparo_register::benchmark::methods::P1Floor));
         } else {
             out.push(Box::new(laparo_register::benchmark::rods::RodsOracle {
-                inner: RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None },
+                inner: RodsMethod { organ: organ.clone(), optimizer: optimizer.clone(), two_field: None, rung: None },
                 mode: OracleMode::Readback,
                 kerf_mm: 0.0,
             }));
@@ -471,6 +491,7 @@ fn tune(
                     organ: rods_organ(a, quick)?,
                     optimizer: OptimizerConfig { kinetic_weight: v, ..rods_optimizer(a, quick)? },
                     two_field: None,
+                    rung: None,
                 },
             }),
         });
@@ -518,7 +539,7 @@ fn thesis_row(a: &BenchmarkArgs, quick: bool, kerf: bool) -> Result<laparo_regis
     let optimizer = OptimizerConfig { iterations, ..OptimizerConfig::thesis() };
     let dx = organ.dx_mm.unwrap_or(2.0 * organ.spacing_mm);
     Ok(laparo_register::benchmark::rods::ThesisRods {
-        inner: RodsMethod { organ, optimizer, two_field: None },
+        inner: RodsMethod { organ, optimizer, two_field: None, rung: None },
         kerf_mm: if kerf { 2.0 * dx } else { 0.0 },
     })
 }
@@ -567,7 +588,7 @@ fn sweep_methods(a: &BenchmarkArgs, quick: bool) -> Result<(Vec<SweepSetting>, [
         out.push(SweepSetting {
             method: Box::new(NamedRods {
                 name,
-                inner: RodsMethod { organ, optimizer: optimizer.clone(), two_field: None },
+                inner: RodsMethod { organ, optimizer: optimizer.clone(), two_field: None, rung: None },
             }),
             panel: Some((panel, value)),
         })
@@ -1108,7 +1129,7 @@ pub fn run(mut a: BenchmarkArgs) -> Result<()> {
     check_floor_line(&results, &a, quick)?;
     results.extend(run_protocol(&cases, &rest_methods, &columns, n_seeds, &store, &mut on_event)?);
     // the thesis fidelity rows beside RODS-MPM, in the 50-landmark column
-    let with_rods = a.methods.split(',').any(|m| ["rods", "rods-mpm", "rods-two-field"].contains(&m.trim()));
+    let with_rods = a.methods.split(',').any(|m| ["rods", "rods-mpm", "rods-two-field", "rods-l0"].contains(&m.trim()));
     let thesis = if with_rods { vec![thesis_row(&a, quick, false)?, thesis_row(&a, quick, true)?] } else { vec![] };
     let trefs: Vec<&dyn Method> = thesis.iter().map(|m| m as &dyn Method).collect();
     results.extend(run_protocol(&cases, &trefs, &[map_column], 1, &store, &mut on_event)?);
