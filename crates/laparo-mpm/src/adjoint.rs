@@ -20,6 +20,7 @@ use crate::scene::{Model, Scene};
 use crate::simulate::{ParticleState, Stepper};
 use crate::sparse_grid::GridCheckpoint;
 use crate::{fixed_corotated::FixedCorotated, neo_hookean::NeoHookean};
+use rayon::prelude::*;
 
 /// Loss value and its exact gradient with respect to the scene's inputs.
 #[derive(Clone, Debug)]
@@ -34,6 +35,9 @@ pub struct GradientResult<const D: usize> {
     pub d_affine: Vec<Matrix<D>>,
     /// ∂L/∂F₀ per particle.
     pub d_deformation: Vec<Matrix<D>>,
+    /// ∂L/∂f_p of a time-constant external force per particle (`Scene::external_forces`; the unknown of a
+    /// load-driven registration): Σ_s Δt Σ_i w_ip p̄_i(s) = Σ_s Δt v̄_p(s) / m_p over the steps s.
+    pub d_external_forces: Vec<Vector<D>>,
     /// ∂L/∂E.
     pub d_youngs_modulus: f64,
     /// ∂L/∂ν.
@@ -205,6 +209,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
     }
     total += vt;
     let mut c_bar = vec![Matrix::<D>::zeros(); n];
+    let mut force_bar = vec![Vector::<D>::zeros(); n];
     let mut f_bar = vec![Matrix::<D>::zeros(); n];
     x_bar_g2p.resize(n, Vector::<D>::zeros());
     lame_bar.clear();
@@ -255,6 +260,15 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
                 lg.as_deref(),
                 StateAdjoint { x: &mut x_bar, v: &mut v_bar, c: &mut c_bar, f: &mut f_bar, lame: lame_bar },
             );
+            // f enters P2G as (m v + Δt f): f̄ += Δt v̄ / m (v̄ of the step input is m Σ w p̄)
+            let dt = scene.dt;
+            force_bar.par_iter_mut().zip(v_bar.par_iter()).zip(scene.masses.par_iter()).with_min_len(4096).for_each(
+                |((fb, vb), m)| {
+                    if *m > 0.0 {
+                        *fb += vb * (dt / m);
+                    }
+                },
+            );
             stepper.grid.swap_checkpoint(&mut grids[j]);
         }
     }
@@ -278,6 +292,7 @@ fn run<const D: usize, M: ConstitutiveModel<D>, L: Loss<D> + ?Sized>(
         d_velocities: v_bar,
         d_positions: x_bar,
         d_affine: c_bar,
+        d_external_forces: force_bar,
         d_deformation: f_bar,
         d_youngs_modulus: d_e,
         d_poisson_ratio: d_nu,

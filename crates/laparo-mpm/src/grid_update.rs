@@ -14,6 +14,8 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
     let th = scene.boundary.thickness;
     let walls = scene.boundary.walls;
     let gravity = scene.gravity;
+    // mass-proportional damping, implicit: v ← v / (1 + ζ Δt)
+    let keep = 1.0 / (1.0 + scene.damping * dt);
     let nn = block_nodes(D);
     let SparseGrid { blocks, mass, mom, vel, wall_mask, .. } = grid;
     let blocks = &*blocks;
@@ -35,7 +37,7 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
             if interior {
                 for l in 0..nn {
                     let denom = mass[l] + eps;
-                    let mut v = if denom > 0.0 { mom[l] * (1.0 / denom) } else { Vector::<D>::zeros() };
+                    let mut v = if denom > 0.0 { mom[l] * (keep / denom) } else { Vector::<D>::zeros() };
                     v += gravity * dt;
                     vel[l] = v;
                     mask[l] = 0;
@@ -44,7 +46,7 @@ pub fn update<const D: usize>(grid: &mut SparseGrid<D>, scene: &Scene<D>) {
             }
             for l in 0..nn {
                 let denom = mass[l] + eps;
-                let mut v = if denom > 0.0 { mom[l] * (1.0 / denom) } else { Vector::<D>::zeros() };
+                let mut v = if denom > 0.0 { mom[l] * (keep / denom) } else { Vector::<D>::zeros() };
                 v += gravity * dt;
                 let mut mk = 0u8;
                 if walls != WallKind::None {

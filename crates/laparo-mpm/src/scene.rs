@@ -118,6 +118,10 @@ pub struct Scene<const D: usize> {
     /// velocity field of that node, so the two lips of a zero-thickness cut move independently while
     /// side-0 particles (beyond the crack front, or far from it) couple both sides as usual.
     pub crack_side: Vec<i8>,
+    /// Mass-proportional (Rayleigh α) damping ζ (1/time; 0 = none): every step the grid velocities are
+    /// divided by 1 + ζ Δt before gravity (implicit, stable for any ζ), so a constant load settles to
+    /// equilibrium. Differentiated exactly.
+    pub damping: f64,
     /// Time step Δt.
     pub dt: f64,
     /// Horizon T (number of steps).
@@ -160,6 +164,7 @@ impl<const D: usize> Scene<D> {
             fixed: Vec::new(),
             external_forces: Vec::new(),
             crack_side: Vec::new(),
+            damping: 0.0,
             dt,
             steps,
             mass_epsilon: 0.0,
@@ -198,6 +203,9 @@ impl<const D: usize> Scene<D> {
         len("fixed", self.fixed.len(), true)?;
         len("external_forces", self.external_forces.len(), true)?;
         len("crack_side", self.crack_side.len(), true)?;
+        if !(self.damping >= 0.0 && self.damping.is_finite()) {
+            return Err(MpmError::InvalidScene(format!("damping {} must be finite and >= 0", self.damping)));
+        }
         if let Some(p) = self.crack_side.iter().position(|s| !(-1..=1).contains(s)) {
             return Err(MpmError::InvalidScene(format!(
                 "particle {p}: crack_side {} must be -1, 0 or +1",

@@ -44,7 +44,17 @@ fn scene<const D: usize>(steps: usize, cracked: bool, seed: u64) -> Scene<D> {
         s.crack_side = s
             .positions
             .iter()
-            .map(|x| if x[1] > 0.5 { if x[0] < 0.5 { -1 } else { 1 } } else { 0 })
+            .map(|x| {
+                if x[1] > 0.5 {
+                    if x[0] < 0.5 {
+                        -1
+                    } else {
+                        1
+                    }
+                } else {
+                    0
+                }
+            })
             .collect();
     }
     s.mass_epsilon = 1e-10;

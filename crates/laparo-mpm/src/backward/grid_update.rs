@@ -1,6 +1,6 @@
-//! Adjoint of the grid update v_i = mask ⊙ ((m v)_i / (m_i + ε) + Δt g):
-//! (m v)̄_i = mask ⊙ v̄_i / (m_i + ε), m̄_i = −(mask ⊙ v̄_i)·ṽ_i / (m_i + ε), with ṽ_i = v_i − Δt g the
-//! velocity before gravity (equal to (m v)_i/(m_i + ε) on every component the mask keeps).
+//! Adjoint of the grid update v_i = mask ⊙ (k (m v)_i / (m_i + ε) + Δt g), k = 1 / (1 + ζ Δt) (damping):
+//! (m v)̄_i = k mask ⊙ v̄_i / (m_i + ε), m̄_i = −(mask ⊙ v̄_i)·ṽ_i / (m_i + ε), with ṽ_i = v_i − Δt g the
+//! velocity before gravity (equal to k (m v)_i/(m_i + ε) on every component the mask keeps).
 use crate::linalg::Vector;
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -34,6 +34,7 @@ pub fn grid_update_adjoint<const D: usize>(
 ) {
     let eps = scene.mass_epsilon;
     let gdt = scene.gravity * scene.dt;
+    let keep = 1.0 / (1.0 + scene.damping * scene.dt);
     node_bar.par_iter_mut().zip(vel_bar.par_iter_mut()).enumerate().with_min_len(1024).for_each(|(i, (nb, vbi))| {
         let mut vb = std::mem::replace(vbi, Vector::<D>::zeros());
         let mask = wall_mask[i];
@@ -45,7 +46,8 @@ pub fn grid_update_adjoint<const D: usize>(
         let denom = mass[i] + eps;
         *nb = if denom > 0.0 {
             let inv = 1.0 / denom;
-            NodeAdjoint { mom: vb * inv, mass: -vb.dot(&(vel[i] - gdt)) * inv }
+            // v = keep p / (m + ε) + g Δt: p̄ = keep v̄ / (m + ε), m̄ = −v̄·(v − g Δt) / (m + ε)
+            NodeAdjoint { mom: vb * (keep * inv), mass: -vb.dot(&(vel[i] - gdt)) * inv }
         } else {
             NodeAdjoint::default()
         };
