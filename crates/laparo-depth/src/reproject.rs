@@ -21,7 +21,8 @@
 //!
 //! Length: ~360 lines of code; the rest (~260) are its tests.
 use laparo_core::{CoreError, DepthMap, DepthUnit, Distortion, Image, Intrinsics, Result, Se3};
-use nalgebra::{Matrix3, Matrix4, Vector3};
+#[cfg(test)]
+use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
 /// What happens to reprojected depth outside `[min_depth_m, max_depth_m]`.
@@ -293,57 +294,26 @@ pub fn intrinsics_from_json(v: &serde_json::Value, what: &str) -> Result<Intrins
     cam.intrinsics(None)
 }
 
-/// Parse T_DS→L from JSON: `{"T": 4×4}` or `{"R": 3×3, "t": [x,y,z]}` (rows, nested or flat),
-/// with an optional `"unit": "m"|"mm"` for the translation (else `default_unit`).
-/// Returns the transform with its translation in **metres**.
+/// Parse T_DS→L from JSON with laparo's one transform reader ([`laparo_core::se3::transform_from_json`]):
+/// `{"depth_sensor_to_laparoscope": {"R": 3 rows, "t_mm": [x, y, z]}}` (the form laparo writes), or at
+/// the top level `{"T": 4×4}` or `{"R": 3×3, "t": [x,y,z]}` (rows, nested or flat), with an optional
+/// `"unit": "m"|"mm"` for a bare `t`/`T` (else `default_unit`); the older key names `t_ds_to_l` (for
+/// `T`) and `T_vec` (for `t`) are still read. Returns the transform with its translation in **metres**.
 pub fn extrinsics_from_json(v: &serde_json::Value, default_unit: DepthUnit, what: &str) -> Result<Se3> {
-    let unit = match v.get("unit").and_then(|u| u.as_str()) {
-        Some(s) => s.parse::<DepthUnit>().map_err(|e| CoreError::invalid(what, e.to_string()))?,
-        None => default_unit,
-    };
-    let (r, t) = if let Some(tm) = v.get("T").or_else(|| v.get("t_ds_to_l")) {
-        let m = Matrix4::from_row_slice(&matrix_from_json(tm, 4, what, "T")?);
-        let last = m.row(3);
-        if (last[0].abs() + last[1].abs() + last[2].abs() + (last[3] - 1.0).abs()) > 1e-9 {
-            return Err(CoreError::invalid(what, "last row of T must be [0, 0, 0, 1]"));
-        }
-        (m.fixed_view::<3, 3>(0, 0).into_owned(), Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]))
-    } else {
-        let r = v.get("R").ok_or_else(|| CoreError::invalid(what, "expected \"T\" (4x4) or \"R\" (3x3) and \"t\""))?;
-        let r = Matrix3::from_row_slice(&matrix_from_json(r, 3, what, "R")?);
-        let t = v.get("t").or_else(|| v.get("T_vec")).ok_or_else(|| CoreError::invalid(what, "missing \"t\""))?;
-        let t = flat_numbers(t)
-            .filter(|t| t.len() == 3)
-            .ok_or_else(|| CoreError::invalid(what, "\"t\" must be 3 numbers"))?;
-        (r, Vector3::new(t[0], t[1], t[2]))
-    };
-    let rtr = r.transpose() * r;
-    if !((rtr - Matrix3::identity()).norm() < 1e-4 && r.determinant() > 0.0) {
-        return Err(CoreError::invalid(what, "rotation is not orthonormal with determinant +1 (tolerance 1e-4)"));
-    }
-    Ok(laparo_core::se3::se3_from_rt(&r, &(t * unit.to_metres())))
-}
-
-fn flat_numbers(v: &serde_json::Value) -> Option<Vec<f64>> {
-    let arr = v.as_array()?;
-    let mut out = Vec::new();
-    for x in arr {
-        match x {
-            serde_json::Value::Array(_) => out.extend(flat_numbers(x)?),
-            _ => out.push(x.as_f64()?),
+    let mut v = v.clone();
+    if let Some(o) = v.as_object_mut() {
+        for (old, new) in [("t_ds_to_l", "T"), ("T_vec", "t")] {
+            if !o.contains_key(new) {
+                if let Some(x) = o.remove(old) {
+                    o.insert(new.into(), x);
+                }
+            }
         }
     }
-    Some(out)
-}
-
-fn matrix_from_json(v: &serde_json::Value, n: usize, what: &str, name: &str) -> Result<Vec<f64>> {
-    let m = flat_numbers(v)
-        .filter(|m| m.len() == n * n)
-        .ok_or_else(|| CoreError::invalid(what, format!("\"{name}\" must be a {n}x{n} matrix of numbers")))?;
-    if !m.iter().all(|x| x.is_finite()) {
-        return Err(CoreError::invalid(what, format!("\"{name}\" has non-finite entries")));
-    }
-    Ok(m)
+    let rec = laparo_core::se3::transform_from_json(&v, "depth_sensor_to_laparoscope", what)?;
+    let t_mm = rec.translation_mm(default_unit);
+    let se3 = rec.to_se3_mm(DepthUnit::Mm, what)?;
+    Ok(laparo_core::se3::se3_from_rt(se3.rotation.to_rotation_matrix().matrix(), &(t_mm * 1e-3)))
 }
 
 #[cfg(test)]

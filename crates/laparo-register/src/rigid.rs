@@ -132,6 +132,55 @@ pub fn icp(
     init: Similarity,
     cfg: &IcpConfig,
 ) -> Result<IcpResult> {
+    icp_impl(src, dst, dst_normals, init, cfg, None).map(|(r, _)| r)
+}
+
+/// Fractional ICP (Phillips, Liu & Tomasi 2007): at every iteration the overlap is the fraction
+/// `f ≥ min_overlap` of the closest pairs that minimises `RMSD_f / f^λ` ([`FRMSD_LAMBDA`]), then the
+/// kept pairs are aligned; returns the result and the final overlap (`cfg.overlap` is ignored).
+pub fn icp_fractional(
+    src: &[Vector3<f64>],
+    dst: &[Vector3<f64>],
+    dst_normals: Option<&[Vector3<f64>]>,
+    init: Similarity,
+    cfg: &IcpConfig,
+    min_overlap: f64,
+) -> Result<(IcpResult, f64)> {
+    if !(min_overlap > 0.0 && min_overlap <= 1.0) {
+        return Err(RegisterError::param("min_overlap", min_overlap, "must be in (0, 1]"));
+    }
+    icp_impl(src, dst, dst_normals, init, &IcpConfig { overlap: 1.0, ..cfg.clone() }, Some(min_overlap))
+}
+
+/// The number of closest pairs (of `sorted_sq`, squared distances in increasing order) that minimises
+/// the fractional RMSD, at least `min_keep`.
+fn fractional_keep(sorted_sq: &[f64], min_keep: usize) -> usize {
+    let n = sorted_sq.len();
+    let mut sum = 0.0;
+    let mut best = (f64::INFINITY, n);
+    for (i, d) in sorted_sq.iter().enumerate() {
+        sum += d;
+        let k = i + 1;
+        if k < min_keep {
+            continue;
+        }
+        let f = k as f64 / n as f64;
+        let score = (sum / k as f64).sqrt() / f.powf(FRMSD_LAMBDA);
+        if score <= best.0 * (1.0 + 1e-12) {
+            best = (score.min(best.0), k);
+        }
+    }
+    best.1
+}
+
+fn icp_impl(
+    src: &[Vector3<f64>],
+    dst: &[Vector3<f64>],
+    dst_normals: Option<&[Vector3<f64>]>,
+    init: Similarity,
+    cfg: &IcpConfig,
+    fractional_min: Option<f64>,
+) -> Result<(IcpResult, f64)> {
     if src.len() < 3 || dst.len() < 3 {
         return Err(RegisterError::bad(
             "ICP",
@@ -152,6 +201,7 @@ pub fn icp(
     let mut t = init;
     let mut prev = f64::INFINITY;
     let mut rmse_now = f64::INFINITY;
+    let mut overlap_now = cfg.overlap;
     let mut it = 0;
     while it < cfg.iterations {
         it += 1;
@@ -165,7 +215,14 @@ pub fn icp(
             })
             .collect();
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let keep = ((pairs.len() as f64 * cfg.overlap).ceil() as usize).clamp(3, pairs.len());
+        let keep = match fractional_min {
+            None => ((pairs.len() as f64 * cfg.overlap).ceil() as usize).clamp(3, pairs.len()),
+            Some(fmin) => {
+                let sq: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+                fractional_keep(&sq, ((pairs.len() as f64 * fmin).ceil() as usize).clamp(3, pairs.len()))
+            }
+        };
+        overlap_now = keep as f64 / pairs.len() as f64;
         pairs.truncate(keep);
         rmse_now = (pairs.iter().map(|p| p.0).sum::<f64>() / keep as f64).sqrt();
         if (prev - rmse_now).abs() < cfg.tolerance {
@@ -176,7 +233,13 @@ pub fn icp(
             None => {
                 let a: Vec<Vector3<f64>> = pairs.iter().map(|p| moved[p.1]).collect();
                 let b: Vec<Vector3<f64>> = pairs.iter().map(|p| dst[p.2]).collect();
-                umeyama(&a, &b, false)?
+                // an error here is about ICP's closest-point pairs, not about (possibly absent) landmarks
+                umeyama(&a, &b, false).map_err(|e| match e {
+                    RegisterError::BadInput { reason, .. } => {
+                        RegisterError::bad("ICP", format!("the closest-point pairs: {reason}"))
+                    }
+                    e => e,
+                })?
             }
             Some(nrm) => {
                 let mut ata = Matrix6::<f64>::zeros();
@@ -201,7 +264,146 @@ pub fn icp(
         };
         t = step.compose(&t);
     }
-    Ok(IcpResult { transform: t, rmse: rmse_now, iterations: it })
+    Ok((IcpResult { transform: t, rmse: rmse_now, iterations: it }, overlap_now))
+}
+
+/// The overlaps [`icp_estimate_overlap`] tries by default (fractions of the source kept).
+pub const OVERLAP_CANDIDATES: [f64; 6] = [1.0, 0.8, 0.6, 0.45, 0.3, 0.2];
+
+/// The exponent λ of the fractional RMSD (Phillips, Liu & Tomasi 2007, "Outlier robust ICP for
+/// minimizing fractional RMSD", 3DIM): `FRMSD(f) = RMSD_f / f^λ`, λ = 3 for surfaces in 3D, so a
+/// smaller overlap must lower the trimmed RMSD by more than `f³` to win.
+pub const FRMSD_LAMBDA: f64 = 3.0;
+
+/// One overlap tried by [`icp_estimate_overlap`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct OverlapTrial {
+    /// Fraction of the source's closest pairs kept.
+    pub overlap: f64,
+    /// Trimmed RMSE of the kept pairs at convergence (mm).
+    pub rmse_mm: f64,
+    /// Fractional RMSD `rmse_mm / overlap^λ` (mm), the selection criterion.
+    pub frmsd_mm: f64,
+    /// ICP iterations.
+    pub iterations: usize,
+    /// The overlap was re-chosen at every iteration ([`icp_fractional`]); `overlap` is the final one.
+    pub fractional: bool,
+    /// Rotation between this trial's transform and the chosen one (degrees).
+    pub degrees_from_chosen: f64,
+    /// Distance between this trial's translation and the chosen one (mm).
+    pub mm_from_chosen: f64,
+    /// The transform this trial converged to.
+    #[serde(skip)]
+    pub transform: Similarity,
+}
+
+impl OverlapEstimate {
+    /// The trials whose fractional RMSD is within `score_factor` of the chosen one's while their pose is
+    /// more than `min_deg` away from it: rival fits the criterion cannot tell apart (an ambiguous
+    /// alignment, e.g. a view of a smooth, nearly symmetric part of an organ).
+    pub fn rivals(&self, score_factor: f64, min_deg: f64) -> Vec<&OverlapTrial> {
+        let best = self.best.rmse / self.overlap.powf(FRMSD_LAMBDA);
+        self.trials
+            .iter()
+            .filter(|t| t.frmsd_mm <= score_factor * best + 1e-9 && t.degrees_from_chosen > min_deg)
+            .collect()
+    }
+}
+
+/// The result of [`icp_estimate_overlap`]: the trial with the lowest FRMSD and every trial.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct OverlapEstimate {
+    /// ICP result at the chosen overlap.
+    pub best: IcpResult,
+    /// The chosen overlap.
+    pub overlap: f64,
+    /// Every overlap tried, in the order given.
+    pub trials: Vec<OverlapTrial>,
+}
+
+/// Trimmed ICP at each of `overlaps` (each from `init`), then fractional ICP ([`icp_fractional`], the
+/// overlap free down to the smallest of `overlaps`), keeping the fit with the lowest fractional RMSD
+/// (see [`FRMSD_LAMBDA`]); on a tie (within 1e-9 relative, e.g. an exact fit at several overlaps) the
+/// larger fixed overlap wins. For a source that covers only part of the target or the other
+/// way round (an intraoperative view of part of an organ), where plain ICP (`overlap` 1) is pulled off
+/// by the unmatched part.
+pub fn icp_estimate_overlap(
+    src: &[Vector3<f64>],
+    dst: &[Vector3<f64>],
+    dst_normals: Option<&[Vector3<f64>]>,
+    init: Similarity,
+    cfg: &IcpConfig,
+    overlaps: &[f64],
+) -> Result<OverlapEstimate> {
+    if overlaps.is_empty() {
+        return Err(RegisterError::bad("ICP", "no overlap to try"));
+    }
+    let mut best: Option<(IcpResult, f64, f64)> = None;
+    let mut trials = Vec::with_capacity(overlaps.len());
+    for &f in overlaps {
+        let r = icp(src, dst, dst_normals, init, &IcpConfig { overlap: f, ..cfg.clone() })?;
+        let frmsd = r.rmse / f.powf(FRMSD_LAMBDA);
+        trials.push(OverlapTrial {
+            overlap: f,
+            rmse_mm: r.rmse,
+            frmsd_mm: frmsd,
+            iterations: r.iterations,
+            fractional: false,
+            degrees_from_chosen: 0.0,
+            mm_from_chosen: 0.0,
+            transform: r.transform,
+        });
+        let better = match &best {
+            None => true,
+            Some((_, bf, bs)) => {
+                let tie = (frmsd - bs).abs() <= 1e-9 * bs.max(frmsd) + 1e-12;
+                if tie {
+                    f > *bf
+                } else {
+                    frmsd < *bs
+                }
+            }
+        };
+        if better {
+            best = Some((r, f, frmsd));
+        }
+    }
+    // fractional ICP, the overlap re-chosen at every iteration from the lowest candidate up
+    let fmin = overlaps.iter().copied().fold(1.0, f64::min);
+    let (r, f) = icp_fractional(src, dst, dst_normals, init, cfg, fmin)?;
+    let frmsd = r.rmse / f.powf(FRMSD_LAMBDA);
+    trials.push(OverlapTrial {
+        overlap: f,
+        rmse_mm: r.rmse,
+        frmsd_mm: frmsd,
+        iterations: r.iterations,
+        fractional: true,
+        degrees_from_chosen: 0.0,
+        mm_from_chosen: 0.0,
+        transform: r.transform,
+    });
+    if best.as_ref().is_some_and(|(_, _, bs)| frmsd < bs * (1.0 - 1e-9) - 1e-12) {
+        best = Some((r, f, frmsd));
+    }
+    let (best, overlap, _) = best.expect("overlaps is not empty");
+    for t in &mut trials {
+        t.degrees_from_chosen = rotation_angle_deg(&t.transform.rotation, &best.transform.rotation);
+        t.mm_from_chosen = (t.transform.translation - best.transform.translation).norm();
+    }
+    Ok(OverlapEstimate { best, overlap, trials })
+}
+
+/// Diagonal of the bounding box of `points` (0 for none).
+pub fn bbox_diagonal(points: &[Vector3<f64>]) -> f64 {
+    let Some(first) = points.first() else { return 0.0 };
+    let (lo, hi) = points.iter().fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+    (hi - lo).norm()
+}
+
+/// Angle of the rotation `a⁻¹ b` (degrees).
+pub fn rotation_angle_deg(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
+    let m = a.transpose() * b;
+    ((m.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 /// A plane n·x = d (unit n).

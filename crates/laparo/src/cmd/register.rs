@@ -7,7 +7,10 @@ use laparo_register::io::{read_landmarks, read_p2ilf_contours, read_targets, Sou
 use laparo_register::optimize::{OptimizerConfig, OptimizerKind};
 use laparo_register::organ::{OrganConfig, Roi};
 use laparo_register::pipeline::{run_job, Job};
-use laparo_register::rigid::{icp, rmse, umeyama, IcpConfig, IcpMode, Similarity};
+use laparo_register::rigid::{
+    bbox_diagonal, icp, icp_estimate_overlap, rmse, rotation_angle_deg, umeyama, IcpConfig, IcpMode, Similarity,
+    FRMSD_LAMBDA, OVERLAP_CANDIDATES,
+};
 use std::path::PathBuf;
 
 /// `laparo register`: deformable registration, or a subcommand.
@@ -205,9 +208,18 @@ pub struct RigidArgs {
     /// ICP variant: point-to-point, point-to-plane or none.
     #[arg(long, default_value = "point-to-point")]
     pub icp: String,
-    /// Fraction of closest pairs kept (trimmed ICP).
-    #[arg(long, default_value_t = 1.0)]
-    pub overlap: f64,
+    /// Fraction of the source's closest pairs kept (trimmed ICP), in (0, 1]. Default: estimated, trying
+    /// 1, 0.8, 0.6, 0.45, 0.3 and 0.2 and keeping the fit with the lowest fractional RMSD (RMSE / overlap³,
+    /// Phillips et al. 2007), so a source that covers only part of the target (or the reverse) is not
+    /// pulled off by the unmatched part. With a value, that overlap alone (and a warning when another
+    /// overlap fits much better).
+    #[arg(long)]
+    pub overlap: Option<f64>,
+    /// Initial source → target transform (JSON, the form `transform.json` is written in:
+    /// {"source_to_target": {"R": 3 rows, "t_mm": [x, y, z]}} or {"T": 4x4 rows}); default identity.
+    /// Not with --landmarks.
+    #[arg(long, conflicts_with = "landmarks")]
+    pub init: Option<PathBuf>,
     /// Output folder (transform.json, source_aligned.ply).
     #[arg(long)]
     pub out: PathBuf,
@@ -390,7 +402,16 @@ fn rigid(a: RigidArgs) -> Result<()> {
     if src.vertices.is_empty() || dst.vertices.is_empty() {
         bail!("{}: empty", if src.vertices.is_empty() { a.source.display() } else { a.target.display() });
     }
+    crate::cmd::check::comparable_clouds(
+        (&format!("--source {}", a.source.display()), &src.vertices),
+        (&format!("--target {}", a.target.display()), &dst.vertices),
+    )?;
     let mut t = Similarity::identity();
+    if let Some(p) = &a.init {
+        let rec = laparo_core::se3::read_transform(p, "source_to_target").context("--init")?;
+        let unit_mm = rec.translation_mm(laparo_core::DepthUnit::Mm);
+        t = Similarity { rotation: rec.rotation, translation: unit_mm, scale: rec.scale };
+    }
     let mut procrustes_rmse = None;
     match (&a.landmarks, &a.target_landmarks) {
         (Some(l), Some(tl)) => {
@@ -412,19 +433,73 @@ fn rigid(a: RigidArgs) -> Result<()> {
         "none" => None,
         o => bail!("--icp {o}: expected point-to-point, point-to-plane or none"),
     };
+    let mut icp_json = serde_json::Value::Null;
+    let mut warnings: Vec<String> = Vec::new();
     let mut icp_rmse = None;
     if let Some(mode) = mode {
         if mode == IcpMode::PointToPlane && dst.faces.is_empty() {
             bail!("{}: point-to-plane ICP needs a target mesh with faces (normals)", a.target.display());
         }
+        if let Some(f) = a.overlap {
+            if !(f > 0.0 && f <= 1.0) {
+                bail!("--overlap {f}: must be in (0, 1]");
+            }
+        }
         let normals = if dst.faces.is_empty() { None } else { Some(dst.vertex_normals()) };
-        let r = icp(
-            &src.vertices,
-            &dst.vertices,
-            normals.as_deref(),
-            t,
-            &IcpConfig { mode, overlap: a.overlap, ..Default::default() },
-        )?;
+        let cfg = IcpConfig { mode, ..Default::default() };
+        let est = icp_estimate_overlap(&src.vertices, &dst.vertices, normals.as_deref(), t, &cfg, &OVERLAP_CANDIDATES)?;
+        let (r, overlap) = match a.overlap {
+            None => (est.best.clone(), est.overlap),
+            Some(f) => {
+                let r = icp(&src.vertices, &dst.vertices, normals.as_deref(), t, &IcpConfig { overlap: f, ..cfg })?;
+                let frmsd = r.rmse / f.powf(FRMSD_LAMBDA);
+                let best_frmsd = est.best.rmse / est.overlap.powf(FRMSD_LAMBDA);
+                let apart = rotation_angle_deg(&r.transform.rotation, &est.best.transform.rotation);
+                if best_frmsd < 0.5 * frmsd && apart > 2.0 {
+                    warnings.push(format!(
+                        "--overlap {f} fits with RMSE {:.3} mm; overlap {} fits with RMSE {:.3} mm at a pose {apart:.1}° away \
+                         (fractional RMSD {:.3} vs {:.3} mm): the source and the target may overlap \
+                         only in part; leave --overlap out to estimate it",
+                        r.rmse, est.overlap, est.best.rmse, best_frmsd, frmsd
+                    ));
+                }
+                (r, f)
+            }
+        };
+        if a.overlap.is_none() {
+            let rivals = est.rivals(2.0, 2.0);
+            if !rivals.is_empty() {
+                warnings.push(format!(
+                    "ambiguous fit: overlap {} (RMSE {:.3} mm) was kept, but {} scored within a factor 2 of it at poses \
+                     {} away: the alignment from this initial pose is not unique (give --landmarks or --init)",
+                    est.overlap,
+                    est.best.rmse,
+                    rivals
+                        .iter()
+                        .map(|t| format!("overlap {:.2} (RMSE {:.3} mm)", t.overlap, t.rmse_mm))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    rivals.iter().map(|t| format!("{:.1}°", t.degrees_from_chosen)).collect::<Vec<_>>().join(", ")
+                ));
+            }
+        }
+        let diag = bbox_diagonal(&src.vertices);
+        if r.rmse > POOR_FIT_FRACTION * diag {
+            warnings.push(format!(
+                "poor fit: ICP RMSE {:.3} mm over the {:.0} % closest pairs is {:.1} % of the source's size ({diag:.1} mm \
+                 bounding-box diagonal; over {:.0} % is suspect): a wrong overlap, an initial pose too far off \
+                 (--landmarks / --init) or a source that is not the target's shape",
+                r.rmse,
+                100.0 * overlap,
+                100.0 * r.rmse / diag,
+                100.0 * POOR_FIT_FRACTION
+            ));
+        }
+        icp_json = serde_json::json!({
+            "mode": a.icp, "overlap": overlap, "overlap_estimated": a.overlap.is_none(),
+            "trimmed_rmse_mm": r.rmse, "iterations": r.iterations,
+            "overlap_trials": est.trials, "frmsd_lambda": FRMSD_LAMBDA,
+        });
         t = r.transform;
         icp_rmse = Some(r.rmse);
     }
@@ -434,17 +509,39 @@ fn rigid(a: RigidArgs) -> Result<()> {
         faces: src.faces.clone(),
     };
     laparo_core::mesh::write_ply(a.out.join("source_aligned.ply"), &aligned)?;
-    let body = serde_json::json!({"transform": t, "procrustes_rmse_mm": procrustes_rmse, "icp_rmse_mm": icp_rmse});
+    let mut body = serde_json::json!({
+        "source_to_target": laparo_core::se3::transform_json(&t.rotation, &t.translation, t.scale),
+        "convention": "p_target = scale * R @ p_source + t_mm (R: list of rows; T: the same as one 4x4 matrix)",
+        "source": a.source, "target": a.target, "warnings": warnings,
+    });
+    // figures only for the steps that ran (no bare null)
+    if let Some(v) = procrustes_rmse {
+        body["procrustes_rmse_mm"] = v.into();
+    }
+    if let Some(v) = icp_rmse {
+        body["icp_rmse_mm"] = v.into();
+        body["icp"] = icp_json.clone();
+    }
     laparo_core::atomic::write_atomic(&a.out.join("transform.json"), serde_json::to_string_pretty(&body)?.as_bytes())?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     println!(
-        "rigid: Procrustes RMSE {} mm, ICP RMSE {} mm, scale {:.6}; wrote {}",
+        "rigid: Procrustes RMSE {} mm, ICP RMSE {} mm{}, scale {:.6}; wrote {}",
         procrustes_rmse.map_or("-".into(), |v| format!("{v:.4}")),
         icp_rmse.map_or("-".into(), |v| format!("{v:.4}")),
+        icp_json["overlap"].as_f64().map_or(String::new(), |f| format!(
+            " (overlap {f}{})",
+            if a.overlap.is_none() { ", estimated" } else { "" }
+        )),
         t.scale,
         a.out.join("transform.json").display()
     );
     Ok(())
 }
+
+/// An ICP RMSE above this fraction of the source's bounding-box diagonal is reported as a poor fit.
+const POOR_FIT_FRACTION: f64 = 0.03;
 
 fn synth(a: SynthArgs) -> Result<()> {
     let mesh = laparo_core::mesh::read_mesh(&a.organ)?;
