@@ -59,7 +59,21 @@ enum Command {
     },
 }
 
+/// Die quietly of SIGPIPE when stdout is closed early (`laparo … | head -1`), as Unix tools do:
+/// Rust ignores SIGPIPE, so every `println!` after the reader left would panic with a backtrace
+/// (exit 101). With the default action the process ends at the first write to the closed pipe,
+/// which the shell reports as 141 without a message; files are written atomically, so nothing is
+/// left half-written.
+fn restore_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_DFL at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() {
+    restore_sigpipe();
     let cli = Cli::parse();
     let run = move || match cli.command {
         Command::Depth(c) => cmd::depth::run(c),

@@ -454,6 +454,10 @@ fn warp_one(
 }
 
 fn lambda(a: LambdaArgs) -> Result<()> {
+    let mut inputs: Vec<&Path> = vec![&a.input.depth, &a.input.intrinsics];
+    inputs.extend(a.input.mask.as_deref());
+    laparo_core::atomic::refuse_overwrite_in(&a.out, &["lambda_sweep.csv", "lambda_sweep.png", "lambda.json"], &inputs)
+        .context("--out")?;
     let inp = load_inputs(&a.input, None)?;
     let grid = if a.lambdas.is_empty() { default_lambda_grid() } else { a.lambdas.clone() };
     for &l in &grid {

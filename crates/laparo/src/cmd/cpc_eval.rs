@@ -66,10 +66,13 @@ pub struct EvalOpts {
 
 impl EvalOpts {
     fn settings(&self) -> Result<EvalSettings> {
+        use super::check::number;
         let mut s = EvalSettings::default();
-        if !(self.roi_erosion >= 0.0 && self.eps > 0.0 && self.ubc >= 1.0) {
-            bail!("--roi-erosion must be >= 0, --eps > 0 and --ubc >= 1");
-        }
+        number("--roi-erosion", self.roi_erosion, 0.0..=1000.0)?;
+        number("--eps", self.eps, (std::ops::Bound::Excluded(0.0), std::ops::Bound::Included(1000.0)))?;
+        number("--ubc", self.ubc as f64, 1.0..=1000.0)?;
+        number("--grid-step", self.grid_step as f64, 1.0..=256.0)?;
+        number("--max-magnification", self.max_magnification, 0.0..)?;
         s.methods = vec![Method::sift_ubcmatch(self.ubc), Method::orb_nn()];
         s.roi_erosion_px = self.roi_erosion;
         s.gt.eps_px = self.eps;
@@ -197,16 +200,35 @@ pub fn read_pose(path: &Path, v: &Value, view: &str) -> Result<Se3> {
         .get(view)
         .and_then(|x| x.get("cam_from_world"))
         .with_context(|| format!("poses {}: missing {view} pose ({view}.cam_from_world)", path.display()))?;
-    let num = |x: &Value| x.as_f64();
-    let r: Option<Vec<f64>> = p.get("R").and_then(|r| r.as_array()).map(|rows| {
-        rows.iter().flat_map(|row| row.as_array().cloned().unwrap_or_default()).filter_map(|x| num(&x)).collect()
-    });
-    let t: Option<Vec<f64>> = p.get("t_mm").and_then(|t| t.as_array()).map(|t| t.iter().filter_map(num).collect());
-    let (Some(r), Some(t)) = (r, t) else {
-        bail!("poses {}: {view}.cam_from_world needs \"R\" (3x3) and \"t_mm\" (3)", path.display());
+    let what = |field: &str| format!("poses {}: {view}.cam_from_world.{field}", path.display());
+    // Every entry a number (no string, null or nested array skipped), rows of exactly 3.
+    let numbers = |v: Option<&Value>, field: &str| -> Result<Vec<f64>> {
+        let a = v.and_then(Value::as_array).with_context(|| format!("{}: missing or not an array", what(field)))?;
+        a.iter()
+            .enumerate()
+            .map(|(i, x)| x.as_f64().with_context(|| format!("{}[{i}]: {x} is not a number", what(field))))
+            .collect()
     };
-    if r.len() != 9 || t.len() != 3 || r.iter().chain(&t).any(|x| !x.is_finite()) {
-        bail!("poses {}: {view}.cam_from_world needs a finite 3x3 \"R\" and 3-vector \"t_mm\"", path.display());
+    let rows = p.get("R").and_then(Value::as_array).with_context(|| format!("{}: missing 3x3 array", what("R")))?;
+    if rows.len() != 3 {
+        bail!("{}: expected 3 rows, got {}", what("R"), rows.len());
+    }
+    let mut r = Vec::with_capacity(9);
+    for (i, row) in rows.iter().enumerate() {
+        let row = numbers(Some(row), &format!("R[{i}]"))?;
+        if row.len() != 3 {
+            bail!("{}: expected 3 numbers, got {} (ragged rows)", what(&format!("R[{i}]")), row.len());
+        }
+        r.extend(row);
+    }
+    let t = numbers(p.get("t_mm"), "t_mm")?;
+    if t.len() != 3 {
+        bail!("{}: expected 3 numbers, got {}", what("t_mm"), t.len());
+    }
+    // JSON numbers are finite; 1e308 is not a distance: the camera must see the scene (z > 0) and
+    // lie within 10 m of the world origin.
+    for (i, &x) in t.iter().enumerate() {
+        super::check::number(&what(&format!("t_mm[{i}]")), x, -MAX_POSE_MM..=MAX_POSE_MM)?;
     }
     let m = Matrix3::from_row_slice(&r);
     if (m.transpose() * m - Matrix3::identity()).abs().max() > 1e-6 || m.determinant() < 0.0 {
@@ -214,6 +236,42 @@ pub fn read_pose(path: &Path, v: &Value, view: &str) -> Result<Se3> {
     }
     let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m));
     Ok(Isometry3::from_parts(Translation3::from(Vector3::new(t[0], t[1], t[2])), rot))
+}
+
+/// Largest |t_mm| component of a pose (10 m): a scene further away is a unit error.
+pub const MAX_POSE_MM: f64 = 1e4;
+
+/// A pose must see the scene: the other view's surface points (its ROI back-projected with its
+/// depth and intrinsics, then taken to the world by its pose) must lie in front of this camera at a
+/// depth comparable to their own, not behind it or around it (a sign error in t, R and t of
+/// camera-to-world instead of world-to-camera, t = 0 in a world whose origin is on the surface).
+fn check_pose_sees(path: &Path, view: &str, pose: &Se3, other: &LoadedView) -> Result<()> {
+    let (w, k) = (other.depth.width, &other.k);
+    let step = (other.roi.n_pixels() / 4000).max(1);
+    let (mut own, mut here) = (Vec::new(), Vec::new());
+    for i in (0..other.roi.n_pixels()).step_by(step) {
+        if !other.roi.data[i * other.roi.channels] {
+            continue;
+        }
+        let z = other.depth.data[i];
+        let (u, v) = ((i % w) as f64, (i / w) as f64);
+        let xc = nalgebra::Point3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z);
+        own.push(z);
+        here.push(pose.transform_point(&other.pose.inverse_transform_point(&xc)).z);
+    }
+    if own.is_empty() {
+        return Ok(());
+    }
+    let (z_own, z_here) = (laparo_core::stats::median(&mut own), laparo_core::stats::median(&mut here));
+    if !(z_here > 0.05 * z_own) {
+        bail!(
+            "poses {}: {view}.cam_from_world puts the other view's surface at a median depth of {z_here:.3} mm (it is \
+             {z_own:.3} mm from its own camera): the scene is behind or around this camera; check the sign of t_mm \
+             and that R, t map world to camera",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 struct LoadedView {
@@ -311,12 +369,31 @@ fn write_pair_outputs(
 
 pub fn eval_cmd(a: EvalArgs) -> Result<()> {
     let settings = a.opts.settings()?;
+    let k2 = a.intrinsics2.as_ref().unwrap_or(&a.intrinsics);
+    let inputs: Vec<&Path> =
+        [&a.image1, &a.depth1, &a.mask1, &a.image2, &a.depth2, &a.mask2, &a.intrinsics, k2, &a.poses]
+            .into_iter()
+            .map(PathBuf::as_path)
+            .collect();
+    let mut outputs: Vec<String> =
+        ["table.md", "table.csv", "table.json", "warped1.png", "warped2.png"].into_iter().map(String::from).collect();
+    for m in &settings.methods {
+        for cpc in ["", "cpc_"] {
+            outputs.push(format!("matches_{cpc}{}.png", method_slug(&m.name)));
+        }
+    }
+    if a.lambda_sweep {
+        outputs.extend(["lambda_matching.csv", "lambda_matching.json", "lambda_matching.png"].map(String::from));
+    }
+    let names: Vec<&str> = outputs.iter().map(String::as_str).collect();
+    laparo_core::atomic::refuse_overwrite_in(&a.out, &names, &inputs).context("--out")?;
     let txt = std::fs::read_to_string(&a.poses).with_context(|| format!("reading poses {}", a.poses.display()))?;
     let pj: Value = serde_json::from_str(&txt).with_context(|| format!("parsing poses {}", a.poses.display()))?;
     let (p1, p2) = (read_pose(&a.poses, &pj, "view1")?, read_pose(&a.poses, &pj, "view2")?);
-    let k2 = a.intrinsics2.as_ref().unwrap_or(&a.intrinsics);
     let l1 = load_view(&a.image1, &a.depth1, &a.mask1, a.depth_unit, &a.intrinsics, p1)?;
     let l2 = load_view(&a.image2, &a.depth2, &a.mask2, a.depth_unit, k2, p2)?;
+    check_pose_sees(&a.poses, "view2", &p2, &l1)?;
+    check_pose_sees(&a.poses, "view1", &p1, &l2)?;
     let (v1, v2) = (l1.view(), l2.view());
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let e = eval::evaluate_pair(&v1, &v2, &settings)?;
@@ -357,9 +434,18 @@ pub fn eval_cmd(a: EvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// Largest tilt (deg) of a rendered orbit frame: beyond it the patch is seen at grazing angles.
+pub const MAX_TILT_DEG: f64 = 70.0;
+/// Most frames of one orbit (each is rendered, kept in memory and matched against the keyframe).
+pub const MAX_FRAMES: usize = 200;
+
 pub fn sequence_cmd(a: SequenceArgs) -> Result<()> {
-    if a.frames < 2 {
-        bail!("--frames must be at least 2");
+    use super::check::number;
+    number("--frames", a.frames as f64, 2.0..=MAX_FRAMES as f64)?;
+    number("--tilt0", a.tilt0, 0.0..=MAX_TILT_DEG)?;
+    number("--max-tilt", a.max_tilt, 0.0..=MAX_TILT_DEG)?;
+    if a.max_tilt <= a.tilt0 {
+        bail!("--max-tilt {} must exceed --tilt0 {}: the orbit tilts away from the keyframe", a.max_tilt, a.tilt0);
     }
     let settings = a.opts.settings()?;
     let tex = texture(&a.texture);

@@ -9,7 +9,7 @@
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use laparo_core::atomic::{refuse_overwrite, write_atomic};
+use laparo_core::atomic::{refuse_overwrite, refuse_overwrite_files, refuse_overwrite_in, write_atomic};
 use laparo_core::image::{Image, Mask};
 use laparo_core::io;
 use laparo_features::colmap::{CameraModel, ColmapCamera, ColmapDatabase, TwoViewConfig, TwoViewGeometry};
@@ -159,7 +159,9 @@ fn write_json(p: &Path, v: &serde_json::Value) -> Result<()> {
 }
 
 fn detect_cmd(a: &DetectArgs) -> Result<()> {
-    refuse_overwrite(&a.out, &[&a.image], false).context("--out")?;
+    let mut inputs: Vec<&Path> = vec![&a.image];
+    inputs.extend(a.mask.as_deref());
+    refuse_overwrite_files(&[&a.out], &inputs).context("--out")?;
     let det = DetectorConfig::by_name(&a.detector).context("--detector")?;
     let img = read_gray(&a.image)?;
     let mask = read_mask(&a.mask, &img, "--mask")?;
@@ -179,31 +181,54 @@ pub fn read_homography(p: &Path) -> Result<[[f64; 3]; 3]> {
     let v: serde_json::Value =
         serde_json::from_str(&s).with_context(|| format!("parsing --homography {}", p.display()))?;
     let v = v.get("H").cloned().unwrap_or(v);
-    let flat: Vec<f64> = match &v {
-        serde_json::Value::Array(rows) => rows
-            .iter()
-            .flat_map(|r| match r {
-                serde_json::Value::Array(x) => x.iter().map(|e| e.as_f64()).collect::<Vec<_>>(),
-                e => vec![e.as_f64()],
-            })
-            .collect::<Option<Vec<f64>>>()
-            .with_context(|| format!("--homography {}: non-numeric entry", p.display()))?,
-        _ => bail!("--homography {}: expected a 3x3 array", p.display()),
+    let what = format!("--homography {}", p.display());
+    let num = |e: &serde_json::Value, at: String| -> Result<f64> {
+        e.as_f64().with_context(|| format!("{what}: entry {at} ({e}) is not a number"))
     };
-    if flat.len() != 9 || flat.iter().any(|x| !x.is_finite()) {
-        bail!("--homography {}: expected 9 finite numbers, got {}", p.display(), flat.len());
+    // Either 3 rows of 3 numbers or a flat array of 9: no ragged rows, no mixing.
+    let flat: Vec<f64> = match v.as_array().map(|a| a.as_slice()) {
+        Some(rows) if rows.iter().all(serde_json::Value::is_array) => {
+            if rows.len() != 3 || rows.iter().any(|r| r.as_array().map_or(0, Vec::len) != 3) {
+                let lens: Vec<usize> = rows.iter().map(|r| r.as_array().map_or(0, Vec::len)).collect();
+                bail!("{what}: expected 3 rows of 3 numbers, got rows of {lens:?}");
+            }
+            let mut f = Vec::with_capacity(9);
+            for (i, r) in rows.iter().enumerate() {
+                for (j, e) in r.as_array().into_iter().flatten().enumerate() {
+                    f.push(num(e, format!("[{i}][{j}]"))?);
+                }
+            }
+            f
+        }
+        Some(flat) if flat.len() == 9 => {
+            flat.iter().enumerate().map(|(k, e)| num(e, format!("[{k}]"))).collect::<Result<_>>()?
+        }
+        _ => bail!("{what}: expected a 3x3 array of numbers (or 9 numbers)"),
+    };
+    // A homography is defined up to scale: normalise by the largest entry, then the matrix must be
+    // well conditioned (an entry of ±1e308 beside entries of 1 is numerically singular and maps every
+    // point to infinity).
+    let big = flat.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !(big.is_finite() && big > 0.0) {
+        bail!("{what}: the entries must be finite and not all zero");
     }
-    let h: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| flat[3 * i + j]));
-    invert_h(&h).with_context(|| format!("--homography {}", p.display()))?;
+    let h: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| flat[3 * i + j] / big));
+    let sv = nalgebra::Matrix3::from_fn(|i, j| h[i][j]).singular_values();
+    let cond = sv.max() / sv.min();
+    if !(cond < 1e12) {
+        bail!("{what}: singular or ill-conditioned (condition number {cond:.3e}; an image homography has far less)");
+    }
+    invert_h(&h).with_context(|| what.clone())?;
     Ok(h)
 }
 
 fn match_cmd(a: &MatchArgs) -> Result<()> {
-    refuse_overwrite(&a.out, &[&a.image1, &a.image2], true).context("--out")?;
+    let mut inputs: Vec<&Path> = vec![&a.image1, &a.image2];
+    inputs.extend([&a.mask1, &a.mask2].into_iter().flatten().map(PathBuf::as_path));
+    inputs.extend(a.homography.as_deref());
+    refuse_overwrite_in(&a.out, &["matches.png", "matches.json"], &inputs).context("--out")?;
     let (det, mcfg) = match_config(&a.opts)?;
-    if a.eps_px.is_nan() || a.eps_px <= 0.0 {
-        bail!("--eps-px must be > 0 (got {})", a.eps_px);
-    }
+    super::check::number("--eps-px", a.eps_px, (std::ops::Bound::Excluded(0.0), std::ops::Bound::Included(1e4)))?;
     let h = a.homography.as_deref().map(read_homography).transpose()?;
     let (img1, img2) = (read_gray(&a.image1)?, read_gray(&a.image2)?);
     let (m1, m2) = (read_mask(&a.mask1, &img1, "--mask1")?, read_mask(&a.mask2, &img2, "--mask2")?);
@@ -223,6 +248,17 @@ fn match_cmd(a: &MatchArgs) -> Result<()> {
             })
             .collect()
     });
+    if let Some(e) = &errors {
+        let bad = e.iter().filter(|x| !x.is_finite()).count();
+        if bad > 0 {
+            bail!(
+                "--homography {}: the transfer error is not finite for {bad} of {} matches (the homography maps \
+                 them to infinity); check the matrix",
+                a.homography.as_deref().unwrap_or(Path::new("")).display(),
+                e.len()
+            );
+        }
+    }
     let colours: Vec<[u8; 3]> = match &errors {
         Some(e) => e.iter().map(|&e| if e < a.eps_px { GREEN } else { RED }).collect(),
         None => vec![GREEN; matches.len()],
@@ -322,13 +358,16 @@ fn verify_pair(f1: &Features, f2: &Features, m: &[Match], min: usize, seed: u64)
 
 fn colmap_cmd(a: &ColmapArgs) -> Result<()> {
     refuse_overwrite(&a.colmap_db, &[&a.images], false).context("--colmap-db")?;
+    let paths = list_images(&a.images)?;
+    // Every image read is an input: a database written over one of them would replace the frame.
+    let inputs: Vec<&Path> = paths.iter().map(PathBuf::as_path).collect();
+    refuse_overwrite_files(&[&a.colmap_db], &inputs).context("--colmap-db")?;
     let (det, mcfg) = match_config(&a.opts)?;
     if let Some(k) = &a.intrinsics {
         if k.len() != 4 || k.iter().any(|v| !v.is_finite()) || k[0] <= 0.0 || k[1] <= 0.0 {
             bail!("--intrinsics: expected fx,fy,cx,cy (4 finite numbers, fx, fy > 0), got {k:?}");
         }
     }
-    let paths = list_images(&a.images)?;
     let style = ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} {elapsed}").expect("valid template");
     let pb = ProgressBar::new(paths.len() as u64).with_style(style.clone()).with_message("detect");
     let feats: Vec<(Image<u8>, Features)> = paths

@@ -135,7 +135,12 @@ fn solve_cmd(a: &SolveArgs) -> Result<()> {
     if !(a.scale.is_finite() && a.scale > 0.0) {
         bail!("--scale {}: must be finite and > 0", a.scale);
     }
-    laparo_core::atomic::refuse_overwrite(&a.out, &[&a.mesh, &a.fixed, &a.loads], true).context("--out")?;
+    laparo_core::atomic::refuse_overwrite_in(
+        &a.out,
+        &["displacement.npy", "displacement_tet10.npy", "displacement.vtk", "report.json"],
+        &[&a.mesh, &a.fixed, &a.loads],
+    )
+    .context("--out")?;
     let mut lin = read_tets(&a.mesh).with_context(|| format!("--mesh {}", a.mesh.display()))?;
     for v in &mut lin.vertices {
         *v *= a.scale;

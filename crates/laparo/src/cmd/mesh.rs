@@ -201,9 +201,29 @@ fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
     Ok(())
 }
 
+/// Most candidate tetrahedra `mesh tetra` builds (about 3 GB at 100 bytes each): a 1.5 mm mesh of a
+/// 200 mm liver fits.
+const MAX_TETRA_CANDIDATES: f64 = 3e7;
+
 fn tetra_cmd(surface: &Path, edge_mm: f64, min_dihedral_deg: f64, out: &Path, report: Option<&Path>) -> Result<()> {
+    let mut outputs = vec![out];
+    outputs.extend(report);
+    laparo_core::atomic::refuse_overwrite_files(&outputs, &[surface]).context("--out / --report")?;
+    super::check::positive("--edge-mm", edge_mm)?;
+    super::check::number("--min-dihedral-deg", min_dihedral_deg, 0.0..60.0)?;
     let t0 = Instant::now();
     let tri = read_mesh(surface)?;
+    if let Some((lo, hi)) = tri.bounding_box() {
+        // The BCC lattice over the bounding box: 12 candidate tetrahedra per cell, allocated before
+        // the inside test; refuse a spacing that would take gigabytes.
+        let cells: f64 = (0..3).map(|d| ((hi[d] - lo[d]) / edge_mm).ceil() + 2.0).product();
+        super::check::budget(
+            &format!("--edge-mm {edge_mm} on {} ({:.1} mm across)", surface.display(), (hi - lo).norm()),
+            12.0 * cells,
+            MAX_TETRA_CANDIDATES,
+            "lattice tetrahedra",
+        )?;
+    }
     let params = TetraParams { edge_mm, min_dihedral_deg, ..TetraParams::default() };
     let (tets, q) = tetrahedralize_surface(tri, &surface.display().to_string(), &params)?;
     let secs = t0.elapsed().as_secs_f64();
@@ -246,6 +266,18 @@ fn v3(v: &V3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
+/// The files `mesh incision` writes into its folder.
+const INCISION_OUTPUTS: [&str; 8] = [
+    "cut.vtk",
+    "lips.json",
+    "landmarks.json",
+    "tumour.json",
+    "fixed_nodes.json",
+    "scenario.json",
+    "cut.png",
+    "crack.png",
+];
+
 fn incision_cmd(
     mesh_path: &Path,
     kind: ScenarioKind,
@@ -254,6 +286,9 @@ fn incision_cmd(
     out: &Path,
     cut_args: &CutArgs,
 ) -> Result<()> {
+    let mut inputs = vec![mesh_path];
+    inputs.extend(surface);
+    laparo_core::atomic::refuse_overwrite_in(out, &INCISION_OUTPUTS, &inputs).context("--out")?;
     let t0 = Instant::now();
     let mut mesh = read_tets(mesh_path)?;
     mesh.orient_positive();

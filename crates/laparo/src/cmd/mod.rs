@@ -1,6 +1,7 @@
 //! One file per subcommand group.
 pub mod cats;
 pub mod cats_stats;
+pub mod check;
 pub mod cpc;
 pub mod cpc_eval;
 pub mod depth;

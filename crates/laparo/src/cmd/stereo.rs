@@ -53,6 +53,15 @@ impl CalibArgs {
         Ok(Some(read_calibration(spec, self.width.zip(self.height))?.1))
     }
 
+    /// The files --calib reads (one file, or INTRINSICS,EXTRINSICS): inputs no output may replace.
+    pub(crate) fn paths(&self) -> Vec<PathBuf> {
+        match &self.calib {
+            Some(c) if !Path::new(c).exists() => c.split(',').map(PathBuf::from).collect(),
+            Some(c) => vec![PathBuf::from(c)],
+            None => Vec::new(),
+        }
+    }
+
     /// [`read`](Self::read), taking the size of the images being processed (`w`, `h`) for a
     /// calibration file that states none (SCARED's), unless --width/--height are given.
     pub(crate) fn read_for_images(&self, w: usize, h: usize) -> anyhow::Result<Option<StereoCalibration>> {
@@ -346,6 +355,28 @@ fn range_of(reference: &Image<f64>) -> (f64, f64) {
 }
 
 fn run_eval(a: EvalArgs) -> anyhow::Result<()> {
+    let calib_paths = a.calib.paths();
+    let mut inputs: Vec<&Path> = vec![&a.pred, &a.gt];
+    inputs.extend(a.mask.as_deref());
+    inputs.extend(calib_paths.iter().map(PathBuf::as_path));
+    laparo_core::atomic::refuse_overwrite_in(
+        &a.out,
+        &[
+            "disparity_pred.png",
+            "disparity_gt.png",
+            "disparity_error.png",
+            "depth_pred.png",
+            "depth_gt.png",
+            "depth_error.png",
+            "metrics.json",
+            "metrics.md",
+        ],
+        &inputs,
+    )
+    .context("--out")?;
+    if let Some(Some(j)) = &a.json {
+        laparo_core::atomic::refuse_overwrite_files(&[j], &inputs).context("--json")?;
+    }
     let pred = read_map(&a.pred, a.pred_scale, "pred")?;
     let gt = read_map(&a.gt, a.gt_scale, "gt")?;
     if (pred.width, pred.height) != (gt.width, gt.height) {
@@ -465,6 +496,13 @@ fn markdown_report(a: &EvalArgs, m: &StereoMetrics) -> String {
 }
 
 fn run_disp2depth(a: Disp2DepthArgs) -> anyhow::Result<()> {
+    let calib_paths = a.calib.paths();
+    let mut inputs: Vec<&Path> = vec![&a.disp];
+    inputs.extend(a.image.as_deref());
+    inputs.extend(calib_paths.iter().map(PathBuf::as_path));
+    let mut outputs: Vec<&Path> = vec![&a.out];
+    outputs.extend(a.ply.as_deref());
+    laparo_core::atomic::refuse_overwrite_files(&outputs, &inputs).context("--out / --ply")?;
     let disp = read_map(&a.disp, a.scale, "")?;
     let calib = need_calib(&a.calib, disp.width, disp.height)?;
     if (disp.width, disp.height) != (calib.width, calib.height) {

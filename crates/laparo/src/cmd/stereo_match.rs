@@ -217,10 +217,60 @@ fn self_rectify_features(a: &MatchArgs) -> anyhow::Result<laparo_stereo::self_re
         .map_err(|e| anyhow::anyhow!("--self-rectify-features '{}': {e}", a.self_rectify_features))
 }
 
+/// Every file `stereo match` may write into --out.
+const MATCH_OUTPUTS: [&str; 17] = [
+    "disparity.pfm",
+    "confidence.pfm",
+    "disparity.png",
+    "confidence.png",
+    "dy.pfm",
+    "dy.png",
+    "disparity_filled.pfm",
+    "depth_mm.npy",
+    "depth.png",
+    "disparity_raw.pfm",
+    "dy_raw.pfm",
+    "disparity_raw.png",
+    "left_rectified.png",
+    "right_rectified.png",
+    "disparity_rectified.pfm",
+    "self_rectification.json",
+    "stats.json",
+];
+
+/// Bytes per pixel a match holds at once (both images decoded as RGBA and grey, two census
+/// transforms, disparity, confidence and their f64 copies): the budget is checked before decoding.
+const MATCH_BYTES_PER_PX: f64 = 2.0 * 4.0 + 2.0 + 2.0 * 8.0 + 2.0 * 4.0 + 2.0 * 8.0;
+
+/// Largest match (bytes estimated with [`MATCH_BYTES_PER_PX`]): 2 GiB, a 6500×6500 pair.
+const MATCH_MAX_BYTES: f64 = 2.0 * (1u64 << 30) as f64;
+
 pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
+    use super::check::{budget, number, positive};
     let (lo, hi) = parse_range(&a.range)?;
     self_rectify_features(&a)?;
     let p = params(&a, lo, hi)?;
+    if let Some(f) = a.focal_px {
+        positive("--focal-px", f)?;
+    }
+    if let Some(b) = a.baseline_mm {
+        positive("--baseline-mm", b)?;
+    }
+    number("--cx-offset-px", a.cx_offset_px, ..)?;
+    number("--alpha", a.alpha, ..)?;
+    let mut inputs = vec![a.left.as_path(), a.right.as_path()];
+    let calib_paths = a.calib.paths();
+    inputs.extend(calib_paths.iter().map(PathBuf::as_path));
+    laparo_core::atomic::refuse_overwrite_in(&a.out, &MATCH_OUTPUTS, &inputs).context("--out")?;
+    for (flag, path) in [("--left", &a.left), ("--right", &a.right)] {
+        let (w, h) = laparo_core::io::image_size(path).with_context(|| format!("{flag} {}", path.display()))?;
+        budget(
+            &format!("{flag} {} ({w}x{h} px)", path.display()),
+            w as f64 * h as f64 * MATCH_BYTES_PER_PX,
+            MATCH_MAX_BYTES,
+            "bytes of matching memory",
+        )?;
+    }
     let left = laparo_core::io::read_image(&a.left).with_context(|| format!("--left {}", a.left.display()))?;
     let right = laparo_core::io::read_image(&a.right).with_context(|| format!("--right {}", a.right.display()))?;
     if left.size() != right.size() {
@@ -234,7 +284,6 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
             right.height
         );
     }
-    laparo_core::atomic::refuse_overwrite(&a.out, &[a.left.as_path(), a.right.as_path()], true).context("--out")?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
     let (w, h) = left.size();
     let calib = a.calib.read_for_images(w, h)?;
