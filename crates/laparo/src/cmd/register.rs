@@ -397,6 +397,14 @@ fn deformable(a: RunArgs) -> Result<()> {
 }
 
 fn rigid(a: RigidArgs) -> Result<()> {
+    let inputs: Vec<&std::path::Path> =
+        [Some(&a.source), Some(&a.target), a.landmarks.as_ref(), a.target_landmarks.as_ref(), a.init.as_ref()]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect();
+    laparo_core::atomic::refuse_overwrite_in(&a.out, &["source_aligned.ply", "transform.json"], &inputs)
+        .context("--out")?;
     let src = laparo_core::mesh::read_mesh(&a.source)?;
     let dst = laparo_core::mesh::read_mesh(&a.target)?;
     if src.vertices.is_empty() || dst.vertices.is_empty() {
@@ -544,6 +552,8 @@ fn rigid(a: RigidArgs) -> Result<()> {
 const POOR_FIT_FRACTION: f64 = 0.03;
 
 fn synth(a: SynthArgs) -> Result<()> {
+    laparo_core::atomic::refuse_overwrite_files(&[&a.landmarks_out, &a.targets_out], &[&a.organ, &a.contours])
+        .context("--landmarks-out / --targets-out")?;
     let mesh = laparo_core::mesh::read_mesh(&a.organ)?;
     let mut groups = read_p2ilf_contours(&a.contours, &mesh.vertices)?;
     if let Some(only) = &a.only {
