@@ -176,6 +176,7 @@ fn configs(
     target_mean_mm: f64,
     memory_gb: Option<f64>,
     kinetic_weight: f64,
+    at_rest_weight: f64,
 ) -> PyResult<(OrganConfig, OptimizerConfig)> {
     for (name, v) in [
         ("spacing_mm", spacing_mm),
@@ -186,6 +187,7 @@ fn configs(
         ("max_step_dx", max_step_dx.unwrap_or(1.0)),
         ("target_mean_mm", target_mean_mm),
         ("kinetic_weight", kinetic_weight),
+        ("at_rest_weight", at_rest_weight),
     ] {
         if !v.is_finite() {
             return Err(bad(name, format!("{v} is not finite")));
@@ -200,6 +202,7 @@ fn configs(
         target_mean_distance: target_mean_mm,
         joint_youngs_modulus: joint_e,
         kinetic_weight,
+        terminal_kinetic_weight: at_rest_weight,
         ..base
     };
     let organ = OrganConfig {
@@ -221,7 +224,7 @@ fn configs(
 /// `out` (particles, surfaces, deformed meshes, overlay, loss curve, report.json, checkpoint).
 /// Returns report.json as a dict.
 #[pyfunction]
-#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None, kinetic_weight = 0.0, crack = None, crack_band_mm = None))]
+#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None, kinetic_weight = 0.0, at_rest_weight = 0.0, crack = None, crack_band_mm = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_run<'py>(
     py: Python<'py>,
@@ -251,6 +254,7 @@ pub fn register_run<'py>(
     checkpoint_every: usize,
     memory_gb: Option<f64>,
     kinetic_weight: f64,
+    at_rest_weight: f64,
     crack: Option<&Bound<'py, PyAny>>,
     crack_band_mm: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -272,6 +276,7 @@ pub fn register_run<'py>(
             target_mean_mm,
             memory_gb,
             kinetic_weight,
+            at_rest_weight,
         )?;
         let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
@@ -308,7 +313,7 @@ pub fn register_run<'py>(
 /// and rest particle positions (model mm), v₀ (mm/s), J = det F, the iteration history, the
 /// residuals before/after and the set-up (Δx, Δt, grid, offset).
 #[pyfunction]
-#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None, kinetic_weight = 0.0, crack = None, crack_band_mm = None))]
+#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None, kinetic_weight = 0.0, at_rest_weight = 0.0, crack = None, crack_band_mm = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_arrays<'py>(
     py: Python<'py>,
@@ -333,6 +338,7 @@ pub fn register_arrays<'py>(
     target_mean_mm: f64,
     memory_gb: Option<f64>,
     kinetic_weight: f64,
+    at_rest_weight: f64,
     crack: Option<&Bound<'py, PyAny>>,
     crack_band_mm: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
@@ -354,6 +360,7 @@ pub fn register_arrays<'py>(
             target_mean_mm,
             memory_gb,
             kinetic_weight,
+            at_rest_weight,
         )?;
         let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {

@@ -83,6 +83,26 @@ pub struct OptimizerConfig {
     /// With a two-field grid (`Scene::crack_side`), blur the gradient within each side of the crack and the
     /// uncut material, never across it ([`Smoother::with_sides`]; L1 of the ladder). Without a crack: no effect.
     pub side_aware_smoothing: bool,
+    /// What the optimiser solves for (§5.3.1 allows any unknown state): v₀ (the thesis, default) or a
+    /// time-constant load (L3 of the ladder).
+    pub unknown: Unknown,
+}
+
+/// The unknown state q of RODS-MPM (§5.3.1).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Unknown {
+    /// The initial velocities v₀ (the thesis).
+    InitialVelocity,
+    /// A time-constant force density on the particles a crack labels (`Scene::crack_side` ≠ 0, the band around
+    /// Σ; every free particle without a crack), projected to zero net force (self-equilibrated), with v₀ = 0
+    /// and mass-proportional damping ζ = `damping_per_horizon` / (T Δt) so that x_T is an equilibrium under the
+    /// loads. The least-action prior κ becomes an L2 prior on the loads: κ · mean |a (T Δt)²/2|² / (2 Δx) over
+    /// the band, a = f / m (the displacement the load alone would give over the horizon).
+    Loads {
+        /// ζ T Δt: damping over the horizon (≈ 10: the slowest modes the horizon resolves come to rest).
+        damping_per_horizon: f64,
+    },
 }
 
 /// Energies of a registered run (scene units: the organ's mass × length² / time²), the audit every RODS-MPM
@@ -168,6 +188,7 @@ impl Default for OptimizerConfig {
             kinetic_weight: 0.0,
             terminal_kinetic_weight: 0.0,
             side_aware_smoothing: true,
+            unknown: Unknown::InitialVelocity,
         }
     }
 }
@@ -242,8 +263,11 @@ pub struct Registration<const D: usize> {
     pub final_state: ParticleState<D>,
     /// Why the optimiser stopped.
     pub stop_reason: String,
-    /// Energies from v₀ to the final state.
+    /// Energies from v₀ to the final state (with loads: the work they did is not counted; `dissipated` is
+    /// then KE(0) − KE(T) − Ψ(T), negative by the work of the loads).
     pub energy: EnergyAudit,
+    /// The optimised loads per particle (scene force units) when they were the unknown ([`Unknown::Loads`]).
+    pub loads: Option<Vec<Vector<D>>>,
 }
 
 struct Eval<const D: usize> {
@@ -269,6 +293,8 @@ struct Problem<'a, const D: usize> {
     kinetic: f64,
     /// Per-particle coefficient c_p of the at-rest prior ½ Σ c_p |v_T,p|² (empty = off).
     terminal: Vec<f64>,
+    /// Loads as the unknown: the particles that carry them (empty = v₀ is the unknown).
+    band: Vec<bool>,
     ws: GradientWorkspace<D>,
     evaluations: usize,
 }
@@ -286,17 +312,57 @@ impl<const D: usize> Problem<'_, D> {
         self.scene.n_particles()
     }
     /// Velocity change of a parameter change (S applied).
+    fn loads(&self) -> bool {
+        !self.band.is_empty()
+    }
+    /// Velocity change (or, with loads, the force field) of a parameter change: S applied, and with loads
+    /// restricted to the band and projected to zero net force, f = P S x (P f = f − m Σ_band f / M_band).
     fn dv(&self, dx: &[f64]) -> Vec<Vector<D>> {
         let d = unflat::<D>(dx, self.n());
-        match &self.smoother {
+        let mut d = match &self.smoother {
             Some(s) => s.apply(&d),
             None => d,
+        };
+        if self.loads() {
+            let (mut total, mut mass) = (Vector::<D>::zeros(), 0.0);
+            for p in 0..self.n() {
+                if self.band[p] {
+                    total += d[p];
+                    mass += self.scene.masses[p];
+                } else {
+                    d[p] = Vector::<D>::zeros();
+                }
+            }
+            for p in 0..self.n() {
+                if self.band[p] {
+                    d[p] -= total * (self.scene.masses[p] / mass);
+                }
+            }
+        }
+        d
+    }
+    /// Pᵀ of [`Self::dv`]'s projection on a force gradient: (Pᵀ g)_p = g_p − Σ_band m_q g_q / M_band on the
+    /// band, 0 elsewhere.
+    fn project_gradient(&self, g: &mut [Vector<D>]) {
+        let (mut total, mut mass) = (Vector::<D>::zeros(), 0.0);
+        for p in 0..self.n() {
+            if self.band[p] {
+                total += g[p] * self.scene.masses[p];
+                mass += self.scene.masses[p];
+            }
+        }
+        for p in 0..self.n() {
+            g[p] = if self.band[p] { g[p] - total / mass } else { Vector::<D>::zeros() };
         }
     }
     fn eval(&mut self, x: &[f64]) -> Result<Eval<D>> {
         let dv = self.dv(x);
-        for p in 0..self.n() {
-            self.scene.velocities[p] = self.warm[p] + dv[p];
+        if self.loads() {
+            self.scene.external_forces = dv;
+        } else {
+            for p in 0..self.n() {
+                self.scene.velocities[p] = self.warm[p] + dv[p];
+            }
         }
         if self.joint {
             self.scene.material.youngs_modulus = self.e0 * x[self.n() * D].exp();
@@ -308,10 +374,16 @@ impl<const D: usize> Problem<'_, D> {
         if !g.loss.is_finite() {
             return Err(RegisterError::bad("registration", "the loss became non-finite (simulation unstable)"));
         }
-        let prior = self.kinetic_prior(&mut g.d_velocities);
+        let (prior, raw) = if self.loads() {
+            let prior = self.load_prior(&mut g.d_external_forces);
+            self.project_gradient(&mut g.d_external_forces);
+            (prior, &g.d_external_forces)
+        } else {
+            (self.kinetic_prior(&mut g.d_velocities), &g.d_velocities)
+        };
         let gv = match &self.smoother {
-            Some(s) => s.apply(&g.d_velocities),
-            None => g.d_velocities.clone(),
+            Some(s) => s.apply(raw),
+            None => raw.clone(),
         };
         let mut grad = flat(&gv);
         if self.joint {
@@ -347,10 +419,36 @@ impl<const D: usize> Problem<'_, D> {
         }
         0.5 * c * sum
     }
-    /// Largest landmark displacement |Δv|·T·Δt of a parameter step.
+    /// The load prior κ mean_band |a (T Δt)²/2|² / (2 Δx), a = f/m, at the scene's loads; its gradient added
+    /// to `grad_f` (∂/∂f_p = κ (T Δt)⁴ a_p / (4 n_band Δx m_p)).
+    fn load_prior(&self, grad_f: &mut [Vector<D>]) -> f64 {
+        if !(self.kinetic > 0.0) {
+            return 0.0;
+        }
+        let n_band = self.band.iter().filter(|&&b| b).count().max(1) as f64;
+        let t = self.scene.steps as f64 * self.scene.dt;
+        let h = 0.5 * t * t;
+        let c = self.kinetic / (n_band * self.scene.grid.dx);
+        let mut sum = 0.0;
+        for p in 0..self.n() {
+            if self.band[p] {
+                let m = self.scene.masses[p];
+                let a = self.scene.external_forces[p] / m;
+                sum += (a * h).norm_squared();
+                grad_f[p] += a * (c * h * h / m);
+            }
+        }
+        0.5 * c * sum
+    }
+    /// Largest landmark displacement of a parameter step: |Δv|·T·Δt, or with loads |Δf|/m (T Δt)²/2.
     fn step_length(&self, dx: &[f64]) -> f64 {
         let t = self.scene.steps as f64 * self.scene.dt;
-        self.dv(dx).iter().map(|v| v.norm()).fold(0.0, f64::max) * t
+        let d = self.dv(dx);
+        if self.loads() {
+            (0..self.n()).map(|p| d[p].norm() / self.scene.masses[p]).fold(0.0, f64::max) * 0.5 * t * t
+        } else {
+            d.iter().map(|v| v.norm()).fold(0.0, f64::max) * t
+        }
     }
 }
 
@@ -427,8 +525,39 @@ pub fn register_sided<const D: usize>(
         if thesis { None } else { Smoother::with_sides(&scene.positions, sides, cfg.smoothing_dx * dxl, dxl) };
     let joint = cfg.joint_youngs_modulus;
     let terminal = at_rest_coefficients(scene, cfg.terminal_kinetic_weight);
+    let mut sim_scene = scene.clone();
+    let band: Vec<bool> = match cfg.unknown {
+        Unknown::InitialVelocity => Vec::new(),
+        Unknown::Loads { damping_per_horizon } => {
+            if !(damping_per_horizon >= 0.0 && damping_per_horizon.is_finite()) {
+                return Err(RegisterError::param(
+                    "damping_per_horizon",
+                    damping_per_horizon,
+                    "must be finite and >= 0",
+                ));
+            }
+            if joint || thesis {
+                return Err(RegisterError::bad("unknown", "loads are optimised by L-BFGS or Adam with E fixed"));
+            }
+            let held = |p: usize| scene.fixed.get(p).copied().unwrap_or(false);
+            let cracked = scene.crack_side.iter().any(|&s| s != 0);
+            let band: Vec<bool> =
+                (0..n).map(|p| !held(p) && (!cracked || scene.crack_side.get(p).is_some_and(|&s| s != 0))).collect();
+            if !band.iter().any(|&b| b) {
+                return Err(RegisterError::bad(
+                    "load band",
+                    "no free particle carries a load (the band around Σ is empty)",
+                ));
+            }
+            sim_scene.velocities = vec![Vector::<D>::zeros(); n];
+            sim_scene.damping = damping_per_horizon / (scene.steps.max(1) as f64 * scene.dt);
+            sim_scene.external_forces = vec![Vector::<D>::zeros(); n];
+            band
+        }
+    };
+    let warm = if band.is_empty() { warm } else { vec![Vector::<D>::zeros(); n] };
     let mut pb = Problem {
-        scene: scene.clone(),
+        scene: sim_scene,
         user: loss,
         loss: loss.clone(),
         smoother,
@@ -437,6 +566,7 @@ pub fn register_sided<const D: usize>(
         joint,
         kinetic: cfg.kinetic_weight,
         terminal,
+        band,
         ws: GradientWorkspace::new(),
         evaluations: 0,
     };
@@ -666,13 +796,17 @@ pub fn register_sided<const D: usize>(
     }
     // v₀ and E of the accepted point
     let dv = pb.dv(&x);
-    let velocities: Vec<Vector<D>> = (0..n).map(|p| pb.warm[p] + dv[p]).collect();
+    let (velocities, loads) = if pb.loads() {
+        (vec![Vector::<D>::zeros(); n], Some(dv))
+    } else {
+        ((0..n).map(|p| pb.warm[p] + dv[p]).collect(), None)
+    };
     let youngs_modulus = if joint { pb.e0 * x[dim - 1].exp() } else { pb.e0 };
-    let mut at_v0 = scene.clone();
+    let mut at_v0 = pb.scene.clone();
     at_v0.velocities.clone_from(&velocities);
     at_v0.material.youngs_modulus = youngs_modulus;
     let energy = EnergyAudit::of(&at_v0, &cur.state);
-    Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason, energy })
+    Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason, energy, loads })
 }
 
 /// The at-rest prior's per-particle coefficients c_p = λ m_p (T Δt)² / (M Δx) (0 for held particles; empty

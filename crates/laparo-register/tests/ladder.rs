@@ -148,3 +148,50 @@ fn at_rest_prior_is_the_terminal_kinetic_energy_and_slows_the_final_state() {
     );
     assert!(rest.history.last().unwrap().mean_distance < 0.7 * rest.history[0].mean_distance);
 }
+
+/// L3: with loads on the band of a crack as the unknown (v₀ = 0, damped), the lips of a half-cut block are
+/// pulled apart towards their targets, the loads have zero net force, and the final state is at rest.
+#[test]
+fn loads_rung_opens_a_half_cut_block_and_ends_at_rest() {
+    use laparo_register::optimize::Unknown;
+    let mut scene = block(0.5);
+    scene.steps = 80;
+    let top = scene.positions.iter().map(|x| x[1]).fold(f64::MIN, f64::max);
+    let lip = |side: i8| -> Vec<usize> {
+        (0..scene.n_particles())
+            .filter(|&p| scene.crack_side[p] == side && scene.positions[p][1] > top - 1e-9)
+            .collect()
+    };
+    let (a, b) = (lip(-1), lip(1));
+    let dx = scene.grid.dx;
+    let group = |name: &str, ps: Vec<usize>, dir: f64| LandmarkGroup {
+        name: name.into(),
+        target: GroupTarget::Paired(
+            ps.iter().map(|&p| scene.positions[p] + Vector::<2>::new(dir * 0.3 * dx, 0.0)).collect(),
+        ),
+        particles: ps,
+        weight: 1.0,
+    };
+    let loss = RegistrationLoss::new(vec![group("lip A", a, -1.0), group("lip B", b, 1.0)]);
+    let cfg =
+        OptimizerConfig { iterations: 25, unknown: Unknown::Loads { damping_per_horizon: 10.0 }, ..Default::default() };
+    let r = register(&scene, &loss, &cfg, None, &mut |_, _| true).unwrap();
+    let (d0, d1) = (r.history[0].mean_distance, r.history.last().unwrap().mean_distance);
+    assert!(d1 < 0.5 * d0, "mean landmark distance {d0:.4} → {d1:.4}");
+    let f = r.loads.as_ref().expect("loads");
+    let net: Vector<2> = f.iter().sum();
+    let scale = f.iter().map(|f| f.norm()).sum::<f64>();
+    assert!(scale > 0.0 && net.norm() < 1e-9 * scale, "net force {net} of Σ|f| {scale}");
+    assert!(
+        f.iter().zip(&scene.crack_side).all(|(f, &s)| s != 0 || *f == Vector::<2>::zeros()),
+        "loads only on the band"
+    );
+    assert!(r.velocities.iter().all(|v| *v == Vector::<2>::zeros()), "v₀ = 0 with loads");
+    let e = r.energy;
+    assert!(
+        e.kinetic_final < 0.05 * e.elastic_final,
+        "KE(T) {:.3e} vs elastic {:.3e}",
+        e.kinetic_final,
+        e.elastic_final
+    );
+}

@@ -680,18 +680,26 @@ pub enum Rung {
     L1,
     /// L2: L1 plus the at-rest prior on KE(T) (`OptimizerConfig::terminal_kinetic_weight`).
     L2,
+    /// L3: L1 with loads as the unknown (a self-equilibrated force density on the band around Σ, v₀ = 0,
+    /// mass-proportional damping [`L3_DAMPING_PER_HORIZON`] over the horizon: x_T an equilibrium).
+    L3,
 }
+
+/// ζ T Δt of rung L3, fixed a priori (not tuned): underdamped modes lose e^{-5} of their amplitude over the
+/// horizon.
+pub const L3_DAMPING_PER_HORIZON: f64 = 10.0;
 
 impl Rung {
     /// Every rung, in ladder order.
-    pub const ALL: [Rung; 4] = [Rung::L0, Rung::L1SideBlind, Rung::L1, Rung::L2];
-    /// The `--methods` name (`rods-l0`, `rods-l1-blind`, `rods-l1`, `rods-l2`).
+    pub const ALL: [Rung; 5] = [Rung::L0, Rung::L1SideBlind, Rung::L1, Rung::L2, Rung::L3];
+    /// The `--methods` name (`rods-l0`, `rods-l1-blind`, `rods-l1`, `rods-l2`, `rods-l3`).
     pub fn method_name(self) -> &'static str {
         match self {
             Rung::L0 => "rods-l0",
             Rung::L1SideBlind => "rods-l1-blind",
             Rung::L1 => "rods-l1",
             Rung::L2 => "rods-l2",
+            Rung::L3 => "rods-l3",
         }
     }
     /// The rung of a `--methods` name.
@@ -705,6 +713,7 @@ impl Rung {
             Rung::L1SideBlind => "L1 side-blind",
             Rung::L1 => "L1",
             Rung::L2 => "L2",
+            Rung::L3 => "L3 loads",
         }
     }
     /// Whether the rung simulates on two fields along Σ.
@@ -717,6 +726,11 @@ impl Rung {
         OptimizerConfig {
             side_aware_smoothing: self != Rung::L1SideBlind,
             terminal_kinetic_weight: if self == Rung::L2 { at_rest } else { 0.0 },
+            unknown: if self == Rung::L3 {
+                crate::optimize::Unknown::Loads { damping_per_horizon: L3_DAMPING_PER_HORIZON }
+            } else {
+                crate::optimize::Unknown::InitialVelocity
+            },
             ..base.clone()
         }
     }

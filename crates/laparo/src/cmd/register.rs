@@ -177,6 +177,11 @@ pub struct RunArgs {
     /// free particles, so motion the landmarks do not ask for costs something.
     #[arg(long, default_value_t = 0.0)]
     pub kinetic_weight: f64,
+    /// At-rest prior λ (default 0): adds λ · Σ m |v_T T Δt|² / (2 M Δx), the kinetic energy left at the end of
+    /// the horizon, so the registered shape is at rest rather than a snapshot of a swing (report.json's
+    /// `energy` audits KE(0), KE(T), the elastic energy at T and the energy dissipated).
+    #[arg(long, default_value_t = 0.0)]
+    pub at_rest_weight: f64,
     /// A crack surface (PLY/OBJ/STL triangles, mm, organ frame; normals from one lip to the other) along which
     /// the organ is cut: particles on either side get their own grid velocity field (laparo-mpm's two-field
     /// grid), so the lips can separate. Default: none (one field, the thesis' RODS-MPM).
@@ -302,6 +307,9 @@ fn deformable(a: RunArgs) -> Result<()> {
     let tg_path = need(&a.target, "target")?;
     let out = need(&a.out, "out")?;
     let base = optimizer_base(&a.optimizer)?;
+    if !(a.at_rest_weight >= 0.0 && a.at_rest_weight.is_finite()) {
+        bail!("--at-rest-weight {}: must be finite and >= 0", a.at_rest_weight);
+    }
     let optimizer = OptimizerConfig {
         iterations: a.iterations.unwrap_or(base.iterations),
         smoothing_dx: if base.kind == OptimizerKind::ThesisGd {
@@ -313,6 +321,7 @@ fn deformable(a: RunArgs) -> Result<()> {
         target_mean_distance: a.target_mean_mm,
         joint_youngs_modulus: a.joint_e,
         kinetic_weight: a.kinetic_weight,
+        terminal_kinetic_weight: a.at_rest_weight,
         ..base
     };
     let crack = match &a.crack {
