@@ -163,3 +163,20 @@ def test_crack_labels_sides_by_hand_and_lets_the_lips_separate(cli, job):
         R.register(lm, tg, organ=job / "organ.obj", crack=(plane[0] + [100.0, 0, 0], plane[1]), **opts)
     with pytest.raises(ValueError, match="crack_band_mm"):
         R.register(lm, tg, organ=job / "organ.obj", crack_band_mm=3.0, **opts)
+
+
+def test_at_rest_weight_leaves_less_kinetic_energy_at_the_end(job):
+    # The at-rest prior λ Σ m |v_T T Δt|² / (2 M Δx) (ladder rung L2): uniform particle masses, so KE(T) / KE(0)
+    # is Σ |v_T|² / Σ |v₀|², computed here from the returned arrays.
+    tg = TARGETS | {"edge": [[20.0, 25.5, 8.0]]}
+    opts = OPTS | dict(iterations=8)
+
+    def ratio(got):
+        return np.sum(got["final_velocities"] ** 2) / np.sum(got["velocities"] ** 2)
+
+    free = R.register(LANDMARKS, tg, organ=job / "organ.obj", **opts)
+    rest = R.register(LANDMARKS, tg, organ=job / "organ.obj", at_rest_weight=4.0, **opts)
+    assert ratio(rest) < ratio(free)
+    assert rest["mean_distance_mm"][1] < rest["mean_distance_mm"][0]
+    with pytest.raises(ValueError, match="at_rest_weight"):
+        R.register(LANDMARKS, tg, organ=job / "organ.obj", at_rest_weight=float("nan"), **opts)

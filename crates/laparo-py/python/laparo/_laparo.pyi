@@ -121,7 +121,7 @@ def register_run(
     youngs_modulus_kpa: float = 4.1, poisson_ratio: float = 0.49, density_kg_m3: float = 1000.0, steps: int = 200,
     dt_s: Optional[float] = None, region_weight: float = 0.0, joint_e: bool = False, smoothing_dx: Optional[float] = None,
     max_step_dx: Optional[float] = None, target_mean_mm: float = 0.0, resume: bool = False, checkpoint_every: int = 5,
-    memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
+    memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, at_rest_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 def register_arrays(
     landmarks: Any, targets: Any, organ: Optional[_Path] = None, particles: Optional[np.ndarray] = None,
@@ -129,7 +129,7 @@ def register_arrays(
     roi: Optional[str] = None, youngs_modulus_kpa: float = 4.1, poisson_ratio: float = 0.49,
     density_kg_m3: float = 1000.0, steps: int = 200, dt_s: Optional[float] = None, region_weight: float = 0.0,
     joint_e: bool = False, smoothing_dx: Optional[float] = None, max_step_dx: Optional[float] = None, target_mean_mm: float = 0.0,
-    memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
+    memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, at_rest_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 
 def register_arap(

@@ -105,6 +105,7 @@ def register(
     target_mean_mm: float = 0.0,
     memory_gb: Optional[float] = None,
     kinetic_weight: float = 0.0,
+    at_rest_weight: float = 0.0,
     crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]] = None,
     crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]:
@@ -118,7 +119,8 @@ def register(
     ``tear`` (unsmoothed, strong Wolfe, distance continuation: targets that pull neighbouring
     particles apart), ``adam`` or ``thesis-gd``; ``smoothing_dx`` and ``max_step_dx`` default to
     the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``;
-    ``kinetic_weight`` κ adds the least-action prior κ · mean |v₀ T Δt|² / (2 Δx) to eq. 5.10).
+    ``kinetic_weight`` κ adds the least-action prior κ · mean |v₀ T Δt|² / (2 Δx) to eq. 5.10;
+    ``at_rest_weight`` λ the at-rest prior λ · Σ m |v_T T Δt|² / (2 M Δx) on the final kinetic energy).
 
     ``crack``: an incision the organ is cut along, as a triangle mesh file or (vertices (N, 3) mm, faces
     (F, 3)) in the organ's frame, normals from one lip to the other. Particles within ``crack_band_mm``
@@ -135,7 +137,7 @@ def register(
         _landmarks(landmarks), _targets(targets), None if organ is None else os.fspath(organ), particles,
         float(spacing_mm), dx_mm, optimizer, iterations, roi, float(youngs_modulus_kpa), float(poisson_ratio),
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
-        _opt_float(max_step_dx), float(target_mean_mm), memory_gb, float(kinetic_weight), _crack(crack),
+        _opt_float(max_step_dx), float(target_mean_mm), memory_gb, float(kinetic_weight), float(at_rest_weight), _crack(crack),
         _opt_float(crack_band_mm),
     )
 
@@ -167,6 +169,7 @@ def run(
     checkpoint_every: int = 5,
     memory_gb: Optional[float] = None,
     kinetic_weight: float = 0.0,
+    at_rest_weight: float = 0.0,
     crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]] = None,
     crack_band_mm: Optional[float] = None,
 ) -> Dict[str, Any]:
@@ -181,7 +184,7 @@ def run(
         iterations, roi, p(tumour), p(image), p(camera), float(youngs_modulus_kpa), float(poisson_ratio),
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
         _opt_float(max_step_dx), float(target_mean_mm), bool(resume), int(checkpoint_every), memory_gb,
-        float(kinetic_weight), _crack(crack), _opt_float(crack_band_mm),
+        float(kinetic_weight), float(at_rest_weight), _crack(crack), _opt_float(crack_band_mm),
     )
 
 
