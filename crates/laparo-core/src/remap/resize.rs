@@ -87,7 +87,7 @@ pub fn resize_exact_u8(src: &Image<u8>, width: usize, height: usize) -> Result<I
             v[sw] = v[sw - 1];
             for (o, &(x0, wx)) in row.iter_mut().zip(&xt) {
                 let (a, b) = (v[x0], v[x0 + 1]);
-                *o = ((a * 256 + (b.wrapping_sub(a)).wrapping_mul(wx)).wrapping_add(1 << 15) >> 16) as u8;
+                *o = ((a * 256).wrapping_add(b.wrapping_sub(a).wrapping_mul(wx)).wrapping_add(1 << 15) >> 16) as u8;
             }
         },
     );

@@ -531,6 +531,15 @@ fn sample_smooth_interpolates_smooth_patches_and_keeps_edges() {
 }
 
 #[test]
+fn exact_u8_resize_of_a_falling_ramp_wraps_instead_of_overflowing() {
+    // b < a in the horizontal blend: the difference wraps, so the sum must wrap too (issue 49: every
+    // `cpc eval` panicked with "attempt to add with overflow" in a debug build).
+    let img = Image::from_vec(6, 2, 1, (0..12).map(|i| (250 - i % 6 * 10) as u8).collect()).unwrap();
+    let r = resize_exact_u8(&img, 5, 2).unwrap();
+    assert_eq!(&r.data[..5], &[249, 237, 225, 213, 201]);
+}
+
+#[test]
 fn exact_u8_resize_hand_values_and_one_grey_level_from_the_float_contract() {
     // 6 → 5: positions 0.1, 1.3, 2.5, 3.7, 4.9 → weights round(256·frac) = 26, 77, 128, 179, 230;
     // 10·x0 + (10·w + 128) >> 8 on the ramp 10·x.
