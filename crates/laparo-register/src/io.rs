@@ -56,6 +56,21 @@ fn bad(path: &Path, reason: impl Into<String>) -> RegisterError {
     RegisterError::bad(path.display().to_string(), reason)
 }
 
+/// Largest |coordinate| (mm) of a landmark or target point: 1 km. A point further out is a unit or
+/// format error; accepted, it would dominate every fit (a target 1e15 mm away "converges").
+pub const MAX_COORD_MM: f64 = 1e6;
+
+/// A landmark or target point: three finite coordinates within ±[`MAX_COORD_MM`]; `what` names it.
+fn checked_point(c: &[f64], path: &Path, what: &str) -> Result<Vector<3>> {
+    if let Some(x) = c.iter().find(|x| !x.is_finite()) {
+        return Err(bad(path, format!("{what}: non-finite coordinate {x}")));
+    }
+    if let Some(x) = c.iter().find(|x| x.abs() > MAX_COORD_MM) {
+        return Err(bad(path, format!("{what}: coordinate {x:e} mm is beyond ±{MAX_COORD_MM:e} mm (wrong units?)")));
+    }
+    Ok(Vector::<3>::new(c[0], c[1], c[2]))
+}
+
 fn points_of(v: &Value, path: &Path, what: &str) -> Result<Vec<Vector<3>>> {
     let arr = v.as_array().ok_or_else(|| bad(path, format!("{what}: expected a list of [x, y, z]")))?;
     arr.iter()
@@ -69,7 +84,7 @@ fn points_of(v: &Value, path: &Path, what: &str) -> Result<Vec<Vector<3>>> {
             if f.len() != 3 {
                 return Err(bad(path, format!("{what}[{i}]: non-numeric or non-finite coordinate")));
             }
-            Ok(Vector::<3>::new(f[0], f[1], f[2]))
+            checked_point(&f, path, &format!("{what}[{i}]"))
         })
         .collect()
 }
@@ -101,7 +116,8 @@ pub fn read_landmarks(path: &Path) -> Result<Vec<SourceGroup>> {
                 }
                 return Err(bad(path, format!("line {}: non-numeric coordinate", ln + 1)));
             }
-            let p = Vector::<3>::new(nums[0], nums[1], nums[2]);
+            // "nan" and "inf" parse as numbers: refused here as the JSON reader refuses them.
+            let p = checked_point(&nums, path, &format!("line {}", ln + 1))?;
             match groups.iter_mut().find(|g| g.name == cells[0]) {
                 Some(g) => g.points.push(p),
                 None => groups.push(SourceGroup { name: cells[0].into(), points: vec![p], weight: 1.0 }),
