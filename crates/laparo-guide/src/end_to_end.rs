@@ -84,9 +84,13 @@ pub struct EndToEndReport {
     pub ground_truth: serde_json::Value,
     /// Per route: the pipeline summary and the stage times.
     pub routes: Vec<serde_json::Value>,
-    /// Final TRE (mean over the liver nodes, mm) of each route and their difference.
+    /// Final TRE (mean over the liver nodes, mm), self-rectified minus calibrated.
     pub tre_difference_mm: Option<f64>,
-    /// Peak resident memory of the process (MiB).
+    /// Why `tre_difference_mm` is missing (a route was not run or has no TRE).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tre_difference_reason: Option<String>,
+    /// Peak resident memory of the process (MiB); left out where the system does not report it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_memory_mib: Option<f64>,
     /// Total wall time (s).
     pub total_seconds: f64,
@@ -261,9 +265,9 @@ pub fn run(
         reports.push((rc.route, rep));
     }
     let tre = |r: Route| reports.iter().find(|(k, _)| *k == r).and_then(|(_, g)| g.summary["tre_mean_mm"].as_f64());
-    let tre_difference_mm = match (tre(Route::SelfRectified), tre(Route::Calibrated)) {
-        (Some(a), Some(b)) => Some(a - b),
-        _ => None,
+    let (tre_difference_mm, tre_difference_reason) = match (tre(Route::SelfRectified), tre(Route::Calibrated)) {
+        (Some(a), Some(b)) => (Some(a - b), None),
+        _ => (None, Some("needs both stereo routes (calibrated and self-rectified) with a final TRE".to_string())),
     };
     let routes = reports
         .iter()
@@ -282,6 +286,7 @@ pub fn run(
         ground_truth: gt,
         routes,
         tre_difference_mm,
+        tre_difference_reason,
         peak_memory_mib: laparo_register::pipeline::peak_memory_mib(),
         total_seconds: t_all.elapsed().as_secs_f64(),
     };

@@ -290,7 +290,8 @@ pub fn depth_errors(est: &Image<f64>, gt: &Image<f64>, mask: &Mask) -> serde_jso
         }
     }
     if e.is_empty() {
-        return serde_json::json!({"coverage": 0.0});
+        return serde_json::json!({"coverage": 0.0, "n": 0, "mean_abs_mm": null,
+            "mean_abs_mm_reason": format!("no pixel of the {n_mask}-pixel mask has both an estimated and a true depth")});
     }
     let mean = e.iter().sum::<f64>() / e.len() as f64;
     let rmse = (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt();
@@ -319,6 +320,7 @@ pub fn point_cloud(depth: &Image<f64>, mask: &Mask, view: &View, step: usize) ->
 #[derive(Clone, Debug, Serialize)]
 pub struct RigidResult {
     /// Estimated pose model → camera.
+    #[serde(rename = "model_to_camera")]
     pub pose: Pose,
     /// ICP RMSE (mm).
     pub rmse_mm: f64,
@@ -783,7 +785,8 @@ pub fn run(
         StageRecord {
             name: "source landmarks".into(),
             seconds: t0.elapsed().as_secs_f64(),
-            metrics: serde_json::json!({"points_per_lip": sources.iter().map(|s| s.len()).collect::<Vec<_>>()}),
+            metrics: serde_json::json!({"lips": sources.iter().enumerate().map(|(i, s)| serde_json::json!({
+                "lip": LIP_NAMES[i], "points": s.len()})).collect::<Vec<_>>()}),
             outputs: vec!["incision_past.png".into(), "source_landmarks.ply".into()],
         },
         &mut stages,
@@ -798,7 +801,7 @@ pub fn run(
         let (t, missing) = lift_polyline(&lr, present_depth, &view, 2, "targets", &lips_path.display().to_string())?;
         targets.push(t);
         without_depth.push(missing);
-        draw_polyline(&mut img, lip, if i == 0 { [0, 255, 255] } else { [255, 0, 255] });
+        draw_polyline(&mut img, lip, LIP_RGB[i % 2]);
     }
     laparo_core::io::write_png(out.join("lips_present.png"), &img)?;
     let tgt_all: Vec<Vector3<f64>> = targets.iter().flatten().copied().collect();
@@ -828,7 +831,9 @@ pub fn run(
         StageRecord {
             name: "target lips".into(),
             seconds: t0.elapsed().as_secs_f64(),
-            metrics: serde_json::json!({"points_per_lip": targets.iter().map(|s| s.len()).collect::<Vec<_>>(), "points_without_depth": without_depth, "mean_distance_to_true_lip_mm": lip_err}),
+            metrics: serde_json::json!({"lips": (0..2).map(|i| serde_json::json!({
+                "lip": LIP_NAMES[i], "colour": LIP_COLOURS[i], "points": targets[i].len(),
+                "points_without_depth": without_depth[i], "mean_distance_to_true_lip_mm": lip_err[i]})).collect::<Vec<_>>()}),
             outputs: vec!["lips_present.png".into(), "target_lips.ply".into()],
         },
         &mut stages,
@@ -865,8 +870,8 @@ pub fn run(
     laparo_core::mesh::write_obj(out.join("tumour_aligned.obj"), &tum_aligned)?;
     use laparo_register::io::{SourceGroup, TargetSpec};
     let mut landmarks = vec![
-        SourceGroup { name: "lip 0".into(), points: sources[0].clone(), weight: 1.0 },
-        SourceGroup { name: "lip 1".into(), points: sources[1].clone(), weight: 1.0 },
+        SourceGroup { name: LIP_NAMES[0].into(), points: sources[0].clone(), weight: 1.0 },
+        SourceGroup { name: LIP_NAMES[1].into(), points: sources[1].clone(), weight: 1.0 },
     ];
     let mut tspecs = vec![TargetSpec::Polyline(targets[0].clone()), TargetSpec::Polyline(targets[1].clone())];
     if cfg.surface_weight > 0.0 && !surf_src.is_empty() && !surf_tgt.is_empty() {
@@ -1002,10 +1007,22 @@ pub fn run(
     let tre = |pos: &[Vector3<f64>]| -> Vec<f64> {
         pos.iter().zip(&gt_pos).map(|(p, g)| g.iter().map(|q| (p - q).norm()).fold(f64::INFINITY, f64::min)).collect()
     };
+    let near_mm = cfg.near_mm;
     let stats = |e: &[f64]| -> serde_json::Value {
         let pick =
             |want: bool| -> Vec<f64> { e.iter().zip(&near).filter(|(_, n)| **n == want).map(|(v, _)| *v).collect() };
-        serde_json::json!({"mean_mm": mean(e), "near_mm": mean(&pick(true)), "far_mm": mean(&pick(false)), "near_vertices": pick(true).len()})
+        let (pn, pf) = (pick(true), pick(false));
+        let mut v = serde_json::json!({"mean_mm": mean(e), "near_mm": mean(&pn), "far_mm": mean(&pf),
+            "near_vertices": pn.len(), "far_vertices": pf.len()});
+        if pn.is_empty() {
+            v["near_mm"] = serde_json::Value::Null;
+            v["near_mm_reason"] = format!("no model vertex lies within {near_mm} mm of the true lips").into();
+        }
+        if pf.is_empty() {
+            v["far_mm"] = serde_json::Value::Null;
+            v["far_mm_reason"] = format!("every model vertex lies within {near_mm} mm of the true lips").into();
+        }
+        v
     };
     let tre_reg = tre(&reg_vertices);
     let tre_rigid = tre(&aligned.vertices);
@@ -1019,6 +1036,24 @@ pub fn run(
     let scale = 1920.0 / w as f64;
     let o_err = outline_distance(&sil_reg, &sil_gt).map(|v| v * scale);
     let o_err_rigid = outline_distance(&sil_rigid, &sil_gt).map(|v| v * scale);
+    let outline_reason = |mine: &Mask, which: &str| -> Option<String> {
+        let empty = |m: &Mask| !m.data.iter().any(|&b| b);
+        if empty(&sil_gt) {
+            Some("the true tumour projects to no pixel of the left camera (out of view or behind it)".into())
+        } else if empty(mine) {
+            Some(format!("the {which} tumour projects to no pixel of the left camera"))
+        } else {
+            None
+        }
+    };
+    let o_reason = outline_reason(&sil_reg, "registered");
+    let o_reason_rigid = outline_reason(&sil_rigid, "rigidly aligned");
+    // tumour vertices outside every complete particle cell: the particles do not carry them
+    let outside_tumour = {
+        let rest = laparo_core::mesh::read_mesh(out.join("registration/particles_rest.ply"))?;
+        vertices_outside_particles(&rest.vertices, rep.spacing_mm, &tum_aligned.vertices)
+            .map_err(|e| bad("transfer", "registration/particles_rest.ply", e.to_string()))?
+    };
     push(
         StageRecord {
             name: "transfer + evaluation".into(),
@@ -1027,6 +1062,9 @@ pub fn run(
                 "tre_registered": stats(&tre_reg), "tre_rigid_only": stats(&tre_rigid),
                 "tumour_centroid_error_mm": c_err, "tumour_centroid_error_rigid_only_mm": c_err_rigid,
                 "tumour_outline_error_px_1920": o_err, "tumour_outline_error_rigid_only_px_1920": o_err_rigid,
+                "tumour_outline_error_px_1920_reason": o_reason,
+                "tumour_outline_error_rigid_only_px_1920_reason": o_reason_rigid,
+                "tumour_vertices_outside_particles": outside_tumour, "tumour_vertices": tum_aligned.vertices.len(),
             }),
             outputs: vec!["liver_registered.obj".into(), "tumour_registered.obj".into()],
         },
@@ -1065,20 +1103,139 @@ pub fn run(
         },
         &mut stages,
     );
-    let summary = serde_json::json!({
+    let tre_reg_stats = stats(&tre_reg);
+    let tre_rigid_stats = stats(&tre_rigid);
+    let mut summary = serde_json::json!({
         "route": cfg.route,
         "depth_error_past_mean_abs_mm": stages[0].metrics["depth_error"]["mean_abs_mm"],
         "depth_error_present_mean_abs_mm": stages[1].metrics["depth_error"]["mean_abs_mm"],
         "rigid_rotation_error_deg": rot_err,
         "rigid_mean_vertex_error_mm": mean(&vert_err),
         "tre_mean_mm": mean(&tre_reg),
-        "tre_near_mm": stats(&tre_reg)["near_mm"],
-        "tre_far_mm": stats(&tre_reg)["far_mm"],
+        "tre_near_mm": tre_reg_stats["near_mm"],
+        "tre_far_mm": tre_reg_stats["far_mm"],
         "tre_rigid_only_mean_mm": mean(&tre_rigid),
+        "tre_rigid_only_near_mm": tre_rigid_stats["near_mm"],
         "tumour_centroid_error_mm": c_err,
         "tumour_outline_error_px_1920": o_err,
-        "goals": {"tumour_centroid_within_3mm": c_err <= 3.0, "outline_within_10px": o_err.is_some_and(|v| v <= 10.0)},
+        "goals": {"tumour_centroid_within_3mm": c_err <= 3.0, "outline_within_10px": o_err.map(|v| v <= 10.0)},
     });
+    for (key, src) in [
+        ("depth_error_past_mean_abs_mm", &stages[0].metrics["depth_error"]["mean_abs_mm_reason"]),
+        ("depth_error_present_mean_abs_mm", &stages[1].metrics["depth_error"]["mean_abs_mm_reason"]),
+        ("tre_near_mm", &tre_reg_stats["near_mm_reason"]),
+        ("tre_far_mm", &tre_reg_stats["far_mm_reason"]),
+        ("tre_rigid_only_near_mm", &tre_rigid_stats["near_mm_reason"]),
+    ] {
+        if summary[key].is_null() {
+            summary[format!("{key}_reason")] = src.clone();
+        }
+    }
+    if let Some(r) = &o_reason {
+        summary["tumour_outline_error_px_1920_reason"] = r.clone().into();
+        summary["goals"]["outline_within_10px_reason"] = format!("not measurable: {r}").into();
+    }
+    // every stage against the one before
+    let f = |v: &serde_json::Value| v.as_f64();
+    let rigid_m = &stages.iter().find(|s| s.name == "rigid alignment").expect("pushed above").metrics;
+    let comparisons = vec![
+        compare(
+            "rigid alignment",
+            "initial pose",
+            "mean vertex error (mm)",
+            f(&rigid_m["initial_mean_vertex_error_mm"]),
+            f(&rigid_m["mean_vertex_error_mm"]),
+        ),
+        compare(
+            "rigid alignment",
+            "initial pose",
+            "rotation error (°)",
+            f(&rigid_m["initial_rotation_error_deg"]),
+            f(&rigid_m["rotation_error_deg"]),
+        ),
+        compare(
+            "RODS-MPM registration",
+            "rigid alignment",
+            "liver TRE, mean (mm)",
+            f(&tre_rigid_stats["mean_mm"]),
+            f(&tre_reg_stats["mean_mm"]),
+        ),
+        compare(
+            "RODS-MPM registration",
+            "rigid alignment",
+            "liver TRE near the incision (mm)",
+            f(&tre_rigid_stats["near_mm"]),
+            f(&tre_reg_stats["near_mm"]),
+        ),
+        compare(
+            "RODS-MPM registration",
+            "rigid alignment",
+            "liver TRE far from the incision (mm)",
+            f(&tre_rigid_stats["far_mm"]),
+            f(&tre_reg_stats["far_mm"]),
+        ),
+        compare(
+            "RODS-MPM registration",
+            "rigid alignment",
+            "tumour centroid error (mm)",
+            Some(c_err_rigid),
+            Some(c_err),
+        ),
+        compare("RODS-MPM registration", "rigid alignment", "tumour outline error (px at 1920)", o_err_rigid, o_err),
+    ];
+    let mut warnings: Vec<String> = comparisons
+        .iter()
+        .filter(|c| c["worse"].as_bool() == Some(true))
+        .map(|c| {
+            format!(
+                "regression: {} raises the {} over {}: {:.3} → {:.3}",
+                c["stage"].as_str().unwrap_or(""),
+                c["figure"].as_str().unwrap_or(""),
+                c["previous"].as_str().unwrap_or(""),
+                c["before"].as_f64().unwrap_or(f64::NAN),
+                c["after"].as_f64().unwrap_or(f64::NAN)
+            )
+        })
+        .collect();
+    let regressions = warnings.len();
+    let near_improved = match (f(&tre_rigid_stats["near_mm"]), f(&tre_reg_stats["near_mm"])) {
+        (Some(b), Some(a)) => serde_json::json!(a < b),
+        _ => serde_json::Value::Null,
+    };
+    summary["registration_improves_on_rigid_near_incision"] = near_improved.clone();
+    if near_improved.is_null() {
+        summary["registration_improves_on_rigid_near_incision_reason"] = tre_reg_stats["near_mm_reason"].clone();
+    }
+    if outside_tumour > 0 {
+        warnings.push(format!(
+            "{outside_tumour} of {} tumour vertices lie outside the particles (the region of interest is a ball of \
+             {roi_r:.0} mm around the incision): the registration does not carry them, their registered position is \
+             extrapolated from the nearest particle cell (close to the rigid one)",
+            tum_aligned.vertices.len()
+        ));
+    }
+    let reg_m = &stages.iter().find(|s| s.name == "RODS-MPM registration").expect("pushed above").metrics;
+    if let Some(n) = reg_m["surface_group"].as_str() {
+        warnings.push(n.to_string());
+    }
+    for w in reg_m["warnings"].as_array().into_iter().flatten() {
+        if let Some(w) = w.as_str() {
+            warnings.push(format!("registration: {w}"));
+        }
+    }
+    for (i, e) in lip_err.iter().enumerate() {
+        if *e > cfg.spacing_mm {
+            warnings.push(format!(
+                "{} ({} on lips_present.png): its lifted targets are {e:.2} mm from the true lip on average, more than \
+                 one particle spacing ({} mm): the present depth along it is off, and the registration pulls toward it",
+                LIP_NAMES[i], LIP_COLOURS[i], cfg.spacing_mm
+            ));
+        }
+    }
+    summary["stage_comparison"] = comparisons.into();
+    summary["regressions"] = regressions.into();
+    summary["tumour_vertices_outside_particles"] = outside_tumour.into();
+    summary["warnings"] = warnings.into();
     let report = GuideReport {
         scenario: scenario.display().to_string(),
         config: cfg.clone(),
@@ -1090,6 +1247,58 @@ pub fn run(
     write_atomic(&out.join("report.json"), serde_json::to_string_pretty(&report).unwrap_or_default().as_bytes())?;
     crate::report::write_html(out, &report, scenario)?;
     Ok(report)
+}
+
+/// How many of `vertices` lie outside every complete cell of the particle lattice (`particles` at
+/// rest, `spacing_mm` apart): the registration's transfer extrapolates them from the nearest cell
+/// rather than interpolating the particles' motion.
+pub fn vertices_outside_particles(
+    particles: &[Vector3<f64>],
+    spacing_mm: f64,
+    vertices: &[Vector3<f64>],
+) -> Result<usize> {
+    let tr = laparo_register::transfer::Transfer::new(particles, spacing_mm)?;
+    let mut n = 0;
+    for v in vertices {
+        n += tr.apply(v, particles)?.extrapolated as usize;
+    }
+    Ok(n)
+}
+
+/// Names of the two lips (source landmark groups, target polylines), in order.
+pub const LIP_NAMES: [&str; 2] = ["lip 0", "lip 1"];
+/// Colours the lips are drawn in on `lips_present.png`.
+pub const LIP_COLOURS: [&str; 2] = ["cyan", "magenta"];
+const LIP_RGB: [[u8; 3]; 2] = [[0, 255, 255], [255, 0, 255]];
+
+/// A stage's figure against the previous stage's: `worse` when it rose by more than 1 % and 0.01
+/// (lower is better for every figure compared); `null` figures carry a reason.
+pub fn compare(
+    stage: &str,
+    previous: &str,
+    figure: &str,
+    before: Option<f64>,
+    after: Option<f64>,
+) -> serde_json::Value {
+    match (before, after) {
+        (Some(b), Some(a)) if b.is_finite() && a.is_finite() => serde_json::json!({
+            "stage": stage, "previous": previous, "figure": figure, "before": b, "after": a, "change": a - b,
+            "worse": a - b > 0.01 && a > 1.01 * b,
+        }),
+        _ => {
+            let why = "one of the two figures could not be measured (see the stage's own reason)";
+            let mut v = serde_json::json!({
+                "stage": stage, "previous": previous, "figure": figure, "before": before, "after": after,
+                "change": null, "change_reason": why, "worse": null, "worse_reason": why,
+            });
+            for k in ["before", "after"] {
+                if v[k].is_null() {
+                    v[format!("{k}_reason")] = "not measurable at this stage".into();
+                }
+            }
+            v
+        }
+    }
 }
 
 /// Paths of a run (for the CLI).
@@ -1139,6 +1348,40 @@ mod tests {
         let d = outline_distance(&disc(20.0), &disc(26.0)).unwrap();
         assert!((d - 6.0).abs() < 0.8, "{d}");
         assert!(outline_distance(&disc(20.0), &disc(20.0)).unwrap() < 1e-12);
+    }
+
+    #[test]
+    fn vertices_outside_a_particle_lattice_are_counted() {
+        // particles on a 1 mm lattice filling [0, 10]³
+        let mut p = Vec::new();
+        for i in 0..=10 {
+            for j in 0..=10 {
+                for k in 0..=10 {
+                    p.push(Vector3::new(i as f64, j as f64, k as f64));
+                }
+            }
+        }
+        let v = [
+            Vector3::new(5.2, 5.3, 5.4),
+            Vector3::new(0.5, 9.5, 3.5),
+            Vector3::new(20.0, 5.0, 5.0),
+            Vector3::new(5.0, -3.0, 5.0),
+            Vector3::new(10.6, 5.0, 5.0),
+        ];
+        assert_eq!(vertices_outside_particles(&p, 1.0, &v).unwrap(), 3);
+        assert_eq!(vertices_outside_particles(&p, 1.0, &v[..2]).unwrap(), 0);
+    }
+
+    #[test]
+    fn stage_comparison_flags_a_rise_only() {
+        let c = compare("b", "a", "TRE (mm)", Some(0.90), Some(0.96));
+        assert_eq!(c["worse"], true);
+        assert!((c["change"].as_f64().unwrap() - 0.06).abs() < 1e-12);
+        assert_eq!(compare("b", "a", "TRE (mm)", Some(0.96), Some(0.90))["worse"], false);
+        // within 1 % and 0.01: equal, not a regression
+        assert_eq!(compare("b", "a", "TRE (mm)", Some(0.900), Some(0.905))["worse"], false);
+        let n = compare("b", "a", "outline (px)", None, Some(3.0));
+        assert!(n["worse"].is_null() && n["worse_reason"].is_string() && n["before_reason"].is_string());
     }
 
     #[test]

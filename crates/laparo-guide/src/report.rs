@@ -10,12 +10,101 @@ fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
+/// A figure for the page: integers as integers (counts), other numbers to 3 decimals (0 at ≥ 100),
+/// booleans as yes/no, a missing figure as "n/a".
 fn num(v: &serde_json::Value) -> String {
-    match v.as_f64() {
-        Some(x) if x.abs() >= 100.0 => format!("{x:.0}"),
-        Some(x) => format!("{x:.3}"),
-        None => esc(&v.to_string()),
+    if let Some(i) = v.as_u64() {
+        return i.to_string();
     }
+    if let Some(i) = v.as_i64() {
+        return i.to_string();
+    }
+    match v {
+        serde_json::Value::Bool(b) => (if *b { "yes" } else { "no" }).into(),
+        serde_json::Value::Null => "n/a".into(),
+        _ => match v.as_f64() {
+            Some(x) if x.abs() >= 100.0 => format!("{x:.0}"),
+            Some(x) => format!("{x:.3}"),
+            None => esc(&v.to_string()),
+        },
+    }
+}
+
+/// `num(obj[key])`, followed by "(not measurable: reason)" when `obj[key_reason]` says why it is missing.
+fn fig(obj: &serde_json::Value, key: &str) -> String {
+    match obj[format!("{key}_reason")].as_str() {
+        Some(r) if obj[key].is_null() => format!("n/a (not measurable: {})", esc(r)),
+        _ => num(&obj[key]),
+    }
+}
+
+/// The warnings of a route's summary as an HTML list (empty when there is none).
+fn warnings_html(summary: &serde_json::Value) -> String {
+    let w: Vec<&str> = summary["warnings"].as_array().into_iter().flatten().filter_map(|w| w.as_str()).collect();
+    if w.is_empty() {
+        return String::new();
+    }
+    let mut h = format!(
+        "<div style=\"border:2px solid #c00;padding:4px 12px;background:#fff4f4\"><b>{} warning{}</b><ul>",
+        w.len(),
+        if w.len() == 1 { "" } else { "s" }
+    );
+    for x in w {
+        h.push_str(&format!("<li>{}</li>", esc(x)));
+    }
+    h.push_str("</ul></div>\n");
+    h
+}
+
+/// The table of every stage against the one before (`summary.stage_comparison`).
+fn comparison_html(summary: &serde_json::Value) -> String {
+    let mut h = String::from(
+        "<h2>Each stage against the one before</h2><table><tr><th>stage</th><th>previous</th><th>figure</th><th>before</th><th>after</th><th>change</th><th>verdict</th></tr>\n",
+    );
+    for c in summary["stage_comparison"].as_array().into_iter().flatten() {
+        let verdict = match c["worse"].as_bool() {
+            Some(true) => "<b style=\"color:#c00\">WORSE</b>".to_string(),
+            Some(false) => "better or equal".to_string(),
+            None => format!("n/a ({})", esc(c["worse_reason"].as_str().unwrap_or(""))),
+        };
+        let change = c["change"].as_f64().map_or("n/a".into(), |d| format!("{d:+.3}"));
+        h.push_str(&format!(
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{change}</td><td>{verdict}</td></tr>\n",
+            esc(c["stage"].as_str().unwrap_or("")),
+            esc(c["previous"].as_str().unwrap_or("")),
+            esc(c["figure"].as_str().unwrap_or("")),
+            num(&c["before"]),
+            num(&c["after"])
+        ));
+    }
+    h.push_str("</table>\n");
+    match summary["registration_improves_on_rigid_near_incision"].as_bool() {
+        Some(true) => {
+            h.push_str("<p>The deformable registration improves on the rigid alignment near the incision.</p>\n")
+        }
+        Some(false) => h.push_str(
+            "<p><b>The deformable registration does not improve on the rigid alignment near the incision.</b></p>\n",
+        ),
+        None => h.push_str(&format!(
+            "<p>Near the incision the two cannot be compared: {}.</p>\n",
+            esc(summary["registration_improves_on_rigid_near_incision_reason"].as_str().unwrap_or("no figure"))
+        )),
+    }
+    h
+}
+
+/// "lip 0 (cyan): 0.412 mm; lip 1 (magenta): 13.0 mm" from a stage's `lips` list and one of its fields.
+fn lips_text(m: &serde_json::Value, key: &str, unit: &str) -> String {
+    m["lips"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(|l| {
+            let colour = l["colour"].as_str().map_or(String::new(), |c| format!(" ({c})"));
+            format!("{}{colour}: {}{unit}", esc(l["lip"].as_str().unwrap_or("?")), num(&l[key]))
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// Copy the scenario inputs shown in the report into `out/inputs/` and write `out/report.html`.
@@ -39,13 +128,14 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
         r.total_seconds,
         r.peak_memory_mib.map_or("?".into(), |m| format!("{m:.0}"))
     ));
+    h.push_str(&warnings_html(&r.summary));
     h.push_str("<h2>Stage errors and times</h2><table><tr><th>stage</th><th>time (s)</th><th>errors against the ground truth</th></tr>\n");
     for s in &r.stages {
         let m = &s.metrics;
         let e = match s.name.as_str() {
             n if n.starts_with("stereo") => format!(
                 "depth |error| mean {} mm, median {} mm, p95 {} mm, coverage {} of the liver",
-                num(&m["depth_error"]["mean_abs_mm"]),
+                fig(&m["depth_error"], "mean_abs_mm"),
                 num(&m["depth_error"]["median_abs_mm"]),
                 num(&m["depth_error"]["p95_abs_mm"]),
                 num(&m["depth_error"]["coverage"])
@@ -58,7 +148,12 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
                 num(&m["initial_mean_vertex_error_mm"]),
                 num(&m["initial_rotation_error_deg"])
             ),
-            "target lips" => format!("lifted lips to the true lips: {} mm", esc(&m["mean_distance_to_true_lip_mm"].to_string())),
+            "source landmarks" => format!("points per lip: {}", lips_text(m, "points", "")),
+            "target lips" => format!(
+                "lifted lip to the true lip, mean: {}; points without depth: {}",
+                lips_text(m, "mean_distance_to_true_lip_mm", " mm"),
+                lips_text(m, "points_without_depth", "")
+            ),
             "RODS-MPM registration" => format!(
                 "mean landmark distance {} → {} mm, {} particles, {} iterations",
                 num(&m["mean_landmark_distance_mm"][0]),
@@ -67,17 +162,19 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
                 num(&m["iterations"])
             ),
             "transfer + evaluation" => format!(
-                "TRE mean {} / near {} / far {} mm (rigid only: {} / {} / {}); tumour centroid {} mm (rigid only {}); outline {} px @1920 (rigid only {})",
-                num(&m["tre_registered"]["mean_mm"]),
-                num(&m["tre_registered"]["near_mm"]),
-                num(&m["tre_registered"]["far_mm"]),
-                num(&m["tre_rigid_only"]["mean_mm"]),
-                num(&m["tre_rigid_only"]["near_mm"]),
-                num(&m["tre_rigid_only"]["far_mm"]),
+                "TRE mean {} / near {} / far {} mm (rigid only: {} / {} / {}); tumour centroid {} mm (rigid only {}); outline {} px @1920 (rigid only {}); tumour vertices outside the particles: {} of {}",
+                fig(&m["tre_registered"], "mean_mm"),
+                fig(&m["tre_registered"], "near_mm"),
+                fig(&m["tre_registered"], "far_mm"),
+                fig(&m["tre_rigid_only"], "mean_mm"),
+                fig(&m["tre_rigid_only"], "near_mm"),
+                fig(&m["tre_rigid_only"], "far_mm"),
                 num(&m["tumour_centroid_error_mm"]),
                 num(&m["tumour_centroid_error_rigid_only_mm"]),
-                num(&m["tumour_outline_error_px_1920"]),
-                num(&m["tumour_outline_error_rigid_only_px_1920"])
+                fig(m, "tumour_outline_error_px_1920"),
+                fig(m, "tumour_outline_error_rigid_only_px_1920"),
+                num(&m["tumour_vertices_outside_particles"]),
+                num(&m["tumour_vertices"])
             ),
             _ => String::new(),
         };
@@ -91,8 +188,13 @@ pub fn write_html(out: &Path, r: &GuideReport, scenario: &Path) -> Result<()> {
     h.push_str("</table>\n");
     let slowest =
         r.stages.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds)).map(|s| s.name.clone()).unwrap_or_default();
-    h.push_str(&format!("<p>Goals (issue 16): tumour centroid ≤ 3 mm: <b>{}</b>; projected outline ≤ 10 px at 1920×1080: <b>{}</b>. Slowest stage: {}.</p>\n",
-        r.summary["goals"]["tumour_centroid_within_3mm"], r.summary["goals"]["outline_within_10px"], esc(&slowest)));
+    h.push_str(&format!(
+        "<p>Goals: tumour centroid ≤ 3 mm: <b>{}</b>; projected outline ≤ 10 px at 1920×1080: <b>{}</b>. Slowest stage: {}.</p>\n",
+        num(&r.summary["goals"]["tumour_centroid_within_3mm"]),
+        fig(&r.summary["goals"], "outline_within_10px"),
+        esc(&slowest)
+    ));
+    h.push_str(&comparison_html(&r.summary));
     h.push_str("<h2>1. Stereo pairs (input)</h2>");
     h.push_str(&img("inputs/past_left.png", "past left (before the incision)"));
     h.push_str(&img("inputs/past_right.png", "past right (uncalibrated: rotated, principal point shifted)"));
@@ -133,8 +235,8 @@ pub fn write_index(out: &Path, r: &crate::end_to_end::EndToEndReport, routes: &[
     h.push_str(&format!(
         "<p>Incision: <b>{}</b>; FEM ground truth (TET10 Neo-Hookean, E 4.1 kPa, ν 0.49, calibrated crack pressure): {} nodes / {} tetrahedra at {} mm, lip gap {} mm at {} kPa, max |u| {} mm, min J {}. Total {:.1} s, peak memory {} MiB.</p>\n",
         esc(&r.config.incision),
-        g["mesh"]["nodes"],
-        g["mesh"]["tets"],
+        num(&g["mesh"]["nodes"]),
+        num(&g["mesh"]["tets"]),
         r.config.edge_mm,
         num(&g["report"]["max_gap_mm"]),
         num(&g["report"]["pressure_kpa"]),
@@ -172,6 +274,16 @@ pub fn write_index(out: &Path, r: &crate::end_to_end::EndToEndReport, routes: &[
     for (label, key) in rows {
         h.push_str(&format!("<tr><td>{}</td>", esc(label)));
         for (_, g) in routes {
+            h.push_str(&format!("<td>{}</td>", fig(&g.summary, key)));
+        }
+        h.push_str("</tr>\n");
+    }
+    for (label, key) in [
+        ("regressions over the previous stage", "regressions"),
+        ("tumour vertices outside the particles", "tumour_vertices_outside_particles"),
+    ] {
+        h.push_str(&format!("<tr><td>{}</td>", esc(label)));
+        for (_, g) in routes {
             h.push_str(&format!("<td>{}</td>", num(&g.summary[key])));
         }
         h.push_str("</tr>\n");
@@ -185,8 +297,25 @@ pub fn write_index(out: &Path, r: &crate::end_to_end::EndToEndReport, routes: &[
         ));
     }
     h.push_str("</tr></table>\n");
-    if let Some(d) = r.tre_difference_mm {
-        h.push_str(&format!("<p>Final TRE, self-rectified minus calibrated: <b>{d:+.2} mm</b>.</p>\n"));
+    match (r.tre_difference_mm, &r.tre_difference_reason) {
+        (Some(d), _) => h.push_str(&format!("<p>Final TRE, self-rectified minus calibrated: <b>{d:+.2} mm</b>.</p>\n")),
+        (None, Some(why)) => {
+            h.push_str(&format!("<p>Final TRE difference between the routes: n/a ({}).</p>\n", esc(why)))
+        }
+        (None, None) => {}
+    }
+    for (name, g) in routes {
+        let w = warnings_html(&g.summary);
+        if !w.is_empty() {
+            h.push_str(&format!("<h3>{name}</h3>{w}"));
+        }
+        if g.summary["registration_improves_on_rigid_near_incision"].as_bool() == Some(false) {
+            h.push_str(&format!(
+                "<p><b>{name}: the deformable registration does not improve on the rigid alignment near the incision</b> ({} → {} mm).</p>\n",
+                num(&g.summary["tre_rigid_only_near_mm"]),
+                num(&g.summary["tre_near_mm"])
+            ));
+        }
     }
     h.push_str("<h2>Overlays</h2>");
     for (name, _) in routes {

@@ -74,8 +74,11 @@ impl ScenarioConfig {
     }
 }
 
-/// A rigid pose `X_cam = R X_model + t` (mm).
+/// A rigid pose `X_cam = R X_model + t` (mm). In JSON it is laparo's one transform form
+/// (`laparo_core::se3::transform_json`: `{"R": 3 rows, "t_mm", "scale": 1, "T": 4x4 rows}`), under a key
+/// that names the direction (`model_to_camera`); it is read back by `laparo_core::se3::transform_from_json`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "serde_json::Value", into = "serde_json::Value")]
 pub struct Pose {
     /// Rotation (rows).
     pub rotation: [[f64; 3]; 3],
@@ -110,6 +113,47 @@ impl Pose {
     }
 }
 
+impl From<Pose> for serde_json::Value {
+    fn from(p: Pose) -> Self {
+        laparo_core::se3::transform_json(&p.r(), &p.t(), 1.0)
+    }
+}
+
+impl TryFrom<serde_json::Value> for Pose {
+    type Error = laparo_core::CoreError;
+    fn try_from(v: serde_json::Value) -> std::result::Result<Self, Self::Error> {
+        let rec = laparo_core::se3::transform_from_json(&v, "model_to_camera", "pose")?;
+        let se3 = rec.to_se3_mm(laparo_core::DepthUnit::Mm, "pose (model_to_camera)")?;
+        Ok(Pose::new(se3.rotation.to_rotation_matrix().matrix(), &se3.translation.vector))
+    }
+}
+
+/// Whether `p` lies inside the closed triangle surface `m`: the parity of the crossings of a ray from
+/// `p`, in three oblique directions, by majority (a ray through an edge or a vertex can miscount once).
+pub fn point_inside_closed_surface(p: &Vector3<f64>, m: &TriMesh) -> bool {
+    let dirs = [
+        Vector3::new(0.5377, 0.8622, 0.3188),
+        Vector3::new(-0.6917, 0.1234, 0.7116),
+        Vector3::new(0.2113, -0.9012, -0.3784),
+    ];
+    let odd = dirs
+        .iter()
+        .filter(|d| {
+            let d = d.normalize();
+            let hits = m
+                .faces
+                .iter()
+                .filter(|f| {
+                    laparo_core::geometry::ray_triangle(p, &d, &m.vertices[f[0]], &m.vertices[f[1]], &m.vertices[f[2]])
+                        .is_some_and(|t| t > 0.0)
+                })
+                .count();
+            hits % 2 == 1
+        })
+        .count();
+    odd >= 2
+}
+
 /// `scenario.json`: what the pipeline reads (inputs) and where the ground truth is.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Manifest {
@@ -122,6 +166,7 @@ pub struct Manifest {
     /// Depth range the surgeon expects (mm): a prior for the disparity search, not ground truth.
     pub depth_prior_mm: [f64; 2],
     /// Ground-truth organ pose (model → left camera).
+    #[serde(rename = "gt_model_to_camera", alias = "gt_pose")]
     pub gt_pose: Pose,
     /// Tumour centre at rest, model frame (mm).
     pub tumour_centre_model_mm: [f64; 3],
@@ -323,6 +368,19 @@ pub fn generate(
     let t = Vector3::new(-cc[0], -cc[1], dist - cc[2]);
     let gt_pose = Pose::new(&r, &t);
     let vl = View { k, r, t };
+    // a camera inside the organ sees nothing but liver (every pixel) and no incision: refuse it
+    for (name, centre_cam) in [("left", Vector3::zeros()), ("right", Vector3::new(cfg.baseline_mm, 0.0, 0.0))] {
+        let c = r.transpose() * (centre_cam - t);
+        if point_inside_closed_surface(&c, &surface) {
+            return Err(bad(
+                organ,
+                format!(
+                    "the virtual {name} camera is inside the organ: its centre ({:.1}, {:.1}, {:.1}) mm (model frame),                      {dist} mm from the incision's middle, lies within the surface (bounding box {:.0} x {:.0} x {:.0} mm),                      so every pixel would be liver. The organ is too large for the scenario's {dist} mm viewing                      distance, or not in millimetres",
+                    c[0], c[1], c[2], ext[0], ext[1], ext[2]
+                ),
+            ));
+        }
+    }
     // right camera: X_right = R_rl X_left + T, centre at (b, 0, 0) in the left frame
     let e = cfg.right_euler_deg;
     let r_rl = laparo_core::se3::rotation_zyx(e[0].to_radians(), e[1].to_radians(), e[2].to_radians());
@@ -463,7 +521,7 @@ pub fn generate(
     let c_cam = r * c_model + t;
     let r_init = dr * r;
     let t_init = c_cam - r_init * c_model + Vector3::new(0.48, 0.6, -0.64) * cfg.initial_error[1];
-    json_write(&out.join("initial_pose.json"), &Pose::new(&r_init, &t_init))?;
+    json_write(&out.join("initial_pose.json"), &serde_json::json!({"model_to_camera": Pose::new(&r_init, &t_init)}))?;
     // manifest
     let disp: Vec<f64> = def.deformed.iter().zip(&def.rest.vertices).map(|(a, b)| (a - b).norm()).collect();
     let manifest = Manifest {

@@ -166,12 +166,13 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
     copy_dir(&sc, &bad);
     let p: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(bad.join("initial_pose.json")).unwrap()).unwrap();
-    let r: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| p["rotation"][i][j].as_f64().unwrap()).collect()).collect();
+    let p = &p["model_to_camera"];
+    let r: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| p["R"][i][j].as_f64().unwrap()).collect()).collect();
     let (c, s7) = (70f64.to_radians().cos(), 70f64.to_radians().sin());
     let rz = [[c, -s7, 0.0], [s7, c, 0.0], [0.0, 0.0, 1.0]];
     let rr: Vec<Vec<f64>> =
         (0..3).map(|i| (0..3).map(|j| (0..3).map(|k| rz[i][k] * r[k][j]).sum()).collect()).collect();
-    let body = serde_json::json!({"rotation": rr, "translation_mm": p["translation_mm"]});
+    let body = serde_json::json!({"model_to_camera": {"R": rr, "t_mm": p["t_mm"]}});
     std::fs::write(bad.join("initial_pose.json"), body.to_string()).unwrap();
     let o = laparo(&[
         "guide",
@@ -244,6 +245,29 @@ fn end_to_end_one_command_with_the_fem_ground_truth() {
     let gap = s["ground_truth"]["report"]["max_gap_mm"].as_f64().unwrap();
     assert!((10.0..=15.0).contains(&gap), "FEM lip gap {gap} mm");
     assert!(s["ground_truth"]["report"]["min_j"].as_f64().unwrap() > 0.0);
+    // no bare null in summary.json: every missing figure has a `<key>_reason` beside it (issue 50)
+    fn bare_nulls(v: &serde_json::Value, path: &str, out: &mut Vec<String>) {
+        match v {
+            serde_json::Value::Object(m) => {
+                for (k, x) in m {
+                    if x.is_null() && !m.get(&format!("{k}_reason")).is_some_and(|r| r.is_string()) {
+                        out.push(format!("{path}.{k}"));
+                    }
+                    bare_nulls(x, &format!("{path}.{k}"), out);
+                }
+            }
+            serde_json::Value::Array(a) => {
+                for (i, x) in a.iter().enumerate() {
+                    bare_nulls(x, &format!("{path}[{i}]"), out);
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut nulls = Vec::new();
+    bare_nulls(&s, "summary", &mut nulls);
+    assert!(nulls.is_empty(), "nulls without a reason in summary.json: {nulls:?}");
+    assert!(s["tre_difference_reason"].is_string(), "one route: the TRE difference says why it is missing");
     let r = &s["routes"][0]["summary"];
     for k in ["rigid_mean_vertex_error_mm", "tre_mean_mm", "tre_near_mm", "tumour_centroid_error_mm"] {
         let v = r[k].as_f64().unwrap_or(f64::NAN);

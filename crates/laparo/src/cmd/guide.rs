@@ -78,10 +78,11 @@ pub enum GuideSub {
         /// Preoperative model (mm, model frame).
         #[arg(long)]
         model: PathBuf,
-        /// Initial pose JSON (rotation rows, translation_mm: model → camera).
+        /// Initial pose JSON, model → camera: {"model_to_camera": {"R": 3 rows, "t_mm": [x, y, z]}} or
+        /// {"T": 4x4 rows} (the form every laparo transform is written in; see laparo-core `se3`).
         #[arg(long)]
         initial_pose: PathBuf,
-        /// Output pose JSON.
+        /// Output JSON: the estimated pose under "model_to_camera" (the same form), ICP RMSE and iterations.
         #[arg(long)]
         out: PathBuf,
     },
