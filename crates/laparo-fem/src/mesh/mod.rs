@@ -21,4 +21,6 @@ pub use scenario::{
     AnatomicalParams, NonAnatomicalParams, Scenario, ScenarioFrame, Sphere, P2ILF_ANTERIOR, P2ILF_CONTOUR_VERTICES,
     THICKNESS_WINDOW_MM,
 };
-pub use tetra::{quality_report, tetrahedralize, tetrahedralize_surface, Percentile, QualityReport, TetraParams};
+pub use tetra::{
+    orient_outward, quality_report, tetrahedralize, tetrahedralize_surface, Percentile, QualityReport, TetraParams,
+};

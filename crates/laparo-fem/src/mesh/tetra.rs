@@ -79,6 +79,14 @@ pub struct QualityReport {
     pub max_boundary_distance_mm: Option<f64>,
     /// Mean distance of boundary nodes to the input surface (mm), if given.
     pub mean_boundary_distance_mm: Option<f64>,
+    /// Faces of the input surface that [`tetrahedralize_surface`] flipped to orient it consistently and
+    /// outward (0: it already was).
+    #[serde(default)]
+    pub orientation_flipped_faces: usize,
+    /// What the caller should tell the user: a re-oriented surface, a tet volume far from the surface
+    /// volume, an organ only a few elements across (units?).
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 fn corners(m: &TetMesh, t: &[usize; 4]) -> [V3; 4] {
@@ -324,13 +332,151 @@ pub fn quality_report(mesh: &TetMesh, surface: Option<&Surface>) -> QualityRepor
         boundary_faces: boundary.faces.len(),
         max_boundary_distance_mm: dmaxb,
         mean_boundary_distance_mm: dmeanb,
+        orientation_flipped_faces: 0,
+        warnings: Vec::new(),
     }
 }
 
-/// Check the closed surface `mesh` (named `input` in errors), tetrahedralise it and report quality.
-pub fn tetrahedralize_surface(mesh: TriMesh, input: &str, params: &TetraParams) -> Result<(TetMesh, QualityReport)> {
+/// Re-orient the faces of the closed surface `mesh` consistently (neighbouring faces traverse their
+/// shared edge in opposite directions), each connected piece outward (positive enclosed volume).
+/// Returns the number of faces flipped, or `None` when no consistent orientation exists (a
+/// non-orientable or non-manifold surface; `mesh` is then left as it was).
+pub fn orient_outward(mesh: &mut TriMesh) -> Option<usize> {
+    use std::collections::HashMap;
+    let mut by_edge: HashMap<(usize, usize), Vec<usize>> = HashMap::with_capacity(mesh.faces.len() * 3 / 2);
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(fi);
+        }
+    }
+    // +1 when face `f` (as given) runs a → b, −1 when it runs b → a
+    let dir = |f: &[usize; 3], a: usize, b: usize| -> f64 {
+        if (0..3).any(|k| f[k] == a && f[(k + 1) % 3] == b) {
+            1.0
+        } else {
+            -1.0
+        }
+    };
+    let n = mesh.faces.len();
+    let mut sign = vec![0.0f64; n];
+    for seed in 0..n {
+        if sign[seed] != 0.0 {
+            continue;
+        }
+        sign[seed] = 1.0;
+        let mut component = vec![seed];
+        let mut queue = std::collections::VecDeque::from([seed]);
+        while let Some(fi) = queue.pop_front() {
+            let f = mesh.faces[fi];
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                let nb = &by_edge[&(a.min(b), a.max(b))];
+                if nb.len() != 2 {
+                    return None;
+                }
+                for &g in nb.iter().filter(|&&g| g != fi) {
+                    // the two faces must run their shared edge in opposite directions
+                    let want = -dir(&f, a, b) * sign[fi] * dir(&mesh.faces[g], a, b);
+                    if sign[g] == 0.0 {
+                        sign[g] = want;
+                        component.push(g);
+                        queue.push_back(g);
+                    } else if sign[g] != want {
+                        return None;
+                    }
+                }
+            }
+        }
+        // outward: the piece encloses a positive volume
+        let vol: f64 = component
+            .iter()
+            .map(|&fi| {
+                let f = mesh.faces[fi];
+                let (p, q, r) = (mesh.vertices[f[0]], mesh.vertices[f[1]], mesh.vertices[f[2]]);
+                sign[fi] * p.dot(&q.cross(&r)) / 6.0
+            })
+            .sum();
+        if vol < 0.0 {
+            for &fi in &component {
+                sign[fi] = -sign[fi];
+            }
+        }
+    }
+    let mut flipped = 0;
+    for (f, s) in mesh.faces.iter_mut().zip(&sign) {
+        if *s < 0.0 {
+            f.swap(1, 2);
+            flipped += 1;
+        }
+    }
+    Some(flipped)
+}
+
+/// A tet volume further than this from the surface volume (relative) is a warning.
+pub const VOLUME_WARNING_FRACTION: f64 = 0.03;
+
+/// An organ fewer elements across than this (its smallest bounding-box side / edge) gets a units hint.
+pub const FEW_ELEMENTS_ACROSS: f64 = 4.0;
+
+/// Check the closed surface `mesh` (named `input` in errors), orient it consistently and outward
+/// ([`orient_outward`], said in the report's warnings when it flipped faces), tetrahedralise it and
+/// report quality, with warnings when the tet volume is more than [`VOLUME_WARNING_FRACTION`] from
+/// the surface volume or the organ is fewer than [`FEW_ELEMENTS_ACROSS`] elements across.
+pub fn tetrahedralize_surface(
+    mut mesh: TriMesh,
+    input: &str,
+    params: &TetraParams,
+) -> Result<(TetMesh, QualityReport)> {
+    mesh.validate().map_err(|e| FemError::bad(input, e.to_string()))?;
+    super::geom::check_closed(&mesh, input)?;
+    let mut warnings = Vec::new();
+    let flipped = match orient_outward(&mut mesh) {
+        Some(0) => 0,
+        Some(k) => {
+            warnings.push(format!(
+                "{input}: {k} of {} faces were wound against their neighbours (or the surface was inside out); \
+                 re-oriented consistently and outward before meshing (the enclosed volume is now {:.0} mm³)",
+                mesh.faces.len(),
+                mesh.signed_volume()
+            ));
+            k
+        }
+        None => {
+            warnings.push(format!(
+                "{input}: the faces cannot be oriented consistently (non-manifold or non-orientable surface): \
+                 the surface volume below is unreliable"
+            ));
+            0
+        }
+    };
+    let (lo, hi) = mesh.bounding_box().ok_or_else(|| FemError::bad(input, "empty surface"))?;
     let surface = Surface::new(mesh, input)?;
     let tets = tetrahedralize(&surface, params)?;
-    let report = quality_report(&tets, Some(&surface));
+    let mut report = quality_report(&tets, Some(&surface));
+    report.orientation_flipped_faces = flipped;
+    if let (Some(err), Some(sv)) = (report.volume_rel_error, report.surface_volume_mm3) {
+        if err.abs() > VOLUME_WARNING_FRACTION {
+            warnings.push(format!(
+                "{input}: the tetrahedra hold {:.0} mm³, the surface encloses {sv:.0} mm³ ({:+.1} %, more than \
+                 {:.0} %): the mesh does not represent the organ (--edge-mm {} too coarse for it?)",
+                report.volume_mm3,
+                100.0 * err,
+                100.0 * VOLUME_WARNING_FRACTION,
+                params.edge_mm
+            ));
+        }
+    }
+    let ext = hi - lo;
+    let across = ext.min() / params.edge_mm;
+    if across < FEW_ELEMENTS_ACROSS {
+        warnings.push(format!(
+            "{input}: the organ is {:.1} x {:.1} x {:.1} (file units, read as mm), only {across:.1} elements of \
+             --edge-mm {} across its thinnest side ({} tetrahedra): is the surface in cm or m? (the SOFA liver \
+             is in cm: scale it by 10), or use a smaller --edge-mm",
+            ext[0], ext[1], ext[2], params.edge_mm, report.tets
+        ));
+    }
+    report.warnings = warnings;
     Ok((tets, report))
 }

@@ -247,6 +247,9 @@ fn tetra_cmd(surface: &Path, edge_mm: f64, min_dihedral_deg: f64, out: &Path, re
         q.max_boundary_distance_mm.unwrap_or(f64::NAN),
         secs
     );
+    for w in &q.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok(())
 }
 
