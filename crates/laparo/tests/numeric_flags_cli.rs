@@ -181,7 +181,8 @@ fn cpc_eval_refuses_malformed_and_impossible_poses() {
         f(&mut p["view2"]["cam_from_world"]);
         run(&p)
     };
-    let cases: Vec<(Box<dyn Fn(&mut serde_json::Value)>, &str)> = vec![
+    type Edit = Box<dyn Fn(&mut serde_json::Value)>;
+    let cases: Vec<(Edit, &str)> = vec![
         (Box::new(|c| c["R"][0][1] = "0".into()), "view2.cam_from_world.R[0][1]"),
         (Box::new(|c| c["R"][1][2] = serde_json::Value::Null), "view2.cam_from_world.R[1][2]"),
         (Box::new(|c| c["R"][2].as_array_mut().unwrap().push(0.into())), "ragged"),

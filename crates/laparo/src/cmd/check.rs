@@ -58,14 +58,14 @@ pub fn comparable_clouds(a: (&str, &[nalgebra::Vector3<f64>]), b: (&str, &[nalge
     let size = |(name, pts): (&str, &[nalgebra::Vector3<f64>])| -> Result<f64> {
         let (mut lo, mut hi) = (nalgebra::Vector3::repeat(f64::INFINITY), nalgebra::Vector3::repeat(f64::NEG_INFINITY));
         for (i, p) in pts.iter().enumerate() {
-            if let Some(x) = p.iter().find(|x| !(x.abs() <= MAX_COORD_MM)) {
+            if let Some(x) = p.iter().find(|x| x.is_nan() || x.abs() > MAX_COORD_MM) {
                 bail!("{name}: point {i} has the coordinate {x:e}, beyond ±{MAX_COORD_MM:e} mm (wrong units?)");
             }
             lo = lo.inf(p);
             hi = hi.sup(p);
         }
         let d = (hi - lo).norm();
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             bail!("{name}: all {} points coincide (no extent)", pts.len());
         }
         Ok(d)

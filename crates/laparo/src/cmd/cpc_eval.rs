@@ -263,7 +263,7 @@ fn check_pose_sees(path: &Path, view: &str, pose: &Se3, other: &LoadedView) -> R
         return Ok(());
     }
     let (z_own, z_here) = (laparo_core::stats::median(&mut own), laparo_core::stats::median(&mut here));
-    if !(z_here > 0.05 * z_own) {
+    if z_here.is_nan() || z_here <= 0.05 * z_own {
         bail!(
             "poses {}: {view}.cam_from_world puts the other view's surface at a median depth of {z_here:.3} mm (it is \
              {z_own:.3} mm from its own camera): the scene is behind or around this camera; check the sign of t_mm \

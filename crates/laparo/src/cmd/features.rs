@@ -215,7 +215,7 @@ pub fn read_homography(p: &Path) -> Result<[[f64; 3]; 3]> {
     let h: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| flat[3 * i + j] / big));
     let sv = nalgebra::Matrix3::from_fn(|i, j| h[i][j]).singular_values();
     let cond = sv.max() / sv.min();
-    if !(cond < 1e12) {
+    if cond.is_nan() || cond >= 1e12 {
         bail!("{what}: singular or ill-conditioned (condition number {cond:.3e}; an image homography has far less)");
     }
     invert_h(&h).with_context(|| what.clone())?;
