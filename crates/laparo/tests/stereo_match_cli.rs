@@ -46,7 +46,7 @@ fn texture(w: usize, h: usize, seed: u64) -> Vec<f64> {
 fn pair(dir: &Path, d: i64, dy: i64) -> (std::path::PathBuf, std::path::PathBuf) {
     let (w, h) = (160usize, 96usize);
     let big = texture(w + 40, h + 8, 7);
-    let at = |x: i64, y: i64| big[(y as usize + 4) * (w + 40) + (x as usize + 20)];
+    let at = |x: i64, y: i64| big[(y + 4) as usize * (w + 40) + (x + 20) as usize];
     let mut l = Image::filled(w, h, 1, 0u8);
     let mut r = Image::filled(w, h, 1, 0u8);
     for y in 0..h as i64 {
