@@ -161,11 +161,10 @@ pub fn texture(name: &str) -> Texture {
     }
 }
 
+/// A world → camera pose in laparo's one transform form (`laparo_core::se3::se3_json`: "R" rows, "t_mm",
+/// "scale", "T"), under the key `cam_from_world`.
 fn pose_json(p: &Se3) -> Value {
-    let r = p.rotation.to_rotation_matrix();
-    let t = p.translation.vector;
-    json!({"R": [[r[(0,0)], r[(0,1)], r[(0,2)]], [r[(1,0)], r[(1,1)], r[(1,2)]], [r[(2,0)], r[(2,1)], r[(2,2)]]],
-           "t_mm": [t.x, t.y, t.z]})
+    laparo_core::se3::se3_json(p)
 }
 
 fn write_view(out: &Path, i: usize, sc: &Scene) -> Result<()> {
