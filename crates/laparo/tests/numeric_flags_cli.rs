@@ -221,3 +221,45 @@ fn register_rigid_refuses_a_source_in_other_units_without_blaming_landmarks() {
         laparo_within(&["register", "rigid", "--source", "s.obj", "--target", "t.obj", "--out", "o"], d, 30);
     assert!(!ok && err.contains("1000x") && !err.contains("landmarks"), "{err}");
 }
+
+#[test]
+fn fem_solve_refuses_absurd_loads_and_duplicated_tetrahedra() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let vtk = |cells: &[&str]| {
+        format!(
+            "# vtk DataFile Version 2.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n\
+             0 0 0\n10 0 0\n0 10 0\n0 0 10\n0 0 -10\nCELLS {} {}\n{}\nCELL_TYPES {}\n{}\n",
+            cells.len(),
+            5 * cells.len(),
+            cells.join("\n"),
+            cells.len(),
+            vec!["10"; cells.len()].join("\n")
+        )
+    };
+    std::fs::write(d.join("two.vtk"), vtk(&["4 0 1 2 3", "4 0 2 1 4"])).unwrap();
+    std::fs::write(d.join("dup.vtk"), vtk(&["4 0 1 2 3", "4 0 2 1 4", "4 1 0 2 3"])).unwrap();
+    std::fs::write(d.join("fixed.json"), r#"{"vertices": [0, 1, 2, 4]}"#).unwrap();
+    let loads = |f: &str| {
+        std::fs::write(
+            d.join("loads.json"),
+            format!(r#"{{"nodal_forces": [{{"vertex": 3, "force_mn": [0, 0, {f}]}}]}}"#),
+        )
+        .unwrap()
+    };
+    let solve = |mesh: &str| {
+        laparo_within(
+            &["fem", "solve", "--mesh", mesh, "--fixed", "fixed.json", "--loads", "loads.json", "--out", "o"],
+            d,
+            60,
+        )
+    };
+    loads("-1e300");
+    let (ok, err) = solve("two.vtk");
+    assert!(!ok && err.contains("loads.json") && err.contains("absurd"), "{err}");
+    loads("1");
+    let (ok, err) = solve("dup.vtk");
+    assert!(!ok && err.contains("--mesh dup.vtk") && err.contains("duplicated element"), "{err}");
+    let (ok, err) = solve("two.vtk");
+    assert!(ok, "{err}");
+}
