@@ -194,6 +194,9 @@ pub fn read_targets(path: &Path, groups: &[SourceGroup]) -> Result<Vec<TargetSpe
     if mesh.vertices.is_empty() {
         return Err(bad(path, "empty target (no vertex)"));
     }
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        checked_point(&[v[0], v[1], v[2]], path, &format!("vertex {i}"))?;
+    }
     let spec = if mesh.faces.is_empty() {
         TargetSpec::Cloud(mesh.vertices.clone())
     } else {

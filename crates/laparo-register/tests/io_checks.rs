@@ -28,4 +28,11 @@ fn json_targets_refuse_points_absurdly_far() {
     assert!(e.contains("t.json") && e.contains("groups[0].points[2]") && e.contains("beyond"), "{e}");
     std::fs::write(&t, r#"{"groups": [{"name": "a", "points": [[0, 0, 0], [1, 0, 0], [0, 1, 10]]}]}"#).unwrap();
     assert!(read_targets(&t, &groups).is_ok());
+    // a target surface (OBJ) 1e15 mm away
+    let obj = dir.path().join("t.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 1e15\nf 1 2 3\n").unwrap();
+    let e = read_targets(&obj, &groups).unwrap_err().to_string();
+    assert!(e.contains("t.obj") && e.contains("vertex 2") && e.contains("beyond"), "{e}");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 10\nf 1 2 3\n").unwrap();
+    assert!(read_targets(&obj, &groups).is_ok());
 }
