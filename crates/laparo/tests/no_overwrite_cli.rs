@@ -152,3 +152,20 @@ fn features_match_json_over_its_homography() {
     );
     assert!(ok, "{err}");
 }
+
+#[test]
+fn depth_stereo_and_cpc_writers_check_their_files_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for f in ["d.npy", "s.json", "e.json", "k.json", "disp.pfm", "c.yaml", "metrics.json", "gt.pfm", "lambda.json"] {
+        std::fs::write(d.join(f), f).unwrap();
+    }
+    let args = ["depth", "reproject", "--depth", "d.npy", "--sensor-intrinsics", "s.json", "--extrinsics", "e.json"];
+    refused(&[&args[..], &["--intrinsics", "k.json", "--out", "./d.npy"]].concat(), d, &d.join("d.npy"), "d.npy");
+    let args = ["stereo", "disp2depth", "--disp", "disp.pfm", "--calib", "c.yaml", "--out", "z.npy", "--ply", "c.yaml"];
+    refused(&args, d, &d.join("c.yaml"), "c.yaml");
+    let args = ["stereo", "eval", "--pred", "metrics.json", "--gt", "gt.pfm", "--out", "."];
+    refused(&args, d, &d.join("metrics.json"), "metrics.json");
+    let args = ["cpc", "lambda", "--depth", "d.npy", "--intrinsics", "lambda.json", "--out", "."];
+    refused(&args, d, &d.join("lambda.json"), "lambda.json");
+}

@@ -413,6 +413,9 @@ fn read_json(p: &Path, what: &str) -> Result<serde_json::Value> {
 
 /// Run `laparo depth reproject`.
 pub fn reproject(a: ReprojectArgs) -> Result<()> {
+    let mut inputs: Vec<&Path> = vec![&a.depth, &a.sensor_intrinsics, &a.extrinsics, &a.intrinsics];
+    inputs.extend(a.tool_mask.as_deref());
+    laparo_core::atomic::refuse_overwrite_files(&[&a.out], &inputs).context("--out")?;
     let depth_unit: DepthUnit = a.depth_unit.parse().context("--depth-unit")?;
     let ext_unit: DepthUnit = a.extrinsics_unit.parse().context("--extrinsics-unit")?;
     let out_unit: DepthUnit = a.out_unit.parse().context("--out-unit")?;
