@@ -169,3 +169,19 @@ fn depth_stereo_and_cpc_writers_check_their_files_too() {
     let args = ["cpc", "lambda", "--depth", "d.npy", "--intrinsics", "lambda.json", "--out", "."];
     refused(&args, d, &d.join("lambda.json"), "lambda.json");
 }
+
+#[test]
+fn guide_stages_check_their_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for f in ["cloud.ply", "model.obj", "pose.json", "poly.json"] {
+        std::fs::write(d.join(f), f).unwrap();
+    }
+    std::fs::create_dir_all(d.join("sc")).unwrap();
+    let args = ["guide", "rigid", "--cloud", "cloud.ply", "--model", "model.obj", "--initial-pose", "pose.json"];
+    refused(&[&args[..], &["--out", "pose.json"]].concat(), d, &d.join("pose.json"), "pose.json");
+    let args = ["guide", "landmarks", "--polyline", "poly.json", "--model", "model.obj", "--scenario", "sc"];
+    refused(&[&args[..], &["--out", "./model.obj"]].concat(), d, &d.join("model.obj"), "model.obj");
+    let (ok, _, err) = laparo(&["guide", "stereo", "--scenario", "sc", "--pair", "past", "--out", "sc"], d);
+    assert!(!ok && err.contains("would overwrite the input"), "{err}");
+}

@@ -181,6 +181,7 @@ impl SceneInputs {
 fn end_to_end(e: EndToEndArgs) -> Result<()> {
     use laparo_guide::end_to_end::{self as e2e, EndToEndConfig};
     let (organ, frame, camera) = e.inputs.resolve()?;
+    laparo_core::atomic::refuse_overwrite(&e.out, &[&organ, &frame, &camera], true).context("--out")?;
     let mut cfg = if e.quick { EndToEndConfig::quick() } else { EndToEndConfig::full() };
     cfg.incision = e.incision;
     if let Some(v) = e.edge_mm {
@@ -234,6 +235,9 @@ pub fn run(a: GuideArgs) -> Result<()> {
         Some(GuideSub::EndToEnd(e)) => end_to_end(e),
         Some(GuideSub::Scenario(s)) => {
             let (organ, frame, camera) = s.inputs.resolve()?;
+            let mut inputs: Vec<&std::path::Path> = vec![&organ, &frame, &camera];
+            inputs.extend(s.deformation.as_deref());
+            laparo_core::atomic::refuse_overwrite(&s.out, &inputs, true).context("--out")?;
             let mut cfg = if s.quick { ScenarioConfig::quick() } else { ScenarioConfig::full() };
             if let Some(w) = s.width {
                 cfg.width = w;
@@ -259,6 +263,8 @@ pub fn run(a: GuideArgs) -> Result<()> {
             if pair != "past" && pair != "present" {
                 bail!("--pair {pair}: expected past or present");
             }
+            laparo_core::atomic::refuse_overwrite_in(&out, &["depth_mm.npy", "cloud.ply", "errors.json"], &[&scenario])
+                .context("--out")?;
             let route: Route = route.parse()?;
             let man: scenario::Manifest = json_read(&scenario.join("scenario.json"), "stereo")?;
             let calib = laparo_core::StereoCalibration::read(scenario.join("calibration.json"))?;
@@ -288,6 +294,7 @@ pub fn run(a: GuideArgs) -> Result<()> {
             Ok(())
         }
         Some(GuideSub::Rigid { cloud, model, initial_pose, out }) => {
+            laparo_core::atomic::refuse_overwrite_files(&[&out], &[&cloud, &model, &initial_pose]).context("--out")?;
             let c = laparo_core::mesh::read_mesh(&cloud)?;
             let m = laparo_core::mesh::read_mesh(&model)?;
             let init: Pose = json_read(&initial_pose, "rigid")?;
@@ -303,6 +310,11 @@ pub fn run(a: GuideArgs) -> Result<()> {
             Ok(())
         }
         Some(GuideSub::Landmarks { polyline, model, scenario, out }) => {
+            laparo_core::atomic::refuse_overwrite_files(
+                &[&out],
+                &[&polyline, &model, &scenario.join("calibration.json")],
+            )
+            .context("--out")?;
             let p: Polyline2 = json_read(&polyline, "landmarks")?;
             let calib = laparo_core::StereoCalibration::read(scenario.join("calibration.json"))?;
             let input = polyline.display().to_string();
@@ -318,6 +330,7 @@ pub fn run(a: GuideArgs) -> Result<()> {
             let r = a.run;
             let scenario = r.scenario.context("--scenario is required (make one with `laparo guide scenario`)")?;
             let out = r.out.context("--out is required")?;
+            laparo_core::atomic::refuse_overwrite(&out, &[&scenario], true).context("--out")?;
             let route: Route = r.route.parse()?;
             let mut cfg = if r.quick { GuideConfig::quick(route) } else { GuideConfig::full(route) };
             if let Some(i) = r.iterations {
