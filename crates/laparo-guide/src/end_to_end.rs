@@ -87,7 +87,7 @@ pub struct EndToEndReport {
     /// Final TRE (mean over the liver nodes, mm), self-rectified minus calibrated.
     pub tre_difference_mm: Option<f64>,
     /// Why `tre_difference_mm` is missing (a route was not run or has no TRE).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(rename = "tre_difference_mm_reason", skip_serializing_if = "Option::is_none")]
     pub tre_difference_reason: Option<String>,
     /// Peak resident memory of the process (MiB); left out where the system does not report it.
     #[serde(skip_serializing_if = "Option::is_none")]

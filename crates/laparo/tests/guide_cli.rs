@@ -267,7 +267,7 @@ fn end_to_end_one_command_with_the_fem_ground_truth() {
     let mut nulls = Vec::new();
     bare_nulls(&s, "summary", &mut nulls);
     assert!(nulls.is_empty(), "nulls without a reason in summary.json: {nulls:?}");
-    assert!(s["tre_difference_reason"].is_string(), "one route: the TRE difference says why it is missing");
+    assert!(s["tre_difference_mm_reason"].is_string(), "one route: the TRE difference says why it is missing");
     let r = &s["routes"][0]["summary"];
     for k in ["rigid_mean_vertex_error_mm", "tre_mean_mm", "tre_near_mm", "tumour_centroid_error_mm"] {
         let v = r[k].as_f64().unwrap_or(f64::NAN);
