@@ -30,7 +30,7 @@ pub fn crack_sides(
     if crack.faces.is_empty() {
         return Err(RegisterError::bad("crack surface", "no triangle"));
     }
-    if !(band_mm > 0.0 && !band_mm.is_nan()) {
+    if !(band_mm > 0.0) {
         return Err(RegisterError::param("crack band (mm)", band_mm, "must be finite and > 0"));
     }
     if let Some(f) = crack.faces.iter().find(|f| f.iter().any(|&i| i >= crack.vertices.len())) {
