@@ -31,7 +31,7 @@ pub fn crack_sides(
         return Err(RegisterError::bad("crack surface", "no triangle"));
     }
     if !(band_mm > 0.0) {
-        return Err(RegisterError::param("crack band (mm)", band_mm, "must be finite and > 0"));
+        return Err(RegisterError::param("crack band (mm)", band_mm, "must be > 0"));
     }
     if let Some(f) = crack.faces.iter().find(|f| f.iter().any(|&i| i >= crack.vertices.len())) {
         return Err(RegisterError::bad("crack surface", format!("face {f:?} of {} vertices", crack.vertices.len())));
