@@ -61,6 +61,12 @@ pub struct RegistrationLoss<const D: usize> {
     pub region: Option<RegionTerm<D>>,
     /// Smoothing length ε of the distance (length units; 0 = the thesis' unsquared distance).
     pub epsilon: f64,
+    /// Rest offsets of the landmarks from the particles that carry them, per group and landmark (empty, or a
+    /// group's list empty = none: the thesis scores the nearest particle itself). With offsets a landmark is
+    /// scored at x_p + o, its own material point carried rigidly by its particle, so that a particle a few
+    /// mm under the surface is not pulled onto a surface target (the ground truth itself would otherwise
+    /// score the particle's depth).
+    pub offsets: Vec<Vec<Vector<D>>>,
 }
 
 /// Per-group residuals: mean and max distance of the landmarks to their targets.
@@ -79,7 +85,15 @@ pub struct GroupResidual {
 impl<const D: usize> RegistrationLoss<D> {
     /// Loss without a region term, ε = 0.
     pub fn new(groups: Vec<LandmarkGroup<D>>) -> Self {
-        RegistrationLoss { groups, region: None, epsilon: 0.0 }
+        RegistrationLoss { groups, region: None, epsilon: 0.0, offsets: Vec::new() }
+    }
+    /// Where landmark `k` of group `gi` is scored at positions x: its particle, plus its rest offset if any.
+    fn at(&self, gi: usize, k: usize, x: &[Vector<D>]) -> Vector<D> {
+        let p = self.groups[gi].particles[k];
+        match self.offsets.get(gi).and_then(|o| o.get(k)) {
+            Some(o) => x[p] + o,
+            None => x[p],
+        }
     }
     /// All landmark particle indices.
     pub fn landmark_particles(&self) -> Vec<usize> {
@@ -88,9 +102,10 @@ impl<const D: usize> RegistrationLoss<D> {
     /// Unsmoothed mean landmark distance (eq. 5.10, all landmarks equally weighted) at positions x.
     pub fn mean_distance(&self, x: &[Vector<D>]) -> f64 {
         let (mut s, mut n) = (0.0, 0usize);
-        for g in &self.groups {
-            for (k, &p) in g.particles.iter().enumerate() {
-                s += (x[p] - g.closest(k, &x[p])).norm();
+        for (gi, g) in self.groups.iter().enumerate() {
+            for k in 0..g.particles.len() {
+                let y = self.at(gi, k, x);
+                s += (y - g.closest(k, &y)).norm();
                 n += 1;
             }
         }
@@ -104,9 +119,14 @@ impl<const D: usize> RegistrationLoss<D> {
     pub fn residuals(&self, x: &[Vector<D>]) -> Vec<GroupResidual> {
         self.groups
             .iter()
-            .map(|g| {
-                let d: Vec<f64> =
-                    g.particles.iter().enumerate().map(|(k, &p)| (x[p] - g.closest(k, &x[p])).norm()).collect();
+            .enumerate()
+            .map(|(gi, g)| {
+                let d: Vec<f64> = (0..g.particles.len())
+                    .map(|k| {
+                        let y = self.at(gi, k, x);
+                        (y - g.closest(k, &y)).norm()
+                    })
+                    .collect();
                 GroupResidual {
                     name: g.name.clone(),
                     count: d.len(),
@@ -122,13 +142,14 @@ impl<const D: usize> RegistrationLoss<D> {
         let wsum: f64 = self.groups.iter().map(|g| g.weight * g.particles.len() as f64).sum();
         let mut total = 0.0;
         if wsum > 0.0 {
-            for g in &self.groups {
+            for (gi, g) in self.groups.iter().enumerate() {
                 // closest points in parallel, accumulated in landmark order (deterministic)
-                let terms: Vec<(f64, Vector<D>)> = g
-                    .particles
-                    .par_iter()
-                    .enumerate()
-                    .map(|(k, &p)| smoothed_distance(&(x[p] - g.closest(k, &x[p])), self.epsilon))
+                let terms: Vec<(f64, Vector<D>)> = (0..g.particles.len())
+                    .into_par_iter()
+                    .map(|k| {
+                        let y = self.at(gi, k, x);
+                        smoothed_distance(&(y - g.closest(k, &y)), self.epsilon)
+                    })
                     .collect();
                 let w = g.weight / wsum;
                 for (&p, (d, dg)) in g.particles.iter().zip(terms) {

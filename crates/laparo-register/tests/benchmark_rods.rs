@@ -14,7 +14,17 @@ fn free_problem<'a>(
     organ: OrganConfig,
     optimizer: OptimizerConfig,
 ) -> RodsProblem<'a> {
-    RodsProblem { nodes, tets, node_side: side, fixed_nodes: &[], groups, organ, optimizer, crack: None }
+    RodsProblem {
+        nodes,
+        tets,
+        node_side: side,
+        fixed_nodes: &[],
+        groups,
+        organ,
+        optimizer,
+        crack: None,
+        landmark_offsets: false,
+    }
 }
 
 /// A box of nx×ny×nz cubes of edge h (mm), 6 tetrahedra per cube (Kuhn split).
@@ -122,6 +132,7 @@ fn the_registered_shape_is_invariant_to_e_under_the_cfl_step_and_not_at_a_fixed_
             organ,
             optimizer,
             crack: None,
+            landmark_offsets: false,
         };
         run_rods(&problem, &mut |_| {}).unwrap()
     };
@@ -163,6 +174,7 @@ fn fixed_nodes_hold_their_particles() {
             organ,
             optimizer,
             crack: None,
+            landmark_offsets: false,
         };
         run_rods(&problem, &mut |_| {}).unwrap()
     };
@@ -185,6 +197,7 @@ fn fixed_nodes_hold_their_particles() {
         organ: OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() },
         optimizer: OptimizerConfig::default(),
         crack: None,
+        landmark_offsets: false,
     };
     let err = run_rods(&problem, &mut |_| {}).unwrap_err().to_string();
     assert!(err.contains("fixed nodes"), "{err}");
@@ -285,6 +298,7 @@ fn two_field_grid_opens_a_zero_thickness_cut_exactly() {
         organ: OrganConfig { spacing_mm: 2.5, steps: 40, ..Default::default() },
         optimizer: OptimizerConfig::default(),
         crack,
+        landmark_offsets: false,
     };
     let max_err = |out: &laparo_register::benchmark::rods::RodsOutput| {
         out.nodes.iter().zip(&truth).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max)

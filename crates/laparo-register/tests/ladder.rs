@@ -195,3 +195,28 @@ fn loads_rung_opens_a_half_cut_block_and_ends_at_rest() {
         e.elastic_final
     );
 }
+
+/// Landmark offsets: a landmark is scored at its particle plus its rest offset, so at the rest state a
+/// landmark that coincides with its target scores 0 even when its particle lies below it (by hand), and
+/// the gradient still falls on the particle.
+#[test]
+fn landmark_offsets_score_the_material_point_not_the_particle() {
+    let x = vec![Vector::<2>::new(1.0, 1.0), Vector::<2>::new(3.0, 1.0)];
+    let target = vec![Vector::<2>::new(1.0, 1.5), Vector::<2>::new(3.0, 2.5)];
+    let mut loss = RegistrationLoss::new(vec![LandmarkGroup {
+        name: "lip".into(),
+        particles: vec![0, 1],
+        target: GroupTarget::Paired(target.clone()),
+        weight: 1.0,
+    }]);
+    // the thesis: the particle itself, 0.5 and 1.5 below the targets
+    assert!((loss.mean_distance(&x) - 1.0).abs() < 1e-15);
+    loss.offsets = vec![vec![Vector::<2>::new(0.0, 0.5), Vector::<2>::new(0.0, 0.5)]];
+    assert!((loss.mean_distance(&x) - 0.5).abs() < 1e-15, "{}", loss.mean_distance(&x));
+    let mut g = vec![Vector::<2>::zeros(); 2];
+    loss.value_and_gradient(&x, &mut g);
+    assert_eq!(g[0], Vector::<2>::zeros(), "on its target: no pull");
+    assert!((g[1] - Vector::<2>::new(0.0, -0.5)).norm() < 1e-6, "{}", g[1]);
+    let r = loss.residuals(&x);
+    assert!((r[0].max - 1.0).abs() < 1e-15);
+}

@@ -48,6 +48,9 @@ pub struct RodsProblem<'a> {
     /// A crack the simulation separates along with laparo-mpm's two-field grid (`Scene::crack_side`);
     /// None = the one-field MLS-MPM of the thesis.
     pub crack: Option<CrackSurface>,
+    /// Score each landmark at its own material point (its particle plus the rest offset,
+    /// `RegistrationLoss::offsets`) instead of at the nearest particle (the thesis).
+    pub landmark_offsets: bool,
 }
 
 pub use crate::crack::{crack_sides, CrackSurface};
@@ -207,6 +210,7 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
         .collect();
     let off = organ.offset;
     let mut groups = Vec::new();
+    let mut offsets = Vec::new();
     for g in &problem.groups {
         if g.target.is_empty() {
             return Err(RegisterError::bad(format!("group `{}`", g.name), "empty target polyline"));
@@ -220,6 +224,11 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
             let nn = tree.nearest_one::<SquaredEuclidean>(&[x[0], x[1], x[2]]);
             particles.push(idx[nn.item as usize]);
         }
+        offsets.push(if problem.landmark_offsets {
+            g.sources.iter().zip(&particles).map(|((x, _), &p)| x - points[p]).collect()
+        } else {
+            Vec::new()
+        });
         let target: Vec<Vector3<f64>> = g.target.iter().map(|p| p + off).collect();
         groups.push(LandmarkGroup {
             name: g.name.clone(),
@@ -228,7 +237,8 @@ fn prepare(problem: &RodsProblem, kerf_mm: f64) -> Result<Prepared> {
             weight: 1.0,
         });
     }
-    let loss = RegistrationLoss::new(groups);
+    let mut loss = RegistrationLoss::new(groups);
+    loss.offsets = offsets;
     let horizon = organ.horizon(&loss.landmark_particles());
     if horizon.unreachable_fraction > 0.0 {
         notes.push(format!(
@@ -843,6 +853,7 @@ impl RodsMethod {
             organ,
             optimizer: self.optimizer.clone(),
             crack,
+            landmark_offsets: self.rung.is_some(),
         })
     }
 }
