@@ -2,6 +2,7 @@
 //! and recomputing each segment in the reverse pass gives the same loss, gradient and final state bit for
 //! bit as keeping every step (a step is deterministic), for segment lengths that divide T and that do not,
 //! with intermediate loss terms, fixed particles and a two-field crack; `checkpoint_segment_for` by hand.
+mod common;
 use laparo_mpm::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -23,21 +24,7 @@ fn scene<const D: usize>(steps: usize, crack: bool) -> Scene<D> {
     }
     s.fixed = s.positions.iter().map(|x| x[1] < 0.5 - 2.5 * dx).collect();
     if crack {
-        s.crack_side = s
-            .positions
-            .iter()
-            .map(|x| {
-                if x[1] > 0.5 {
-                    if x[0] < 0.5 {
-                        -1
-                    } else {
-                        1
-                    }
-                } else {
-                    0
-                }
-            })
-            .collect();
+        s.crack_side = common::upper_half_crack(&s.positions);
     }
     s
 }

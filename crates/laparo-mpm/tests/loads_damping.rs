@@ -2,19 +2,16 @@
 //! particle (`GradientResult::d_external_forces`), the two pieces of a load-driven registration (RODS-MPM's
 //! ladder rung L3): central differences in 2D and 3D, on one field and across a crack, and a damped block
 //! under a constant load that comes to rest.
+mod common;
 use laparo_mpm::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 fn block<const D: usize>(steps: usize, cracked: bool, damping: f64, seed: u64) -> Scene<D> {
-    let grid = GridSpec::unit(16);
-    let dx = grid.dx;
-    let c = Vector::<D>::from_element(0.5);
+    let dx = 1.0 / 16.0;
     let half = Vector::<D>::from_fn(|d, _| if d == 0 { 3.0 * dx } else { 2.0 * dx });
-    let pos = box_lattice(c - half, c + half, dx / 2.0);
     let material = Material { model: Model::NeoHookean, youngs_modulus: 3.0, poisson_ratio: 0.3, density: 1.0 };
-    let dt = cfl_dt(&material, dx, 0.25);
-    let mut s = Scene::new(pos, (dx / 2.0).powi(D as i32), material, grid, dt, steps);
+    let mut s = common::centred_block(16, half, material, steps);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let n = s.n_particles();
     for p in 0..n {
@@ -23,21 +20,7 @@ fn block<const D: usize>(steps: usize, cracked: bool, damping: f64, seed: u64) -
     s.external_forces =
         (0..n).map(|p| Vector::<D>::from_fn(|_, _| 40.0 * s.masses[p] * rng.gen_range(-1.0..1.0))).collect();
     if cracked {
-        s.crack_side = s
-            .positions
-            .iter()
-            .map(|x| {
-                if x[1] > 0.5 {
-                    if x[0] < 0.5 {
-                        -1
-                    } else {
-                        1
-                    }
-                } else {
-                    0
-                }
-            })
-            .collect();
+        s.crack_side = common::upper_half_crack(&s.positions);
     }
     s.damping = damping;
     s.mass_epsilon = 1e-10;

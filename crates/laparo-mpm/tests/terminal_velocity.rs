@@ -1,6 +1,7 @@
 //! The adjoint's terminal condition on the final velocities ([`Loss::terminal_velocity`], the at-rest
 //! prior of RODS-MPM's ladder L2): a landmark loss plus ½ Σ c_p |v_T,p|², its gradient in v₀ and E against
 //! central differences, in 2D and 3D, on one field and on the two-field grid of a crack.
+mod common;
 use laparo_mpm::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -26,36 +27,18 @@ impl<const D: usize> Loss<D> for WithTerminal<D> {
 }
 
 fn scene<const D: usize>(steps: usize, cracked: bool, seed: u64) -> Scene<D> {
-    let grid = GridSpec::unit(16);
-    let dx = grid.dx;
-    let c = Vector::<D>::from_element(0.5);
+    let dx = 1.0 / 16.0;
     let half = Vector::<D>::from_fn(|d, _| if d == 0 { 3.0 * dx } else { 2.0 * dx });
-    let pos = box_lattice(c - half, c + half, dx / 2.0);
     let material = Material { model: Model::NeoHookean, youngs_modulus: 3.0, poisson_ratio: 0.3, density: 1.0 };
-    let dt = cfl_dt(&material, dx, 0.25);
-    let mut s = Scene::new(pos, (dx / 2.0).powi(D as i32), material, grid, dt, steps);
+    let mut s = common::centred_block(16, half, material, steps);
+    let c = Vector::<D>::from_element(0.5);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for p in 0..s.n_particles() {
         let r = s.positions[p] - c;
         s.velocities[p] = Vector::<D>::from_fn(|d, _| 4.0 * r[d] + 0.2 * rng.gen_range(-1.0..1.0));
     }
     if cracked {
-        // a crack along x = 0.5 through the upper half of the block
-        s.crack_side = s
-            .positions
-            .iter()
-            .map(|x| {
-                if x[1] > 0.5 {
-                    if x[0] < 0.5 {
-                        -1
-                    } else {
-                        1
-                    }
-                } else {
-                    0
-                }
-            })
-            .collect();
+        s.crack_side = common::upper_half_crack(&s.positions);
     }
     s.mass_epsilon = 1e-10;
     s
