@@ -5,7 +5,7 @@
 use crate::arrays::*;
 use laparo_mpm::{det, Vector};
 use laparo_register::io::{read_landmarks, read_targets, SourceGroup, TargetSpec};
-use laparo_register::optimize::{register, OptimizerConfig, OptimizerKind};
+use laparo_register::optimize::{register_sided, OptimizerConfig, OptimizerKind};
 use laparo_register::organ::{organ_from_mesh, organ_from_points, OrganConfig, Roi};
 use laparo_register::pipeline::{build_loss, run_job, Job};
 use pyo3::prelude::*;
@@ -396,7 +396,7 @@ pub fn register_arrays<'py>(
             };
             let loss = build_loss(&o, &groups, &tg, region_weight, "landmarks")?;
             let before = loss.residuals(&o.scene.positions);
-            let reg = register(&o.scene, &loss, &opt, None, &mut |_, _| true)?;
+            let reg = register_sided(&o.scene, &loss, &opt, None, &o.smoothing_sides, &mut |_, _| true)?;
             let after = loss.residuals(&reg.final_state.x);
             Ok((o, reg, before, after, labels))
         })

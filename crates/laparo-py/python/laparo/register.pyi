@@ -34,7 +34,8 @@ def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=.
     ``tear`` (unsmoothed, strong Wolfe, distance continuation: targets that pull neighbouring
     particles apart), ``adam`` or ``thesis-gd``; ``smoothing_dx`` and ``max_step_dx`` default to
     the optimiser's preset: 2 and 0.5 Δx for ``lbfgs``/``adam``, 0 and 16 Δx for ``tear``;
-    ``kinetic_weight`` κ adds the least-action prior κ · mean |v₀ T Δt|² / (2 Δx) to eq. 5.10).
+    ``kinetic_weight`` κ adds the least-action prior κ · mean |v₀ T Δt|² / (2 Δx) to eq. 5.10;
+    ``at_rest_weight`` λ the at-rest prior λ · Σ m |v_T T Δt|² / (2 M Δx) on the final kinetic energy).
 
     ``crack``: an incision the organ is cut along, as a triangle mesh file or (vertices (N, 3) mm, faces
     (F, 3)) in the organ's frame, normals from one lip to the other. Particles within ``crack_band_mm``

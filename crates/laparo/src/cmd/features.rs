@@ -205,14 +205,17 @@ pub fn read_homography(p: &Path) -> Result<[[f64; 3]; 3]> {
         }
         _ => bail!("{what}: expected a 3x3 array of numbers (or 9 numbers)"),
     };
-    // A homography is defined up to scale: normalise by the largest entry, then the matrix must be
+    // A homography is defined up to scale: normalise by its largest entry, then the matrix must be
     // well conditioned (an entry of ±1e308 beside entries of 1 is numerically singular and maps every
     // point to infinity).
     let big = flat.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if !(big.is_finite() && big > 0.0) {
         bail!("{what}: the entries must be finite and not all zero");
     }
-    let h: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| flat[3 * i + j] / big));
+    // by the power of two nearest the largest entry: exact, so the transfer errors are those of the matrix as
+    // given, bit for bit (Python's match_images takes it unscaled)
+    let pow2 = 2f64.powi(big.log2().round() as i32);
+    let h: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| flat[3 * i + j] / pow2));
     let sv = nalgebra::Matrix3::from_fn(|i, j| h[i][j]).singular_values();
     let cond = sv.max() / sv.min();
     if cond.is_nan() || cond >= 1e12 {
