@@ -28,12 +28,7 @@ fn block<const D: usize>(steps: usize, cracked: bool, damping: f64, seed: u64) -
 }
 
 fn loss_for<const D: usize>(s: &Scene<D>, seed: u64) -> LandmarkLoss<D> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let n = s.n_particles();
-    let indices: Vec<usize> = (0..10).map(|_| rng.gen_range(0..n)).collect();
-    let targets =
-        indices.iter().map(|&p| s.positions[p] + Vector::<D>::from_fn(|_, _| rng.gen_range(-0.05..0.05))).collect();
-    LandmarkLoss { indices, targets }
+    common::random_landmarks(s, 10, &mut ChaCha8Rng::seed_from_u64(seed))
 }
 
 fn value<const D: usize>(s: &Scene<D>, l: &LandmarkLoss<D>) -> f64 {

@@ -47,11 +47,9 @@ fn scene<const D: usize>(steps: usize, cracked: bool, seed: u64) -> Scene<D> {
 fn loss_for<const D: usize>(s: &Scene<D>, seed: u64) -> WithTerminal<D> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let n = s.n_particles();
-    let indices: Vec<usize> = (0..8).map(|_| rng.gen_range(0..n)).collect();
-    let targets =
-        indices.iter().map(|&p| s.positions[p] + Vector::<D>::from_fn(|_, _| rng.gen_range(-0.05..0.05))).collect();
+    let landmarks = common::random_landmarks(s, 8, &mut rng);
     let coef = (0..n).map(|p| 40.0 * s.masses[p] * rng.gen_range(0.5..1.5)).collect();
-    WithTerminal { landmarks: LandmarkLoss { indices, targets }, coef }
+    WithTerminal { landmarks, coef }
 }
 
 fn value<const D: usize>(s: &Scene<D>, l: &WithTerminal<D>) -> f64 {

@@ -2,6 +2,8 @@
 //! and the crack through its upper half.
 #![allow(dead_code)]
 use laparo_mpm::*;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 
 /// A block of half-extent `half` (domain units) centred at 0.5 in a unit grid of `n_grid` cells, particles
 /// 2 per cell per axis, Δt from the CFL condition at 0.25, `steps` steps, at rest.
@@ -30,4 +32,13 @@ pub fn upper_half_crack<const D: usize>(positions: &[Vector<D>]) -> Vec<i8> {
             }
         })
         .collect()
+}
+
+/// `count` random landmark particles of `s`, each with a target within ±0.05 of its rest position per axis.
+pub fn random_landmarks<const D: usize>(s: &Scene<D>, count: usize, rng: &mut ChaCha8Rng) -> LandmarkLoss<D> {
+    let n = s.n_particles();
+    let indices: Vec<usize> = (0..count).map(|_| rng.gen_range(0..n)).collect();
+    let targets =
+        indices.iter().map(|&p| s.positions[p] + Vector::<D>::from_fn(|_, _| rng.gen_range(-0.05..0.05))).collect();
+    LandmarkLoss { indices, targets }
 }
