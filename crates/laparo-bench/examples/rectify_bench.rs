@@ -2,7 +2,7 @@
 //! `cargo run --release -p laparo-bench --example rectify_bench -- THREADS`.
 use laparo_core::calib::StereoCalibration;
 use laparo_core::remap::{remap, Interp};
-use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
+use laparo_stereo::{Rectification, RectifyOptions, Side};
 
 fn main() {
     let d = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/");

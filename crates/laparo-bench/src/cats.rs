@@ -6,7 +6,7 @@ use crate::timing::time_min_median;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use laparo_core::{io, Distortion, Image, Intrinsics};
-use laparo_stereo::augment::CameraAugmentation;
+use laparo_stereo::CameraAugmentation;
 use nalgebra::Matrix3;
 use std::path::PathBuf;
 
@@ -102,7 +102,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             .collect(),
     )?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build()?;
-    let grey = Image::from_vec(a.width, a.height, 1, laparo_stereo::sgm::to_gray_u8(&img))?;
+    let grey = Image::from_vec(a.width, a.height, 1, laparo_stereo::to_gray_u8(&img))?;
     let h_inv = rows(&map.h.try_inverse().context("the CATS homography is singular")?);
     let (rgb, f32n, gc) = pool.install(|| -> Result<_> {
         let rgb = time_min_median(a.runs, || {

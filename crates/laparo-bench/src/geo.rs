@@ -19,8 +19,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use laparo_core::{io, Image, Intrinsics};
 use laparo_features::ransac::{find_fundamental, find_homography, RansacParams};
-use laparo_stereo::augment::{augment_stereo, GtRule, StereoSample};
-use laparo_stereo::self_rectify::{
+use laparo_stereo::{augment_stereo, GtRule, StereoSample};
+use laparo_stereo::{
     exact_correspondences, fast_detect, fast_match_stage, fast_matches_with, fast_refine, feature_matches,
     perturbation, self_rectify, DyStats, FastParams, FeatureKind, SelfRectifyOptions, MATCH_INTERP,
 };
@@ -176,7 +176,7 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
     let size = (1280usize, 1024usize);
     let opts = SelfRectifyOptions::default();
     let rect = self_rectify(&ml, &mr, size, &opts)?;
-    let dy_eval = |r: &laparo_stereo::self_rectify::SelfRectification| -> Result<DyStats> {
+    let dy_eval = |r: &laparo_stereo::SelfRectification| -> Result<DyStats> {
         let mut v = Vec::with_capacity(pl.len());
         for (p, q) in pl.iter().zip(&pr) {
             let (Some(x), Some(y)) = (r.rectify_left(p[0], p[1]), r.rectify_right(q[0], q[1])) else {
@@ -197,11 +197,8 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
         let r = self_rectify(&ml, &mr, size, &opts).expect("fits");
         r.rectify_images(&img, &img).expect("same size");
     });
-    let hopts = SelfRectifyOptions {
-        method: laparo_stereo::self_rectify::RectifyMethod::Hartley,
-        max_median_dy_px: 5.0,
-        ..opts.clone()
-    };
+    let hopts =
+        SelfRectifyOptions { method: laparo_stereo::RectifyMethod::Hartley, max_median_dy_px: 5.0, ..opts.clone() };
     let hart = self_rectify(&ml, &mr, size, &hopts)?;
     let (hqmin, _) = time_min_median(a.runs, || {
         self_rectify(&ml, &mr, size, &hopts).expect("fits");
@@ -272,7 +269,7 @@ fn run_in_pool(a: &BenchArgs) -> Result<()> {
                 });
                 // what the matcher warps: the grey pair, bicubic (MATCH_INTERP)
                 let grey = |img: &Image<u8>| {
-                    Image::from_vec(img.width, img.height, 1, laparo_stereo::sgm::to_gray_u8(img)).expect("grey")
+                    Image::from_vec(img.width, img.height, 1, laparo_stereo::to_gray_u8(img)).expect("grey")
                 };
                 let t_warp_match = time_min_median(runs, || {
                     rect.rectify_images_with(&grey(l), &grey(r), MATCH_INTERP).expect("same size");
@@ -481,11 +478,7 @@ fn essential_row(a: &BenchArgs, out: &mut serde_json::Value) -> Result<()> {
     Ok(())
 }
 
-fn dy_eval_pts(
-    r: &laparo_stereo::self_rectify::SelfRectification,
-    pl: &[[f64; 2]],
-    pr: &[[f64; 2]],
-) -> Result<DyStats> {
+fn dy_eval_pts(r: &laparo_stereo::SelfRectification, pl: &[[f64; 2]], pr: &[[f64; 2]]) -> Result<DyStats> {
     let mut v = Vec::with_capacity(pl.len());
     for (p, q) in pl.iter().zip(pr) {
         let (Some(x), Some(y)) = (r.rectify_left(p[0], p[1]), r.rectify_right(q[0], q[1])) else {

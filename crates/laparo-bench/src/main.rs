@@ -43,7 +43,7 @@ enum Command {
     Mpm(mpm::BenchArgs),
     /// RODS-MPM registration on the thesis 3D configuration (optionally vs DiffTaichi, same session).
     Register(register::BenchArgs),
-    /// SGM matching (laparo_stereo::sgm) against OpenCV StereoSGBM (../shared/bench/sgbm_ref.py), interleaved.
+    /// SGM matching (laparo_stereo::match_pair) against OpenCV StereoSGBM (../shared/bench/sgbm_ref.py), interleaved.
     StereoMatch(stereo_match::BenchArgs),
     /// SIFT/ORB detect+describe and matching vs OpenCV (../shared/bench/features_ref.py).
     Features(features::BenchArgs),

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use laparo_core::calib::StereoCalibration;
 use laparo_core::remap::{remap, Interp};
-use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
+use laparo_stereo::{Rectification, RectifyOptions, Side};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -41,7 +41,7 @@ pub struct BenchArgs {
 /// not state the image size.
 fn read_calibration(spec: &str, size: (usize, usize)) -> Result<StereoCalibration> {
     if laparo_core::io::extension(Path::new(spec)) == "txt" {
-        return laparo_stereo::middlebury::read_middlebury_calib(spec)
+        return laparo_stereo::read_middlebury_calib(spec)
             .with_context(|| format!("cannot read Middlebury calibration {spec}"));
     }
     let (w, h) = size;

@@ -1,4 +1,4 @@
-//! `laparo-bench stereo-match`: laparo's SGM (`laparo_stereo::sgm`) and OpenCV StereoSGBM
+//! `laparo-bench stereo-match`: laparo's SGM (`laparo_stereo::match_pair`) and OpenCV StereoSGBM
 //! (`../shared/bench/sgbm_ref.py`) on the same input and range, interleaved round by round
 //! (the machine is shared: best-of over rounds). With a GT disparity it prints the metrics of
 //! `sgbm_ref.py` for both: density, EPE and Bad-k over valid pixels and with invalid pixels
@@ -6,7 +6,7 @@
 use anyhow::{bail, Context};
 use clap::Args;
 use laparo_core::image::Image;
-use laparo_stereo::sgm::{fill::fill_background, match_pair, Paths, SgmParams};
+use laparo_stereo::{fill_background, match_pair_with, Paths, SgmParams, SgmWorkspace};
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
@@ -165,10 +165,12 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     for round in 0..a.rounds.max(1) {
         for (mi, m) in modes.iter().enumerate() {
             let p = params(&a, m, lo, hi)?;
-            let mut out = match_pair(&l, &r, &p)?; // warm-up
+            // One workspace per mode, reused by its repeats (a video matches pair after pair).
+            let mut ws = SgmWorkspace::new();
+            let mut out = match_pair_with(&mut ws, &l, &r, &p)?; // warm-up
             for _ in 0..a.repeats.max(1) {
                 let t = Instant::now();
-                out = match_pair(&l, &r, &p)?;
+                out = match_pair_with(&mut ws, &l, &r, &p)?;
                 best_ms[mi] = best_ms[mi].min(t.elapsed().as_secs_f64() * 1e3);
             }
             if round == 0 {

@@ -20,8 +20,8 @@ use laparo_core::image::{Image, Mask};
 use laparo_core::mesh::TriMesh;
 use laparo_core::{Colormap, StereoCalibration};
 use laparo_register::rigid::{icp, ray_triangle, IcpConfig, IcpMode, Similarity};
-use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
-use laparo_stereo::sgm::{match_pair, SgmParams};
+use laparo_stereo::{match_pair, SgmParams};
+use laparo_stereo::{Rectification, RectifyOptions, Side};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -164,7 +164,7 @@ pub fn stereo_depth(
     }
     // a pair without texture cannot be matched: mean |horizontal grey gradient| below 1 grey level
     for (img, which) in [(left, "left"), (right, "right")] {
-        let g = laparo_stereo::sgm::to_gray_u8(img);
+        let g = laparo_stereo::to_gray_u8(img);
         let n = (w.saturating_sub(1) * h).max(1) as f64;
         let grad: f64 = (0..h)
             .flat_map(|y| (1..w).map(move |x| (y, x)))
@@ -192,7 +192,7 @@ pub fn stereo_depth(
             // disparities cannot be used directly: the small rotation of the right camera shifts
             // x_R by about f·tan(angle), 11 px for 0.5° at f = 1264 px.
             use laparo_features::{find_essential, recover_pose, RansacParams};
-            let (pl, pr) = laparo_stereo::self_rectify::sift_matches(left, right)?;
+            let (pl, pr) = laparo_stereo::sift_matches(left, right)?;
             let norm = |k: &laparo_core::Intrinsics, p: &[[f64; 2]]| -> Vec<[f64; 2]> {
                 p.iter().map(|q| [(q[0] - k.cx) / k.fx, (q[1] - k.cy) / k.fy]).collect()
             };

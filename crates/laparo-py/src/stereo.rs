@@ -2,12 +2,12 @@
 //! 3.5–3.9), rectification, disparity ↔ depth (§3.3.8) and stereo evaluation (Tables 3.7–3.8).
 use crate::arrays::*;
 use laparo_core::{Distortion, Image, Intrinsics, StereoCalibration};
-use laparo_stereo::augment::{augment_stereo, AugmentedDisparity, GtRule, StereoAugmentation, StereoSample};
-use laparo_stereo::cats_params::{sample_rng, sample_seed, CatsConfig};
-use laparo_stereo::dataset::{self, Layout};
-use laparo_stereo::disparity::DisparityGeometry;
-use laparo_stereo::eval::{evaluate, EvalOptions};
-use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
+use laparo_stereo::DisparityGeometry;
+use laparo_stereo::Layout;
+use laparo_stereo::{augment_stereo, AugmentedDisparity, GtRule, StereoAugmentation, StereoSample};
+use laparo_stereo::{evaluate, EvalOptions};
+use laparo_stereo::{sample_rng, sample_seed, CatsConfig};
+use laparo_stereo::{Rectification, RectifyOptions, Side};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
@@ -80,7 +80,7 @@ fn cameras(
         (None, Some(_)) => Err(bad("k_right", "given without k_left")),
         (None, None) => cfg
             .camera
-            .unwrap_or(laparo_stereo::cats_params::SourceCamera::SCENEFLOW)
+            .unwrap_or(laparo_stereo::SourceCamera::SCENEFLOW)
             .intrinsics(width, height)
             .map_err(|e| bad("config.camera", e)),
     }
@@ -229,7 +229,7 @@ pub fn cats_augment<'py>(
             (Some(_), Some(_)) => return Err(bad("params", "give params or config, not both")),
             (Some(pd), None) => {
                 let text = py_to_json(pd, "params")?.to_string();
-                (dataset::parse_params(&text, w, h).map_err(|e| bad("params", e))?, None)
+                (laparo_stereo::parse_params(&text, w, h).map_err(|e| bad("params", e))?, None)
             }
             (None, cfg) => {
                 let thesis;
@@ -245,7 +245,7 @@ pub fn cats_augment<'py>(
                 (sample_params(cfg, seed, &id, &kl, &kr), Some((seed, sample_seed(seed, &id))))
             }
         };
-        dataset::check_homographies(&p).map_err(|e| bad("params", e))?;
+        laparo_stereo::check_homographies(&p).map_err(|e| bad("params", e))?;
         let s = StereoSample { left: l, right: r, disp_left: dl, disp_right: dr, occ_left: None, occ_right: None };
         augment_to_dict(py, s, &p, rule, seeds)
     })
@@ -260,7 +260,7 @@ fn parse_layout(s: &str) -> PyResult<Layout> {
 pub fn cats_discover<'py>(py: Python<'py>, root: PathBuf, layout: &str) -> PyResult<Bound<'py, PyList>> {
     guard(|| {
         let lay = parse_layout(layout)?;
-        let files = dataset::discover(&root, lay).map_err(lib_err)?;
+        let files = laparo_stereo::discover(&root, lay).map_err(lib_err)?;
         let out = PyList::empty(py);
         for f in files {
             let d = PyDict::new(py);
@@ -278,7 +278,7 @@ pub fn cats_discover<'py>(py: Python<'py>, root: PathBuf, layout: &str) -> PyRes
 
 fn augment_files<'py>(
     py: Python<'py>,
-    f: &dataset::SampleFiles,
+    f: &laparo_stereo::SampleFiles,
     lay: Layout,
     config: Option<&PyCatsConfig>,
     seed: u64,
@@ -290,11 +290,11 @@ fn augment_files<'py>(
         Some(c) => c.inner.clone(),
         None => CatsConfig::thesis("SCARED+StMIS").map_err(lib_err)?,
     };
-    let s = dataset::load_sample(f).map_err(lib_err)?;
-    let (kl, kr) = dataset::source_cameras(f, lay, &cfg, s.left.width, s.left.height).map_err(lib_err)?;
+    let s = laparo_stereo::load_sample(f).map_err(lib_err)?;
+    let (kl, kr) = laparo_stereo::source_cameras(f, lay, &cfg, s.left.width, s.left.height).map_err(lib_err)?;
     let id = epoch_id(&f.id, epoch);
     let p = sample_params(&cfg, seed, &id, &kl, &kr);
-    dataset::check_homographies(&p).map_err(|e| bad("params", e))?;
+    laparo_stereo::check_homographies(&p).map_err(|e| bad("params", e))?;
     let d = augment_to_dict(py, s, &p, rule, Some((seed, sample_seed(seed, &id))))?;
     d.set_item("id", &f.id)?;
     Ok(d)
@@ -317,7 +317,7 @@ pub fn cats_augment_folder_sample<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     guard(|| {
         let lay = parse_layout(layout)?;
-        let files = dataset::discover(&root, lay).map_err(lib_err)?;
+        let files = laparo_stereo::discover(&root, lay).map_err(lib_err)?;
         let f =
             files.get(index).ok_or_else(|| bad("index", format!("{index} out of range ({} samples)", files.len())))?;
         augment_files(py, f, lay, config, seed, epoch, gt_rule)
@@ -351,7 +351,7 @@ pub fn cats_augment_sample_files<'py>(
             .ok_or_else(|| bad("sample", "missing key 'id'"))?
             .extract()
             .map_err(|_| bad("sample['id']", "not a string"))?;
-        let f = dataset::SampleFiles {
+        let f = laparo_stereo::SampleFiles {
             id,
             left: get("left")?.ok_or_else(|| bad("sample", "missing key 'left'"))?,
             right: get("right")?.ok_or_else(|| bad("sample", "missing key 'right'"))?,
@@ -609,14 +609,14 @@ pub fn cats_augment_dataset(
             None => CatsConfig::thesis("SCARED+StMIS").map_err(lib_err)?,
         };
         laparo_core::atomic::refuse_overwrite(&out, &[&input], true).map_err(|e| bad("out", e))?;
-        let files = shard.select(dataset::discover(&input, lay).map_err(lib_err)?);
+        let files = shard.select(laparo_stereo::discover(&input, lay).map_err(lib_err)?);
         std::fs::create_dir_all(&out)
             .map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", out.display())))?;
         let results: Vec<Result<(), String>> = par(py, || {
             files
                 .par_iter()
                 .map(|f| {
-                    dataset::augment_sample(f, &input, &out, lay, &cfg, seed, rule)
+                    laparo_stereo::augment_sample(f, &input, &out, lay, &cfg, seed, rule)
                         .map(|_| ())
                         .map_err(|e| format!("{}: {e}", f.id))
                 })

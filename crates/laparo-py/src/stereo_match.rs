@@ -1,12 +1,30 @@
-//! `laparo.stereo.match` / `self_rectify`: semi-global matching (laparo_stereo::sgm, census cost,
+//! `laparo.stereo.match` / `self_rectify`: semi-global matching (laparo_stereo::match_pair, census cost,
 //! signed disparity range, optional vertical tolerance; thesis §3.3) and self-rectification of a
 //! raw pair from SIFT matches — the computations of `laparo stereo match` without the files.
 use crate::arrays::*;
 use laparo_core::Image;
-use laparo_stereo::self_rectify::{self_rectify, RectifyMethod, SelfRectifyOptions};
-use laparo_stereo::sgm::{match_pair, SgmParams};
+use laparo_stereo::{match_pair_with, SgmParams, SgmWorkspace};
+use laparo_stereo::{self_rectify, RectifyMethod, SelfRectifyOptions};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+
+/// SGM buffers kept between calls of `laparo.stereo.match` (a Python loop over the frames of a
+/// video reuses them instead of page-faulting 50–300 MB per pair). The libraries have no
+/// process-wide state; the binding keeps this pool because Python callers cannot hold a
+/// workspace. Concurrent calls each take their own workspace.
+static SGM_WORKSPACES: std::sync::Mutex<Vec<SgmWorkspace>> = std::sync::Mutex::new(Vec::new());
+
+fn take_workspace() -> SgmWorkspace {
+    SGM_WORKSPACES.lock().ok().and_then(|mut p| p.pop()).unwrap_or_default()
+}
+
+fn give_back_workspace(ws: SgmWorkspace) {
+    if let Ok(mut p) = SGM_WORKSPACES.lock() {
+        if p.len() < 2 {
+            p.push(ws);
+        }
+    }
+}
 
 fn image_u8(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Image<u8>> {
     let a = u8_array(obj, arg)?;
@@ -66,7 +84,7 @@ fn sgm_params(
     Ok(p)
 }
 
-use laparo_stereo::self_rectify::{match_self_rectified, sift_matches};
+use laparo_stereo::{match_self_rectified, sift_matches};
 
 /// Semi-global matching of a stereo pair (8-bit grey/RGB/RGBA, same size) over the disparity
 /// range [d_min, d_max) px, d = x_L − x_R of either sign. Returns `disparity` (float32, +inf where
@@ -110,11 +128,17 @@ pub fn stereo_match<'py>(
             d.set_item("disparity_rectified", image_to_numpy(py, s.disparity_rectified)?)?;
             s.output
         } else {
-            par(py, || match_pair(&l, &r, &p)).map_err(|e| bad("stereo match", e))?
+            par(py, || {
+                let mut ws = take_workspace();
+                let out = match_pair_with(&mut ws, &l, &r, &p);
+                give_back_workspace(ws);
+                out
+            })
+            .map_err(|e| bad("stereo match", e))?
         };
         if fill_holes {
             let mut f = out.disparity.data.clone();
-            laparo_stereo::sgm::fill::fill_background(&mut f, w, h);
+            laparo_stereo::fill_background(&mut f, w, h);
             d.set_item("disparity_filled", to_numpy(py, f, &[h, w])?)?;
         }
         d.set_item("disparity", image_to_numpy(py, out.disparity)?)?;

@@ -19,10 +19,10 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-pub use crate::error::AugmentError;
+use crate::error::{Result, StereoError};
 
-fn invalid(what: impl Into<String>, msg: impl Into<String>) -> AugmentError {
-    AugmentError::Invalid { what: what.into(), msg: msg.into() }
+fn invalid(what: impl Into<String>, msg: impl Into<String>) -> StereoError {
+    StereoError::invalid(what, msg)
 }
 
 /// Row-major 3×3 matrix as stored in JSON sidecars.
@@ -101,9 +101,9 @@ impl CameraAugmentation {
         from_rows(&self.k_rel)
     }
     /// K' = K_rel K, the augmented camera's intrinsics.
-    pub fn k_out(&self) -> Result<Intrinsics, AugmentError> {
+    pub fn k_out(&self) -> Result<Intrinsics> {
         Intrinsics::from_matrix(&(self.k_rel_matrix() * self.k.matrix()), self.k.width, self.k.height)
-            .map_err(|e| invalid("K' = K_rel K", e.to_string()))
+            .map_err(StereoError::rejected("K' = K_rel K"))
     }
 
     /// H_R = K R K⁻¹ (eq. 3.8); exactly the identity when R is.
@@ -122,7 +122,7 @@ impl CameraAugmentation {
     }
 
     /// H⁻¹ = K Rᵀ K⁻¹ K_rel⁻¹ (no generic inversion of H, which keeps integer shifts exact).
-    pub fn homography_inverse(&self) -> Result<Matrix3<f64>, AugmentError> {
+    pub fn homography_inverse(&self) -> Result<Matrix3<f64>> {
         let kri = self.k_rel_matrix().try_inverse().ok_or_else(|| invalid("K_rel", "singular"))?;
         let r = self.r();
         if r == Matrix3::identity() {
@@ -134,8 +134,8 @@ impl CameraAugmentation {
 
     /// Check K, R ∈ SO(3) (|RᵀR − I| < 1e-6, det > 0), K_rel (finite, last row 0 0 1, invertible,
     /// positive focal ratios) and the distortion coefficients.
-    pub fn validate(&self, what: &str) -> Result<(), AugmentError> {
-        self.k.validate().map_err(|e| invalid(format!("{what}.k"), e.to_string()))?;
+    pub fn validate(&self, what: &str) -> Result<()> {
+        self.k.validate().map_err(StereoError::rejected(format!("{what}.k")))?;
         let r = self.r();
         if r.iter().any(|v| !v.is_finite())
             || (r.transpose() * r - Matrix3::identity()).norm() > 1e-6
@@ -169,7 +169,7 @@ impl CameraAugmentation {
     }
 
     /// Precompute the coordinate maps of this augmentation.
-    pub fn map(&self) -> Result<CameraMap, AugmentError> {
+    pub fn map(&self) -> Result<CameraMap> {
         self.validate("camera augmentation")?;
         let h = self.homography();
         let h_inv = self.homography_inverse()?;
@@ -295,7 +295,7 @@ impl CameraMap {
     }
 
     /// Inverse-mapping warp through [`laparo_core::remap`] (fused homography rows when possible).
-    fn warp<T: Texel>(&self, img: &Image<T>, interp: Interp, fill: T, what: &str) -> Result<Warped<T>, AugmentError> {
+    fn warp<T: Texel>(&self, img: &Image<T>, interp: Interp, fill: T, what: &str) -> Result<Warped<T>> {
         self.check_size(img.width, img.height, what)?;
         let (w, h) = (self.width, self.height);
         let r = if self.is_homography() {
@@ -303,7 +303,7 @@ impl CameraMap {
         } else {
             remap::remap_rows(img, w, h, interp, fill, |y, sx, sy| self.row_sources_f32(y, sx, sy))
         };
-        let (image, valid) = r.map_err(|e| invalid(what, e.to_string()))?;
+        let (image, valid) = r.map_err(StereoError::rejected(what))?;
         Ok(Warped { image, valid })
     }
 
@@ -316,26 +316,26 @@ impl CameraMap {
 
     /// Bilinear warp of an 8-bit image (any channel count) by inverse mapping. Pixels whose
     /// source lies outside the convex hull of pixel centres are 0 and invalid in the mask.
-    pub fn warp_bilinear_u8(&self, img: &Image<u8>) -> Result<Warped<u8>, AugmentError> {
+    pub fn warp_bilinear_u8(&self, img: &Image<u8>) -> Result<Warped<u8>> {
         self.warp(img, Interp::Bilinear, 0, "image")
     }
 
     /// Nearest-neighbour warp of a float map (disparity): invalid where the source is outside
     /// the image or not finite; invalid output pixels are `fill`. Source positions round half up.
-    pub fn warp_nearest_f32(&self, img: &Image<f32>, fill: f32) -> Result<Warped<f32>, AugmentError> {
+    pub fn warp_nearest_f32(&self, img: &Image<f32>, fill: f32) -> Result<Warped<f32>> {
         self.warp(img, Interp::Nearest, fill, "float map")
     }
 
     /// Nearest-neighbour warp of a mask (e.g. an occlusion mask); outside → `false`.
-    pub fn warp_nearest_mask(&self, m: &Mask) -> Result<Mask, AugmentError> {
+    pub fn warp_nearest_mask(&self, m: &Mask) -> Result<Mask> {
         let f = m.map(|b| if b { 1.0f32 } else { 0.0 });
         let w = self.warp_nearest_f32(&f, 0.0)?;
         Ok(w.image.map(|v| v > 0.5))
     }
 
-    fn check_size(&self, w: usize, h: usize, what: &str) -> Result<(), AugmentError> {
+    fn check_size(&self, w: usize, h: usize, what: &str) -> Result<()> {
         if w != self.width || h != self.height {
-            return Err(AugmentError::SizeMismatch(format!(
+            return Err(StereoError::SizeMismatch(format!(
                 "{what} is {w}x{h}, the augmentation's camera is {}x{}",
                 self.width, self.height
             )));
@@ -354,7 +354,7 @@ pub struct Warped<T> {
 }
 
 /// Augment one image (eq. 3.5 / 3.6): bilinear, by inverse mapping.
-pub fn augment_image(img: &Image<u8>, aug: &CameraAugmentation) -> Result<Warped<u8>, AugmentError> {
+pub fn augment_image(img: &Image<u8>, aug: &CameraAugmentation) -> Result<Warped<u8>> {
     aug.map()?.warp_bilinear_u8(img)
 }
 
@@ -381,14 +381,14 @@ impl StereoAugmentation {
     }
 
     /// Validate both cameras.
-    pub fn validate(&self) -> Result<(), AugmentError> {
+    pub fn validate(&self) -> Result<()> {
         self.left.validate("left")?;
         self.right.validate("right")?;
         if !self.dx_right_px.is_finite() {
             return Err(invalid("dx_right_px", "not finite"));
         }
         if (self.left.k.width, self.left.k.height) != (self.right.k.width, self.right.k.height) {
-            return Err(AugmentError::SizeMismatch(format!(
+            return Err(StereoError::SizeMismatch(format!(
                 "left camera {}x{} vs right camera {}x{}",
                 self.left.k.width, self.left.k.height, self.right.k.width, self.right.k.height
             )));
@@ -409,7 +409,7 @@ pub enum GtRule {
 
 impl std::str::FromStr for GtRule {
     type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
         match s {
             "thesis" => Ok(GtRule::Thesis),
             "exact" => Ok(GtRule::Exact),
@@ -723,7 +723,7 @@ mod simd {
 }
 
 /// Thesis rule (a): d'(p') = d(nearest(A⁻¹ p')) + offset.
-fn disparity_thesis(map: &CameraMap, d: &Image<f32>, offset: f64) -> Result<AugmentedDisparity, AugmentError> {
+fn disparity_thesis(map: &CameraMap, d: &Image<f32>, offset: f64) -> Result<AugmentedDisparity> {
     let w = map.warp_nearest_f32(d, f32::INFINITY)?;
     let mut out = w.image;
     for (v, &ok) in out.data.iter_mut().zip(&w.valid.data) {
@@ -736,12 +736,7 @@ fn disparity_thesis(map: &CameraMap, d: &Image<f32>, offset: f64) -> Result<Augm
 
 /// Exact rule (b). `sign` = −1 for a left map (x_R = x − d), +1 for a right map (x_L = x + d);
 /// the disparity stays x_L − x_R in both cases.
-fn disparity_exact(
-    own: &CameraMap,
-    other: &CameraMap,
-    d: &Image<f32>,
-    sign: f64,
-) -> Result<AugmentedDisparity, AugmentError> {
+fn disparity_exact(own: &CameraMap, other: &CameraMap, d: &Image<f32>, sign: f64) -> Result<AugmentedDisparity> {
     disparity_exact_with(own, other, d, sign, true, true)
 }
 
@@ -753,7 +748,7 @@ fn disparity_exact_with(
     sign: f64,
     allow_fast: bool,
     allow_simd: bool,
-) -> Result<AugmentedDisparity, AugmentError> {
+) -> Result<AugmentedDisparity> {
     own.check_size(d.width, d.height, "disparity")?;
     let (w, h) = (own.width, own.height);
     let mut disp = Image::filled(w, h, 1, f32::INFINITY);
@@ -787,11 +782,11 @@ fn disparity_exact_with(
 }
 
 /// Augment a stereo sample (eqs. 3.7–3.9) with the given disparity rule.
-pub fn augment_stereo(s: &StereoSample, p: &StereoAugmentation, rule: GtRule) -> Result<AugmentedStereo, AugmentError> {
+pub fn augment_stereo(s: &StereoSample, p: &StereoAugmentation, rule: GtRule) -> Result<AugmentedStereo> {
     p.validate()?;
-    s.left.check_same_size(&s.right, "left vs right image").map_err(|e| AugmentError::SizeMismatch(e.to_string()))?;
+    s.left.check_same_size(&s.right, "left vs right image")?;
     if s.left.channels != s.right.channels {
-        return Err(AugmentError::SizeMismatch(format!(
+        return Err(StereoError::SizeMismatch(format!(
             "left image has {} channels, right {}",
             s.left.channels, s.right.channels
         )));

@@ -33,8 +33,8 @@
 //! radial distortion peaks), D the distortion of an ideal pixel
 //! ([`laparo_core::camera::Distortion::max_displacement_px`]).
 use crate::cats_params::{CameraDist, CatsConfig, DisparityOffsetDist, Dist, EulerDist};
+use crate::error::{Result, StereoError};
 use laparo_core::calib::StereoCalibration;
-use laparo_core::error::{CoreError, Result};
 use laparo_core::se3::euler_zyx;
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -93,21 +93,21 @@ pub fn minimal_rotation(a: &Vector3<f64>, b: &Vector3<f64>) -> Matrix3<f64> {
 /// `R` must be a rotation within [`ROTATION_TOLERANCE`] (it is re-orthonormalised) and `T` non-zero.
 pub fn ideal_stereo_frame(r: &Matrix3<f64>, t_mm: &Vector3<f64>) -> Result<IdealStereoFrame> {
     if r.iter().any(|v| !v.is_finite()) {
-        return Err(CoreError::invalid("R", "non-finite entry"));
+        return Err(StereoError::invalid("R", "non-finite entry"));
     }
     if t_mm.iter().any(|v| !v.is_finite()) {
-        return Err(CoreError::invalid("T", "non-finite entry"));
+        return Err(StereoError::invalid("T", "non-finite entry"));
     }
     let (defect, det) = rotation_defect(r);
     if defect > ROTATION_TOLERANCE || det <= 0.0 {
-        return Err(CoreError::invalid(
+        return Err(StereoError::invalid(
             "R",
             format!("not a rotation matrix (max |RᵀR − I| = {defect:.3e}, det = {det:.6})"),
         ));
     }
     let baseline_mm = t_mm.norm();
     if baseline_mm <= 0.0 {
-        return Err(CoreError::invalid("T", "zero baseline"));
+        return Err(StereoError::invalid("T", "zero baseline"));
     }
     let r = nearest_rotation(r);
     let c = -(r.transpose() * t_mm) / baseline_mm;
@@ -169,8 +169,8 @@ pub fn distortion_grid_step(k: &laparo_core::camera::Intrinsics) -> usize {
 /// Compute the statistics of one calibration. Never fails on an odd but valid calibration (the
 /// oddities go to `warnings`); fails on invalid intrinsics, a non-rotation R or a zero baseline.
 pub fn calib_stats(c: &StereoCalibration) -> Result<CalibStats> {
-    c.left.validate().map_err(|e| CoreError::invalid("left intrinsics", e.to_string()))?;
-    c.right.validate().map_err(|e| CoreError::invalid("right intrinsics", e.to_string()))?;
+    c.left.validate().map_err(StereoError::rejected("left intrinsics"))?;
+    c.right.validate().map_err(StereoError::rejected("right intrinsics"))?;
     let frame = ideal_stereo_frame(&c.r, &c.t_mm)?;
     let mut warnings = Vec::new();
     let (defect, _) = rotation_defect(&c.r);

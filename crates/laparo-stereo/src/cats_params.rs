@@ -33,7 +33,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-pub use crate::error::ConfigError;
+use crate::error::{Result, StereoError};
 
 /// A scalar distribution: fixed value, Gaussian N(mean, std²) or uniform U(min, max).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -75,7 +75,7 @@ impl Dist {
     }
 
     /// Check finiteness, std >= 0, min <= max; `what` names the field in the error.
-    pub fn validate(&self, what: &str) -> Result<(), ConfigError> {
+    pub fn validate(&self, what: &str) -> Result<()> {
         let ok = match *self {
             Dist::Fixed { value } => value.is_finite(),
             Dist::Normal { mean, std } => mean.is_finite() && std.is_finite() && std >= 0.0,
@@ -84,7 +84,7 @@ impl Dist {
         if ok {
             Ok(())
         } else {
-            Err(ConfigError::Config(format!("{what}: {self:?} (need finite values, std >= 0, min <= max)")))
+            Err(StereoError::Config(format!("{what}: {self:?} (need finite values, std >= 0, min <= max)")))
         }
     }
 
@@ -206,13 +206,13 @@ impl SourceCamera {
     pub const SCENEFLOW: SourceCamera = SourceCamera { fx: 1050.0, fy: 1050.0, cx: None, cy: None, cx_right: None };
 
     /// The (left, right) intrinsics for an image of `width`×`height`.
-    pub fn intrinsics(&self, width: usize, height: usize) -> Result<(Intrinsics, Intrinsics), ConfigError> {
+    pub fn intrinsics(&self, width: usize, height: usize) -> Result<(Intrinsics, Intrinsics)> {
         let cx = self.cx.unwrap_or((width as f64 - 1.0) / 2.0);
         let cy = self.cy.unwrap_or((height as f64 - 1.0) / 2.0);
         let l = Intrinsics::new(self.fx, self.fy, cx, cy, width, height)
-            .map_err(|e| ConfigError::Config(format!("camera: {e}")))?;
+            .map_err(|source| StereoError::ConfigField { what: "camera".into(), source })?;
         let r = Intrinsics::new(self.fx, self.fy, self.cx_right.unwrap_or(cx), cy, width, height)
-            .map_err(|e| ConfigError::Config(format!("camera: {e}")))?;
+            .map_err(|source| StereoError::ConfigField { what: "camera".into(), source })?;
         Ok((l, r))
     }
 }
@@ -269,11 +269,11 @@ pub const TABLE_3_6: [(&str, [(f64, f64); 6]); 4] = [
 impl CatsConfig {
     /// The thesis' CATS configuration: Gaussians of a Table 3.6 row (default "SCARED+StMIS",
     /// the one used for training), s_x = s_y = 1, c'_y = c_y, Δx_right ~ U(−100, 0), no distortion.
-    pub fn thesis(row: &str) -> Result<Self, ConfigError> {
+    pub fn thesis(row: &str) -> Result<Self> {
         let (name, v) = TABLE_3_6
             .iter()
             .find(|(n, _)| n.eq_ignore_ascii_case(row))
-            .ok_or_else(|| ConfigError::Config(format!("unknown Table 3.6 row '{row}'")))?;
+            .ok_or_else(|| StereoError::Config(format!("unknown Table 3.6 row '{row}'")))?;
         let cam = |o: usize| CameraDist {
             euler_deg: EulerDist {
                 x: Dist::normal(v[o].0, v[o].1),
@@ -296,7 +296,7 @@ impl CatsConfig {
     }
 
     /// Parse and validate TOML text.
-    pub fn from_toml_str(s: &str) -> Result<Self, ConfigError> {
+    pub fn from_toml_str(s: &str) -> Result<Self> {
         let c: CatsConfig = toml::from_str(s)?;
         c.validate()?;
         Ok(c)
@@ -308,7 +308,7 @@ impl CatsConfig {
     }
 
     /// Validate every distribution (names the offending field).
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    pub fn validate(&self) -> Result<()> {
         for (side, c) in [("left", &self.left), ("right", &self.right)] {
             c.euler_deg.x.validate(&format!("{side}.euler_deg.x"))?;
             c.euler_deg.y.validate(&format!("{side}.euler_deg.y"))?;
@@ -324,7 +324,7 @@ impl CatsConfig {
                     Dist::Normal { mean, std } => mean - 6.0 * std,
                 };
                 if lo <= 0.0 {
-                    return Err(ConfigError::Config(format!("{side}.{n}: focal ratios must stay > 0 ({s:?})")));
+                    return Err(StereoError::Config(format!("{side}.{n}: focal ratios must stay > 0 ({s:?})")));
                 }
             }
             if let Some(d) = &c.distortion {
@@ -336,7 +336,7 @@ impl CatsConfig {
         self.disparity_offset.dx_right_px.validate("disparity_offset.dx_right_px")?;
         if let Some(c) = &self.camera {
             if !(c.fx.is_finite() && c.fx > 0.0 && c.fy.is_finite() && c.fy > 0.0) {
-                return Err(ConfigError::Config(format!(
+                return Err(StereoError::Config(format!(
                     "camera: fx = {}, fy = {} must be finite and > 0",
                     c.fx, c.fy
                 )));

@@ -16,17 +16,16 @@ mod layout;
 mod output;
 mod params;
 
-pub use layout::{discover, load_sample, read_disparity, read_middlebury_calib, source_cameras, Layout, SampleFiles};
-pub use output::{
-    augment_sample, is_done, output_paths, resume_state, run_params_hash, write_augmented, OutputPaths, ResumeState,
-    SampleStats, Sidecar,
-};
+pub use layout::{discover, load_sample, read_disparity, source_cameras, Layout, SampleFiles};
+pub use output::{augment_sample, resume_state, run_params_hash, ResumeState, SampleStats, Sidecar};
 pub use params::{check_homographies, parse_params};
+#[cfg(test)]
+use {layout::read_middlebury_calib, output::output_paths};
 
-pub use crate::error::DatasetError;
+use crate::error::StereoError;
 
-fn ferr(path: &Path, msg: impl Into<String>) -> DatasetError {
-    DatasetError::File { path: path.to_path_buf(), msg: msg.into() }
+fn ferr(path: &Path, msg: impl Into<String>) -> StereoError {
+    StereoError::File { path: path.to_path_buf(), msg: msg.into() }
 }
 
 #[cfg(test)]

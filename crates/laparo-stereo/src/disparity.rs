@@ -1,9 +1,9 @@
 //! Disparity ↔ depth for a (near-)rectified pair (thesis §3.3.8): `d = f b / z + (c_x^L − c_x^R)`,
 //! so `z = f b / (d − (c_x^L − c_x^R))`; Middlebury's `doffs = c_x^R − c_x^L`. Disparities may be
 //! negative (principal points offset); depth in the baseline's unit (mm).
+use crate::error::{Result, StereoError};
 use laparo_core::calib::StereoCalibration;
 use laparo_core::depth::{DepthMap, DepthUnit};
-use laparo_core::error::{CoreError, Result};
 use laparo_core::image::Image;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -35,7 +35,7 @@ impl DisparityGeometry {
         c.right.validate()?;
         let b = c.t_mm.norm();
         if !(b.is_finite() && b > 0.0) {
-            return Err(CoreError::invalid("T", format!("baseline |T| = {b} mm")));
+            return Err(StereoError::invalid("T", format!("baseline |T| = {b} mm")));
         }
         Ok(DisparityGeometry {
             f_px: c.left.fx,

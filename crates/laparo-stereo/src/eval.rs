@@ -15,8 +15,8 @@
 //!   [`EvalOptions::depth_range_mm`] (default [10, 500] mm, the MIS range of §3.2.7).
 //!   MAE = mean |z − z*|, RMSE = sqrt(mean (z − z*)²), Abs Rel = mean |z − z*| / z*,
 //!   δ_0.25 = fraction with max(z/z*, z*/z) < 1.25^0.25 (strict).
+use crate::error::{Result, StereoError};
 use crate::rectify::DisparityGeometry;
-use laparo_core::error::{CoreError, Result};
 use laparo_core::image::{Image, Mask};
 use serde::{Deserialize, Serialize};
 
@@ -137,31 +137,31 @@ pub struct EvalMaps {
 
 fn validate(pred: &Image<f64>, gt: &Image<f64>, mask: Option<&Mask>, opts: &EvalOptions) -> Result<()> {
     if pred.channels != 1 || gt.channels != 1 {
-        return Err(CoreError::invalid(
+        return Err(StereoError::invalid(
             "disparity",
             format!("prediction has {} channels, GT {} (need 1)", pred.channels, gt.channels),
         ));
     }
     if (pred.width, pred.height) != (gt.width, gt.height) {
-        return Err(CoreError::SizeMismatch(format!(
+        return Err(StereoError::SizeMismatch(format!(
             "prediction is {}x{}, ground truth {}x{}",
             pred.width, pred.height, gt.width, gt.height
         )));
     }
     if let Some(m) = mask {
         if (m.width, m.height) != (gt.width, gt.height) {
-            return Err(CoreError::SizeMismatch(format!(
+            return Err(StereoError::SizeMismatch(format!(
                 "mask is {}x{}, ground truth {}x{}",
                 m.width, m.height, gt.width, gt.height
             )));
         }
     }
     if opts.bad_thresholds_px.iter().any(|k| !(k.is_finite() && *k >= 0.0)) {
-        return Err(CoreError::invalid("Bad-k threshold", format!("{:?}", opts.bad_thresholds_px)));
+        return Err(StereoError::invalid("Bad-k threshold", format!("{:?}", opts.bad_thresholds_px)));
     }
     if let Some((lo, hi)) = opts.depth_range_mm {
         if !(lo >= 0.0 && hi > lo) || lo.is_nan() || hi.is_nan() {
-            return Err(CoreError::invalid("depth range", format!("[{lo}, {hi}] mm")));
+            return Err(StereoError::invalid("depth range", format!("[{lo}, {hi}] mm")));
         }
     }
     Ok(())
@@ -236,7 +236,7 @@ pub fn evaluate_maps(
         }
     }
     if n_valid == 0 {
-        return Err(CoreError::invalid("ground truth", "no valid disparity pixel (all non-finite or masked out)"));
+        return Err(StereoError::invalid("ground truth", "no valid disparity pixel (all non-finite or masked out)"));
     }
     let n_fin = n_valid - n_missing;
     let epe_px = if n_fin > 0 { sum_abs / n_fin as f64 } else { f64::NAN };
@@ -252,7 +252,7 @@ pub fn evaluate_maps(
         None => None,
         Some(geo) => {
             if !(geo.f_px.is_finite() && geo.f_px > 0.0 && geo.baseline_mm.is_finite() && geo.baseline_mm > 0.0) {
-                return Err(CoreError::invalid(
+                return Err(StereoError::invalid(
                     "calibration",
                     format!("f = {} px, b = {} mm", geo.f_px, geo.baseline_mm),
                 ));
@@ -288,7 +288,7 @@ pub fn evaluate_maps(
             maps.depth_gt_mm = Some(zg);
             maps.depth_error_mm = Some(ze);
             if n == 0 {
-                return Err(CoreError::invalid(
+                return Err(StereoError::invalid(
                     "ground truth",
                     format!(
                         "no pixel with a valid GT depth (GT disparity must exceed c_x^L − c_x^R = {})",

@@ -1,15 +1,16 @@
 //! Middlebury stereo `calib.txt` (2014/2021 datasets): the parser lives in
 //! [`laparo_core::io::calib_formats`] (one reader per kind of input); re-exported here.
+use crate::error::Result;
 use laparo_core::calib::StereoCalibration;
-use laparo_core::error::{CoreError, Result};
-pub use laparo_core::io::calib_formats::parse_middlebury_calib;
+use laparo_core::io::calib_formats::parse_middlebury_calib;
+use laparo_core::CoreError;
 use std::path::Path;
 
 /// Read a Middlebury `calib.txt`.
 pub fn read_middlebury_calib(path: impl AsRef<Path>) -> Result<StereoCalibration> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path).map_err(|e| CoreError::io(path, e))?;
-    parse_middlebury_calib(&text, path)
+    Ok(parse_middlebury_calib(&text, path)?)
 }
 
 #[cfg(test)]

@@ -27,9 +27,9 @@
 //! `d = f b / z + (c_x^L − c_x^R)`, so `z = f b / (d − (c_x^L − c_x^R))`. Middlebury calls
 //! `doffs = c_x^R − c_x^L` (then `z = f b / (d + doffs)`); laparo stores `doffs` with that sign.
 pub use crate::disparity::DisparityGeometry;
+use crate::error::{Result, StereoError};
 use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
-use laparo_core::error::{CoreError, Result};
 use laparo_core::image::{Image, Mask};
 use laparo_core::remap::{remap, CoordMap, Interp, Texel};
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Rotation3, Vector3};
@@ -159,16 +159,16 @@ impl Rectification {
         calib.right.validate()?;
         let (w, h) = (calib.left.width, calib.left.height);
         if (w, h) != (calib.right.width, calib.right.height) {
-            return Err(CoreError::SizeMismatch(format!(
+            return Err(StereoError::SizeMismatch(format!(
                 "left camera {}x{}, right camera {}x{}",
                 w, h, calib.right.width, calib.right.height
             )));
         }
         if w < 2 || h < 2 {
-            return Err(CoreError::invalid("image size", format!("{w}x{h}")));
+            return Err(StereoError::invalid("image size", format!("{w}x{h}")));
         }
         if !options.alpha.is_finite() || options.alpha > 1.0 {
-            return Err(CoreError::invalid(
+            return Err(StereoError::invalid(
                 "alpha",
                 format!("{} (must be <= 1; negative = no scaling)", options.alpha),
             ));
@@ -181,7 +181,7 @@ impl Rectification {
         let r_r = Rotation3::new(-0.5 * om).into_inner();
         let tt = r_r * t;
         if tt.x.abs() < tt.y.abs() {
-            return Err(CoreError::invalid("T", "vertical stereo pair (|t_y| > |t_x|) is not supported"));
+            return Err(StereoError::invalid("T", "vertical stereo pair (|t_y| > |t_x|) is not supported"));
         }
         let uu = Vector3::new(if tt.x > 0.0 { 1.0 } else { -1.0 }, 0.0, 0.0);
         let ww = tt.cross(&uu);
@@ -203,11 +203,14 @@ impl Rectification {
             let mut avg = [0.0; 2];
             for &(u, v) in &corners {
                 let ray = undistort_to_ray(kk, dd, u, v).ok_or_else(|| {
-                    CoreError::invalid("distortion", format!("undistortion does not converge at corner ({u}, {v})"))
+                    StereoError::invalid("distortion", format!("undistortion does not converge at corner ({u}, {v})"))
                 })?;
                 let q = rr * ray;
                 if q.z <= 0.0 {
-                    return Err(CoreError::invalid("R", "rectifying rotation sends an image corner behind the camera"));
+                    return Err(StereoError::invalid(
+                        "R",
+                        "rectifying rotation sends an image corner behind the camera",
+                    ));
                 }
                 avg[0] += f_new * q.x / q.z / 4.0;
                 avg[1] += f_new * q.y / q.z / 4.0;
@@ -235,11 +238,11 @@ impl Rectification {
                     (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
                 for &(u, v, edge) in &pts {
                     let ray = undistort_to_ray(kk, dd, u, v).ok_or_else(|| {
-                        CoreError::invalid("distortion", format!("undistortion does not converge at ({u}, {v})"))
+                        StereoError::invalid("distortion", format!("undistortion does not converge at ({u}, {v})"))
                     })?;
                     let q = rr * ray;
                     if q.z <= 0.0 {
-                        return Err(CoreError::invalid(
+                        return Err(StereoError::invalid(
                             "R",
                             "rectifying rotation sends the image border behind the camera",
                         ));
@@ -267,7 +270,7 @@ impl Rectification {
             }
             let s = s0 * (1.0 - options.alpha) + s1 * options.alpha;
             if !(s.is_finite() && s > 0.0) {
-                return Err(CoreError::invalid(
+                return Err(StereoError::invalid(
                     "alpha",
                     format!("no valid scaling (s0 = {s0}, s1 = {s1}): the principal point leaves the valid region"),
                 ));
@@ -485,7 +488,7 @@ impl Rectification {
     /// [`laparo_core::remap::remap`] per frame.
     pub fn rectify_image<T: Texel + Default>(&self, s: Side, img: &Image<T>) -> Result<(Image<T>, Mask)> {
         if (img.width, img.height) != (self.calib.left.width, self.calib.left.height) {
-            return Err(CoreError::SizeMismatch(format!(
+            return Err(StereoError::SizeMismatch(format!(
                 "{} image is {}x{}, the calibration is {}x{}",
                 if s == Side::Left { "left" } else { "right" },
                 img.width,
@@ -494,7 +497,7 @@ impl Rectification {
                 self.calib.left.height
             )));
         }
-        remap(img, &self.remap_table(s), Interp::Bilinear, T::default())
+        Ok(remap(img, &self.remap_table(s), Interp::Bilinear, T::default())?)
     }
 }
 

@@ -18,17 +18,23 @@
 //! Disparities are reported in the **raw left frame** with CATS' convention d = x_L − x_R
 //! ([`SelfRectification::disparity_to_raw_left`]). A failed fit is an error, never a silent
 //! identity.
-use crate::error::StereoError;
+use crate::error::{Result, StereoError};
 use laparo_core::image::{Image, Mask};
 use laparo_core::remap::{self, Interp, Texel};
 use laparo_core::se3::rotation_zyx;
 use laparo_features::ransac::{find_fundamental, RansacParams};
+use laparo_features::FeaturesError;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+/// A [`StereoError::Features`] naming the step.
+fn features(what: &str, source: FeaturesError) -> StereoError {
+    StereoError::Features { what: what.into(), source }
+}
+
 fn invalid(what: impl Into<String>, msg: impl Into<String>) -> StereoError {
-    StereoError::Invalid { what: what.into(), msg: msg.into() }
+    StereoError::invalid(what, msg)
 }
 
 /// A rectified image and its validity mask.
@@ -59,7 +65,7 @@ pub enum FeatureKind {
 
 impl std::str::FromStr for FeatureKind {
     type Err = StereoError;
-    fn from_str(s: &str) -> Result<Self, StereoError> {
+    fn from_str(s: &str) -> Result<Self> {
         match s.to_ascii_lowercase().as_str() {
             "fast" | "orb" => Ok(FeatureKind::Fast),
             "sift" => Ok(FeatureKind::Sift),
@@ -236,7 +242,7 @@ impl SelfRectification {
     /// nearest across a disparity edge) gives the raw right point; returns
     /// (raw disparity x_L − x_R, raw vertical offset y_R − y_L), +inf / NaN where invalid or where
     /// the raw right point falls outside the right image (a match against the warp's fill).
-    pub fn disparity_to_raw_left(&self, d_rect: &Image<f32>) -> Result<(Image<f32>, Image<f32>), StereoError> {
+    pub fn disparity_to_raw_left(&self, d_rect: &Image<f32>) -> Result<(Image<f32>, Image<f32>)> {
         if d_rect.channels != 1 {
             return Err(invalid("rectified disparity", format!("{} channels (need 1)", d_rect.channels)));
         }
@@ -267,7 +273,7 @@ impl SelfRectification {
         &self,
         left: &Image<T>,
         right: &Image<T>,
-    ) -> Result<(Rectified<T>, Rectified<T>), StereoError> {
+    ) -> Result<(Rectified<T>, Rectified<T>)> {
         self.rectify_images_with(left, right, Interp::Bilinear)
     }
 
@@ -278,7 +284,7 @@ impl SelfRectification {
         left: &Image<T>,
         right: &Image<T>,
         interp: Interp,
-    ) -> Result<(Rectified<T>, Rectified<T>), StereoError> {
+    ) -> Result<(Rectified<T>, Rectified<T>)> {
         let (w, h) = self.size;
         let (rw, rh) = self.rectified_size;
         for (name, img) in [("left image", left), ("right image", right)] {
@@ -443,7 +449,7 @@ fn lm(m0: Model, pl: &[[f64; 2]], pr: &[[f64; 2]], idx: &[usize], free: &[usize]
     (m, cost)
 }
 
-fn check_matches(pl: &[[f64; 2]], pr: &[[f64; 2]], size: (usize, usize)) -> Result<(), StereoError> {
+fn check_matches(pl: &[[f64; 2]], pr: &[[f64; 2]], size: (usize, usize)) -> Result<()> {
     if pl.len() != pr.len() {
         return Err(StereoError::SizeMismatch(format!("{} left points vs {} right points", pl.len(), pr.len())));
     }
@@ -460,7 +466,7 @@ type Canvas = (Matrix3<f64>, Matrix3<f64>, (usize, usize));
 /// boxes (rows are shared, so the vertical extent is common); the homographies are shifted by a whole
 /// number of pixels so the canvas starts at (0, 0). Errors when the canvas would exceed 2× the raw size
 /// (the pair is not near-rectified).
-fn canvas(hl: &Matrix3<f64>, hr: &Matrix3<f64>, size: (usize, usize)) -> Result<Canvas, StereoError> {
+fn canvas(hl: &Matrix3<f64>, hr: &Matrix3<f64>, size: (usize, usize)) -> Result<Canvas> {
     let (w, h) = (size.0 as f64 - 1.0, size.1 as f64 - 1.0);
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for hh in [hl, hr] {
@@ -496,7 +502,7 @@ pub fn self_rectify(
     pr: &[[f64; 2]],
     size: (usize, usize),
     opts: &SelfRectifyOptions,
-) -> Result<SelfRectification, StereoError> {
+) -> Result<SelfRectification> {
     check_matches(pl, pr, size)?;
     if pl.len() < opts.min_inliers.max(8) {
         return Err(invalid(
@@ -504,8 +510,7 @@ pub fn self_rectify(
             format!("too few matches: {} (need at least {})", pl.len(), opts.min_inliers.max(8)),
         ));
     }
-    let fit =
-        find_fundamental(pl, pr, &opts.ransac).map_err(|e| invalid("self-rectification matches", e.to_string()))?;
+    let fit = find_fundamental(pl, pr, &opts.ransac).map_err(|e| features("self-rectification matches", e))?;
     if fit.n_inliers < opts.min_inliers {
         return Err(invalid(
             "self-rectification matches",
@@ -651,7 +656,7 @@ fn hartley(
     pr: &[[f64; 2]],
     idx: &[usize],
     size: (usize, usize),
-) -> Result<(Matrix3<f64>, Matrix3<f64>), StereoError> {
+) -> Result<(Matrix3<f64>, Matrix3<f64>)> {
     let svd = f.svd(true, true);
     let u = svd.u.ok_or_else(|| invalid("fundamental matrix", "SVD failed"))?;
     let mut k = 0;
@@ -704,10 +709,7 @@ fn hartley(
 
 /// Exact correspondences of an augmented (CATS, exact rule) left disparity: every `step`-th
 /// valid left pixel (x, y) ↔ (x − d, y + vertical residual). For evaluating self-rectification.
-pub fn exact_correspondences(
-    disp: &crate::augment::AugmentedDisparity,
-    step: usize,
-) -> Result<PointPairs, StereoError> {
+pub fn exact_correspondences(disp: &crate::augment::AugmentedDisparity, step: usize) -> Result<PointPairs> {
     let res = disp
         .vertical_residual
         .as_ref()
@@ -763,9 +765,9 @@ pub fn perturbation(
 }
 
 /// SIFT keypoints of both images matched with Lowe 0.8 + mutual check (laparo-features defaults).
-pub fn sift_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
+pub fn sift_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs> {
     use laparo_features::DetectorConfig;
-    let feat = |e: laparo_features::FeaturesError| StereoError::Config(format!("SIFT matching: {e}"));
+    let feat = |e| features("SIFT matching", e);
     let sift = DetectorConfig::by_name("sift").map_err(feat)?;
     detect_and_match(left, right, &sift).map_err(feat)
 }
@@ -775,7 +777,7 @@ fn detect_and_match(
     left: &Image<u8>,
     right: &Image<u8>,
     det: &laparo_features::DetectorConfig,
-) -> Result<PointPairs, laparo_features::FeaturesError> {
+) -> std::result::Result<PointPairs, FeaturesError> {
     use laparo_features::{detect_and_describe, match_features, MatchConfig};
     let (fl, fr) = rayon::join(|| detect_and_describe(left, det, None), || detect_and_describe(right, det, None));
     let (fl, fr) = (fl?, fr?);
@@ -789,7 +791,7 @@ fn detect_and_match(
 }
 
 /// Keypoint matches of a raw pair by `kind` ([`fast_matches`] or [`sift_matches`]).
-pub fn feature_matches(left: &Image<u8>, right: &Image<u8>, kind: FeatureKind) -> Result<PointPairs, StereoError> {
+pub fn feature_matches(left: &Image<u8>, right: &Image<u8>, kind: FeatureKind) -> Result<PointPairs> {
     match kind {
         FeatureKind::Fast => fast_matches(left, right),
         FeatureKind::Sift => sift_matches(left, right),
@@ -860,13 +862,13 @@ pub enum MatchRoute {
     Full,
 }
 
-fn feat_err(e: laparo_features::FeaturesError) -> StereoError {
-    StereoError::Config(format!("ORB matching: {e}"))
+fn feat_err(e: FeaturesError) -> StereoError {
+    features("ORB matching", e)
 }
 
 /// Stage 1 of the fast matcher: grey conversion and ORB (`p.n_features`, `p.n_levels` × 1.2) of
 /// both images, the two images concurrently.
-pub fn fast_detect(left: &Image<u8>, right: &Image<u8>, p: &FastParams) -> Result<FastFeatures, StereoError> {
+pub fn fast_detect(left: &Image<u8>, right: &Image<u8>, p: &FastParams) -> Result<FastFeatures> {
     use laparo_features::{detect_and_describe, DetectorConfig, OrbParams};
     if left.size() != right.size() {
         return Err(StereoError::SizeMismatch(format!(
@@ -906,7 +908,7 @@ fn subset(f: &laparo_features::Features, idx: &[usize]) -> laparo_features::Feat
 /// coarse matches, every keypoint is matched only within `p.band_px` of its epipolar line and
 /// within the inliers' x_R − x_L range ± `p.dx_margin_px` ([`laparo_features::guided`]), otherwise
 /// by brute force over all keypoints ([`MatchRoute::Full`]). Returns unrefined point pairs.
-pub fn fast_match_stage(ff: &FastFeatures, p: &FastParams) -> Result<(PointPairs, MatchRoute), StereoError> {
+pub fn fast_match_stage(ff: &FastFeatures, p: &FastParams) -> Result<(PointPairs, MatchRoute)> {
     use laparo_features::guided::match_features_guided;
     use laparo_features::{match_features, MatchConfig};
     let cfg = MatchConfig::default();
@@ -952,7 +954,7 @@ pub fn fast_match_stage(ff: &FastFeatures, p: &FastParams) -> Result<(PointPairs
 /// the left point becomes its pixel, the right point sub-pixel. ORB positions of coarse pyramid
 /// levels are only pixel-accurate at that level; this restores the sub-pixel accuracy the
 /// rectification fit needs.
-pub fn fast_refine(ff: &FastFeatures, m: &PointPairs) -> Result<PointPairs, StereoError> {
+pub fn fast_refine(ff: &FastFeatures, m: &PointPairs) -> Result<PointPairs> {
     use laparo_features::refine::{refine_matches_ncc, RefineParams};
     let refined =
         refine_matches_ncc(&ff.left_gray, &ff.right_gray, &m.0, &m.1, &RefineParams::default()).map_err(feat_err)?;
@@ -961,16 +963,12 @@ pub fn fast_refine(ff: &FastFeatures, m: &PointPairs) -> Result<PointPairs, Ster
 
 /// The fast matcher with default [`FastParams`]: [`fast_detect`] → [`fast_match_stage`] →
 /// [`fast_refine`].
-pub fn fast_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs, StereoError> {
+pub fn fast_matches(left: &Image<u8>, right: &Image<u8>) -> Result<PointPairs> {
     fast_matches_with(left, right, &FastParams::default()).map(|(m, _)| m)
 }
 
 /// [`fast_matches`] with explicit parameters; also returns the matching route taken.
-pub fn fast_matches_with(
-    left: &Image<u8>,
-    right: &Image<u8>,
-    p: &FastParams,
-) -> Result<(PointPairs, MatchRoute), StereoError> {
+pub fn fast_matches_with(left: &Image<u8>, right: &Image<u8>, p: &FastParams) -> Result<(PointPairs, MatchRoute)> {
     let ff = fast_detect(left, right, p)?;
     let (m, route) = fast_match_stage(&ff, p)?;
     Ok((fast_refine(&ff, &m)?, route))
@@ -1025,7 +1023,7 @@ pub fn match_self_rectified(
     left: &Image<u8>,
     right: &Image<u8>,
     p: &crate::sgm::SgmParams,
-) -> Result<SelfRectifiedMatch, StereoError> {
+) -> Result<SelfRectifiedMatch> {
     match_self_rectified_with(left, right, p, &SelfRectifyOptions::default())
 }
 
@@ -1035,7 +1033,7 @@ pub fn match_self_rectified_with(
     right: &Image<u8>,
     p: &crate::sgm::SgmParams,
     opts: &SelfRectifyOptions,
-) -> Result<SelfRectifiedMatch, StereoError> {
+) -> Result<SelfRectifiedMatch> {
     let (w, h) = left.size();
     if right.size() != (w, h) {
         return Err(StereoError::SizeMismatch(format!(
@@ -1067,7 +1065,7 @@ pub fn match_self_rectified_with(
     let ((l, _), (r, _)) = sr.rectify_images(left, right)?;
     // SGM sees the canvas outside each raw image as the row's nearest image pixel, not as black:
     // a black wedge has census codes that match each other and pulls paths astray near it
-    let (lm_, rm_) = (crate::sgm::masked::extend_rows(&lg, &ml), crate::sgm::masked::extend_rows(&rg, &mr));
+    let (lm_, rm_) = (crate::sgm::extend_rows(&lg, &ml), crate::sgm::extend_rows(&rg, &mr));
     let o = crate::sgm::match_pair(&lm_, &rm_, &crate::sgm::SgmParams { d_min: lo, d_max: hi, ..p.clone() })?;
     let (d, dy) = sr.disparity_to_raw_left(&o.disparity)?;
     let hl = sr.h_left();

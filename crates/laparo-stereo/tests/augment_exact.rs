@@ -2,9 +2,7 @@
 //! conventions, and the two disparity rules on cases with a closed-form answer.
 use laparo_core::se3::rotation_zyx;
 use laparo_core::{Distortion, Image, Intrinsics};
-use laparo_stereo::augment::{
-    augment_image, augment_stereo, CameraAugmentation, GtRule, StereoAugmentation, StereoSample,
-};
+use laparo_stereo::{augment_image, augment_stereo, CameraAugmentation, GtRule, StereoAugmentation, StereoSample};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 

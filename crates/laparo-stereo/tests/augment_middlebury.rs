@@ -3,11 +3,11 @@
 //! right image at the GT correspondence reproduces the augmented left image with a photometric
 //! error no worse than the original GT on the original pair (within a tolerance, see below).
 use laparo_core::{io, Distortion, Image, Intrinsics};
-use laparo_stereo::augment::{
+use laparo_stereo::{
     augment_stereo, disparity_difference, AugmentedDisparity, CameraAugmentation, GtRule, StereoAugmentation,
     StereoSample,
 };
-use laparo_stereo::cats_params::{sample_rng, CatsConfig};
+use laparo_stereo::{sample_rng, CatsConfig};
 use nalgebra::Matrix3;
 use std::path::PathBuf;
 

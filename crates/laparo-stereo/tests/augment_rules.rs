@@ -6,9 +6,9 @@
 //! augmented left pixel through the rotated camera (P ∝ Rᵀ K'⁻¹ p'), intersect the scene and
 //! project the point into the augmented right camera (K'_R R_R (P − C_R)).
 use laparo_core::{Distortion, Intrinsics};
-use laparo_stereo::augment::{augment_stereo, AugmentedDisparity, GtRule, StereoAugmentation};
-use laparo_stereo::cats_params::{sample_rng, CatsConfig};
-use laparo_stereo::synthetic::Scene;
+use laparo_stereo::Scene;
+use laparo_stereo::{augment_stereo, AugmentedDisparity, GtRule, StereoAugmentation};
+use laparo_stereo::{sample_rng, CatsConfig};
 use nalgebra::Vector3;
 
 const B: f64 = 80.0;
@@ -70,7 +70,7 @@ fn exact_rule_matches_rendered_truth_and_thesis_rule_misses_right_rotation() {
         let b = augment_stereo(&s, &p, GtRule::Exact).unwrap().disp_left.unwrap();
         let ea = errors(&scene, &p, &a, 7);
         let eb = errors(&scene, &p, &b, 7);
-        let (epe_ab, _, _) = laparo_stereo::augment::disparity_difference(&a, &b);
+        let (epe_ab, _, _) = laparo_stereo::disparity_difference(&a, &b);
         // First-order prediction of the thesis rule's error: it ignores the right camera's
         // rotation, whose pan θ shifts the right image by ≈ f tanθ (1 + E[(x − c_x)²]/f²),
         // and its relative x shift of the left camera; the principal-point term is exact.
@@ -139,7 +139,7 @@ fn thesis_rule_is_exact_to_first_order_when_cameras_rotate_together() {
     let b = augment_stereo(&s, &p, GtRule::Exact).unwrap().disp_left.unwrap();
     let ea = errors(&scene, &p, &a, 3);
     assert!(ea.median_signed.abs() < 0.1, "median thesis error {} px", ea.median_signed);
-    let (epe, _, n) = laparo_stereo::augment::disparity_difference(&a, &b);
+    let (epe, _, n) = laparo_stereo::disparity_difference(&a, &b);
     assert!(n > 1000 && epe < 0.2, "EPE(thesis, exact) {epe} px over {n} px");
 }
 

@@ -1,7 +1,7 @@
 //! Stereo evaluation metrics hand-derived on tiny arrays (Tables 3.7–3.8 definitions).
 use laparo_core::image::Image;
-use laparo_stereo::eval::{evaluate, evaluate_maps, EvalOptions};
-use laparo_stereo::rectify::DisparityGeometry;
+use laparo_stereo::DisparityGeometry;
+use laparo_stereo::{evaluate, evaluate_maps, EvalOptions};
 
 fn img(w: usize, h: usize, v: &[f64]) -> Image<f64> {
     Image::from_vec(w, h, 1, v.to_vec()).unwrap()

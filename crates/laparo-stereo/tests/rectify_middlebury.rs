@@ -3,8 +3,8 @@
 //! f = 994.97775 px, b = 193.001 mm, doffs = c_x^R − c_x^L = 31.08575 px at 741x500).
 //! Skips when the data is absent.
 use laparo_core::image::Image;
-use laparo_stereo::eval::{evaluate, EvalOptions};
-use laparo_stereo::rectify::DisparityGeometry;
+use laparo_stereo::DisparityGeometry;
+use laparo_stereo::{evaluate, EvalOptions};
 use std::path::PathBuf;
 
 fn load() -> Option<Image<f64>> {

@@ -6,7 +6,7 @@
 //! focal lengths also agree to 1e-3 px on this near-distortion-free calibration. R1, R2 agree to 1e-10 (laparo first projects the
 //! file's R, orthonormal to ~1e-9 only, onto SO(3); OpenCV goes through Rodrigues).
 use laparo_core::calib::StereoCalibration;
-use laparo_stereo::rectify::{Rectification, RectifyOptions};
+use laparo_stereo::{Rectification, RectifyOptions};
 use nalgebra::Matrix3;
 use std::path::PathBuf;
 

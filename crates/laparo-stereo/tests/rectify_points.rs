@@ -3,7 +3,7 @@
 use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
 use laparo_core::se3::rotation_zyx;
-use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
+use laparo_stereo::{Rectification, RectifyOptions, Side};
 use nalgebra::Vector3;
 
 fn pair() -> StereoCalibration {

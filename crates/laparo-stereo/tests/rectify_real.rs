@@ -7,7 +7,7 @@
 //! Skips when the data is absent.
 use laparo_core::calib::StereoCalibration;
 use laparo_core::image::Image;
-use laparo_stereo::rectify::{Rectification, RectifyOptions, Side};
+use laparo_stereo::{Rectification, RectifyOptions, Side};
 use std::path::PathBuf;
 
 const R: isize = 7; // 15×15 patches

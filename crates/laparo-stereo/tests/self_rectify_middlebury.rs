@@ -2,10 +2,8 @@
 //! pairs: rotations of a few tenths of a degree, principal-point shifts of ±60 px; exact
 //! correspondences after rectification: median |dy| ≤ 0.15 px, 95th percentile ≤ 0.5 px.
 use laparo_core::{io, Intrinsics};
-use laparo_stereo::augment::{augment_stereo, GtRule, StereoSample};
-use laparo_stereo::self_rectify::{
-    exact_correspondences, perturbation, self_rectify, DyStats, RectifyMethod, SelfRectifyOptions,
-};
+use laparo_stereo::{augment_stereo, GtRule, StereoSample};
+use laparo_stereo::{exact_correspondences, perturbation, self_rectify, DyStats, RectifyMethod, SelfRectifyOptions};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
@@ -116,7 +114,7 @@ fn hartley_is_computed_and_compared() {
     let opts = SelfRectifyOptions { method: RectifyMethod::Hartley, max_median_dy_px: 5.0, ..Default::default() };
     let h = self_rectify(&ml, &mr, (741, 500), &opts).unwrap();
     let q = self_rectify(&ml, &mr, (741, 500), &SelfRectifyOptions::default()).unwrap();
-    let dy = |r: &laparo_stereo::self_rectify::SelfRectification| {
+    let dy = |r: &laparo_stereo::SelfRectification| {
         DyStats::of(
             &pl.iter()
                 .zip(&pr)
@@ -179,7 +177,7 @@ fn sift_matches_on_cats_perturbed_middlebury() {
 /// SIFT route on the same pair for comparison.
 #[test]
 fn fast_matches_on_cats_perturbed_middlebury() {
-    use laparo_stereo::self_rectify::{fast_matches, sift_matches, FeatureKind};
+    use laparo_stereo::{fast_matches, sift_matches, FeatureKind};
     let Some(d) = data_dir() else { return };
     assert_eq!(SelfRectifyOptions::default().features, FeatureKind::Fast);
     let s = motorcycle(&d);
@@ -193,7 +191,7 @@ fn fast_matches_on_cats_perturbed_middlebury() {
     {
         let aug = augment_stereo(&s, &p, GtRule::Exact).unwrap();
         let (pl, pr) = exact_correspondences(aug.disp_left.as_ref().unwrap(), 3).unwrap();
-        let eval = |rect: &laparo_stereo::self_rectify::SelfRectification| {
+        let eval = |rect: &laparo_stereo::SelfRectification| {
             DyStats::of(
                 &pl.iter()
                     .zip(&pr)
@@ -250,7 +248,7 @@ fn in_view(
 /// Filled disparity (invalid → the row background, `sgm::fill`, as `tests/sgm.rs` and `sgbm_ref.py`).
 fn filled(d: &laparo_core::Image<f32>) -> Vec<f32> {
     let mut f = d.data.clone();
-    laparo_stereo::sgm::fill::fill_background(&mut f, d.width, d.height);
+    laparo_stereo::fill_background(&mut f, d.width, d.height);
     f
 }
 
@@ -284,8 +282,8 @@ impl EpeRow {
 /// correspondence is in view, and the unperturbed pixel A_L⁻¹ p' whose correspondence is in view too
 /// (a perturbation moves parts of the scene out of the frame; no matcher can see those).
 fn epe_rows() -> Option<Vec<EpeRow>> {
-    use laparo_stereo::self_rectify::match_self_rectified;
-    use laparo_stereo::sgm::{match_pair, SgmParams};
+    use laparo_stereo::match_self_rectified;
+    use laparo_stereo::{match_pair, SgmParams};
     let d = data_dir()?;
     let s = motorcycle(&d);
     let (w, h) = (741usize, 500usize);
@@ -417,7 +415,7 @@ fn self_rectified_epe_within_15_percent_of_the_unperturbed_pair() {
 /// with 1 and 2 threads, and take the guided route on a CATS-perturbed pair.
 #[test]
 fn fast_matches_identical_for_1_and_2_threads() {
-    use laparo_stereo::self_rectify::{fast_matches_with, FastParams, MatchRoute};
+    use laparo_stereo::{fast_matches_with, FastParams, MatchRoute};
     let Some(d) = data_dir() else { return };
     let s = motorcycle(&d);
     let (kl, kr) = cameras();

@@ -1,5 +1,5 @@
 //! Self-rectification on synthetic exact correspondences (no data needed) and bad input.
-use laparo_stereo::self_rectify::{self_rectify, DyStats, SelfRectifyOptions};
+use laparo_stereo::{self_rectify, DyStats, SelfRectifyOptions};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -1,7 +1,7 @@
 //! SGM acceptance tests (issue 14): exact shift invariance for signed ranges, AVX2 = scalar,
 //! 1 thread = 2 threads, bad input, Middlebury accuracy and the vertical tolerance.
 use laparo_core::image::Image;
-use laparo_stereo::sgm::{match_pair, Kernel, Paths, SgmParams};
+use laparo_stereo::{match_pair, match_pair_with, Kernel, Paths, SgmParams, SgmWorkspace};
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 
@@ -44,6 +44,28 @@ fn shift_right(img: &Image<u8>, k: i32) -> Image<u8> {
     out
 }
 
+/// A workspace reused across pairs of other sizes, ranges and path counts (its buffers are
+/// larger, smaller, or hold the previous pair's values) gives the bits of a fresh one.
+#[test]
+fn reused_workspace_gives_the_fresh_result() {
+    let mut ws = SgmWorkspace::new();
+    let runs = [
+        (160, 48, SgmParams { vertical_tol: 1, ..SgmParams::accurate(0, 32) }),
+        (96, 40, SgmParams::new(-8, 8)),
+        (160, 48, SgmParams::new(0, 16)),
+        (120, 64, SgmParams::accurate(-16, 16)),
+    ];
+    for (i, (w, h, p)) in runs.into_iter().enumerate() {
+        let (l, r, _) = random_pair(w, h, 4, i as u64);
+        let fresh = match_pair(&l, &r, &p).unwrap();
+        let reused = match_pair_with(&mut ws, &l, &r, &p).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&fresh.disparity.data), bits(&reused.disparity.data), "run {i}");
+        assert_eq!(bits(&fresh.confidence.data), bits(&reused.confidence.data), "run {i}");
+        assert_eq!(fresh.stats, reused.stats, "run {i}");
+    }
+}
+
 #[test]
 fn shift_changes_interior_disparity_by_exactly_k() {
     let (w, h) = (160, 48);
@@ -84,7 +106,7 @@ fn avx2_equals_scalar_and_threads_do_not_matter() {
             let a = pool(1).install(|| match_pair(&l, &r, &p).unwrap());
             let b = pool(2).install(|| match_pair(&l, &r, &p).unwrap());
             let s = pool(2).install(|| match_pair(&l, &r, &SgmParams { kernel: Kernel::Scalar, ..p.clone() }).unwrap());
-            let bits = |o: &laparo_stereo::sgm::SgmOutput| -> Vec<u32> {
+            let bits = |o: &laparo_stereo::SgmOutput| -> Vec<u32> {
                 o.disparity
                     .data
                     .iter()
@@ -127,7 +149,7 @@ fn middlebury() -> Option<(Image<u8>, Image<u8>, Image<f64>)> {
 /// (density, EPE filled, Bad-1, Bad-2, Bad-3 filled %) with `sgbm_ref.py`'s fill rule.
 fn scores(pred: &[f32], gt: &Image<f64>) -> (f64, f64, f64, f64, f64) {
     let mut f = pred.to_vec();
-    laparo_stereo::sgm::fill::fill_background(&mut f, gt.width, gt.height);
+    laparo_stereo::fill_background(&mut f, gt.width, gt.height);
     let (mut n, mut nv, mut e, mut b) = (0usize, 0usize, 0f64, [0usize; 3]);
     for i in 0..f.len() {
         let g = gt.data[i];
@@ -168,7 +190,7 @@ fn middlebury_motorcycle_beats_opencv() {
 #[test]
 fn vertical_tolerance_recovers_rectified_accuracy() {
     use laparo_core::camera::{Distortion, Intrinsics};
-    use laparo_stereo::augment::{augment_image, CameraAugmentation};
+    use laparo_stereo::{augment_image, CameraAugmentation};
     use nalgebra::Matrix3;
     let Some((l, r, gt)) = middlebury() else { return };
     let (w, h) = (l.width, l.height);

@@ -2,8 +2,8 @@
 //! constant disparity, black wedges outside each image's mask (what a rectification with α > 0
 //! leaves), matched as is and through `match_masked`.
 use laparo_core::image::{Image, Mask};
-use laparo_stereo::sgm::masked::{extend_rows, match_masked};
-use laparo_stereo::sgm::{match_pair, SgmParams};
+use laparo_stereo::{extend_rows, match_masked};
+use laparo_stereo::{match_pair, SgmParams};
 use rand::{Rng, SeedableRng};
 
 const K: i32 = 12;

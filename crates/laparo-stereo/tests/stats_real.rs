@@ -2,7 +2,7 @@
 //! thesis' "well below 1°" and "< 0.5 px distortion" claims, and the odd student calibration
 //! flagged with warnings. Prints our Table 3.6 analogue. Skips when the data is absent.
 use laparo_core::calib::StereoCalibration;
-use laparo_stereo::calib_stats::{calib_stats, offsets_markdown, per_file_markdown, summarize, table_3_6_markdown};
+use laparo_stereo::{calib_stats, offsets_markdown, per_file_markdown, summarize, table_3_6_markdown};
 use std::path::PathBuf;
 
 fn data() -> Option<PathBuf> {

@@ -4,8 +4,8 @@
 use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
 use laparo_core::se3::{euler_zyx, rotation_zyx};
-use laparo_stereo::calib_stats::{calib_stats, fitted_cats_config, stereo_extrinsics_from_rotations, summarize};
-use laparo_stereo::cats_params::{CatsConfig, Dist};
+use laparo_stereo::{calib_stats, fitted_cats_config, stereo_extrinsics_from_rotations, summarize};
+use laparo_stereo::{CatsConfig, Dist};
 use nalgebra::{Rotation3, Vector3};
 
 /// One synthetic calibration and the values the statistics must recover.

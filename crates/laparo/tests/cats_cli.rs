@@ -1,7 +1,7 @@
 //! `laparo cats augment` / `apply`: determinism across thread counts, resumability after an
 //! interruption, reproduction of a sample from its sidecar, and clear errors on bad input.
 use laparo_core::{io, Image};
-use laparo_stereo::synthetic::{default_camera, Scene};
+use laparo_stereo::{default_camera, Scene};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;

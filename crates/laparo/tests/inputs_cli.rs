@@ -6,7 +6,7 @@
 //! and a `{"K": ...}` camera JSON accepted by `depth reproject` was rejected by `cpc warp`.
 use laparo_core::calib::StereoCalibration;
 use laparo_core::{io, Image, Intrinsics};
-use laparo_stereo::synthetic::{default_camera, Scene};
+use laparo_stereo::{default_camera, Scene};
 use nalgebra::{Matrix3, Vector3};
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! shards of N = 3 together produce byte-identical files to one unsharded run (issue 15).
 use laparo_core::image::Image;
 use laparo_core::io::{write_npy_f64, write_pfm, write_png};
-use laparo_stereo::synthetic::{default_camera, Scene};
+use laparo_stereo::{default_camera, Scene};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;

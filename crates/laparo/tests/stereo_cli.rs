@@ -4,7 +4,7 @@ use laparo_core::calib::StereoCalibration;
 use laparo_core::camera::{Distortion, Intrinsics};
 use laparo_core::image::Image;
 use laparo_core::se3::rotation_zyx;
-use laparo_stereo::calib_stats::stereo_extrinsics_from_rotations;
+use laparo_stereo::stereo_extrinsics_from_rotations;
 use nalgebra::{Rotation3, Vector3};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -84,8 +84,7 @@ fn cats_stats_json_recovers_synthetic_rotations_and_offsets() {
     assert!((m["mean"].as_f64().unwrap() - 0.01).abs() < 1e-9);
     assert!((m["std"].as_f64().unwrap() - 0.01 * (2.0f64 / 3.0).sqrt()).abs() < 1e-9);
     // The fitted config is a valid CATS config.
-    let cfg =
-        laparo_stereo::cats_params::CatsConfig::from_toml_str(&std::fs::read_to_string(&toml_path).unwrap()).unwrap();
+    let cfg = laparo_stereo::CatsConfig::from_toml_str(&std::fs::read_to_string(&toml_path).unwrap()).unwrap();
     assert!((cfg.right.euler_deg.x.mean() - 0.01).abs() < 1e-9);
 }
 

@@ -1,7 +1,8 @@
 //! Dataset layouts (SceneFlow, Middlebury, generic): discovery of the samples and loading of one.
-use super::{ferr, DatasetError};
+use super::ferr;
 use crate::augment::StereoSample;
-use crate::cats_params::{CatsConfig, ConfigError, SourceCamera};
+use crate::cats_params::{CatsConfig, SourceCamera};
+use crate::error::{Result, StereoError};
 use laparo_core::{io, CoreError, Image, Intrinsics};
 use nalgebra::Matrix3;
 use serde::{Deserialize, Serialize};
@@ -23,7 +24,7 @@ pub enum Layout {
 
 impl std::str::FromStr for Layout {
     type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
         match s {
             "sceneflow" => Ok(Layout::SceneFlow),
             "middlebury" => Ok(Layout::Middlebury),
@@ -50,7 +51,7 @@ pub struct SampleFiles {
     pub calib: Option<PathBuf>,
 }
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), DatasetError> {
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
     let rd = std::fs::read_dir(dir).map_err(|e| CoreError::io(dir, e))?;
     let mut entries: Vec<_> = rd.filter_map(|e| e.ok()).map(|e| e.path()).collect();
     entries.sort();
@@ -79,7 +80,7 @@ fn existing(p: PathBuf) -> Option<PathBuf> {
 
 /// Find every sample of `root` in `layout`, sorted by id. Errors when the root is missing or
 /// no sample is found, or when a left image has no right partner.
-pub fn discover(root: &Path, layout: Layout) -> Result<Vec<SampleFiles>, DatasetError> {
+pub fn discover(root: &Path, layout: Layout) -> Result<Vec<SampleFiles>> {
     if !root.is_dir() {
         return Err(ferr(root, "input folder does not exist"));
     }
@@ -183,13 +184,9 @@ pub fn discover(root: &Path, layout: Layout) -> Result<Vec<SampleFiles>, Dataset
 }
 
 /// Middlebury `calib.txt`: (left K, right K) from `cam0`, `cam1` (the size is the image's).
-pub fn read_middlebury_calib(
-    path: &Path,
-    width: usize,
-    height: usize,
-) -> Result<(Intrinsics, Intrinsics), DatasetError> {
+pub fn read_middlebury_calib(path: &Path, width: usize, height: usize) -> Result<(Intrinsics, Intrinsics)> {
     let text = std::fs::read_to_string(path).map_err(|e| CoreError::io(path, e))?;
-    let cam = |key: &str| -> Result<Intrinsics, DatasetError> {
+    let cam = |key: &str| -> Result<Intrinsics> {
         let line = text
             .lines()
             .find_map(|l| l.trim().strip_prefix(key).and_then(|r| r.trim_start().strip_prefix('=')))
@@ -198,19 +195,23 @@ pub fn read_middlebury_calib(
             .replace(['[', ']', ';'], " ")
             .split_whitespace()
             .map(|t| t.parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| ferr(path, format!("'{key}': {e}")))?;
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|source| StereoError::FileNumber { path: path.into(), what: format!("'{key}'"), source })?;
         if nums.len() != 9 {
             return Err(ferr(path, format!("'{key}' must have 9 numbers, found {}", nums.len())));
         }
         let m = Matrix3::from_row_slice(&nums);
-        Intrinsics::from_matrix(&m, width, height).map_err(|e| ferr(path, format!("'{key}': {e}")))
+        Intrinsics::from_matrix(&m, width, height).map_err(|source| StereoError::FileField {
+            path: path.into(),
+            what: format!("'{key}'"),
+            source,
+        })
     };
     Ok((cam("cam0")?, cam("cam1")?))
 }
 
 /// Read a disparity map (PFM, npy, npz, TIFF) as one-channel f32; non-finite = unknown.
-pub fn read_disparity(path: &Path) -> Result<Image<f32>, DatasetError> {
+pub fn read_disparity(path: &Path) -> Result<Image<f32>> {
     let d =
         if io::extension(path) == "pfm" { io::read_pfm(path)? } else { io::read_float_map(path)?.map(|v| v as f32) };
     if d.channels != 1 {
@@ -222,7 +223,7 @@ pub fn read_disparity(path: &Path) -> Result<Image<f32>, DatasetError> {
 }
 
 /// Read a stereo sample's images and disparities, checking sizes (errors name the files).
-pub fn load_sample(f: &SampleFiles) -> Result<StereoSample, DatasetError> {
+pub fn load_sample(f: &SampleFiles) -> Result<StereoSample> {
     let mut left = io::read_image(&f.left)?;
     let mut right = io::read_image(&f.right)?;
     if left.size() != right.size() {
@@ -242,7 +243,7 @@ pub fn load_sample(f: &SampleFiles) -> Result<StereoSample, DatasetError> {
         left = left.to_rgb();
         right = right.to_rgb();
     }
-    let disp = |p: &Option<PathBuf>| -> Result<Option<Image<f32>>, DatasetError> {
+    let disp = |p: &Option<PathBuf>| -> Result<Option<Image<f32>>> {
         let Some(p) = p else { return Ok(None) };
         let d = read_disparity(p)?;
         if d.size() != left.size() {
@@ -271,7 +272,7 @@ pub fn source_cameras(
     config: &CatsConfig,
     width: usize,
     height: usize,
-) -> Result<(Intrinsics, Intrinsics), DatasetError> {
+) -> Result<(Intrinsics, Intrinsics)> {
     if let Some(c) = &f.calib {
         return read_middlebury_calib(c, width, height);
     }
@@ -279,7 +280,7 @@ pub fn source_cameras(
         (Some(c), _) => c,
         (None, Layout::SceneFlow) => SourceCamera::SCENEFLOW,
         (None, _) => {
-            return Err(ConfigError::Config(
+            return Err(StereoError::Config(
                 "the generic layout needs the source camera: add [camera] fx, fy (and cx, cy) to the config".into(),
             ))
         }

@@ -1,9 +1,9 @@
 //! Per-sample CATS augmentation with atomic outputs mirroring the input tree and the JSON sidecar
 //! written last (a sample is finished iff its sidecar exists).
 use super::layout::{load_sample, source_cameras, Layout, SampleFiles};
-use super::DatasetError;
 use crate::augment::{augment_stereo, AugmentedDisparity, GtRule, Mat3Rows, StereoAugmentation};
 use crate::cats_params::{sample_rng, sample_seed, CatsConfig};
+use crate::error::{Result, StereoError};
 use laparo_core::image::Mask;
 use laparo_core::{io, Distortion, Image};
 use nalgebra::Matrix3;
@@ -76,7 +76,7 @@ pub enum ResumeState {
     Stale,
 }
 
-/// [`is_done`], distinguishing outputs written with other parameters (`hash` from
+/// `is_done` (the sidecar parses), distinguishing outputs written with other parameters (`hash` from
 /// [`run_params_hash`]).
 pub fn resume_state(f: &SampleFiles, root: &Path, out: &Path, hash: &str) -> ResumeState {
     if !is_done(f, root, out) {
@@ -166,7 +166,7 @@ pub fn write_augmented(
     out: &Path,
     a: &crate::augment::AugmentedStereo,
     mut sidecar: Sidecar,
-) -> Result<Sidecar, DatasetError> {
+) -> Result<Sidecar> {
     let o = output_paths(f, root, out);
     io::write_png(&o.left, &a.left.image)?;
     io::write_png(&o.right, &a.right.image)?;
@@ -205,12 +205,16 @@ pub fn augment_sample(
     config: &CatsConfig,
     seed: u64,
     rule: GtRule,
-) -> Result<Sidecar, DatasetError> {
+) -> Result<Sidecar> {
     let s = load_sample(f)?;
     let (kl, kr) = source_cameras(f, layout, config, s.left.width, s.left.height)?;
     let mut rng = sample_rng(seed, &f.id);
     let p = config.sample(&mut rng, &kl, &Distortion::default(), &kr, &Distortion::default());
-    super::params::check_homographies(&p).map_err(|e| super::ferr(&f.left, format!("sampled parameters: {e}")))?;
+    super::params::check_homographies(&p).map_err(|e| StereoError::FileCheck {
+        path: f.left.clone(),
+        what: "sampled parameters".into(),
+        source: Box::new(e),
+    })?;
     let a = augment_stereo(&s, &p, rule)?;
     let sidecar = Sidecar {
         laparo_version: env!("CARGO_PKG_VERSION").into(),

@@ -1,7 +1,7 @@
 //! Hand-written augmentation parameters (`laparo cats apply --params`): JSON with K as an object
 //! or a matrix, optional distortion, per camera.
 use crate::augment::{CameraAugmentation, Mat3Rows, StereoAugmentation};
-use crate::cats_params::ConfigError;
+use crate::error::{Result, StereoError};
 use laparo_core::{Distortion, Intrinsics};
 use nalgebra::Matrix3;
 use serde::Deserialize;
@@ -50,20 +50,24 @@ struct ParamsInput {
     dx_right_px: Option<f64>,
 }
 
-fn k_of(k: &KInput, w: usize, h: usize, what: &str) -> Result<Intrinsics, ConfigError> {
+fn json(what: &str, source: serde_json::Error) -> StereoError {
+    StereoError::ConfigJson { what: what.into(), source }
+}
+
+fn k_of(k: &KInput, w: usize, h: usize, what: &str) -> Result<Intrinsics> {
     let m = match k {
         KInput::Obj(o) => Matrix3::new(o.fx, o.skew, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0),
         KInput::Rows(r) => Matrix3::from_row_slice(&r.concat()),
     };
-    Intrinsics::from_matrix(&m, w, h).map_err(|e| ConfigError::Config(format!("{what}: {e}")))
+    Intrinsics::from_matrix(&m, w, h).map_err(|source| StereoError::ConfigField { what: what.into(), source })
 }
 
-fn dist_of(d: &Option<DistInput>, what: &str) -> Result<Distortion, ConfigError> {
+fn dist_of(d: &Option<DistInput>, what: &str) -> Result<Distortion> {
     match d {
         None => Ok(Distortion::default()),
         Some(DistInput::Obj(o)) => Ok(*o),
         Some(DistInput::Coeffs(c)) => {
-            Distortion::from_opencv(c).map_err(|e| ConfigError::Config(format!("{what}: {e}")))
+            Distortion::from_opencv(c).map_err(|source| StereoError::ConfigField { what: what.into(), source })
         }
     }
 }
@@ -74,18 +78,18 @@ fn dist_of(d: &Option<DistInput>, what: &str) -> Result<Distortion, ConfigError>
 /// (3×3 rows), `k_rel` (3×3 rows), `distortion` / `distortion_out` (OpenCV vector or object).
 /// Missing rotation = identity; missing K_rel = identity (left) or [[1, 0, t_L − Δx], ...] (right);
 /// missing Δx_right = t_L − t_R. `width`, `height` are the images'.
-pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAugmentation, ConfigError> {
+pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAugmentation> {
     let v: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| ConfigError::Config(format!("parameters are not valid JSON: {e}")))?;
+        serde_json::from_str(text).map_err(|source| json("parameters are not valid JSON", source))?;
     let v = v.get("params").cloned().unwrap_or(v);
-    let p: ParamsInput = serde_json::from_value(v).map_err(|e| ConfigError::Config(format!("parameters: {e}")))?;
+    let p: ParamsInput = serde_json::from_value(v).map_err(|source| json("parameters", source))?;
     let left = p.left.unwrap_or_default();
     let right = p.right.unwrap_or_default();
     /// K, input distortion, rotation R, optional K_rel, output distortion of one camera.
     type CameraParams = (Intrinsics, Distortion, Matrix3<f64>, Option<Matrix3<f64>>, Distortion);
-    let cam = |c: &CameraInput, side: &str| -> Result<CameraParams, ConfigError> {
+    let cam = |c: &CameraInput, side: &str| -> Result<CameraParams> {
         let k = c.k.as_ref().or(p.k.as_ref()).ok_or_else(|| {
-            ConfigError::Config(format!("parameters: no intrinsics for the {side} camera (give \"k\" or \"{side}.k\")"))
+            StereoError::Config(format!("parameters: no intrinsics for the {side} camera (give \"k\" or \"{side}.k\")"))
         })?;
         let k = k_of(k, width, height, &format!("{side}.k"))?;
         let r = match (&c.rotation, &c.euler_deg) {
@@ -110,7 +114,7 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
         (Some(m), Some(dx)) => {
             let pure = m[(0, 0)] == 1.0 && krl[(0, 0)] == 1.0;
             if pure && (t_l - m[(0, 2)] - dx).abs() > 1e-6 {
-                return Err(ConfigError::Config(format!(
+                return Err(StereoError::Config(format!(
                     "dx_right_px = {dx} disagrees with K_rel: t_x,left − t_x,right = {} (Δx_right is added to disparities, \
                      so the right principal point moves by −Δx_right)",
                     t_l - m[(0, 2)]
@@ -129,29 +133,34 @@ pub fn parse_params(text: &str, width: usize, height: usize) -> Result<StereoAug
         right: CameraAugmentation::from_rotation(kr_, dr, rr, krr, dor),
         dx_right_px: dx,
     };
-    a.validate().map_err(|e| ConfigError::Config(format!("parameters: {e}")))?;
-    check_homographies(&a).map_err(|e| ConfigError::Config(format!("parameters: {e}")))?;
+    let check = |e: StereoError| StereoError::ConfigCheck { what: "parameters".into(), source: Box::new(e) };
+    a.validate().map_err(check)?;
+    check_homographies(&a).map_err(check)?;
     Ok(a)
 }
 
 /// Check that both cameras' K are numerically invertible and that the homographies
 /// H = K_rel K R K⁻¹ (eq. 3.6) and their inverses are finite and non-singular. A tiny or huge
 /// focal length passes [`Intrinsics::validate`] but makes K⁻¹ overflow or K singular in f64.
-pub fn check_homographies(a: &StereoAugmentation) -> Result<(), String> {
+pub fn check_homographies(a: &StereoAugmentation) -> Result<()> {
     for (side, c) in [("left", &a.left), ("right", &a.right)] {
         let k = c.k.matrix();
         let ki = k.try_inverse().filter(|m| m.iter().all(|v| v.is_finite()));
         if ki.is_none() || k.determinant().abs() < 1e-12 {
-            return Err(format!(
-                "{side}.k (fx = {}, fy = {}) is not numerically invertible; focal lengths are in px",
-                c.k.fx, c.k.fy
+            return Err(StereoError::invalid(
+                format!("{side}.k"),
+                format!("fx = {}, fy = {} is not numerically invertible; focal lengths are in px", c.k.fx, c.k.fy),
             ));
         }
         let h = c.homography();
-        let hi = c.homography_inverse().map_err(|e| format!("{side}: {e}"))?;
+        let hi =
+            c.homography_inverse().map_err(|e| StereoError::ConfigCheck { what: side.into(), source: Box::new(e) })?;
         let det = h.determinant();
         if h.iter().chain(hi.iter()).any(|v| !v.is_finite()) || !det.is_finite() || det == 0.0 {
-            return Err(format!("{side}: the homography H = K_rel K R K⁻¹ is not finite and invertible: {h:?}"));
+            return Err(StereoError::invalid(
+                format!("{side} homography"),
+                format!("H = K_rel K R K⁻¹ is not finite and invertible: {h:?}"),
+            ));
         }
     }
     Ok(())

@@ -10,8 +10,8 @@
 //! and the scalar kernel perform the same u16 operations (saturating adds for `+ P1`, `+ P2` and
 //! the sum into S, wrapping `C + t − min` which never wraps): results are identical bit for bit.
 use super::cost::{row_costs, tolerance_rows, CostGeom};
-use super::pool::{recycle, take_buffer, C_POOL, SEL_POOL, S_POOL};
 use super::select::Selection;
+use super::workspace::{put_back, take, Volumes};
 
 /// Sentinel lanes on each side of a path buffer.
 pub const SENT: usize = 16;
@@ -85,6 +85,7 @@ pub fn path_step_scalar<const ADD: bool>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::too_many_arguments)]
+#[cfg(test)]
 pub unsafe fn path_step_avx2<const ADD: bool>(
     prev: &[u16],
     prev_min: u16,
@@ -553,14 +554,14 @@ fn run_row(avx2: bool, job: &mut RowJob, ha: &mut Vec<u16>, hb: &mut Vec<u16>) {
 /// Aggregate all paths (eq. 14) and select (see [`super::select`]): the forward and the backward
 /// [`sweep`] in parallel (`rayon::join`) over one shared S volume and one cost volume; each row's
 /// selections go to `finish` once.
-pub fn aggregate_select(inp: &Inputs, eight: bool, finish: &RowFinish) {
+pub(crate) fn aggregate_select(inp: &Inputs, eight: bool, finish: &RowFinish, ws: &mut Volumes) {
     let (w, h, ndp) = (inp.g.w, inp.h, inp.g.ndp);
     assert!(!inp.narrow || !eight, "byte partial sums need 4 paths");
     let n = w * h * ndp;
-    let mut s = take_buffer(&S_POOL, if inp.narrow { 0 } else { n });
-    let mut s8 = take_buffer(&C_POOL, if inp.narrow { n } else { 0 });
-    let mut cost = take_buffer(&C_POOL, n);
-    let mut sel = take_buffer(&SEL_POOL, w * h);
+    let mut s = take(&mut ws.s, if inp.narrow { 0 } else { n });
+    let mut s8 = take(&mut ws.s8, if inp.narrow { n } else { 0 });
+    let mut cost = take(&mut ws.cost, n);
+    let mut sel = take(&mut ws.sel, w * h);
     {
         // Row slices of whichever S volume is used, empty slices for the other.
         let s_rows = s.chunks_mut(w * ndp).chain(std::iter::repeat_with(|| &mut [][..]));
@@ -573,10 +574,10 @@ pub fn aggregate_select(inp: &Inputs, eight: bool, finish: &RowFinish) {
             .collect();
         rayon::join(|| sweep(inp, true, eight, &slots, finish), || sweep(inp, false, eight, &slots, finish));
     }
-    recycle(&S_POOL, s);
-    recycle(&C_POOL, s8);
-    recycle(&C_POOL, cost);
-    recycle(&SEL_POOL, sel);
+    put_back(&mut ws.s, s);
+    put_back(&mut ws.s8, s8);
+    put_back(&mut ws.cost, cost);
+    put_back(&mut ws.sel, sel);
 }
 
 /// What the second sweep does with each finished row `y` and its selections (the post-processing

@@ -19,6 +19,7 @@ pub const NEUTRAL_COST: u8 = (CENSUS_BITS / 2) as u8;
 
 /// 9×7 census transform of a grey image (row-major, `w × h`): bit set when the neighbour is darker
 /// than the centre; neighbours outside the image are clamped to the border.
+#[cfg(test)]
 pub fn census(gray: &[u8], w: usize, h: usize, avx2: bool) -> Vec<u64> {
     let mut out = Vec::new();
     census_into(gray, w, h, avx2, &mut out);

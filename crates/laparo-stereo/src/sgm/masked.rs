@@ -3,7 +3,7 @@
 //! nearest in-mask pixel before matching (a black wedge has census codes that match each other and
 //! pulls the aggregation paths astray near it), and the result is invalid where the left pixel is
 //! outside its mask or its match lands outside the right mask (a match against the fill).
-use super::{match_pair, SgmOutput, SgmParams};
+use super::{match_pair_with, SgmOutput, SgmParams, SgmWorkspace};
 use crate::error::StereoError;
 use laparo_core::image::{Image, Mask};
 use laparo_core::remap::Texel;
@@ -26,11 +26,24 @@ pub fn extend_rows<T: Texel>(img: &Image<T>, mask: &Mask) -> Image<T> {
     out
 }
 
-/// [`match_pair`] of a warped pair with the masks of its valid pixels (as returned by the
+/// [`match_pair`](super::match_pair) of a warped pair with the masks of its valid pixels (as returned by the
 /// rectification warps): rows extended ([`extend_rows`]), then every disparity whose left pixel is
 /// outside `mask_left`, or whose match (x − d, y + dy) rounded to the nearest pixel is outside the
 /// image or `mask_right`, made invalid (+∞, confidence 0). `stats.n_valid` counts what is left.
+/// Uses a fresh [`SgmWorkspace`] (see [`match_masked_with`]).
 pub fn match_masked(
+    left: &Image<u8>,
+    right: &Image<u8>,
+    mask_left: &Mask,
+    mask_right: &Mask,
+    p: &SgmParams,
+) -> Result<SgmOutput, StereoError> {
+    match_masked_with(&mut SgmWorkspace::new(), left, right, mask_left, mask_right, p)
+}
+
+/// [`match_masked`] with the caller's buffers (see [`super::match_pair_with`]).
+pub fn match_masked_with(
+    ws: &mut SgmWorkspace,
     left: &Image<u8>,
     right: &Image<u8>,
     mask_left: &Mask,
@@ -53,7 +66,7 @@ pub fn match_masked(
         )));
     }
     let (l, r) = rayon::join(|| extend_rows(left, mask_left), || extend_rows(right, mask_right));
-    let mut o = match_pair(&l, &r, p)?;
+    let mut o = match_pair_with(ws, &l, &r, p)?;
     let dy = o.dy.as_ref().map(|d| &d.data);
     let inside = |i: usize| -> bool {
         let (x, y) = (i % w, i / w);

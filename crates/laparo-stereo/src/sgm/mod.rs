@@ -14,14 +14,18 @@ use rayon::prelude::*;
 use select::Selection;
 use serde::{Deserialize, Serialize};
 
-pub mod aggregate;
-pub mod cost;
-pub mod fill;
-pub mod lr_check;
-pub mod masked;
-mod pool;
-pub mod select;
-pub mod speckle;
+mod aggregate;
+mod cost;
+mod fill;
+mod lr_check;
+mod masked;
+mod select;
+mod speckle;
+mod workspace;
+
+pub use fill::fill_background;
+pub use masked::{extend_rows, match_masked, match_masked_with};
+pub use workspace::SgmWorkspace;
 
 /// Largest accepted number of disparities.
 pub const MAX_DISPARITIES: usize = 1024;
@@ -69,7 +73,7 @@ pub struct SgmParams {
     pub speckle_window: usize,
     /// Speckle filter: largest disparity step (px) inside a region.
     pub speckle_range: f32,
-    /// Fill invalid pixels with the row background (see [`fill`]).
+    /// Fill invalid pixels with the row background (see [`fill_background`]).
     pub fill_holes: bool,
     /// Vertical tolerance k (rows): the cost is the minimum over `y + δ`, `|δ| ≤ k`.
     pub vertical_tol: usize,
@@ -224,8 +228,20 @@ pub fn avx2_available() -> bool {
 }
 
 /// Match a stereo pair (8-bit grey/RGB/RGBA, same size): SGM with the stages listed in the
-/// module documentation. Errors name the parameter (empty range, size mismatch, ...).
+/// module documentation. Errors name the parameter (empty range, size mismatch, ...). Uses a
+/// fresh [`SgmWorkspace`]; to match pair after pair, keep one and call [`match_pair_with`].
 pub fn match_pair(left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> Result<SgmOutput, StereoError> {
+    match_pair_with(&mut SgmWorkspace::new(), left, right, p)
+}
+
+/// [`match_pair`] with the caller's buffers (reused from one pair to the next; the output is the
+/// same as with a fresh workspace).
+pub fn match_pair_with(
+    ws: &mut SgmWorkspace,
+    left: &Image<u8>,
+    right: &Image<u8>,
+    p: &SgmParams,
+) -> Result<SgmOutput, StereoError> {
     p.validate()?;
     if left.size() != right.size() {
         return Err(StereoError::SizeMismatch(format!(
@@ -238,11 +254,18 @@ pub fn match_pair(left: &Image<u8>, right: &Image<u8>, p: &SgmParams) -> Result<
         return Err(StereoError::Invalid { what: "image".into(), msg: format!("empty image ({w}x{h})") });
     }
     let (gl, gr) = rayon::join(|| to_gray_u8(left), || to_gray_u8(right));
-    match_gray(&gl, &gr, w, h, p)
+    match_gray_with(ws, &gl, &gr, w, h, p)
 }
 
-/// [`match_pair`] on grey images given as row-major `w × h` bytes.
-pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Result<SgmOutput, StereoError> {
+/// [`match_pair_with`] on grey images given as row-major `w × h` bytes.
+pub fn match_gray_with(
+    ws: &mut SgmWorkspace,
+    gl: &[u8],
+    gr: &[u8],
+    w: usize,
+    h: usize,
+    p: &SgmParams,
+) -> Result<SgmOutput, StereoError> {
     p.validate()?;
     if gl.len() != w * h || gr.len() != w * h {
         return Err(StereoError::SizeMismatch(format!(
@@ -254,7 +277,8 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
     let avx2 = p.kernel == Kernel::Auto && avx2_available();
     let nd = p.n_disparities();
     let ndp = nd.div_ceil(16) * 16;
-    let (mut cl, mut cr) = (pool::take_buffer(&pool::CENSUS_POOL, w * h), pool::take_buffer(&pool::CENSUS_POOL, w * h));
+    let [census_l, census_r] = &mut ws.census;
+    let (mut cl, mut cr) = (workspace::take(census_l, w * h), workspace::take(census_r, w * h));
     rayon::join(|| cost::census_into(gl, w, h, avx2, &mut cl), || cost::census_into(gr, w, h, avx2, &mut cr));
     let g = cost::CostGeom { w, d_min: p.d_min, nd, ndp };
     let inp = aggregate::Inputs {
@@ -297,7 +321,7 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
                 *n_lr = lr_check::lr_check_row(&best, &smin, drow, md);
             }
         };
-        aggregate::aggregate_select(&inp, p.paths == Paths::Eight, &finish);
+        aggregate::aggregate_select(&inp, p.paths == Paths::Eight, &finish, &mut ws.volumes);
         counts =
             rows.into_iter().map(|r| r.into_inner().unwrap_or_else(|e| e.into_inner())).map(|r| (r.2, r.3)).collect();
     }
@@ -335,8 +359,8 @@ pub fn match_gray(gl: &[u8], gr: &[u8], w: usize, h: usize, p: &SgmParams) -> Re
         });
         Image { width: w, height: h, channels: 1, data: dy }
     });
-    pool::recycle(&pool::CENSUS_POOL, cl);
-    pool::recycle(&pool::CENSUS_POOL, cr);
+    workspace::put_back(&mut ws.census[0], cl);
+    workspace::put_back(&mut ws.census[1], cr);
     Ok(SgmOutput {
         disparity: Image { width: w, height: h, channels: 1, data: disp },
         confidence: Image { width: w, height: h, channels: 1, data: conf },

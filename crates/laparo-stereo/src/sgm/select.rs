@@ -101,6 +101,7 @@ fn finish(s: &[u16], nd: usize, best: usize, smin: u16, second: u16) -> Selectio
 /// AVX2 must be available.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1")]
+#[cfg(test)]
 pub unsafe fn select_avx2(s: &[u16], nd: usize, ndp: usize) -> Selection {
     use std::arch::x86_64::*;
     debug_assert!(s.len() >= ndp && ndp.is_multiple_of(16));
@@ -159,18 +160,6 @@ pub unsafe fn select_avx2_min(s: &[u16], nd: usize, ndp: usize, smin: u16) -> Se
         j += 16;
     }
     finish(s, nd, best, smin, hmin(vsec))
-}
-
-/// Dispatching selection.
-#[inline(always)]
-pub fn select(avx2: bool, s: &[u16], nd: usize, ndp: usize) -> Selection {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: `avx2` is only true when the CPU was checked at run time.
-        return unsafe { select_avx2(s, nd, ndp) };
-    }
-    let _ = (avx2, ndp);
-    select_scalar(s, nd)
 }
 
 #[cfg(test)]

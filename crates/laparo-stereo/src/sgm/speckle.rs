@@ -95,6 +95,7 @@ pub fn filter_speckles(disp: &mut [f32], w: usize, h: usize, max_size: usize, ma
 }
 
 /// The reference flood fill (4-connected, explicit stack) that [`filter_speckles`] reproduces.
+#[cfg(test)]
 pub fn filter_speckles_flood(disp: &mut [f32], w: usize, h: usize, max_size: usize, max_diff: f32) -> usize {
     if max_size == 0 {
         return 0;

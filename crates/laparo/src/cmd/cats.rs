@@ -9,9 +9,9 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use laparo_core::io;
-use laparo_stereo::augment::{augment_stereo, GtRule};
-use laparo_stereo::cats_params::CatsConfig;
-use laparo_stereo::dataset::{self, Layout};
+use laparo_stereo::CatsConfig;
+use laparo_stereo::Layout;
+use laparo_stereo::{augment_stereo, GtRule};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -126,7 +126,7 @@ fn load_config(path: &Option<PathBuf>) -> Result<CatsConfig> {
 fn run_augment(a: AugmentArgs) -> Result<()> {
     laparo_core::atomic::refuse_overwrite(&a.out, &[&a.input], true).context("--out")?;
     let config = load_config(&a.config)?;
-    let samples = dataset::discover(&a.input, a.layout)?;
+    let samples = laparo_stereo::discover(&a.input, a.layout)?;
     let shard = a.shard.unwrap_or(laparo_core::shard::Shard::ALL);
     let samples = shard.select(samples);
     let total = samples.len();
@@ -137,13 +137,13 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
             eprintln!("removed {n} temporary file(s) left by an interrupted run in {}", a.out.display());
         }
     }
-    let hash = dataset::run_params_hash(&config, a.seed, a.gt_rule, a.layout);
-    let states: Vec<dataset::ResumeState> =
-        samples.iter().map(|f| dataset::resume_state(f, &a.input, &a.out, &hash)).collect();
+    let hash = laparo_stereo::run_params_hash(&config, a.seed, a.gt_rule, a.layout);
+    let states: Vec<laparo_stereo::ResumeState> =
+        samples.iter().map(|f| laparo_stereo::resume_state(f, &a.input, &a.out, &hash)).collect();
     let stale: Vec<&str> = samples
         .iter()
         .zip(&states)
-        .filter(|(_, s)| **s == dataset::ResumeState::Stale)
+        .filter(|(_, s)| **s == laparo_stereo::ResumeState::Stale)
         .map(|(f, _)| f.id.as_str())
         .collect();
     if !stale.is_empty() && !a.force {
@@ -158,7 +158,7 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
     let todo: Vec<_> = samples
         .into_iter()
         .zip(&states)
-        .filter(|(_, s)| a.force || **s != dataset::ResumeState::Done)
+        .filter(|(_, s)| a.force || **s != laparo_stereo::ResumeState::Done)
         .map(|(f, _)| f)
         .take(a.limit.unwrap_or(usize::MAX))
         .collect();
@@ -184,7 +184,7 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
     let done = AtomicUsize::new(0);
     let t0 = Instant::now();
     todo.par_iter().for_each(|f| {
-        match dataset::augment_sample(f, &a.input, &a.out, a.layout, &config, a.seed, a.gt_rule) {
+        match laparo_stereo::augment_sample(f, &a.input, &a.out, a.layout, &config, a.seed, a.gt_rule) {
             Ok(sc) => {
                 done.fetch_add(1, Ordering::Relaxed);
                 if sc.stats.valid_fraction_left == 0.0 || sc.stats.valid_fraction_right == 0.0 {
@@ -222,7 +222,7 @@ fn run_augment(a: AugmentArgs) -> Result<()> {
 }
 
 fn run_apply(a: ApplyArgs) -> Result<()> {
-    let files = dataset::SampleFiles {
+    let files = laparo_stereo::SampleFiles {
         id: "sample".into(),
         left: a.left.clone(),
         right: a.right.clone(),
@@ -230,10 +230,10 @@ fn run_apply(a: ApplyArgs) -> Result<()> {
         disp_right: a.disp_right.clone(),
         calib: None,
     };
-    let s = dataset::load_sample(&files)?;
+    let s = laparo_stereo::load_sample(&files)?;
     let text = std::fs::read_to_string(&a.params).with_context(|| format!("reading {}", a.params.display()))?;
-    let p =
-        dataset::parse_params(&text, s.left.width, s.left.height).with_context(|| format!("{}", a.params.display()))?;
+    let p = laparo_stereo::parse_params(&text, s.left.width, s.left.height)
+        .with_context(|| format!("{}", a.params.display()))?;
     for (side, k) in [("left", &p.left.k), ("right", &p.right.k)] {
         if (k.width, k.height) != (s.left.width, s.left.height) {
             bail!(

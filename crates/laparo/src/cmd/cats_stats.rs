@@ -4,7 +4,7 @@
 use anyhow::{bail, Context};
 use clap::Args;
 use laparo_core::calib::StereoCalibration;
-use laparo_stereo::calib_stats::{
+use laparo_stereo::{
     calib_stats, fitted_cats_config, offsets_markdown, per_file_markdown, summarize, table_3_6_markdown, CalibStats,
 };
 use serde_json::json;
@@ -201,7 +201,7 @@ pub fn run_stats(a: StatsArgs) -> anyhow::Result<()> {
 fn print_tables(
     rows: &[(String, CalibStats)],
     label: &str,
-    summary: &laparo_stereo::calib_stats::StatsSummary,
+    summary: &laparo_stereo::StatsSummary,
     config_out: Option<&Path>,
     warnings: &[String],
 ) {

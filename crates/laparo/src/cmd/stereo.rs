@@ -8,8 +8,8 @@ use laparo_core::calib::StereoCalibration;
 use laparo_core::colormap::{colorize, percentile_range, Colormap};
 use laparo_core::image::{Image, Mask};
 use laparo_core::plot::with_colorbar;
-use laparo_stereo::eval::{evaluate_maps, EvalOptions, StereoMetrics};
-use laparo_stereo::rectify::{DisparityGeometry, Rectification, RectifyOptions, Side};
+use laparo_stereo::{evaluate_maps, EvalOptions, StereoMetrics};
+use laparo_stereo::{DisparityGeometry, Rectification, RectifyOptions, Side};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -1,4 +1,4 @@
-//! `laparo stereo match`: semi-global matching (laparo_stereo::sgm) of a raw or calibrated
+//! `laparo stereo match`: semi-global matching (laparo_stereo::match_pair) of a raw or calibrated
 //! stereo pair with a signed disparity range, an optional vertical tolerance, depth, confidence,
 //! colour maps and stats.json (issue 14, thesis §3.3).
 use super::stereo::CalibArgs;
@@ -7,8 +7,8 @@ use clap::Args;
 use laparo_core::colormap::{colorize, percentile_range, Colormap};
 use laparo_core::image::Image;
 use laparo_core::plot::with_colorbar;
-use laparo_stereo::rectify::{DisparityGeometry, Rectification, RectifyOptions, Side};
-use laparo_stereo::sgm::{match_pair, Paths, SgmOutput, SgmParams};
+use laparo_stereo::{match_pair, Paths, SgmOutput, SgmParams};
+use laparo_stereo::{DisparityGeometry, Rectification, RectifyOptions, Side};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -39,7 +39,7 @@ pub struct MatchArgs {
     #[arg(long, requires = "calib")]
     pub keep_offset: bool,
     /// Self-rectify the raw pair without a calibration (keypoint matches, robust F, quasi-Euclidean
-    /// rectification of laparo_stereo::self_rectify), match in the rectified frame and map the
+    /// rectification of laparo_stereo::self_rectify()), match in the rectified frame and map the
     /// disparity back to the raw left frame (d = x_L − x_R). --range is the raw range; the
     /// rectified search range is shifted by the inliers' median change of disparity.
     #[arg(long, conflicts_with = "calib")]
@@ -185,7 +185,7 @@ fn sample_disparity(disp: &Image<f32>, x: f64, y: f64) -> Option<f32> {
     Some(v.map_or(near, |v| v as f32))
 }
 
-/// `--self-rectify`: `laparo_stereo::self_rectify::match_self_rectified_with` (`--self-rectify-features`
+/// `--self-rectify`: `laparo_stereo::match_self_rectified_with` (`--self-rectify-features`
 /// matches, self-rectification,
 /// SGM on the rectified pair, results in the raw left frame), with its intermediates written to `--out`.
 fn self_rectified_match(
@@ -195,8 +195,8 @@ fn self_rectified_match(
     p: &SgmParams,
 ) -> anyhow::Result<(SgmOutput, serde_json::Value)> {
     let features = self_rectify_features(a)?;
-    let opts = laparo_stereo::self_rectify::SelfRectifyOptions { features, ..Default::default() };
-    let m = laparo_stereo::self_rectify::match_self_rectified_with(left, right, p, &opts)
+    let opts = laparo_stereo::SelfRectifyOptions { features, ..Default::default() };
+    let m = laparo_stereo::match_self_rectified_with(left, right, p, &opts)
         .with_context(|| format!("self-rectified matching of {} / {}", a.left.display(), a.right.display()))?;
     laparo_core::io::write_png(a.out.join("left_rectified.png"), &m.left_rectified)?;
     laparo_core::io::write_png(a.out.join("right_rectified.png"), &m.right_rectified)?;
@@ -211,7 +211,7 @@ fn self_rectified_match(
 }
 
 /// `--self-rectify-features` parsed (`fast` or `sift`).
-fn self_rectify_features(a: &MatchArgs) -> anyhow::Result<laparo_stereo::self_rectify::FeatureKind> {
+fn self_rectify_features(a: &MatchArgs) -> anyhow::Result<laparo_stereo::FeatureKind> {
     a.self_rectify_features
         .parse()
         .map_err(|e| anyhow::anyhow!("--self-rectify-features '{}': {e}", a.self_rectify_features))
@@ -306,7 +306,7 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
             let (r, mr) = rect.rectify_image(Side::Right, &right)?;
             laparo_core::io::write_png(a.out.join("left_rectified.png"), &l)?;
             // the canvas outside each image (α > 0) is neither matched nor matched against
-            let o = laparo_stereo::sgm::masked::match_masked(&l, &r, &ml, &mr, &p)?;
+            let o = laparo_stereo::match_masked(&l, &r, &ml, &mr, &p)?;
             (o, Some(rect.geometry()), Some(rect))
         }
         None => {
@@ -336,7 +336,7 @@ pub fn run_match(a: MatchArgs) -> anyhow::Result<()> {
         save_colour(&o.join("dy.png"), &f32_to_f64(dy), Colormap::Viridis, "vertical offset [px]", Some((-k, k)))?;
     }
     if a.fill_holes {
-        laparo_stereo::sgm::fill::fill_background(&mut disp.data, w, h);
+        laparo_stereo::fill_background(&mut disp.data, w, h);
     }
     let mut depth_stats = serde_json::Value::Null;
     if let Some(g) = &geometry {

@@ -11,12 +11,12 @@ use laparo_core::plot::with_colorbar;
 use laparo_core::se3::rotation_zyx;
 use laparo_core::table::Table;
 use laparo_core::{io, Distortion, Image, Intrinsics};
-use laparo_stereo::augment::{
+use laparo_stereo::{
     augment_stereo, disparity_difference, AugmentedDisparity, AugmentedStereo, GtRule, StereoAugmentation, StereoSample,
 };
-use laparo_stereo::calib_stats::{calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6, MeanStd};
-use laparo_stereo::cats_params::{sample_rng, CatsConfig, Dist, TABLE_3_6};
-use laparo_stereo::synthetic::{default_camera, Scene};
+use laparo_stereo::{calib_stats, stereo_extrinsics_from_rotations, summarize, table_3_6, MeanStd};
+use laparo_stereo::{default_camera, Scene};
+use laparo_stereo::{sample_rng, CatsConfig, Dist, TABLE_3_6};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -490,7 +490,7 @@ pub fn section(out: &Path) -> Result<DemoSection> {
 /// SGM on the real Middlebury pair with the right image moved 40 px (GT d − 40: mixed-sign,
 /// half negative), range [−48, 32): `laparo stereo match` (issue 14). `None` when absent.
 fn sgm_subsection(dir: &Path) -> Result<Option<(String, serde_json::Value)>> {
-    use laparo_stereo::sgm::{fill::fill_background, match_pair, SgmParams};
+    use laparo_stereo::{fill_background, match_pair, SgmParams};
     let Some(d) = super::shared_data("middlebury-motorcycle") else { return Ok(None) };
     let left = io::read_rgb8(d.join("motorcycle_left.png"))?;
     let right0 = io::read_rgb8(d.join("motorcycle_right.png"))?;
