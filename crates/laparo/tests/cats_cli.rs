@@ -4,9 +4,8 @@ use laparo_core::{io, Image};
 use laparo_stereo::{default_camera, Scene};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-const BIN: &str = env!("CARGO_BIN_EXE_laparo");
+mod common;
+use common::command;
 
 fn make_dataset(root: &Path, n: usize) {
     let k = default_camera(64, 48);
@@ -29,7 +28,7 @@ fn make_dataset(root: &Path, n: usize) {
 }
 
 fn run(args: &[&str], threads: usize) -> (bool, String) {
-    let o = Command::new(BIN).args(args).env("RAYON_NUM_THREADS", threads.to_string()).output().unwrap();
+    let o = command().args(args).env("RAYON_NUM_THREADS", threads.to_string()).output().unwrap();
     (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
 }
 

@@ -1,15 +1,7 @@
 //! End-to-end test of `laparo cpc scene | warp | lambda` and of its error handling.
 use std::path::Path;
-use std::process::Command;
-
-fn laparo(args: &[&str]) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo");
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+mod common;
+use common::laparo;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -4,11 +4,9 @@
 use laparo_core::image::Image;
 use laparo_core::io::{write_npy_f64, write_png};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn laparo(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo")
-}
+mod common;
+use common::run;
+use std::process::Output;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -67,7 +65,7 @@ fn eval_pair_prints_the_reference_keys() {
     write_npy_f64(&p, &img(disparity(3.0, 0.0))).unwrap();
     // GT in mm.
     write_npy_f64(&g, &img(gt_m().iter().map(|v| v * 1000.0).collect())).unwrap();
-    let o = laparo(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "mm", "--json"]);
+    let o = run(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "mm", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["n_valid"], W * H - 4);
@@ -106,7 +104,7 @@ fn eval_pair_bad_inputs_fail_cleanly() {
     let pair = |pred: &Path, extra: &[&str]| {
         let mut a = vec!["depth", "eval-pair", "--pred", s(pred), "--gt", s(&g), "--json"];
         a.extend_from_slice(extra);
-        laparo(&a)
+        run(&a)
     };
     // Size mismatch.
     let small = dir.join("small.npy");
@@ -142,11 +140,10 @@ fn eval_pair_bad_inputs_fail_cleanly() {
     // GT without any valid pixel.
     let g0 = dir.join("gt0.npy");
     write_npy_f64(&g0, &img(vec![0.0; W * H])).unwrap();
-    let o = laparo(&["depth", "eval-pair", "--pred", s(&good), "--gt", s(&g0)]);
+    let o = run(&["depth", "eval-pair", "--pred", s(&good), "--gt", s(&g0)]);
     assert_clean_failure(&o, &["gt0.npy", "no valid pixel"]);
     // Bad parameter.
-    let o =
-        laparo(&["depth", "eval-pair", "--pred", s(&good), "--gt", s(&g), "--depth-min", "1", "--depth-max", "0.5"]);
+    let o = run(&["depth", "eval-pair", "--pred", s(&good), "--gt", s(&g), "--depth-min", "1", "--depth-max", "0.5"]);
     assert_clean_failure(&o, &["depth range"]);
 }
 
@@ -184,9 +181,9 @@ fn scaffold_validate_and_evaluate() {
     let root = d.path().join("data");
     dataset(&root);
     let man = root.join("manifest.toml");
-    let o = laparo(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
+    let o = run(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = laparo(&["depth", "manifest", "validate", s(&man), "--json"]);
+    let o = run(&["depth", "manifest", "validate", s(&man), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let rep: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(rep["n_frames"], 2 * (3 + 2) * 2);
@@ -194,7 +191,7 @@ fn scaffold_validate_and_evaluate() {
     assert_eq!(rep["problems"].as_array().unwrap().len(), 0);
 
     let out = d.path().join("out");
-    let o = laparo(&[
+    let o = run(&[
         "depth",
         "eval",
         "--manifest",
@@ -234,7 +231,7 @@ fn scaffold_validate_and_evaluate() {
     }
     // Same inputs, same outputs (deterministic ordering despite rayon).
     let out2 = d.path().join("out2");
-    let o = laparo(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out2), "--no-figures"]);
+    let o = run(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out2), "--no-figures"]);
     assert!(o.status.success());
     assert_eq!(csv, std::fs::read_to_string(out2.join("per_image.csv")).unwrap());
 }
@@ -255,19 +252,19 @@ fn missing_frames_are_all_listed_and_no_results_are_left() {
     let root = d.path().join("data");
     dataset(&root);
     let man = root.join("manifest.toml");
-    assert!(laparo(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]).status.success());
+    assert!(run(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]).status.success());
     // Remove two files of different kinds.
     let gone_gt = root.join("kidney/smoke/s2/depth/0001.npy");
     let gone_pred = root.join("predictions/good/liver/dark/s0/0000.npy");
     std::fs::remove_file(&gone_gt).unwrap();
     std::fs::remove_file(&gone_pred).unwrap();
-    let o = laparo(&["depth", "manifest", "validate", s(&man)]);
+    let o = run(&["depth", "manifest", "validate", s(&man)]);
     assert_clean_failure(&o, &["kidney/smoke/s2/depth/0001.npy", "predictions/good/liver/dark/s0/0000.npy"]);
     // eval: the same list, and a stale results.json from an earlier run is removed.
     let out = d.path().join("out");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("results.json"), "{\"complete\": true}").unwrap();
-    let o = laparo(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out)]);
+    let o = run(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out)]);
     assert_clean_failure(&o, &["kidney/smoke/s2/depth/0001.npy", "predictions/good/liver/dark/s0/0000.npy"]);
     assert!(!out.join("results.json").exists());
 }
@@ -278,11 +275,11 @@ fn a_bad_prediction_fails_the_run_without_partial_results() {
     let root = d.path().join("data");
     dataset(&root);
     let man = root.join("manifest.toml");
-    assert!(laparo(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]).status.success());
+    assert!(run(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]).status.success());
     let bad = root.join("predictions/good/kidney/dark/s1/0001.npy");
     write_npy_f64(&bad, &img(vec![f64::NAN; W * H])).unwrap();
     let out = d.path().join("out");
-    let o = laparo(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out)]);
+    let o = run(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out)]);
     assert_clean_failure(&o, &["kidney/dark/s1/0001.npy", "no valid value"]);
     assert!(!out.join("results.json").exists());
     // A truncated GT file.
@@ -290,11 +287,11 @@ fn a_bad_prediction_fails_the_run_without_partial_results() {
     let gt = root.join("liver/smoke/s1/depth/0000.npy");
     let bytes = std::fs::read(&gt).unwrap();
     std::fs::write(&gt, &bytes[..100]).unwrap();
-    let o = laparo(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out)]);
+    let o = run(&["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out)]);
     assert_clean_failure(&o, &["liver/smoke/s1/depth/0000.npy"]);
     assert!(!out.join("results.json").exists());
     // Unknown baseline.
-    let o = laparo(&["depth", "eval", "--manifest", s(&man), "--baseline", "nobody", "--out", s(&out)]);
+    let o = run(&["depth", "eval", "--manifest", s(&man), "--baseline", "nobody", "--out", s(&out)]);
     assert_clean_failure(&o, &["nobody"]);
 }
 
@@ -308,37 +305,37 @@ fn eval_pair_warns_about_gt_outside_the_clamp_range_and_implausible_units() {
     let gt: Vec<f64> = (0..W * H).map(|i| 2.0 + 3.0 * (i % W) as f64 / (W - 1) as f64).collect();
     write_npy_f64(&g, &img(gt.clone())).unwrap();
     write_npy_f64(&p, &img(gt.iter().map(|z| 7.0 / z).collect())).unwrap();
-    let run = |extra: &[&str]| {
+    let eval_pair = |extra: &[&str]| {
         let mut a = vec!["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--json"];
         a.extend_from_slice(extra);
-        laparo(&a)
+        run(&a)
     };
-    let o = run(&["--gt-unit", "m"]);
+    let o = eval_pair(&["--gt-unit", "m"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     // All 384 valid pixels lie beyond 0.5 m.
     assert!(err.contains("100.0 % of the valid ground truth lies outside the clamp range [0.01, 0.5] m"), "{err}");
     assert!(err.contains("--depth-min-m/--depth-max-m"), "{err}");
     // With a range that fits: no warning, and s-alignment is exact (scale 1/7).
-    let o = run(&["--gt-unit", "m", "--depth-min-m", "1", "--depth-max-m", "10"]);
+    let o = eval_pair(&["--gt-unit", "m", "--depth-min-m", "1", "--depth-max-m", "10"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success() && !err.contains("warning"), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["scale"]["abs_rel"].as_f64().unwrap() < 1e-12, "{v}");
     assert!((v["scale"]["scale"].as_f64().unwrap() - 1.0 / 7.0).abs() < 1e-12);
     // The same values declared as mm (the default unit) are 2–5 mm: implausible.
-    let o = run(&[]);
+    let o = eval_pair(&[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("median ground-truth depth is 3.500 mm, implausible"), "{err}");
     // A mm file (2000–5000) read as metres: a median of 3500 m.
     write_npy_f64(&g, &img(gt.iter().map(|z| z * 1000.0).collect())).unwrap();
-    let o = run(&["--gt-unit", "m"]);
+    let o = eval_pair(&["--gt-unit", "m"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("median ground-truth depth is 3500.0 m, implausible: millimetres read as metres"), "{err}");
     // --json=FILE writes the file and keeps the table on stdout.
     let jf = d.path().join("r.json");
     let jarg = format!("--json={}", s(&jf));
-    let o = laparo(&[
+    let o = run(&[
         "depth",
         "eval-pair",
         "--pred",
@@ -371,11 +368,11 @@ fn eval_pair_resizes_predictions_at_network_resolution() {
     let pred: Vec<f64> = (0..hw * hh).map(|i| 3.0 / zb(i % hw, i / hw)).collect();
     write_npy_f64(&p, &Image::from_vec(hw, hh, 1, pred).unwrap()).unwrap();
     let base = ["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "mm", "--json"];
-    let o = laparo(&base);
+    let o = run(&base);
     assert_clean_failure(&o, &["pred.npy", "size mismatch"]);
     let mut a = base.to_vec();
     a.extend(["--resize-pred", "nearest"]);
-    let o = laparo(&a);
+    let o = run(&a);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     // Nearest with centres aligned maps x to floor(x / 2): exact, s = 1/3000 (disparity in 1/m).
@@ -383,7 +380,7 @@ fn eval_pair_resizes_predictions_at_network_resolution() {
     assert!(v["scale"]["abs_rel"].as_f64().unwrap() < 1e-12, "{v}");
     let mut a = base.to_vec();
     a.extend(["--resize-pred", "bilinear"]);
-    let o = laparo(&a);
+    let o = run(&a);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let e = v["scale_shift"]["abs_rel"].as_f64().unwrap();
@@ -397,7 +394,7 @@ fn eval_range_flags_and_scaffolded_range() {
     let root = d.path().join("data");
     dataset(&root);
     let man = root.join("manifest.toml");
-    let o = laparo(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
+    let o = run(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&man).unwrap();
     assert!(text.contains("depth_min_m = 0.01") && text.contains("depth_max_m = 0.5"), "{text}");
@@ -407,7 +404,7 @@ fn eval_range_flags_and_scaffolded_range() {
         let mut a =
             vec!["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(&out), "--no-figures"];
         a.extend_from_slice(extra);
-        laparo(&a)
+        run(&a)
     };
     let o = args(&[]);
     assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("warning"));
@@ -430,7 +427,7 @@ fn eval_pair_warns_when_the_scale_alignment_is_undefined() {
     let (p, g) = (d.path().join("zero.npy"), d.path().join("gt.npy"));
     write_npy_f64(&g, &img(gt_m())).unwrap();
     write_npy_f64(&p, &img(vec![0.0; W * H])).unwrap();
-    let o = laparo(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "m", "--json"]);
+    let o = run(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "m", "--json"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("zero.npy: the 'scale' alignment is undefined (scale NaN"), "{err}");
@@ -439,6 +436,6 @@ fn eval_pair_warns_when_the_scale_alignment_is_undefined() {
     assert!(v["scale"]["scale"].is_null(), "{v}");
     // An ordinary prediction: no such warning.
     write_npy_f64(&p, &img(disparity(2.0, 0.0))).unwrap();
-    let o = laparo(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "m", "--json"]);
+    let o = run(&["depth", "eval-pair", "--pred", s(&p), "--gt", s(&g), "--gt-unit", "m", "--json"]);
     assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("undefined"));
 }

@@ -4,11 +4,8 @@ use laparo_core::mesh::{write_vtk, TetMesh};
 use laparo_fem::solid::{solve, FaceTraction, Loads, Quadrature, SolidProblem, SolverSettings, Tet10Mesh};
 use laparo_fem::NeoHookean;
 use nalgebra::Vector3;
-use std::process::Command;
-
-fn run(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo")
-}
+mod common;
+use common::run;
 
 /// Box [0,10]×[0,10]×[0,20] mm of 2×2×4 cubes, 6 tets each.
 fn column() -> TetMesh {

@@ -2,7 +2,8 @@
 //! ../shared/data; skipped with a message when absent), the report's links, and the bad inputs of
 //! issue 16 (a polyline outside the image, an initial pose too far, a textureless pair).
 use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+use common::{bare_nulls, run};
 
 fn data() -> Option<PathBuf> {
     let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
@@ -15,12 +16,8 @@ fn data() -> Option<PathBuf> {
     }
 }
 
-fn laparo(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("runs")
-}
-
 fn scenario(d: &Path, out: &Path) {
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "scenario",
         "--quick",
@@ -88,7 +85,7 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
 
     // the whole pipeline (few iterations to stay fast)
     let out = tmp.path().join("run");
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "--scenario",
         sc.to_str().unwrap(),
@@ -113,7 +110,7 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
     // matrix of the SIFT matches); applying z = f b / (d − Δc_x) to raw disparities instead ignored it
     // (median error 7.4 mm on this scenario, the calibrated route 0.45 mm)
     let sr = tmp.path().join("self-rect");
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "stereo",
         "--scenario",
@@ -146,7 +143,7 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
     copy_dir(&sc, &bad);
     std::fs::write(bad.join("incision_past.json"), r#"{"image":"past_left.png","points_px":[[10,10],[5000,20]]}"#)
         .unwrap();
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "--scenario",
         bad.to_str().unwrap(),
@@ -174,7 +171,7 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
         (0..3).map(|i| (0..3).map(|j| (0..3).map(|k| rz[i][k] * r[k][j]).sum()).collect()).collect();
     let body = serde_json::json!({"model_to_camera": {"R": rr, "t_mm": p["t_mm"]}});
     std::fs::write(bad.join("initial_pose.json"), body.to_string()).unwrap();
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "--scenario",
         bad.to_str().unwrap(),
@@ -193,7 +190,7 @@ fn quick_scenario_end_to_end_and_bad_inputs() {
     for n in ["past_left.png", "past_right.png"] {
         laparo_core::io::write_png(bad.join(n), &grey).unwrap();
     }
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "--scenario",
         bad.to_str().unwrap(),
@@ -237,8 +234,8 @@ fn end_to_end_one_command_with_the_fem_ground_truth() {
             o.display().to_string(),
         ]
     };
-    let run = |a: Vec<String>| laparo(&a.iter().map(|s| s.as_str()).collect::<Vec<_>>());
-    let o = run(args(&out, "non-anatomical"));
+    let run_owned = |a: Vec<String>| run(&a.iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    let o = run_owned(args(&out, "non-anatomical"));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
@@ -246,26 +243,7 @@ fn end_to_end_one_command_with_the_fem_ground_truth() {
     assert!((10.0..=15.0).contains(&gap), "FEM lip gap {gap} mm");
     assert!(s["ground_truth"]["report"]["min_j"].as_f64().unwrap() > 0.0);
     // no bare null in summary.json: every missing figure has a `<key>_reason` beside it (issue 50)
-    fn bare_nulls(v: &serde_json::Value, path: &str, out: &mut Vec<String>) {
-        match v {
-            serde_json::Value::Object(m) => {
-                for (k, x) in m {
-                    if x.is_null() && !m.get(&format!("{k}_reason")).is_some_and(|r| r.is_string()) {
-                        out.push(format!("{path}.{k}"));
-                    }
-                    bare_nulls(x, &format!("{path}.{k}"), out);
-                }
-            }
-            serde_json::Value::Array(a) => {
-                for (i, x) in a.iter().enumerate() {
-                    bare_nulls(x, &format!("{path}[{i}]"), out);
-                }
-            }
-            _ => {}
-        }
-    }
-    let mut nulls = Vec::new();
-    bare_nulls(&s, "summary", &mut nulls);
+    let nulls = bare_nulls(&s, "summary");
     assert!(nulls.is_empty(), "nulls without a reason in summary.json: {nulls:?}");
     assert!(s["tre_difference_mm_reason"].is_string(), "one route: the TRE difference says why it is missing");
     let r = &s["routes"][0]["summary"];
@@ -284,11 +262,11 @@ fn end_to_end_one_command_with_the_fem_ground_truth() {
     }
     assert!(n >= 6, "{n} links");
     // the second run reuses the ground truth (its FEM solves are not repeated)
-    let o = run(args(&out, "non-anatomical"));
+    let o = run_owned(args(&out, "non-anatomical"));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!String::from_utf8_lossy(&o.stderr).contains("FEM solve"), "the ground truth was solved again");
     // the anatomical cut has no tumour to guide to: a clear error naming the input
-    let o = run(args(&tmp.path().join("anat"), "anatomical"));
+    let o = run_owned(args(&tmp.path().join("anat"), "anatomical"));
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("incision") && e.contains("tumour"), "{e}");

@@ -4,7 +4,8 @@
 //! lips by name, no tracker references. Real P2ILF liver, camera and frame from ../shared/data
 //! (skipped with a message when absent).
 use std::path::PathBuf;
-use std::process::Command;
+mod common;
+use common::{bare_nulls, run};
 
 fn data() -> Option<PathBuf> {
     let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
@@ -17,31 +18,18 @@ fn data() -> Option<PathBuf> {
     }
 }
 
-fn laparo(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("runs")
-}
-
-/// Every `null` in `v` must have a sibling `<key>_reason` (a string); returns the paths that do not.
-fn bare_nulls(v: &serde_json::Value, path: &str, out: &mut Vec<String>) {
-    match v {
-        serde_json::Value::Object(m) => {
-            for (k, x) in m {
-                if x.is_null() && !m.get(&format!("{k}_reason")).is_some_and(|r| r.is_string()) {
-                    out.push(format!("{path}.{k}"));
-                }
-                bare_nulls(x, &format!("{path}.{k}"), out);
-            }
-        }
-        serde_json::Value::Array(a) => {
-            for (i, x) in a.iter().enumerate() {
-                if x.is_null() {
-                    out.push(format!("{path}[{i}]"));
-                }
-                bare_nulls(x, &format!("{path}[{i}]"), out);
-            }
-        }
-        _ => {}
-    }
+/// The rule of `common::bare_nulls` on hand-made JSON: a `null` field or array element is bare unless a
+/// `<key>_reason` string explains it (for an array element: beside the array).
+#[test]
+fn bare_nulls_finds_unexplained_field_and_array_nulls() {
+    let v = serde_json::json!({
+        "a": null, "a_reason": "not measured",
+        "b": null,
+        "c": [1.0, null],
+        "d": [null, 2.0], "d_reason": "one route only",
+        "e": { "f": [[null]], "g": null, "g_reason": 3 },
+    });
+    assert_eq!(bare_nulls(&v, "s"), ["s.b", "s.c[1]", "s.e.f[0][0]", "s.e.g"]);
 }
 
 #[test]
@@ -49,7 +37,7 @@ fn guide_report_compares_stages_warns_and_explains_missing_figures() {
     let Some(d) = data() else { return };
     let tmp = tempfile::tempdir().unwrap();
     let sc = tmp.path().join("scenario");
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "scenario",
         "--quick",
@@ -70,7 +58,7 @@ fn guide_report_compares_stages_warns_and_explains_missing_figures() {
     assert_eq!(init["model_to_camera"]["T"][3], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
 
     let out = tmp.path().join("run");
-    let o = laparo(&[
+    let o = run(&[
         "guide",
         "--scenario",
         sc.to_str().unwrap(),
@@ -88,8 +76,7 @@ fn guide_report_compares_stages_warns_and_explains_missing_figures() {
     let warnings: Vec<&str> = s["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap()).collect();
 
     // no bare null in the summary
-    let mut nulls = Vec::new();
-    bare_nulls(s, "summary", &mut nulls);
+    let nulls = bare_nulls(s, "summary");
     assert!(nulls.is_empty(), "nulls without a reason: {nulls:?}");
 
     // every stage against the one before: the verdict follows from the two figures, and each

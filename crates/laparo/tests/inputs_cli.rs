@@ -9,12 +9,8 @@ use laparo_core::{io, Image, Intrinsics};
 use laparo_stereo::{default_camera, Scene};
 use nalgebra::{Matrix3, Vector3};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn laparo(args: &[&str]) -> (bool, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo");
-    (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
-}
+mod common;
+use common::laparo;
 
 fn s(p: &Path) -> String {
     p.to_str().unwrap().to_string()
@@ -22,7 +18,8 @@ fn s(p: &Path) -> String {
 
 fn run(args: &[String]) -> (bool, String) {
     let a: Vec<&str> = args.iter().map(String::as_str).collect();
-    laparo(&a)
+    let (ok, _, err) = laparo(&a);
+    (ok, err)
 }
 
 /// The same mask (inside = all but a 2-px border) in every mask format.
@@ -483,17 +480,18 @@ D1: [ 0., 0., 0., 0., 0. ]\nM2: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: 
 D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5., 0., 0. ]\n";
     std::fs::write(d.join("scared.yaml"), scared).unwrap();
     // cats stats angles need no image size.
-    let (ok, err) = laparo(&["cats", "stats", &s(&d.join("scared.yaml"))]);
+    let (ok, _, err) = laparo(&["cats", "stats", &s(&d.join("scared.yaml"))]);
     assert!(ok, "cats stats without a size: {err}");
     assert!(err.contains("nominal"), "{err}");
-    let (ok, err) =
+    let (ok, _, err) =
         laparo(&["cats", "stats", &s(&d.join("scared.yaml")), "--width", "9223372036854775807", "--height", "1"]);
     assert!(!ok && err.contains("out of range"), "{err}");
-    let (ok, err) = laparo(&["cats", "stats", &s(&d.join("scared.yaml")), "--width", "100000", "--height", "100000"]);
+    let (ok, _, err) =
+        laparo(&["cats", "stats", &s(&d.join("scared.yaml")), "--width", "100000", "--height", "100000"]);
     assert!(!ok && err.contains("out of range"), "{err}");
     std::fs::write(d.join("deep.yaml"), format!("%YAML:1.0\nM1: {}1{}\n", "[".repeat(30_000), "]".repeat(30_000)))
         .unwrap();
-    let (ok, err) = laparo(&["cats", "stats", &s(&d.join("deep.yaml"))]);
+    let (ok, _, err) = laparo(&["cats", "stats", &s(&d.join("deep.yaml"))]);
     assert!(!ok && err.contains("deep.yaml") && err.contains("nested"), "{err}");
     // depth reproject: bounded --width/--height and JSON sizes.
     std::fs::write(d.join("ext.json"), r#"{"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 0]}"#).unwrap();
@@ -538,7 +536,7 @@ D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5.,
     f.extend_from_slice(hdr.as_bytes());
     f.extend_from_slice(&[0u8; 16]);
     std::fs::write(d.join("evil.npy"), &f).unwrap();
-    let (ok, err) =
+    let (ok, _, err) =
         laparo(&["depth", "eval-pair", "--pred", &s(&d.join("evil.npy")), "--gt", &s(&d.join("depth.npy"))]);
     assert!(!ok && err.contains("evil.npy"), "{err}");
     // A truncated JPEG mask.
@@ -546,7 +544,7 @@ D2: [ 0., 0., 0., 0., 0. ]\nR: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nT: [ -5.,
     io::write_jpeg(d.join("m.jpg"), &m, 90).unwrap();
     let bytes = std::fs::read(d.join("m.jpg")).unwrap();
     std::fs::write(d.join("cut.jpg"), &bytes[..bytes.len() * 2 / 3]).unwrap();
-    let (ok, err) = laparo(&[
+    let (ok, _, err) = laparo(&[
         "cpc",
         "warp",
         "--image",

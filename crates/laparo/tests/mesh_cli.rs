@@ -1,11 +1,8 @@
 //! `laparo mesh tetra` and `laparo mesh incision` end to end (a sphere surface written here; the
 //! P2ILF liver when the real data is present), and clear errors for bad input.
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn laparo() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_laparo"))
-}
+mod common;
+use common::command;
 
 /// An icosphere (radius `r` mm, 3 subdivisions) as OBJ text (laparo-fem's test shape).
 fn sphere_obj(r: f64) -> String {
@@ -21,7 +18,7 @@ fn sphere_obj(r: f64) -> String {
 }
 
 fn run_ok(args: &[&str]) -> String {
-    let o = laparo().args(args).output().unwrap();
+    let o = command().args(args).output().unwrap();
     assert!(o.status.success(), "{:?}: {}", args, String::from_utf8_lossy(&o.stderr));
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -168,7 +165,7 @@ fn bad_inputs_fail_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let open = dir.path().join("open.obj");
     std::fs::write(&open, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n").unwrap();
-    let o = laparo()
+    let o = command()
         .args(["mesh", "tetra", "--surface"])
         .arg(&open)
         .arg("--out")
@@ -178,7 +175,7 @@ fn bad_inputs_fail_clearly() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("open.obj") && e.contains("not closed: 3 boundary edges"), "{e}");
-    let o = laparo()
+    let o = command()
         .args(["mesh", "incision", "--mesh"])
         .arg(dir.path().join("missing.vtk"))
         .args(["--scenario", "anatomical", "--out"])
@@ -202,7 +199,7 @@ fn bad_inputs_fail_clearly() {
         ("non-anatomical", &["--cut-offset-mm", "5"][..], "--cut-offset-mm 5"),
         ("anatomical", &["--cut-offset-mm", "inf"][..], "--cut-offset-mm inf"),
     ] {
-        let o = laparo()
+        let o = command()
             .args(["mesh", "incision", "--mesh", vtk.to_str().unwrap(), "--scenario", scenario])
             .args(flags)
             .arg("--out")

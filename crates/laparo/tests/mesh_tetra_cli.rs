@@ -2,7 +2,8 @@
 //! wound closed surface is re-oriented and the command says so (the surface volume in the report is
 //! then right), a surface in cm gets a units hint instead of a silent one-tetrahedron mesh.
 use std::path::Path;
-use std::process::Command;
+mod common;
+use common::command;
 
 /// A box [0, a] × [0, b] × [0, c] as OBJ, 12 outward triangles; the faces in `flip` wound inward.
 fn write_box(path: &Path, (a, b, c): (f64, f64, f64), flip: &[usize]) {
@@ -19,7 +20,7 @@ fn write_box(path: &Path, (a, b, c): (f64, f64, f64), flip: &[usize]) {
 }
 
 fn tetra(surface: &Path, out: &Path, report: &Path, edge: &str) -> (bool, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo"))
+    let o = command()
         .args(["mesh", "tetra", "--surface"])
         .arg(surface)
         .arg("--out")

@@ -1,11 +1,9 @@
 //! `laparo mpm` end to end: simulate writes frames and a log; bad input fails clearly (the bench is in laparo-bench).
 use std::path::Path;
+mod common;
+use common::command;
 use std::process::{Command, Output};
 use std::time::Instant;
-
-fn laparo() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_laparo"))
-}
 
 const SCENE_2D: &str = r#"
 dim = 2
@@ -32,7 +30,7 @@ fn simulate_2d_writes_frames_and_log() {
     let scene = dir.path().join("s.toml");
     std::fs::write(&scene, SCENE_2D).unwrap();
     let out = dir.path().join("out");
-    let o = laparo()
+    let o = command()
         .args(["mpm", "simulate", "--scene"])
         .arg(&scene)
         .arg("--out")
@@ -65,7 +63,7 @@ fn simulate_3d_mesh_and_bad_inputs() {
     let scene3 = "dim = 3\n[grid]\nn_grid = 32\ndx = 0.03125\n[material]\nmodel = \"neo_hookean\"\nyoungs_modulus = 50.0\npoisson_ratio = 0.3\ndensity = 1.0\n[time]\nsteps = 10\n[[body]]\nshape = \"mesh\"\npath = \"tet.obj\"\nspacing = 0.01\n";
     std::fs::write(dir.path().join("s3.toml"), scene3).unwrap();
     let out = dir.path().join("o3");
-    let o = laparo()
+    let o = command()
         .args(["mpm", "simulate", "--scene"])
         .arg(dir.path().join("s3.toml"))
         .arg("--out")
@@ -77,7 +75,7 @@ fn simulate_3d_mesh_and_bad_inputs() {
     // open mesh
     std::fs::write(dir.path().join("open.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     std::fs::write(dir.path().join("s_open.toml"), scene3.replace("tet.obj", "open.obj")).unwrap();
-    let o = laparo()
+    let o = command()
         .args(["mpm", "simulate", "--scene"])
         .arg(dir.path().join("s_open.toml"))
         .arg("--out")
@@ -93,7 +91,7 @@ fn simulate_3d_mesh_and_bad_inputs() {
         ("spacing = 0.01", "spacing = 0.01\noffset = [0.8, 0.0, 0.0]", "outside the grid"),
     ] {
         std::fs::write(dir.path().join("s_bad.toml"), scene3.replace(from, to)).unwrap();
-        let o = laparo()
+        let o = command()
             .args(["mpm", "simulate", "--scene"])
             .arg(dir.path().join("s_bad.toml"))
             .arg("--out")
@@ -112,7 +110,7 @@ fn simulate_limited(scene: &Path, out: &Path) -> (Output, f64) {
     let o = Command::new("sh")
         .arg("-c")
         .arg("ulimit -v 1048576; exec timeout 20 \"$0\" mpm simulate --scene \"$1\" --out \"$2\"")
-        .arg(env!("CARGO_BIN_EXE_laparo"))
+        .arg(common::BIN)
         .arg(scene)
         .arg(out)
         .output()
@@ -264,7 +262,7 @@ fn simulate_3d_binary_ply_preview_and_no_stale_frames() {
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     let run = |every: &str, steps: &str| {
         std::fs::write(d.join("s.toml"), SCENE_3D.replace("steps = 10", steps)).unwrap();
-        let o = laparo()
+        let o = command()
             .args(["mpm", "simulate", "--scene"])
             .arg(d.join("s.toml"))
             .arg("--out")

@@ -2,13 +2,13 @@
 //! against every file it reads — by path and by hard link — before anything is read or written, and
 //! the error names both. One case per command of the third black-box campaign.
 mod common;
-use common::{laparo, write_texture_png};
+use common::{laparo_in, write_texture_png};
 use std::path::Path;
 
 /// Run `args` in `cwd`, expect a refusal naming `output` and `input`, and `input` unchanged.
 fn refused(args: &[&str], cwd: &Path, input: &Path, output: &str) {
     let before = std::fs::read(input).unwrap();
-    let (ok, _, err) = laparo(args, cwd);
+    let (ok, _, err) = laparo_in(args, cwd);
     assert!(!ok, "{args:?} succeeded");
     let name = input.file_name().unwrap().to_string_lossy();
     assert!(
@@ -40,7 +40,8 @@ fn features_colmap_db_over_a_frame() {
         "fr/00.png",
     );
     // a database beside the frames is fine (it is not one of them)
-    let (ok, _, err) = laparo(&["features", "colmap", "--images", "fr", "--colmap-db", "fr/database.db"], dir.path());
+    let (ok, _, err) =
+        laparo_in(&["features", "colmap", "--images", "fr", "--colmap-db", "fr/database.db"], dir.path());
     assert!(ok, "{err}");
 }
 
@@ -58,7 +59,7 @@ fn register_synth_targets_over_the_organ() {
     std::fs::hard_link(&organ, dir.path().join("lm.json")).unwrap();
     refused(&with("lm.json", "t.json"), dir.path(), &organ, "lm.json");
     // the two outputs the same file
-    let (ok, _, err) = laparo(&with("l.json", "sub/../l.json"), dir.path());
+    let (ok, _, err) = laparo_in(&with("l.json", "sub/../l.json"), dir.path());
     assert!(!ok && err.contains("same file"), "{err}");
 }
 
@@ -70,7 +71,7 @@ fn features_detect_over_its_mask() {
     let m = dir.path().join("m.png");
     refused(&["features", "detect", "--image", "i.png", "--mask", "m.png", "--out", "m.png"], dir.path(), &m, "m.png");
     let (ok, _, err) =
-        laparo(&["features", "detect", "--image", "i.png", "--mask", "m.png", "--out", "k.json"], dir.path());
+        laparo_in(&["features", "detect", "--image", "i.png", "--mask", "m.png", "--out", "k.json"], dir.path());
     assert!(ok, "{err}");
 }
 
@@ -146,7 +147,7 @@ fn features_match_json_over_its_homography() {
     let args =
         ["features", "match", "--image1", "a.png", "--image2", "b.png", "--homography", "matches.json", "--out", "."];
     refused(&args, dir.path(), &h, "matches.json");
-    let (ok, _, err) = laparo(
+    let (ok, _, err) = laparo_in(
         &["features", "match", "--image1", "a.png", "--image2", "b.png", "--homography", "matches.json", "--out", "m"],
         dir.path(),
     );
@@ -182,6 +183,6 @@ fn guide_stages_check_their_files() {
     refused(&[&args[..], &["--out", "pose.json"]].concat(), d, &d.join("pose.json"), "pose.json");
     let args = ["guide", "landmarks", "--polyline", "poly.json", "--model", "model.obj", "--scenario", "sc"];
     refused(&[&args[..], &["--out", "./model.obj"]].concat(), d, &d.join("model.obj"), "model.obj");
-    let (ok, _, err) = laparo(&["guide", "stereo", "--scenario", "sc", "--pair", "past", "--out", "sc"], d);
+    let (ok, _, err) = laparo_in(&["guide", "stereo", "--scenario", "sc", "--pair", "past", "--out", "sc"], d);
     assert!(!ok && err.contains("would overwrite the input"), "{err}");
 }

@@ -2,7 +2,7 @@
 //! of range and sizes beyond a memory budget are refused quickly, naming the flag or the file and
 //! field, instead of hanging, aborting on an allocation or writing NaN results.
 mod common;
-use common::{laparo, laparo_within, write_texture_png};
+use common::{laparo_in, laparo_within, write_texture_png};
 use std::path::Path;
 
 /// `args` fails within `secs` and its message contains every one of `needles`.
@@ -154,7 +154,7 @@ fn features_match_refuses_bad_homographies_and_thresholds() {
 fn cpc_eval_refuses_malformed_and_impossible_poses() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (ok, _, err) = laparo(&["cpc", "pair", "--kind", "easy", "--texture", "procedural", "--out", "p"], d);
+    let (ok, _, err) = laparo_in(&["cpc", "pair", "--kind", "easy", "--texture", "procedural", "--out", "p"], d);
     assert!(ok, "{err}");
     let poses: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("p/poses.json")).unwrap()).unwrap();

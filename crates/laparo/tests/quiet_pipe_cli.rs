@@ -1,21 +1,15 @@
 //! `laparo … | head -1`: a reader that leaves early ends the command quietly (issue 49) — no panic,
 //! no backtrace, exit 0 or death by SIGPIPE (the shell's 141), never 101.
 mod common;
-use common::write_texture_png;
+use common::{command, write_texture_png};
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
 /// Run `args` in `cwd` with stdout a pipe whose reader is already closed: every write fails with EPIPE.
 fn closed_stdout(args: &[&str], cwd: &Path) {
     let (reader, writer) = std::io::pipe().unwrap();
     drop(reader);
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo"))
-        .args(args)
-        .current_dir(cwd)
-        .stdout(Stdio::from(writer))
-        .stderr(Stdio::piped())
-        .output()
-        .unwrap();
+    let o = command().args(args).current_dir(cwd).stdout(Stdio::from(writer)).stderr(Stdio::piped()).output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     #[cfg(unix)]
     let by_sigpipe = std::os::unix::process::ExitStatusExt::signal(&o.status) == Some(SIGPIPE);

@@ -1,17 +1,9 @@
 //! `laparo register benchmark --quick` on the real P2ILF liver (skips when ../shared/data is absent): the
 //! whole chain (mesh, cut, FEM ground truth, every method, Table 5.1, Fig. 5.8, TRE maps), its numbers
 //! checked against the ground truth it wrote, resume, and bad input.
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn laparo(args: &[&str], cwd: &Path) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).current_dir(cwd).output().expect("run laparo");
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+use std::path::PathBuf;
+mod common;
+use common::laparo_in;
 
 fn liver() -> Option<PathBuf> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -40,7 +32,7 @@ fn quick_tier_end_to_end_and_resume() {
         "--out",
         out.to_str().unwrap(),
     ];
-    let (ok, stdout, err) = laparo(&args, dir.path());
+    let (ok, stdout, err) = laparo_in(&args, dir.path());
     assert!(ok, "{err}");
     // the methods, their floors and the thesis' fidelity rows, all with the a-priori region of interest
     for m in [
@@ -107,20 +99,20 @@ fn quick_tier_end_to_end_and_resume() {
     }
     // a second run resumes every stored run and reproduces the table byte for byte
     let before = std::fs::read_to_string(out.join("table51.md")).unwrap();
-    let (ok, _, err) = laparo(&args, dir.path());
+    let (ok, _, err) = laparo_in(&args, dir.path());
     assert!(ok, "{err}");
     assert!(!err.contains("solving again"), "the stored ground truth was not reused: {err}");
     assert_eq!(std::fs::read_to_string(out.join("table51.md")).unwrap(), before);
     // a stored run made with other settings is never passed off as this one: refused, naming the file
     let other: Vec<&str> = args.iter().copied().chain(["--methods", "rods", "--poisson-ratio", "0.45"]).collect();
-    let (ok, _, err) = laparo(&other, dir.path());
+    let (ok, _, err) = laparo_in(&other, dir.path());
     assert!(!ok && err.contains("other settings of RODS-MPM") && err.contains("seed0.json"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
     // the sensitivity sweeps add one row per setting (14 RODS-MPM, 3 LDDMM widths) and Fig. 5.9 (at 6 mm here,
     // for the suite's time: the floor line is not checked without RODS-MPM's own row)
     let sweeps: Vec<&str> =
         args.iter().copied().chain(["--sweeps", "--methods", "none", "--spacing-mm", "6"]).collect();
-    let (ok, stdout, err) = laparo(&sweeps, dir.path());
+    let (ok, stdout, err) = laparo_in(&sweeps, dir.path());
     assert!(ok, "{err}");
     for m in ["RODS-MPM E×0.25 (Δt ", "RODS-MPM ν 0.3", "RODS-MPM T 120", "LDDMM σ 40"] {
         assert!(stdout.contains(&format!("| {m}")), "{m} row missing:\n{stdout}");
@@ -136,15 +128,15 @@ fn quick_tier_end_to_end_and_resume() {
         .copied()
         .chain(["--methods", "rods-ballistic", "--oracle-kerf-mm", "24", "--spacing-mm", "6"])
         .collect();
-    let (ok, stdout, err) = laparo(&oracle, dir.path());
+    let (ok, stdout, err) = laparo_in(&oracle, dir.path());
     assert!(ok, "{err}");
     assert!(stdout.contains("| RODS-MPM oracle (ballistic v0, kerf 24 mm) |"), "{stdout}");
     let bad: Vec<&str> = args.iter().copied().chain(["--methods", "rods-ballistic", "--oracle-kerf-mm=-1"]).collect();
-    let (ok, _, err) = laparo(&bad, dir.path());
+    let (ok, _, err) = laparo_in(&bad, dir.path());
     assert!(!ok && err.contains("--oracle-kerf-mm"), "{err}");
     // another blade into this folder: refused before any solve (its runs belong to the stored ground truth)
     let other_cut: Vec<&str> = args.iter().copied().chain(["--methods", "none", "--cut-depth-mm", "18"]).collect();
-    let (ok, _, err) = laparo(&other_cut, dir.path());
+    let (ok, _, err) = laparo_in(&other_cut, dir.path());
     assert!(!ok && err.contains("ground_truth.json") && err.contains("another --out folder"), "{err}");
     // ... and into a folder of its own: a shallower, shorter blade calibrated to another opening
     let cut_out = dir.path().join("short");
@@ -152,7 +144,7 @@ fn quick_tier_end_to_end_and_resume() {
     let last = short.len() - 1;
     short[last] = cut_out.to_str().unwrap();
     short.extend(["--methods", "none", "--cut-depth-mm", "18", "--cut-length-mm", "45", "--target-gap-mm", "3,4.5"]);
-    let (ok, _, err) = laparo(&short, dir.path());
+    let (ok, _, err) = laparo_in(&short, dir.path());
     assert!(ok, "{err}");
     let gt2: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(cut_out.join("ground_truth.json")).unwrap()).unwrap();
@@ -171,15 +163,15 @@ fn bad_input_is_named() {
     let open = dir.path().join("open.obj");
     std::fs::write(&open, "v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 3\n").unwrap();
     let out = dir.path().join("o");
-    let (ok, _, err) = laparo(
+    let (ok, _, err) = laparo_in(
         &["register", "benchmark", "--quick", "--liver", open.to_str().unwrap(), "--out", out.to_str().unwrap()],
         dir.path(),
     );
     assert!(!ok && err.contains("open.obj") && err.contains("not closed"), "{err}");
     let (ok, _, err) =
-        laparo(&["register", "benchmark", "--scenario", "bogus", "--out", out.to_str().unwrap()], dir.path());
+        laparo_in(&["register", "benchmark", "--scenario", "bogus", "--out", out.to_str().unwrap()], dir.path());
     assert!(!ok && err.contains("--scenario"), "{err}");
-    let (ok, _, err) = laparo(
+    let (ok, _, err) = laparo_in(
         &[
             "register",
             "benchmark",
@@ -206,12 +198,12 @@ fn bad_input_is_named() {
     ] {
         let mut args = vec!["register", "benchmark", "--liver", open.to_str().unwrap(), "--out", out.to_str().unwrap()];
         args.extend(flags);
-        let (ok, _, err) = laparo(&args, dir.path());
+        let (ok, _, err) = laparo_in(&args, dir.path());
         assert!(!ok && err.contains(named) && !err.contains("panicked"), "{named}: {err}");
     }
     // a mesh too coarse to resolve the incision: refused before any FEM solve, naming --edge-mm
     if let Some(l) = liver() {
-        let (ok, _, err) = laparo(
+        let (ok, _, err) = laparo_in(
             &[
                 "register",
                 "benchmark",

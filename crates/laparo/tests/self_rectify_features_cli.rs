@@ -3,12 +3,8 @@
 //! rectification must leave the inliers' rows aligned) and record which one ran; an unknown value
 //! is a clear error naming the flag.
 use std::path::PathBuf;
-use std::process::Command;
-
-fn laparo(args: &[&str]) -> (bool, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo");
-    (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
-}
+mod common;
+use common::laparo;
 
 fn motorcycle() -> Option<(PathBuf, PathBuf)> {
     let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/middlebury-motorcycle"));
@@ -28,7 +24,7 @@ fn self_rectify_features_fast_and_sift_run_and_unknown_is_an_error() {
     let (l, r) = (l.to_str().unwrap(), r.to_str().unwrap());
     for kind in ["fast", "sift"] {
         let out = dir.path().join(kind);
-        let (ok, err) = laparo(&[
+        let (ok, _, err) = laparo(&[
             "stereo",
             "match",
             "--left",
@@ -56,7 +52,7 @@ fn self_rectify_features_fast_and_sift_run_and_unknown_is_an_error() {
     }
     // an unknown matcher: non-zero exit, the message names the flag and the value, nothing written
     let out = dir.path().join("bad");
-    let (ok, err) = laparo(&[
+    let (ok, _, err) = laparo(&[
         "stereo",
         "match",
         "--left",
@@ -75,7 +71,7 @@ fn self_rectify_features_fast_and_sift_run_and_unknown_is_an_error() {
     assert!(err.contains("--self-rectify-features") && err.contains("surf"), "{err}");
     assert!(!out.exists(), "no output for a rejected flag");
     // the flag alone (without --self-rectify) is refused by the parser, naming both flags
-    let (ok, err) = laparo(&[
+    let (ok, _, err) = laparo(&[
         "stereo",
         "match",
         "--left",

@@ -5,12 +5,8 @@ use laparo_core::io::{write_npy_f64, write_pfm, write_png};
 use laparo_stereo::{default_camera, Scene};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn laparo(args: &[&str]) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo");
-    assert!(o.status.success(), "laparo {args:?}: {}", String::from_utf8_lossy(&o.stderr));
-}
+mod common;
+use common::{laparo_ok, run};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -72,7 +68,7 @@ fn cats_augment_shards_equal_one_run() {
         if let Some(sh) = shard {
             a.extend(["--shard", sh]);
         }
-        laparo(&a);
+        laparo_ok(&a);
     };
     let full = d.path().join("full");
     run(&full, None);
@@ -109,7 +105,7 @@ fn depth_perturb_shards_equal_one_run() {
         if let Some(sh) = shard {
             a.extend(["--shard", sh]);
         }
-        laparo(&a);
+        laparo_ok(&a);
     };
     let full = d.path().join("full");
     run(&full, None);
@@ -164,13 +160,13 @@ fn depth_eval_shards_merge_to_one_run() {
     let d = tempfile::tempdir().unwrap();
     let root = d.path().join("data");
     depth_dataset(&root);
-    laparo(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
+    laparo_ok(&["depth", "manifest", "scaffold", "--root", s(&root), "--gt-unit", "m"]);
     let man = root.join("manifest.toml");
     let eval = |out: &Path, extra: &[&str]| {
         let mut a = vec!["depth", "eval", "--manifest", s(&man), "--baseline", "base", "--out", s(out)];
         a.extend(["--error-maps", "b/dark/s1/0000"]);
         a.extend(extra);
-        laparo(&a);
+        laparo_ok(&a);
     };
     let full = d.path().join("full");
     eval(&full, &[]);
@@ -186,10 +182,7 @@ fn depth_eval_shards_merge_to_one_run() {
     // A missing shard is an error naming it.
     let part = d.path().join("part");
     eval(&part, &["--shard", "0/2"]);
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo"))
-        .args(["depth", "eval", "--manifest", s(&man), "--out", s(&part), "--merge-shards", "2"])
-        .output()
-        .unwrap();
+    let o = run(&["depth", "eval", "--manifest", s(&man), "--out", s(&part), "--merge-shards", "2"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("1/2") && !err.contains("panicked"), "{err}");
 }

@@ -7,16 +7,8 @@ use laparo_core::se3::rotation_zyx;
 use laparo_stereo::stereo_extrinsics_from_rotations;
 use nalgebra::{Rotation3, Vector3};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn laparo(args: &[&str]) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo");
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+mod common;
+use common::laparo;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

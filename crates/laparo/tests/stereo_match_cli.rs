@@ -2,16 +2,8 @@
 //! known vertical offset, depth from a focal length and baseline, and bad input.
 use laparo_core::image::Image;
 use std::path::Path;
-use std::process::Command;
-
-fn laparo(args: &[&str]) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).output().expect("run laparo");
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+mod common;
+use common::laparo;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -1,11 +1,45 @@
-//! Helpers shared by the CLI tests: run the `laparo` binary and write small inputs.
+//! Helpers shared by the CLI tests: run the `laparo` binary, check JSON outputs, write small inputs.
+//! Every CLI test runs the binary through these (one place for how it is found and run).
 #![allow(dead_code)]
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// Run `laparo args` in `cwd`: (success, stdout, stderr).
-pub fn laparo(args: &[&str], cwd: &Path) -> (bool, String, String) {
-    let o = run(args, cwd);
+/// The built `laparo` binary.
+pub const BIN: &str = env!("CARGO_BIN_EXE_laparo");
+
+/// The `laparo` command, for tests that add path arguments, stdin, pipes or environment variables.
+pub fn command() -> Command {
+    Command::new(BIN)
+}
+
+/// Run `laparo args` and return the raw output (status and bytes).
+pub fn run(args: &[&str]) -> Output {
+    command().args(args).output().expect("run laparo")
+}
+
+/// [`run`] in `cwd`.
+pub fn run_in(args: &[&str], cwd: &Path) -> Output {
+    command().args(args).current_dir(cwd).output().expect("run laparo")
+}
+
+/// Run `laparo args`: (success, stdout, stderr).
+pub fn laparo(args: &[&str]) -> (bool, String, String) {
+    texts(run(args))
+}
+
+/// [`laparo`] in `cwd`.
+pub fn laparo_in(args: &[&str], cwd: &Path) -> (bool, String, String) {
+    texts(run_in(args, cwd))
+}
+
+/// Run `laparo args`, which must succeed (the failure quotes stderr); its stdout.
+pub fn laparo_ok(args: &[&str]) -> String {
+    let (ok, out, err) = laparo(args);
+    assert!(ok, "laparo {args:?}: {err}");
+    out
+}
+
+fn texts(o: Output) -> (bool, String, String) {
     (
         o.status.success(),
         String::from_utf8_lossy(&o.stdout).into_owned(),
@@ -13,15 +47,46 @@ pub fn laparo(args: &[&str], cwd: &Path) -> (bool, String, String) {
     )
 }
 
-/// Run `laparo args` in `cwd` and return the raw output.
-pub fn run(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_laparo")).args(args).current_dir(cwd).output().expect("run laparo")
+/// The paths (from `path`) of the bare `null`s in `v`. A figure that is missing says why: a `null`
+/// field needs a sibling `<key>_reason` string, and a `null` inside an array is as bare as a field
+/// `null` unless the array's key has a `<key>_reason` beside it (array elements have no siblings of
+/// their own; the reason covers the array's direct elements).
+pub fn bare_nulls(v: &serde_json::Value, path: &str) -> Vec<String> {
+    fn walk(v: &serde_json::Value, path: &str, out: &mut Vec<String>) {
+        match v {
+            serde_json::Value::Object(m) => {
+                for (k, x) in m {
+                    let explained = m.get(&format!("{k}_reason")).is_some_and(|r| r.is_string());
+                    let p = format!("{path}.{k}");
+                    match x {
+                        serde_json::Value::Null if !explained => out.push(p),
+                        serde_json::Value::Array(a) => elements(a, &p, explained, out),
+                        _ => walk(x, &p, out),
+                    }
+                }
+            }
+            serde_json::Value::Array(a) => elements(a, path, false, out),
+            _ => {}
+        }
+    }
+    fn elements(a: &[serde_json::Value], path: &str, explained: bool, out: &mut Vec<String>) {
+        for (i, x) in a.iter().enumerate() {
+            let p = format!("{path}[{i}]");
+            match x {
+                serde_json::Value::Null if !explained => out.push(p),
+                _ => walk(x, &p, out),
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(v, path, &mut out);
+    out
 }
 
 /// Run `laparo args` in `cwd`, killed after `secs` seconds: (success, stderr); a hang fails the test.
 pub fn laparo_within(args: &[&str], cwd: &Path, secs: u64) -> (bool, String) {
     use std::io::Read;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_laparo"))
+    let mut child = command()
         .args(args)
         .current_dir(cwd)
         .stdout(std::process::Stdio::null())
