@@ -80,6 +80,18 @@ pub struct GuideConfig {
     pub surface_weight: f64,
     /// Distance from the incision below which a model vertex counts as "near" (mm).
     pub near_mm: f64,
+    /// Lifted lip points whose distance from the camera departs from their neighbours' median by more than this
+    /// (mm) are left out ([`drop_depth_jumps`]): consecutive points lie a few mm apart on one continuous lip,
+    /// so a jump of 10 mm means another surface (fixed a priori).
+    pub max_lip_depth_jump_mm: f64,
+    /// RODS-MPM as the crack-aware rung L3 of laparo-register's ladder (default): the cut assumed from the
+    /// drawn incision alone (swept [`GuideConfig::assumed_cut_depth_mm`] inward) on the two-field grid, loads
+    /// as the unknown, landmarks scored at their material points. False: the thesis' RODS-MPM (one field,
+    /// v₀, nearest particles).
+    pub crack_aware: bool,
+    /// Depth of the assumed cut under the drawn incision (mm), fixed a priori (the depth François et al. were
+    /// tuned to on the benchmark's tuning case, not on the guide's scenario).
+    pub assumed_cut_depth_mm: f64,
 }
 
 impl GuideConfig {
@@ -99,6 +111,9 @@ impl GuideConfig {
             iterations: 40,
             surface_weight: 0.3,
             near_mm: 20.0,
+            max_lip_depth_jump_mm: 10.0,
+            crack_aware: true,
+            assumed_cut_depth_mm: 20.0,
         }
     }
     /// Defaults for the quick scenario (demo).
@@ -475,6 +490,25 @@ pub fn back_project_polyline(
         .collect()
 }
 
+/// Stage 4, after [`lift_polyline`]: leave out the lifted points of a polyline whose distance from the camera
+/// differs by more than `max_jump_mm` from the median of their neighbours' (up to two on either side along
+/// the polyline): a lip is a continuous curve, so such a point was lifted onto another surface (a nearer lobe
+/// at an occluding edge, the floor of the opened crack). Returns the kept points and how many were left out.
+pub fn drop_depth_jumps(points: &[Vector3<f64>], view: &View, max_jump_mm: f64) -> (Vec<Vector3<f64>>, usize) {
+    let o = view.backproject(view.k.cx, view.k.cy, 0.0);
+    let range: Vec<f64> = points.iter().map(|p| (p - o).norm()).collect();
+    let kept: Vec<Vector3<f64>> = (0..points.len())
+        .filter(|&k| {
+            let mut near: Vec<f64> =
+                (k.saturating_sub(2)..(k + 3).min(points.len())).filter(|&j| j != k).map(|j| range[j]).collect();
+            near.is_empty() || (range[k] - laparo_core::stats::median(&mut near)).abs() <= max_jump_mm
+        })
+        .map(|k| points[k])
+        .collect();
+    let dropped = points.len() - kept.len();
+    (kept, dropped)
+}
+
 /// Stage 4: lift image points to 3D through a depth map (median of the valid depths within
 /// `radius` px, widened up to 4 × `radius` where there is none). Points with no depth even then (the
 /// lip hidden in the opened crack, whose walls one camera sees) are left out; returns the lifted points
@@ -776,6 +810,8 @@ pub fn run(
     let mut img = past_img.clone();
     draw_polyline(&mut img, &inc.points_px, [255, 255, 0]);
     laparo_core::io::write_png(out.join("incision_past.png"), &img)?;
+    // the cut the registration may assume: the drawn incision itself, back-projected onto the aligned model
+    let incision_3d = back_project_polyline(&inc_r, &view, &aligned, "landmarks", &inc_path.display().to_string())?;
     let src_all: Vec<Vector3<f64>> = sources.iter().flatten().copied().collect();
     cloud_ply(&out.join("source_landmarks.ply"), &src_all)?;
     // GT: the rest incision in the camera frame is on the true model; distance of the sources to it
@@ -795,12 +831,22 @@ pub fn run(
     let t0 = Instant::now();
     let mut targets = Vec::new();
     let mut without_depth = Vec::new();
+    let mut depth_jumps = Vec::new();
     let mut img = present_img.clone();
     for (i, lip) in lips.lips_px.iter().enumerate() {
         let lr = resample(lip, cfg.landmark_step_px);
         let (t, missing) = lift_polyline(&lr, present_depth, &view, 2, "targets", &lips_path.display().to_string())?;
+        let (t, jumps) = drop_depth_jumps(&t, &view, cfg.max_lip_depth_jump_mm);
+        if t.len() < 2 {
+            return Err(bad(
+                "targets",
+                &lips_path.display().to_string(),
+                format!("lip {i}: fewer than 2 lifted points are consistent with their neighbours' depth"),
+            ));
+        }
         targets.push(t);
         without_depth.push(missing);
+        depth_jumps.push(jumps);
         draw_polyline(&mut img, lip, LIP_RGB[i % 2]);
     }
     laparo_core::io::write_png(out.join("lips_present.png"), &img)?;
@@ -833,7 +879,7 @@ pub fn run(
             seconds: t0.elapsed().as_secs_f64(),
             metrics: serde_json::json!({"lips": (0..2).map(|i| serde_json::json!({
                 "lip": LIP_NAMES[i], "colour": LIP_COLOURS[i], "points": targets[i].len(),
-                "points_without_depth": without_depth[i], "mean_distance_to_true_lip_mm": lip_err[i]})).collect::<Vec<_>>()}),
+                "points_without_depth": without_depth[i], "points_off_the_lip_depth": depth_jumps[i], "mean_distance_to_true_lip_mm": lip_err[i]})).collect::<Vec<_>>()}),
             outputs: vec!["lips_present.png".into(), "target_lips.ply".into()],
         },
         &mut stages,
@@ -916,13 +962,36 @@ pub fn run(
         landmarks,
         targets: tspecs,
         region_weight: 0.0,
-        optimizer: laparo_register::optimize::OptimizerConfig { iterations: cfg.iterations, ..Default::default() },
+        optimizer: laparo_register::optimize::OptimizerConfig {
+            iterations: cfg.iterations,
+            unknown: if cfg.crack_aware {
+                laparo_register::optimize::Unknown::Loads {
+                    damping_per_horizon: laparo_register::optimize::DEFAULT_DAMPING_PER_HORIZON,
+                }
+            } else {
+                laparo_register::optimize::Unknown::InitialVelocity
+            },
+            ..Default::default()
+        },
         tumour: Some(out.join("model_and_tumour_aligned.obj")),
         overlay: None,
         out: out.join("registration"),
         resume: false,
         checkpoint_every: 1000,
-        crack: None,
+        crack: if cfg.crack_aware {
+            let c = laparo_register::crack::CrackSurface::swept_from_lip(
+                &aligned,
+                &incision_3d,
+                cfg.assumed_cut_depth_mm,
+                None,
+                "the drawn incision",
+            )
+            .map_err(|e| bad("registration", "assumed cut", e.to_string()))?;
+            Some(c) // written by the registration as registration/crack_surface.ply
+        } else {
+            None
+        },
+        landmark_offsets: cfg.crack_aware,
     };
     let mut surface_note = serde_json::Value::Null;
     let rep = match laparo_register::pipeline::run_job(&job, &mut |_| {}) {

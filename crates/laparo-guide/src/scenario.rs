@@ -200,8 +200,13 @@ pub struct Polyline2 {
 pub struct Lips2 {
     /// Image the points refer to.
     pub image: String,
-    /// Lip 0 and lip 1 (px).
+    /// Lip 0 and lip 1 (px): the longest run of lip vertices the present left camera sees (a surgeon cannot
+    /// draw a lip where nearer tissue hides it).
     pub lips_px: [Vec<[f64; 2]>; 2],
+    /// Lip vertices left out of `lips_px`: hidden by nearer tissue in the present left image, or beyond such a
+    /// gap (each lip is drawn as one stroke, its longest visible run).
+    #[serde(default)]
+    pub hidden: [usize; 2],
 }
 
 fn json_write<T: Serialize>(path: &Path, v: &T) -> Result<()> {
@@ -431,11 +436,13 @@ pub fn generate(
     let bg = Textured { vertices: &bg_v, faces: &bg_f, uv: &bg_uv, tint: &bg_tint, label: 2 };
     let mut liver_pixels = [0usize; 2];
     let mut nearest_mm = f64::INFINITY;
+    let mut left_depth: Vec<Image<f64>> = Vec::with_capacity(2);
     for (i, (name, verts)) in [("past", &def.rest.vertices), ("present", &def.deformed)].into_iter().enumerate() {
         let liver = Textured { vertices: verts, faces: &boundary.faces, uv: &uv, tint: &tint, label: 1 };
         let l = render(&vl, &[liver, bg], &texture);
         let liver = Textured { vertices: verts, faces: &boundary.faces, uv: &uv, tint: &tint, label: 1 };
         let rr = render(&vr, &[liver, bg], &texture);
+        left_depth.push(l.depth_mm.clone());
         laparo_core::io::write_png(out.join(format!("{name}_left.png")), &l.rgb)?;
         laparo_core::io::write_png(out.join(format!("{name}_right.png")), &rr.rgb)?;
         write_depth_and_disparity(&out.join("gt"), name, &l, &rr, &vl, &vr)?;
@@ -487,18 +494,46 @@ pub fn generate(
         let (u, v, _) = vl.project(p).unwrap_or((f64::NAN, f64::NAN, 0.0));
         [u, v]
     };
-    let incision = Polyline2 {
-        image: "past_left.png".into(),
-        points_px: def.lips[1].iter().map(|&n| proj(&def.rest.vertices[n])).collect(),
+    // a point is drawn only where the left camera sees it: hidden when every pixel around its projection
+    // shows a surface more than 2 mm nearer (the lip behind a nearer lobe)
+    let visible = |depth: &Image<f64>, p: &Vector3<f64>| -> bool {
+        let Some((u, v, z)) = vl.project(p) else { return false };
+        let (x0, y0) = (u.round() as i64, v.round() as i64);
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (x, y) = (x0 + dx, y0 + dy);
+                x >= 0
+                    && y >= 0
+                    && (x as usize) < depth.width
+                    && (y as usize) < depth.height
+                    && !(depth.get(x as usize, y as usize, 0) < z - 2.0)
+            })
+        })
     };
+    // one stroke: the longest run of consecutive visible vertices (a stroke joining two runs would cross the
+    // tissue that hides the gap)
+    let drawn = |nodes: &[usize], verts: &[Vector3<f64>], depth: &Image<f64>| -> (Vec<[f64; 2]>, usize) {
+        let (mut best, mut run) = (0..0, 0..0);
+        for (k, &n) in nodes.iter().enumerate() {
+            if visible(depth, &verts[n]) {
+                run = if run.is_empty() { k..k + 1 } else { run.start..k + 1 };
+                if run.len() > best.len() {
+                    best = run.clone();
+                }
+            } else {
+                run = k + 1..k + 1;
+            }
+        }
+        let seen: Vec<[f64; 2]> = nodes[best].iter().map(|&n| proj(&verts[n])).collect();
+        let hidden = nodes.len() - seen.len();
+        (seen, hidden)
+    };
+    let (points_px, _) = drawn(&def.lips[1], &def.rest.vertices, &left_depth[0]);
+    let incision = Polyline2 { image: "past_left.png".into(), points_px };
     json_write(&out.join("incision_past.json"), &incision)?;
-    let lips = Lips2 {
-        image: "present_left.png".into(),
-        lips_px: [
-            def.lips[0].iter().map(|&n| proj(&def.deformed[n])).collect(),
-            def.lips[1].iter().map(|&n| proj(&def.deformed[n])).collect(),
-        ],
-    };
+    let (lip0, hidden0) = drawn(&def.lips[0], &def.deformed, &left_depth[1]);
+    let (lip1, hidden1) = drawn(&def.lips[1], &def.deformed, &left_depth[1]);
+    let lips = Lips2 { image: "present_left.png".into(), lips_px: [lip0, lip1], hidden: [hidden0, hidden1] };
     json_write(&out.join("lips_present.json"), &lips)?;
     let lips3: Vec<Vec<[f64; 3]>> = def
         .lips

@@ -68,6 +68,7 @@ fn _laparo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(features::features_transfer_error, m)?)?;
     m.add_function(wrap_pyfunction!(register::register_run, m)?)?;
     m.add_function(wrap_pyfunction!(register::register_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(register::register_assumed_cut, m)?)?;
     m.add_function(wrap_pyfunction!(baselines::register_arap, m)?)?;
     m.add_function(wrap_pyfunction!(baselines::register_drbc, m)?)?;
     m.add_function(wrap_pyfunction!(baselines::register_lddmm, m)?)?;

@@ -220,11 +220,31 @@ fn configs(
     Ok((organ, opt))
 }
 
+/// The cut surface assumed from one lip (`laparo register --assumed-cut-depth-mm`): `organ`'s surface,
+/// the lip polyline (K, 3) mm and the depth (mm) → (vertices (2K, 3) mm, faces (2K − 2, 3) as int64).
+#[pyfunction]
+pub fn register_assumed_cut<'py>(
+    py: Python<'py>,
+    organ: PathBuf,
+    lip: &Bound<'py, PyAny>,
+    depth_mm: f64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    guard(|| {
+        let lip = points3(lip, "lip")?;
+        let surface = laparo_register::organ::organ_surface(&organ).map_err(lib_err)?;
+        let c = laparo_register::crack::CrackSurface::swept_from_lip(&surface, &lip, depth_mm, None, "lip")
+            .map_err(lib_err)?;
+        let v: Vec<f64> = c.vertices.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let f: Vec<i64> = c.faces.iter().flat_map(|f| f.map(|i| i as i64)).collect();
+        Ok((to_numpy(py, v, &[c.vertices.len(), 3])?, to_numpy(py, f, &[c.faces.len(), 3])?))
+    })
+}
+
 /// `laparo register`: sample the organ mesh, register, write every output file of the CLI into
 /// `out` (particles, surfaces, deformed meshes, overlay, loss curve, report.json, checkpoint).
 /// Returns report.json as a dict.
 #[pyfunction]
-#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None, kinetic_weight = 0.0, at_rest_weight = 0.0, crack = None, crack_band_mm = None))]
+#[pyo3(signature = (organ, landmarks, targets, out, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, tumour = None, image = None, camera = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, resume = false, checkpoint_every = 5, memory_gb = None, kinetic_weight = 0.0, at_rest_weight = 0.0, crack = None, crack_band_mm = None, unknown = "velocity", damping_per_horizon = 10.0, thesis_landmarks = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_run<'py>(
     py: Python<'py>,
@@ -257,6 +277,9 @@ pub fn register_run<'py>(
     at_rest_weight: f64,
     crack: Option<&Bound<'py, PyAny>>,
     crack_band_mm: Option<f64>,
+    unknown: &str,
+    damping_per_horizon: f64,
+    thesis_landmarks: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     guard(|| {
         let (organ_config, opt) = configs(
@@ -278,6 +301,10 @@ pub fn register_run<'py>(
             kinetic_weight,
             at_rest_weight,
         )?;
+        let opt = OptimizerConfig {
+            unknown: laparo_register::optimize::Unknown::from_name(unknown, damping_per_horizon).map_err(lib_err)?,
+            ..opt
+        };
         let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
             return Err(bad("region_weight", format!("{region_weight} (must be ≥ 0)")));
@@ -302,6 +329,7 @@ pub fn register_run<'py>(
             resume,
             checkpoint_every,
             crack,
+            landmark_offsets: !thesis_landmarks,
         };
         let report = par(py, || run_job(&job, &mut |_| {})).map_err(lib_err)?;
         to_py(py, &report)
@@ -313,7 +341,7 @@ pub fn register_run<'py>(
 /// and rest particle positions (model mm), v₀ (mm/s), J = det F, the iteration history, the
 /// residuals before/after and the set-up (Δx, Δt, grid, offset).
 #[pyfunction]
-#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None, kinetic_weight = 0.0, at_rest_weight = 0.0, crack = None, crack_band_mm = None))]
+#[pyo3(signature = (landmarks, targets, organ = None, particles = None, spacing_mm = 3.0, dx_mm = None, optimizer = "lbfgs", iterations = None, roi = None, youngs_modulus_kpa = 4.1, poisson_ratio = 0.49, density_kg_m3 = 1000.0, steps = 200, dt_s = None, region_weight = 0.0, joint_e = false, smoothing_dx = None, max_step_dx = None, target_mean_mm = 0.0, memory_gb = None, kinetic_weight = 0.0, at_rest_weight = 0.0, crack = None, crack_band_mm = None, unknown = "velocity", damping_per_horizon = 10.0, thesis_landmarks = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn register_arrays<'py>(
     py: Python<'py>,
@@ -341,6 +369,9 @@ pub fn register_arrays<'py>(
     at_rest_weight: f64,
     crack: Option<&Bound<'py, PyAny>>,
     crack_band_mm: Option<f64>,
+    unknown: &str,
+    damping_per_horizon: f64,
+    thesis_landmarks: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     guard(|| {
         let (organ_config, opt) = configs(
@@ -362,6 +393,10 @@ pub fn register_arrays<'py>(
             kinetic_weight,
             at_rest_weight,
         )?;
+        let opt = OptimizerConfig {
+            unknown: laparo_register::optimize::Unknown::from_name(unknown, damping_per_horizon).map_err(lib_err)?,
+            ..opt
+        };
         let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
             return Err(bad("region_weight", format!("{region_weight} (must be ≥ 0)")));
@@ -394,7 +429,10 @@ pub fn register_arrays<'py>(
                 }
                 None => None,
             };
-            let loss = build_loss(&o, &groups, &tg, region_weight, "landmarks")?;
+            let mut loss = build_loss(&o, &groups, &tg, region_weight, "landmarks")?;
+            if !thesis_landmarks {
+                loss.offsets = laparo_register::pipeline::landmark_offsets(&o, &groups, &loss);
+            }
             let before = loss.residuals(&o.scene.positions);
             let reg = register_sided(&o.scene, &loss, &opt, None, &o.smoothing_sides, &mut |_, _| true)?;
             let after = loss.residuals(&reg.final_state.x);
@@ -417,6 +455,9 @@ pub fn register_arrays<'py>(
         d.set_item("positions", to_numpy(py, flat(&fin.x, true), &[n, 3])?)?;
         d.set_item("rest_positions", to_numpy(py, flat(&o.scene.positions, true), &[n, 3])?)?;
         d.set_item("velocities", to_numpy(py, flat(&reg.velocities, false), &[n, 3])?)?;
+        if let Some(f) = &reg.loads {
+            d.set_item("loads", to_numpy(py, flat(f, false), &[n, 3])?)?;
+        }
         d.set_item("final_velocities", to_numpy(py, flat(&fin.v, false), &[n, 3])?)?;
         d.set_item("j", to_numpy(py, fin.f.iter().map(det).collect::<Vec<f64>>(), &[n])?)?;
         d.set_item("history", to_py(py, &reg.history)?)?;

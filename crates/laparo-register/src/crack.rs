@@ -141,3 +141,96 @@ pub fn label_organ(
     organ.smoothing_sides = crack_sides(points, inside, crack, f64::MAX)?;
     Ok(labels)
 }
+
+/// Unit outward normals of a closed surface at `points`: the area-weighted normals of its faces whose
+/// centroid lies within `radius_mm` (a local average over a surface triangulated finer than the radius, as
+/// organ meshes are); where no centroid is that close, the normal of the face closest to the point.
+pub fn outward_normals(
+    surface: &laparo_core::mesh::TriMesh,
+    points: &[Vector3<f64>],
+    radius_mm: f64,
+) -> Vec<Vector3<f64>> {
+    points
+        .iter()
+        .map(|p| {
+            let mut n = Vector3::zeros();
+            for f in &surface.faces {
+                let q = f.map(|k| surface.vertices[k]);
+                if ((q[0] + q[1] + q[2]) / 3.0 - p).norm() < radius_mm {
+                    n += (q[1] - q[0]).cross(&(q[2] - q[0]));
+                }
+            }
+            n.try_normalize(0.0).unwrap_or_else(|| nearest_face_normal(surface, p))
+        })
+        .collect()
+}
+
+/// The unit normal of the face of `surface` closest to `p` (+z for a surface without a proper face).
+fn nearest_face_normal(surface: &laparo_core::mesh::TriMesh, p: &Vector3<f64>) -> Vector3<f64> {
+    use crate::distance::ClosestPoint;
+    if surface.faces.is_empty() {
+        return Vector3::z();
+    }
+    let s = crate::distance::TriangleSurface::new(surface.vertices.clone(), surface.faces.clone());
+    let (_, k) = s.closest(p);
+    let q = surface.faces[k].map(|i| surface.vertices[i]);
+    (q[1] - q[0]).cross(&(q[2] - q[0])).try_normalize(0.0).unwrap_or_else(Vector3::z)
+}
+
+impl CrackSurface {
+    /// The cut surface Σ a surgeon's system can assume from one lip alone (the cut François et al. assume):
+    /// the lip's source polyline `lip` (mm, on the organ's closed `surface`) swept along the surface's inward
+    /// normal (averaged within 10 mm) from `above_mm` outside the surface to `depth_mm` under it, as a ribbon
+    /// of two triangles per lip segment. Its normals point to the left of the lip's direction seen from
+    /// outside; the two-field grid only needs them consistent. Errors name `input`: fewer than two distinct
+    /// lip points, a non-finite point or a depth that is not finite and > 0.
+    pub fn swept_from_lip(
+        surface: &laparo_core::mesh::TriMesh,
+        lip: &[Vector3<f64>],
+        depth_mm: f64,
+        band_mm: Option<f64>,
+        input: &str,
+    ) -> Result<Self> {
+        if !(depth_mm > 0.0 && depth_mm.is_finite()) {
+            return Err(RegisterError::param("assumed cut depth (mm)", depth_mm, "must be finite and > 0"));
+        }
+        if let Some(k) = lip.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(RegisterError::bad(input, format!("lip point {k} is not finite")));
+        }
+        // distinct consecutive points: a repeated point would give a zero-area triangle
+        let mut mouth: Vec<Vector3<f64>> = Vec::with_capacity(lip.len());
+        for p in lip {
+            if mouth.last().is_none_or(|q: &Vector3<f64>| (p - q).norm() > 1e-9) {
+                mouth.push(*p);
+            }
+        }
+        if mouth.len() < 2 {
+            return Err(RegisterError::bad(
+                input,
+                format!(
+                    "the lip polyline has {} distinct point(s): a cut surface needs at least two to sweep",
+                    mouth.len()
+                ),
+            ));
+        }
+        if surface.faces.is_empty() {
+            return Err(RegisterError::bad(input, "the organ surface has no triangle to take the cut direction from"));
+        }
+        const ABOVE_MM: f64 = 2.0;
+        let normals = outward_normals(surface, &mouth, 10.0);
+        let n = mouth.len();
+        let mut vertices = Vec::with_capacity(2 * n);
+        for (p, nrm) in mouth.iter().zip(&normals) {
+            vertices.push(p + nrm * ABOVE_MM);
+            vertices.push(p - nrm * depth_mm);
+        }
+        let mut faces = Vec::with_capacity(2 * (n - 1));
+        for k in 0..n - 1 {
+            let (a, b, c, d) = (2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3);
+            faces.push([a, b, c]);
+            faces.push([c, b, d]);
+        }
+        let mesh = laparo_core::mesh::TriMesh { vertices, faces };
+        CrackSurface::from_mesh(&mesh, input, band_mm)
+    }
+}

@@ -105,9 +105,46 @@ pub enum Unknown {
     },
 }
 
+/// ζ T Δt of [`Unknown::Loads`] unless a caller says otherwise, fixed a priori (not tuned): underdamped modes
+/// lose e^{-5} of their amplitude over the horizon.
+pub const DEFAULT_DAMPING_PER_HORIZON: f64 = 10.0;
+
+impl Unknown {
+    /// The names `laparo register --unknown` and Python's `unknown=` take: `velocity` (v₀, the thesis) and
+    /// `loads`.
+    pub const NAMES: [&'static str; 2] = ["velocity", "loads"];
+    /// The unknown of a name in [`Unknown::NAMES`]; `damping_per_horizon` (ζ T Δt) is used by `loads`.
+    pub fn from_name(name: &str, damping_per_horizon: f64) -> Result<Unknown> {
+        match name {
+            "velocity" => Ok(Unknown::InitialVelocity),
+            "loads" => {
+                if !(damping_per_horizon >= 0.0 && damping_per_horizon.is_finite()) {
+                    return Err(RegisterError::param(
+                        "damping_per_horizon",
+                        damping_per_horizon,
+                        "must be finite and >= 0",
+                    ));
+                }
+                Ok(Unknown::Loads { damping_per_horizon })
+            }
+            other => {
+                Err(RegisterError::bad("unknown", format!("`{other}`: expected one of {}", Unknown::NAMES.join(", "))))
+            }
+        }
+    }
+    /// The name of this unknown (in [`Unknown::NAMES`]).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Unknown::InitialVelocity => "velocity",
+            Unknown::Loads { .. } => "loads",
+        }
+    }
+}
+
 /// Energies of a registered run (scene units: the organ's mass × length² / time²), the audit every RODS-MPM
-/// run reports: what the initial velocities put in, what is still moving at T, what is stored elastically,
-/// and the rest (dissipated by the grid transfers or absorbed by held particles).
+/// run reports: what the initial velocities (and the loads, when they are the unknown) put in, what is still
+/// moving at T, what is stored elastically, and the rest (dissipated by damping and the grid transfers, or
+/// absorbed by held particles).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EnergyAudit {
     /// Kinetic energy of v₀, Σ ½ m |v₀|².
@@ -116,7 +153,11 @@ pub struct EnergyAudit {
     pub kinetic_final: f64,
     /// Elastic energy at T, Σ V ψ(F_T).
     pub elastic_final: f64,
-    /// KE(0) + Ψ(0) − KE(T) − Ψ(T): lost to the transfers' numerical dissipation and the held particles.
+    /// Work of the constant loads over the run, Σ f_p · (x_T − x_0) (0 when v₀ is the unknown).
+    #[serde(default)]
+    pub external_work: f64,
+    /// KE(0) + Ψ(0) + W − KE(T) − Ψ(T): lost to damping, the transfers' numerical dissipation and the held
+    /// particles.
     pub dissipated: f64,
 }
 
@@ -129,8 +170,16 @@ impl EnergyAudit {
             kinetic_initial: d0.kinetic_energy,
             kinetic_final: d1.kinetic_energy,
             elastic_final: d1.elastic_energy,
+            external_work: 0.0,
             dissipated: d0.kinetic_energy + d0.elastic_energy - d1.kinetic_energy - d1.elastic_energy,
         }
+    }
+    /// Add the work of constant loads `forces` (per particle) moving the particles from `x0` to `x_t`.
+    pub fn with_load_work<const D: usize>(mut self, forces: &[Vector<D>], x0: &[Vector<D>], x_t: &[Vector<D>]) -> Self {
+        let w: f64 = forces.iter().zip(x0.iter().zip(x_t)).map(|(f, (a, b))| f.dot(&(b - a))).sum();
+        self.external_work += w;
+        self.dissipated += w;
+        self
     }
     /// KE(T) / KE(0) (0 when nothing moved).
     pub fn kinetic_ratio(&self) -> f64 {
@@ -143,11 +192,12 @@ impl EnergyAudit {
     /// One line for notes and logs.
     pub fn note(&self) -> String {
         format!(
-            "energy audit: KE(0) {:.4e}, KE(T) {:.4e} ({:.1} % of KE(0)), elastic at T {:.4e}, dissipated {:.4e}",
+            "energy audit: KE(0) {:.4e}, KE(T) {:.4e} ({:.1} % of KE(0)), elastic at T {:.4e}, load work {:.4e}, dissipated {:.4e}",
             self.kinetic_initial,
             self.kinetic_final,
             100.0 * self.kinetic_ratio(),
             self.elastic_final,
+            self.external_work,
             self.dissipated
         )
     }
@@ -805,7 +855,10 @@ pub fn register_sided<const D: usize>(
     let mut at_v0 = pb.scene.clone();
     at_v0.velocities.clone_from(&velocities);
     at_v0.material.youngs_modulus = youngs_modulus;
-    let energy = EnergyAudit::of(&at_v0, &cur.state);
+    let mut energy = EnergyAudit::of(&at_v0, &cur.state);
+    if let Some(f) = &loads {
+        energy = energy.with_load_work(f, &pb.scene.positions, &cur.state.x);
+    }
     Ok(Registration { velocities, youngs_modulus, history, final_state: cur.state, stop_reason, energy, loads })
 }
 

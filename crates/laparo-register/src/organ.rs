@@ -270,6 +270,17 @@ fn check_config(cfg: &OrganConfig) -> Result<f64> {
     Ok(dx)
 }
 
+/// The organ's closed surface (mm): the file itself for a surface mesh, the boundary of a tetrahedral one
+/// (`.msh`/`.vtk`).
+pub fn organ_surface(path: &Path) -> Result<laparo_core::mesh::TriMesh> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if ext == "msh" || ext == "vtk" {
+        Ok(read_tet_mesh(path)?.boundary())
+    } else {
+        Ok(read_surface_mesh(path)?)
+    }
+}
+
 /// Sample a mesh file into an organ: a closed OBJ/PLY/STL surface (voxelised) or a Gmsh/VTK tetrahedral
 /// mesh (filled at the spacing). Errors name the file (non-closed surface, empty mesh) or the parameter
 /// (memory above the limit, CFL).

@@ -73,6 +73,7 @@ fn p2ilf_ridge_registration_3mm() {
         resume: false,
         checkpoint_every: 10,
         crack: None,
+        landmark_offsets: false,
     };
     let r =
         run_job(&job, &mut |it| eprintln!("it {} mean {:.3} mm ({:.0} s)", it.iteration, it.mean_distance, it.seconds))

@@ -60,6 +60,7 @@ fn job(dir: &Path) -> Job {
         resume: false,
         checkpoint_every: 2,
         crack: None,
+        landmark_offsets: false,
     }
 }
 
@@ -208,4 +209,108 @@ fn a_crack_surface_lets_the_lips_separate() {
         .contains("flat.ply"));
     let none = laparo_core::mesh::TriMesh { vertices: vec![], faces: vec![] };
     assert!(laparo_register::crack::CrackSurface::from_mesh(&none, "none.ply", None).is_err());
+}
+
+/// Landmarks scored at their material points: at rest, with every target at its own landmark, the loss is
+/// exactly 0, where the thesis' nearest-particle scoring reads the lattice offset. The box's rest lattice is
+/// x = 1, 3, …, 39, y = 1, …, 23, z = 1, …, 15 mm, so a landmark at (40, 12, 8) on the face x = 40 is √3 mm
+/// from its nearest particle (39, 11 or 13, 7 or 9), and one at (39, 12, 8) is √2 mm from its.
+#[test]
+fn landmark_offsets_score_the_material_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let j = job(dir.path());
+    let organ = laparo_register::organ::organ_from_mesh(&j.organ, &j.organ_config).unwrap();
+    let pts = vec![nalgebra::Vector3::new(40.0, 12.0, 8.0), nalgebra::Vector3::new(39.0, 12.0, 8.0)];
+    let groups = vec![laparo_register::io::SourceGroup { name: "face".into(), points: pts.clone(), weight: 1.0 }];
+    let targets = vec![laparo_register::io::TargetSpec::Points(pts)];
+    let mut loss = laparo_register::pipeline::build_loss(&organ, &groups, &targets, 0.0, "landmarks").unwrap();
+    let thesis = loss.mean_distance(&organ.scene.positions);
+    assert!((thesis - (3f64.sqrt() + 2f64.sqrt()) / 2.0).abs() < 1e-5, "{thesis}");
+    loss.offsets = laparo_register::pipeline::landmark_offsets(&organ, &groups, &loss);
+    assert_eq!(loss.offsets[0].len(), 2);
+    assert!((loss.offsets[0][0].norm() - 3f64.sqrt()).abs() < 1e-5);
+    assert!(loss.mean_distance(&organ.scene.positions) < 1e-12);
+}
+
+/// The cut assumed from one lip: a lip along the box's top face (z = 16 mm) at y = 12 swept 10 mm inward
+/// gives a ribbon from z = 18 (2 mm above) to z = 6 with one pair of triangles per segment; it labels the
+/// particles within the band on either side of y = 12 as an independent clamp-to-rectangle count does, and
+/// a lip of one point, a repeated point, a zero depth are refused by name.
+#[test]
+fn a_cut_swept_from_one_lip_labels_both_sides() {
+    use laparo_register::crack::CrackSurface;
+    use nalgebra::Vector3;
+    let dir = tempfile::tempdir().unwrap();
+    let j = job(dir.path());
+    let surface = laparo_register::organ::organ_surface(&j.organ).unwrap();
+    // the box has two triangles per face: the lip keeps 12 mm from its sides so that only top-face triangles
+    // have their centroid within the normals' 10 mm radius
+    let lip: Vec<Vector3<f64>> = [12.0, 17.0, 22.0, 28.0].iter().map(|&x| Vector3::new(x, 12.0, 16.0)).collect();
+    let c = CrackSurface::swept_from_lip(&surface, &lip, 10.0, Some(5.0), "lip").unwrap();
+    assert_eq!((c.vertices.len(), c.faces.len()), (8, 6));
+    for (k, p) in lip.iter().enumerate() {
+        assert!((c.vertices[2 * k] - (p + Vector3::new(0.0, 0.0, 2.0))).norm() < 1e-9);
+        assert!((c.vertices[2 * k + 1] - (p - Vector3::new(0.0, 0.0, 10.0))).norm() < 1e-9);
+    }
+    let mut organ = laparo_register::organ::organ_from_mesh(&j.organ, &j.organ_config).unwrap();
+    let rest = organ.rest_model();
+    let labels = laparo_register::crack::label_organ(&mut organ, &c, &rest, &rest).unwrap();
+    // independent count: the ribbon is the rectangle y = 12, 12 ≤ x ≤ 28, 6 ≤ z ≤ 18 (normal ±y), so the
+    // closest point clamps x and z; a particle within 5 mm takes a side where its offset is within 60° of ±y
+    let mut expected = [0usize; 2];
+    for p in &rest {
+        let c = Vector3::new(p.x.clamp(12.0, 28.0), 12.0, p.z.clamp(6.0, 18.0));
+        let d = p - c;
+        if d.norm() <= 5.0 && d.y.abs() > 0.5 * d.norm() {
+            expected[(d.y > 0.0) as usize] += 1;
+        }
+    }
+    assert!(expected[0] >= 8 * 5 * 3, "at least the 8 columns × 5 layers × 3 rows beside the ribbon");
+    let mut got = labels.particles;
+    got.sort_unstable();
+    expected.sort_unstable();
+    assert_eq!(got, expected, "{labels:?}");
+    for (bad, what) in [(vec![lip[0]], "1 distinct point"), (vec![lip[0], lip[0]], "1 distinct point")] {
+        let e = CrackSurface::swept_from_lip(&surface, &bad, 10.0, None, "lip `a`").unwrap_err().to_string();
+        assert!(e.contains("lip `a`") && e.contains(what), "{e}");
+    }
+    let e = CrackSurface::swept_from_lip(&surface, &lip, 0.0, None, "lip").unwrap_err().to_string();
+    assert!(e.contains("depth"), "{e}");
+}
+
+/// Loads as the unknown through `run_job`, on the cut assumed from the lip: from rest, damped, the two lips
+/// pulled apart across y = 12 separate, the run ends nearly at rest (KE(T) < 5 % of the elastic energy over a
+/// 300-step horizon), the energy audit balances with the loads' work, `report.json` records the unknown, and
+/// a resume of a loads run is refused.
+#[test]
+fn loads_on_an_assumed_cut_open_the_lips_at_rest() {
+    use nalgebra::Vector3;
+    let dir = tempfile::tempdir().unwrap();
+    let mut j = job(dir.path());
+    let lip = |y: f64| -> Vec<Vector3<f64>> { (0..7).map(|k| Vector3::new(8.0 + 4.0 * k as f64, y, 16.0)).collect() };
+    j.landmarks = vec![
+        laparo_register::io::SourceGroup { name: "a".into(), points: lip(11.0), weight: 1.0 },
+        laparo_register::io::SourceGroup { name: "b".into(), points: lip(13.0), weight: 1.0 },
+    ];
+    j.targets =
+        vec![laparo_register::io::TargetSpec::Polyline(lip(9.0)), laparo_register::io::TargetSpec::Polyline(lip(15.0))];
+    (j.tumour, j.overlay, j.optimizer.iterations) = (None, None, 10);
+    j.organ_config.steps = 300;
+    j.landmark_offsets = true;
+    j.optimizer.unknown = laparo_register::optimize::Unknown::Loads { damping_per_horizon: 10.0 };
+    let surface = laparo_register::organ::organ_surface(&j.organ).unwrap();
+    let mid: Vec<Vector3<f64>> = lip(12.0);
+    j.crack = Some(laparo_register::crack::CrackSurface::swept_from_lip(&surface, &mid, 10.0, None, "lip").unwrap());
+    let r = run_job(&j, &mut |_| {}).unwrap();
+    assert!(r.mean_distance_mm[1] < 0.5 * r.mean_distance_mm[0], "{:?}", r.mean_distance_mm);
+    let e = r.energy;
+    assert!(e.kinetic_initial == 0.0, "loads start from rest: {e:?}");
+    assert!(e.kinetic_final < 0.05 * e.elastic_final, "{e:?}");
+    // the audit balances with the loads' work: damping and the transfers only remove energy
+    assert!(e.external_work > 0.0 && e.dissipated >= 0.0, "{e:?}");
+    let text = std::fs::read_to_string(j.out.join("report.json")).unwrap();
+    assert!(text.contains("\"loads\""), "report records the unknown");
+    j.resume = true;
+    let err = run_job(&j, &mut |_| {}).unwrap_err().to_string();
+    assert!(err.contains("resume") && err.contains("loads"), "{err}");
 }

@@ -122,6 +122,7 @@ def register_run(
     dt_s: Optional[float] = None, region_weight: float = 0.0, joint_e: bool = False, smoothing_dx: Optional[float] = None,
     max_step_dx: Optional[float] = None, target_mean_mm: float = 0.0, resume: bool = False, checkpoint_every: int = 5,
     memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, at_rest_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
+    unknown: str = "velocity", damping_per_horizon: float = 10.0, thesis_landmarks: bool = False,
 ) -> Dict[str, Any]: ...
 def register_arrays(
     landmarks: Any, targets: Any, organ: Optional[_Path] = None, particles: Optional[np.ndarray] = None,
@@ -130,7 +131,9 @@ def register_arrays(
     density_kg_m3: float = 1000.0, steps: int = 200, dt_s: Optional[float] = None, region_weight: float = 0.0,
     joint_e: bool = False, smoothing_dx: Optional[float] = None, max_step_dx: Optional[float] = None, target_mean_mm: float = 0.0,
     memory_gb: Optional[float] = None, kinetic_weight: float = 0.0, at_rest_weight: float = 0.0, crack: Any = None, crack_band_mm: Optional[float] = None,
+    unknown: str = "velocity", damping_per_horizon: float = 10.0, thesis_landmarks: bool = False,
 ) -> Dict[str, Any]: ...
+def register_assumed_cut(organ: _Path, lip: np.ndarray, depth_mm: float) -> Tuple[np.ndarray, np.ndarray]: ...
 
 def register_arap(
     nodes: np.ndarray, tets: np.ndarray, landmarks: Any = None, targets: Any = None, fixed: Optional[np.ndarray] = None,

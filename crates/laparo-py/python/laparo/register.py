@@ -108,6 +108,9 @@ def register(
     at_rest_weight: float = 0.0,
     crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]] = None,
     crack_band_mm: Optional[float] = None,
+    unknown: str = "velocity",
+    damping_per_horizon: float = 10.0,
+    thesis_landmarks: bool = False,
 ) -> Dict[str, Any]:
     """Register in memory (nothing is written).
 
@@ -126,6 +129,14 @@ def register(
     (F, 3)) in the organ's frame, normals from one lip to the other. Particles within ``crack_band_mm``
     (default 3 Δx) take side ±1 and get their own grid velocity field (laparo-mpm's two-field grid), so the
     lips can separate; ``crack`` in the result gives the particle count per side, ``crack_side`` the labels.
+    :func:`assumed_cut` builds one from a lip polyline alone.
+
+    ``unknown``: what RODS-MPM solves for (§5.3.1): ``"velocity"`` (v₀, the thesis) or ``"loads"`` (a
+    time-constant, self-equilibrated force density on the particles the crack labels, or on every free
+    particle without a crack, from rest with mass-proportional damping ζ T Δt = ``damping_per_horizon``, so the
+    registered shape is an equilibrium: rung L3 of the ladder; ``kinetic_weight`` is then the loads' L2 prior;
+    the result's ``loads`` holds them). Landmarks are scored at their own material points (nearest particle +
+    rest offset) unless ``thesis_landmarks`` (the nearest particle itself, as the thesis).
 
     Returns ``positions`` (registered particles, N×3 mm, model coordinates), ``rest_positions``,
     ``velocities`` (v₀, mm/s), ``final_velocities``, ``j`` (det F), ``history`` (per iteration:
@@ -138,8 +149,16 @@ def register(
         float(spacing_mm), dx_mm, optimizer, iterations, roi, float(youngs_modulus_kpa), float(poisson_ratio),
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
         _opt_float(max_step_dx), float(target_mean_mm), memory_gb, float(kinetic_weight), float(at_rest_weight), _crack(crack),
-        _opt_float(crack_band_mm),
+        _opt_float(crack_band_mm), str(unknown), float(damping_per_horizon), bool(thesis_landmarks),
     )
+
+
+def assumed_cut(organ: PathLike, lip: Any, depth_mm: float) -> Tuple[np.ndarray, np.ndarray]:
+    """The cut surface a system can assume from one lip alone (what François et al. assume): the lip's
+    source polyline ``lip`` ((K, 3) mm, on the organ's surface) swept along the surface's inward normal to
+    ``depth_mm`` (from 2 mm outside), as ``(vertices (2K, 3) mm, faces (2K-2, 3))``, ready for ``crack=``.
+    ``organ`` is the organ's closed surface or tetrahedral mesh file (its boundary gives the normals)."""
+    return _laparo.register_assumed_cut(os.fspath(organ), _points(lip, "lip"), float(depth_mm))
 
 
 def run(
@@ -172,6 +191,9 @@ def run(
     at_rest_weight: float = 0.0,
     crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]] = None,
     crack_band_mm: Optional[float] = None,
+    unknown: str = "velocity",
+    damping_per_horizon: float = 10.0,
+    thesis_landmarks: bool = False,
 ) -> Dict[str, Any]:
     """``laparo register --organ … --landmarks … --target … --out …``: writes
     particles_registered.ply, particles_rest.ply, surface_registered.ply, organ_deformed.obj
@@ -184,7 +206,8 @@ def run(
         iterations, roi, p(tumour), p(image), p(camera), float(youngs_modulus_kpa), float(poisson_ratio),
         float(density_kg_m3), int(steps), dt_s, float(region_weight), bool(joint_e), _opt_float(smoothing_dx),
         _opt_float(max_step_dx), float(target_mean_mm), bool(resume), int(checkpoint_every), memory_gb,
-        float(kinetic_weight), float(at_rest_weight), _crack(crack), _opt_float(crack_band_mm),
+        float(kinetic_weight), float(at_rest_weight), _crack(crack), _opt_float(crack_band_mm), str(unknown),
+        float(damping_per_horizon), bool(thesis_landmarks),
     )
 
 

@@ -23,7 +23,7 @@ PathLike = Union[str, 'os.PathLike[str]']
 Landmarks = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
 Targets = Union[PathLike, Mapping[str, Any], Sequence[Mapping[str, Any]]]
 
-def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=..., particles: Optional[np.ndarray]=..., spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., memory_gb: Optional[float]=..., kinetic_weight: float=..., at_rest_weight: float=..., crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]]=..., crack_band_mm: Optional[float]=...) -> Dict[str, Any]:
+def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=..., particles: Optional[np.ndarray]=..., spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., memory_gb: Optional[float]=..., kinetic_weight: float=..., at_rest_weight: float=..., crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]]=..., crack_band_mm: Optional[float]=..., unknown: str=..., damping_per_horizon: float=..., thesis_landmarks: bool=...) -> Dict[str, Any]:
     """Register in memory (nothing is written).
 
     The organ is a closed surface (OBJ/PLY/STL) or tetrahedral mesh (.msh/.vtk) file ``organ``,
@@ -41,6 +41,14 @@ def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=.
     (F, 3)) in the organ's frame, normals from one lip to the other. Particles within ``crack_band_mm``
     (default 3 Δx) take side ±1 and get their own grid velocity field (laparo-mpm's two-field grid), so the
     lips can separate; ``crack`` in the result gives the particle count per side, ``crack_side`` the labels.
+    :func:`assumed_cut` builds one from a lip polyline alone.
+
+    ``unknown``: what RODS-MPM solves for (§5.3.1): ``"velocity"`` (v₀, the thesis) or ``"loads"`` (a
+    time-constant, self-equilibrated force density on the particles the crack labels, or on every free
+    particle without a crack, from rest with mass-proportional damping ζ T Δt = ``damping_per_horizon``, so the
+    registered shape is an equilibrium: rung L3 of the ladder; ``kinetic_weight`` is then the loads' L2 prior;
+    the result's ``loads`` holds them). Landmarks are scored at their own material points (nearest particle +
+    rest offset) unless ``thesis_landmarks`` (the nearest particle itself, as the thesis).
 
     Returns ``positions`` (registered particles, N×3 mm, model coordinates), ``rest_positions``,
     ``velocities`` (v₀, mm/s), ``final_velocities``, ``j`` (det F), ``history`` (per iteration:
@@ -50,7 +58,14 @@ def register(landmarks: Landmarks, targets: Targets, organ: Optional[PathLike]=.
     """
     ...
 
-def run(organ: PathLike, landmarks: Landmarks, targets: Targets, out: PathLike, spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., tumour: Optional[PathLike]=..., image: Optional[PathLike]=..., camera: Optional[PathLike]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., resume: bool=..., checkpoint_every: int=..., memory_gb: Optional[float]=..., kinetic_weight: float=..., at_rest_weight: float=..., crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]]=..., crack_band_mm: Optional[float]=...) -> Dict[str, Any]:
+def assumed_cut(organ: PathLike, lip: Any, depth_mm: float) -> Tuple[np.ndarray, np.ndarray]:
+    """The cut surface a system can assume from one lip alone (what François et al. assume): the lip's
+    source polyline ``lip`` ((K, 3) mm, on the organ's surface) swept along the surface's inward normal to
+    ``depth_mm`` (from 2 mm outside), as ``(vertices (2K, 3) mm, faces (2K-2, 3))``, ready for ``crack=``.
+    ``organ`` is the organ's closed surface or tetrahedral mesh file (its boundary gives the normals)."""
+    ...
+
+def run(organ: PathLike, landmarks: Landmarks, targets: Targets, out: PathLike, spacing_mm: float=..., dx_mm: Optional[float]=..., optimizer: str=..., iterations: Optional[int]=..., roi: Optional[str]=..., tumour: Optional[PathLike]=..., image: Optional[PathLike]=..., camera: Optional[PathLike]=..., youngs_modulus_kpa: float=..., poisson_ratio: float=..., density_kg_m3: float=..., steps: int=..., dt_s: Optional[float]=..., region_weight: float=..., joint_e: bool=..., smoothing_dx: Optional[float]=..., max_step_dx: Optional[float]=..., target_mean_mm: float=..., resume: bool=..., checkpoint_every: int=..., memory_gb: Optional[float]=..., kinetic_weight: float=..., at_rest_weight: float=..., crack: Optional[Union[PathLike, Tuple[np.ndarray, np.ndarray]]]=..., crack_band_mm: Optional[float]=..., unknown: str=..., damping_per_horizon: float=..., thesis_landmarks: bool=...) -> Dict[str, Any]:
     """``laparo register --organ … --landmarks … --target … --out …``: writes
     particles_registered.ply, particles_rest.ply, surface_registered.ply, organ_deformed.obj
     (surface organs), tumour_deformed.obj, overlay.png (``image`` + ``camera``), loss.csv,

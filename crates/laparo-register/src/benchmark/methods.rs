@@ -102,28 +102,6 @@ fn corners(case: &BenchmarkCase) -> Vec<(usize, usize)> {
     c
 }
 
-/// Unit outward normals of the uncut surface at `points` (area-weighted normals of faces within 10 mm).
-fn outward_normals(mesh: &TetMesh, points: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-    let b = mesh.boundary();
-    points
-        .iter()
-        .map(|p| {
-            let mut n = Vector3::zeros();
-            for f in &b.faces {
-                let q = f.map(|k| b.vertices[k]);
-                if ((q[0] + q[1] + q[2]) / 3.0 - p).norm() < 10.0 {
-                    n += (q[1] - q[0]).cross(&(q[2] - q[0]));
-                }
-            }
-            if n.norm() > 0.0 {
-                n.normalize()
-            } else {
-                Vector3::z()
-            }
-        })
-        .collect()
-}
-
 /// The cut a method may assume (François et al., and RODS-MPM's two-field grid): the blade is the first
 /// lip's source polyline, swept inward (`direction`) to `depth_mm` (the true depth is not known
 /// intraoperatively). The result's tetrahedra are the uncut mesh's, in the same order.
@@ -137,7 +115,7 @@ pub fn assumed_cut(
         return Err(RegisterError::param("assumed cut depth (mm)", depth_mm, "must be finite and > 0"));
     }
     let mouth: Vec<Vector3<f64>> = landmarks.first().map(|l| l.sources.clone()).unwrap_or_default();
-    let normals = outward_normals(uncut, &mouth);
+    let normals = crate::crack::outward_normals(&uncut.boundary(), &mouth, 10.0);
     let mut directions: Vec<Vector3<f64>> = normals.iter().map(|n| -n).collect();
     if direction == CutDirection::LipSeparation {
         let mean = |v: &[Vector3<f64>]| v.iter().sum::<Vector3<f64>>() / v.len().max(1) as f64;

@@ -695,9 +695,8 @@ pub enum Rung {
     L3,
 }
 
-/// ζ T Δt of rung L3, fixed a priori (not tuned): underdamped modes lose e^{-5} of their amplitude over the
-/// horizon.
-pub const L3_DAMPING_PER_HORIZON: f64 = 10.0;
+/// ζ T Δt of rung L3 ([`crate::optimize::DEFAULT_DAMPING_PER_HORIZON`], fixed a priori, not tuned).
+pub const L3_DAMPING_PER_HORIZON: f64 = crate::optimize::DEFAULT_DAMPING_PER_HORIZON;
 
 impl Rung {
     /// Every rung, in ladder order.

@@ -45,6 +45,10 @@ pub struct RunArgs {
     /// Particle spacing of the registration (mm).
     #[arg(long)]
     pub spacing_mm: Option<f64>,
+    /// Register with the thesis' RODS-MPM (one field, v₀ the unknown, landmarks at their nearest particles)
+    /// instead of the crack-aware rung L3 (the cut assumed from the drawn incision, two fields, loads).
+    #[arg(long)]
+    pub thesis_registration: bool,
 }
 
 /// Subcommands.
@@ -148,6 +152,10 @@ pub struct EndToEndArgs {
     /// Stereo routes: both, calibrated or self-rectified.
     #[arg(long, default_value = "both")]
     pub route: String,
+    /// Register with the thesis' RODS-MPM (one field, v₀ the unknown, landmarks at their nearest particles)
+    /// instead of the crack-aware rung L3 (the cut assumed from the drawn incision, two fields, loads).
+    #[arg(long)]
+    pub thesis_registration: bool,
     /// The scenario's organ, texture frame and camera.
     #[command(flatten)]
     pub inputs: SceneInputs,
@@ -198,6 +206,9 @@ fn end_to_end(e: EndToEndArgs) -> Result<()> {
         r => vec![r.parse().with_context(|| format!("--route {r}: expected both, calibrated or self-rectified"))?],
     };
     cfg.routes.retain(|c| keep.contains(&c.route));
+    for r in &mut cfg.routes {
+        r.crack_aware = !e.thesis_registration;
+    }
     let pb = indicatif::ProgressBar::new_spinner();
     pb.enable_steady_tick(std::time::Duration::from_millis(250));
     pb.set_message("FEM ground truth of the incision (TET10 Neo-Hookean, calibrated pressure)");
@@ -339,6 +350,7 @@ pub fn run(a: GuideArgs) -> Result<()> {
             if let Some(s) = r.spacing_mm {
                 cfg.spacing_mm = s;
             }
+            cfg.crack_aware = !r.thesis_registration;
             let rep = pipeline::run(&scenario, &out, &cfg, &mut |s| {
                 eprintln!("[guide] {} ({:.1} s): {}", s.name, s.seconds, s.metrics);
             })?;

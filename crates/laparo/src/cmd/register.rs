@@ -190,6 +190,29 @@ pub struct RunArgs {
     /// Particles within this distance (mm) of --crack are labelled by side; default 3 grid cells.
     #[arg(long)]
     pub crack_band_mm: Option<f64>,
+    /// Assume the cut from one lip alone (what François et al. assume): the landmark group --assumed-cut-group
+    /// (default the first) swept along the organ surface's inward normal to this depth (mm) becomes the crack
+    /// surface of the two-field grid (written to OUT/crack_surface.ply, as a --crack is). Instead of --crack.
+    #[arg(long, conflicts_with = "crack")]
+    pub assumed_cut_depth_mm: Option<f64>,
+    /// The landmark group (a lip's source polyline) the assumed cut is swept from; default the first group.
+    #[arg(long, requires = "assumed_cut_depth_mm")]
+    pub assumed_cut_group: Option<String>,
+    /// The unknown RODS-MPM solves for (§5.3.1): velocity (v₀, the thesis) or loads (a time-constant,
+    /// self-equilibrated force density on the particles the crack labels, or on every free particle without
+    /// a crack, from rest with mass-proportional damping so the registered shape is an equilibrium: the
+    /// ladder's rung L3; --kinetic-weight becomes the loads' L2 prior).
+    #[arg(long, default_value = "velocity", value_parser = clap::builder::PossibleValuesParser::new(laparo_register::optimize::Unknown::NAMES))]
+    pub unknown: String,
+    /// With --unknown loads: the damping ζ T Δt over the horizon (fixed a priori; 10: underdamped modes lose
+    /// e^-5 of their amplitude).
+    #[arg(long, default_value_t = laparo_register::optimize::DEFAULT_DAMPING_PER_HORIZON)]
+    pub damping_per_horizon: f64,
+    /// Score each landmark at its nearest particle, as the thesis does, instead of at its own material point
+    /// (that particle plus their rest offset; default). The nearest particle lies up to half a spacing under
+    /// a surface landmark, so the thesis' loss pulls tissue towards the target by that much.
+    #[arg(long)]
+    pub thesis_landmarks: bool,
 }
 
 /// `laparo register rigid`.
@@ -324,6 +347,10 @@ fn deformable(a: RunArgs) -> Result<()> {
         terminal_kinetic_weight: a.at_rest_weight,
         ..base
     };
+    let unknown = laparo_register::optimize::Unknown::from_name(&a.unknown, a.damping_per_horizon)
+        .context("--unknown / --damping-per-horizon")?;
+    let optimizer = OptimizerConfig { unknown, ..optimizer };
+    let landmarks = read_landmarks(&lm_path)?;
     let crack = match &a.crack {
         Some(p) => {
             let m = laparo_core::mesh::read_mesh(p).with_context(|| format!("--crack {}", p.display()))?;
@@ -333,8 +360,30 @@ fn deformable(a: RunArgs) -> Result<()> {
                 a.crack_band_mm,
             )?)
         }
-        None if a.crack_band_mm.is_some() => bail!("--crack-band-mm needs --crack"),
-        None => None,
+        None => match a.assumed_cut_depth_mm {
+            Some(depth) => {
+                let group = match &a.assumed_cut_group {
+                    Some(name) => landmarks.iter().find(|g| &g.name == name).with_context(|| {
+                        format!(
+                            "--assumed-cut-group {name}: no such landmark group in {} (groups: {})",
+                            lm_path.display(),
+                            landmarks.iter().map(|g| g.name.as_str()).collect::<Vec<_>>().join(", ")
+                        )
+                    })?,
+                    None => landmarks.first().with_context(|| format!("{}: no landmark group", lm_path.display()))?,
+                };
+                let surface = laparo_register::organ::organ_surface(&organ)?;
+                Some(laparo_register::crack::CrackSurface::swept_from_lip(
+                    &surface,
+                    &group.points,
+                    depth,
+                    a.crack_band_mm,
+                    &format!("--assumed-cut-depth-mm: landmark group `{}`", group.name),
+                )?)
+            }
+            None if a.crack_band_mm.is_some() => bail!("--crack-band-mm needs --crack or --assumed-cut-depth-mm"),
+            None => None,
+        },
     };
     let organ_config = OrganConfig {
         spacing_mm: a.spacing_mm,
@@ -348,7 +397,6 @@ fn deformable(a: RunArgs) -> Result<()> {
         memory_limit_bytes: a.memory_gb.map(|g| g * 1e9),
         ..Default::default()
     };
-    let landmarks = read_landmarks(&lm_path)?;
     let targets = read_targets(&tg_path, &landmarks)?;
     let overlay = match (a.image, a.camera) {
         (Some(i), Some(c)) => Some((i, c)),
@@ -368,6 +416,7 @@ fn deformable(a: RunArgs) -> Result<()> {
         resume: a.resume,
         checkpoint_every: a.checkpoint_every,
         crack,
+        landmark_offsets: !a.thesis_landmarks,
     };
     let pb = ProgressBar::new(optimizer.iterations as u64);
     pb.set_style(
