@@ -840,7 +840,7 @@ pub fn run(
         if t.len() < 2 {
             return Err(bad(
                 "targets",
-                &lips_path.display().to_string(),
+                lips_path.display().to_string(),
                 format!("lip {i}: fewer than 2 lifted points are consistent with their neighbours' depth"),
             ));
         }

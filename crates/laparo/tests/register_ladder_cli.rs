@@ -80,7 +80,7 @@ fn loads_on_a_cut_assumed_from_the_lip() {
     let with = |extra: &[&str]| -> Vec<String> { base.iter().chain(extra).map(|s| s.to_string()).collect() };
     let run = |args: Vec<String>| {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
-        laparo(&a, d)
+        laparo_in(&a, d)
     };
     // refused by name before any work
     for (extra, needle) in [
