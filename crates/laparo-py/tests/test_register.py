@@ -74,16 +74,20 @@ def test_registration_moves_landmarks_towards_targets(job):
     tg = TARGETS | {"edge": [[20.0, 25.5, 8.0]]}
     got = R.register(LANDMARKS, tg, organ=job / "organ.obj", **OPTS)
     before, after = got["mean_distance_mm"]
-    # Before: each landmark is carried by its nearest rest particle (lattice at 2, 6, 10, … mm);
-    # the mean of their distances to the targets (eq. 5.10, unsmoothed).
+    # The thesis scores each landmark at its nearest rest particle (lattice at 2, 6, 10, … mm): the mean of
+    # their distances to the targets (eq. 5.10, unsmoothed).
     rest = got["rest_positions"]
     d = []
     for name, pts in LANDMARKS.items():
         for p, t in zip(np.array(pts), np.array(tg[name])):
             near = rest[np.argmin(np.linalg.norm(rest - p, axis=1))]
             d.append(np.linalg.norm(near - t))
-    assert before == pytest.approx(np.mean(d), rel=1e-9)
+    # Scored at their own material points (the default), at rest each landmark is exactly where it was given.
+    direct = [np.linalg.norm(np.array(p) - np.array(t)) for n in LANDMARKS for p, t in zip(LANDMARKS[n], tg[n])]
+    assert before == pytest.approx(np.mean(direct), rel=1e-9)
     assert after < 0.8 * before
+    thesis = R.register(LANDMARKS, tg, organ=job / "organ.obj", thesis_landmarks=True, **OPTS)
+    assert thesis["mean_distance_mm"][0] == pytest.approx(np.mean(d), rel=1e-9)
     n = got["positions"].shape[0]
     assert n == 10 * 6 * 4 and got["velocities"].shape == (n, 3) and got["j"].shape == (n,)
     # Particles as arrays: the rest lattice of the mesh route gives the same registration.
@@ -180,3 +184,45 @@ def test_at_rest_weight_leaves_less_kinetic_energy_at_the_end(job):
     assert rest["mean_distance_mm"][1] < rest["mean_distance_mm"][0]
     with pytest.raises(ValueError, match="at_rest_weight"):
         R.register(LANDMARKS, tg, organ=job / "organ.obj", at_rest_weight=float("nan"), **opts)
+
+
+def test_loads_on_a_cut_assumed_from_the_lip(cli, job):
+    # Rung L3 from Python: the cut assumed from one lip (the ribbon: each lip point 2 mm above and 10 mm
+    # below along the top face's normal -z), loads as the unknown. The loads are self-equilibrated (their
+    # sum is 0), carried only by the particles the cut labels, the lips move towards their targets, and the
+    # same run through the CLI writes the same particles.
+    mid = [[12.0 + 4.0 * k, 12.0, 16.0] for k in range(5)]
+    verts, faces = R.assumed_cut(job / "organ.obj", mid, 10.0)
+    assert verts.shape == (10, 3) and faces.shape == (8, 3)
+    np.testing.assert_allclose(verts[0::2], np.array(mid) + [0.0, 0.0, 2.0], atol=1e-12)
+    np.testing.assert_allclose(verts[1::2], np.array(mid) - [0.0, 0.0, 10.0], atol=1e-12)
+    lips = {"a": [[12.0 + 4.0 * k, 11.0, 16.0] for k in range(5)], "b": [[12.0 + 4.0 * k, 13.0, 16.0] for k in range(5)]}
+    tg = [
+        {"name": "a", "type": "polyline", "points": [[p[0], 9.0, 16.0] for p in lips["a"]]},
+        {"name": "b", "type": "polyline", "points": [[p[0], 15.0, 16.0] for p in lips["b"]]},
+    ]
+    opts = dict(spacing_mm=2.0, steps=200, iterations=6)
+    got = R.register(lips, tg, organ=job / "organ.obj", crack=(verts, faces), unknown="loads", **opts)
+    f = got["loads"]
+    np.testing.assert_allclose(f.sum(axis=0), 0.0, atol=1e-9 * np.abs(f).sum())
+    assert np.all(np.abs(f[got["crack_side"] == 0]) == 0.0)
+    assert np.all(got["velocities"] == 0.0), "loads start from rest"
+    assert got["mean_distance_mm"][1] < 0.85 * got["mean_distance_mm"][0]
+    with pytest.raises(ValueError, match="loads"):
+        R.register(lips, tg, organ=job / "organ.obj", unknown="forces", **opts)
+    with pytest.raises(ValueError, match="distinct point"):
+        R.assumed_cut(job / "organ.obj", [mid[0]], 10.0)
+    # the CLI's run: the same cut, the same particles
+    (job / "L2.json").write_text(json.dumps({"groups": [{"name": k, "points": v} for k, v in lips.items()]}))
+    (job / "T2.json").write_text(json.dumps({"groups": tg}))
+    cut_ply = job / "cut.ply"
+    with open(cut_ply, "w") as fh:
+        fh.write("ply\nformat ascii 1.0\nelement vertex 10\nproperty double x\nproperty double y\nproperty double z\n"
+                 "element face 8\nproperty list uchar int vertex_indices\nend_header\n")
+        fh.writelines(f"{float(v[0])!r} {float(v[1])!r} {float(v[2])!r}\n" for v in verts)
+        fh.writelines(f"3 {a} {b} {c}\n" for a, b, c in faces)
+    cli("register", "--organ", job / "organ.obj", "--landmarks", job / "L2.json", "--target", job / "T2.json",
+        "--out", job / "cli_l3", "--crack", cut_ply, "--unknown", "loads", "--spacing-mm", "2", "--steps", "200",
+        "--iterations", "6")
+    ref = read_particles_ply(job / "cli_l3" / "particles_registered.ply")
+    np.testing.assert_array_equal(got["positions"], ref[:, :3])
