@@ -194,6 +194,20 @@ fn loads_rung_opens_a_half_cut_block_and_ends_at_rest() {
         e.kinetic_final,
         e.elastic_final
     );
+    // the audit balances with the loads' work (by hand from the returned loads and final positions)
+    let w: f64 = f.iter().zip(scene.positions.iter().zip(&r.final_state.x)).map(|(f, (a, b))| f.dot(&(b - a))).sum();
+    assert!((e.external_work - w).abs() <= 1e-12 * w.abs() && w > 0.0 && e.dissipated >= 0.0, "{e:?}");
+    // a band whose particles are all held carries no load: refused by name; so are a negative damping and λ
+    let mut held = scene.clone();
+    held.fixed = held.crack_side.iter().map(|&s| s != 0).collect();
+    let err = register(&held, &loss, &cfg, None, &mut |_, _| true).err().expect("refused").to_string();
+    assert!(err.contains("load band"), "{err}");
+    let bad = OptimizerConfig { unknown: Unknown::Loads { damping_per_horizon: -1.0 }, ..cfg.clone() };
+    let err = register(&scene, &loss, &bad, None, &mut |_, _| true).err().expect("refused").to_string();
+    assert!(err.contains("damping_per_horizon"), "{err}");
+    let bad = OptimizerConfig { terminal_kinetic_weight: -1.0, ..cfg.clone() };
+    let err = register(&scene, &loss, &bad, None, &mut |_, _| true).err().expect("refused").to_string();
+    assert!(err.contains("terminal_kinetic_weight"), "{err}");
 }
 
 /// Landmark offsets: a landmark is scored at its particle plus its rest offset, so at the rest state a
