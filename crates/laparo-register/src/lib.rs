@@ -39,6 +39,7 @@
 
 pub mod baselines;
 pub mod benchmark;
+pub mod bump;
 pub mod crack;
 pub mod distance;
 mod error;
