@@ -74,7 +74,8 @@ impl BumpCase {
             return Err(RegisterError::bad("organ surface", "fewer than 4 vertices or no triangle"));
         }
         let mean = surface.vertices.iter().sum::<V3>() / n as f64;
-        let cov = surface.vertices.iter().fold(Matrix3::zeros(), |a, v| a + (v - mean) * (v - mean).transpose()) / n as f64;
+        let cov =
+            surface.vertices.iter().fold(Matrix3::zeros(), |a, v| a + (v - mean) * (v - mean).transpose()) / n as f64;
         let eig = nalgebra::SymmetricEigen::new(cov);
         let mut order = [0usize, 1, 2];
         order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
@@ -146,8 +147,14 @@ impl BumpCase {
                 ),
             ));
         }
-        let mut case =
-            BumpCase { centre, direction, amplitude_mm: cfg.amplitude_mm, sigma_mm: sigma, landmarks, target: Vec::new() };
+        let mut case = BumpCase {
+            centre,
+            direction,
+            amplitude_mm: cfg.amplitude_mm,
+            sigma_mm: sigma,
+            landmarks,
+            target: Vec::new(),
+        };
         case.target = case.landmarks.iter().map(|x| x + case.displacement(x)).collect();
         Ok(case)
     }
@@ -231,10 +238,12 @@ pub fn run_bump(
     let moved = |x: &V3| -> Result<V3> { Ok(transfer.apply(x, &def)?.position) };
     let registered: Vec<V3> = surface.vertices.iter().map(moved).collect::<Result<_>>()?;
     let truth: Vec<V3> = surface.vertices.iter().map(|x| x + case.displacement(x)).collect();
-    let far: Vec<usize> =
-        (0..surface.vertices.len()).filter(|&k| (surface.vertices[k] - case.centre).norm() > 2.0 * case.sigma_mm).collect();
+    let far: Vec<usize> = (0..surface.vertices.len())
+        .filter(|&k| (surface.vertices[k] - case.centre).norm() > 2.0 * case.sigma_mm)
+        .collect();
     let curve = Polyline::open(case.target.clone());
-    let lm_mesh: Vec<f64> = case.landmarks.iter().map(|x| moved(x).map(|p| curve.distance(&p))).collect::<Result<_>>()?;
+    let lm_mesh: Vec<f64> =
+        case.landmarks.iter().map(|x| moved(x).map(|p| curve.distance(&p))).collect::<Result<_>>()?;
     let lm_part: Vec<f64> = loss.groups[0].particles.iter().map(|&p| curve.distance(&def[p])).collect();
     let run = BumpRun {
         unknown: opt.unknown.name().into(),
