@@ -110,8 +110,7 @@ fn bump(a: BumpArgs) -> Result<()> {
     outs.extend(names.iter().map(String::as_str));
     laparo_core::atomic::refuse_overwrite_in(&a.out, &outs, &[organ.as_path()]).context("--out")?;
     let surface = laparo_core::mesh::read_mesh(&organ).with_context(|| format!("--organ {}", organ.display()))?;
-    let cfg =
-        BumpConfig { amplitude_mm: a.amplitude_mm, sigma_mm: a.sigma_mm, landmarks: a.landmarks, ..Default::default() };
+    let cfg = BumpConfig { amplitude_mm: a.amplitude_mm, sigma_mm: a.sigma_mm, landmarks: a.landmarks };
     let case = BumpCase::new(&surface, &cfg).with_context(|| format!("--organ {}", organ.display()))?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("--out {}", a.out.display()))?;
     let truth = laparo_core::mesh::TriMesh {
