@@ -27,20 +27,9 @@ fn at_rest_weight_and_rung_names_are_checked_at_the_boundary() {
 
 /// A 40 × 24 × 16 mm box (two triangles per face, outward).
 fn box_obj(path: &std::path::Path) {
-    let (lo, hi) = ([0.0, 0.0, 0.0], [40.0, 24.0, 16.0]);
-    let mut s = String::new();
-    for i in 0..8 {
-        let p = [
-            if i & 1 == 0 { lo[0] } else { hi[0] },
-            if i & 2 == 0 { lo[1] } else { hi[1] },
-            if i & 4 == 0 { lo[2] } else { hi[2] },
-        ];
-        s.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
-    }
-    for f in [[1, 3, 4, 2], [5, 6, 8, 7], [1, 2, 6, 5], [3, 7, 8, 4], [1, 5, 7, 3], [2, 4, 8, 6]] {
-        s.push_str(&format!("f {} {} {}\nf {} {} {}\n", f[0], f[1], f[2], f[0], f[2], f[3]));
-    }
-    std::fs::write(path, s).unwrap();
+    let v = |x, y, z| nalgebra::Vector3::new(x, y, z);
+    laparo_core::mesh::write_obj(path, &laparo_core::mesh::TriMesh::cuboid(&v(0.0, 0.0, 0.0), &v(40.0, 24.0, 16.0)))
+        .unwrap();
 }
 
 /// `laparo register --unknown loads --assumed-cut-depth-mm`: the crack-aware rung L3 outside the benchmark.
