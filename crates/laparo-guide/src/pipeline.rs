@@ -810,8 +810,6 @@ pub fn run(
     let mut img = past_img.clone();
     draw_polyline(&mut img, &inc.points_px, [255, 255, 0]);
     laparo_core::io::write_png(out.join("incision_past.png"), &img)?;
-    // the cut the registration may assume: the drawn incision itself, back-projected onto the aligned model
-    let incision_3d = back_project_polyline(&inc_r, &view, &aligned, "landmarks", &inc_path.display().to_string())?;
     let src_all: Vec<Vector3<f64>> = sources.iter().flatten().copied().collect();
     cloud_ply(&out.join("source_landmarks.ply"), &src_all)?;
     // GT: the rest incision in the camera frame is on the true model; distance of the sources to it
@@ -979,6 +977,9 @@ pub fn run(
         resume: false,
         checkpoint_every: 1000,
         crack: if cfg.crack_aware {
+            // the cut the registration may assume: the drawn incision itself, back-projected onto the aligned model
+            let incision_3d =
+                back_project_polyline(&inc_r, &view, &aligned, "landmarks", &inc_path.display().to_string())?;
             let c = laparo_register::crack::CrackSurface::swept_from_lip(
                 &aligned,
                 &incision_3d,

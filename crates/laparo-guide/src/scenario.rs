@@ -516,7 +516,7 @@ pub fn generate(
         let (mut best, mut run) = (0..0, 0..0);
         for (k, &n) in nodes.iter().enumerate() {
             if visible(depth, &verts[n]) {
-                run = if run.is_empty() { k..k + 1 } else { run.start..k + 1 };
+                run.end = k + 1; // the current run: from just after the last hidden vertex to k
                 if run.len() > best.len() {
                     best = run.clone();
                 }

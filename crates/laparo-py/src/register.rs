@@ -177,6 +177,8 @@ fn configs(
     memory_gb: Option<f64>,
     kinetic_weight: f64,
     at_rest_weight: f64,
+    unknown: &str,
+    damping_per_horizon: f64,
 ) -> PyResult<(OrganConfig, OptimizerConfig)> {
     for (name, v) in [
         ("spacing_mm", spacing_mm),
@@ -203,6 +205,7 @@ fn configs(
         joint_youngs_modulus: joint_e,
         kinetic_weight,
         terminal_kinetic_weight: at_rest_weight,
+        unknown: laparo_register::optimize::Unknown::from_name(unknown, damping_per_horizon).map_err(lib_err)?,
         ..base
     };
     let organ = OrganConfig {
@@ -300,11 +303,9 @@ pub fn register_run<'py>(
             memory_gb,
             kinetic_weight,
             at_rest_weight,
+            unknown,
+            damping_per_horizon,
         )?;
-        let opt = OptimizerConfig {
-            unknown: laparo_register::optimize::Unknown::from_name(unknown, damping_per_horizon).map_err(lib_err)?,
-            ..opt
-        };
         let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
             return Err(bad("region_weight", format!("{region_weight} (must be ≥ 0)")));
@@ -392,11 +393,9 @@ pub fn register_arrays<'py>(
             memory_gb,
             kinetic_weight,
             at_rest_weight,
+            unknown,
+            damping_per_horizon,
         )?;
-        let opt = OptimizerConfig {
-            unknown: laparo_register::optimize::Unknown::from_name(unknown, damping_per_horizon).map_err(lib_err)?,
-            ..opt
-        };
         let crack = crack_from(crack, crack_band_mm)?;
         if !(region_weight >= 0.0 && region_weight.is_finite()) {
             return Err(bad("region_weight", format!("{region_weight} (must be ≥ 0)")));

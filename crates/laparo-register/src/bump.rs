@@ -2,6 +2,7 @@
 //! broadest face — seen only through landmarks along one surface curve. Does RODS-MPM recover the bump, and
 //! does it move the tissue no landmark sees? `laparo register bump` runs it for each unknown (v₀, the thesis;
 //! loads, rung L3) and scores the whole surface against the analytic field.
+use crate::benchmark::Stats;
 use crate::distance::{ClosestPoint, Polyline};
 use crate::error::{RegisterError, Result};
 use crate::io::{SourceGroup, TargetSpec};
@@ -160,46 +161,23 @@ impl BumpCase {
     }
 }
 
-/// Mean and max of a list (mm).
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
-pub struct MeanMax {
-    /// Mean (mm).
-    pub mean: f64,
-    /// Max (mm).
-    pub max: f64,
-    /// Count.
-    pub n: usize,
-}
-
-impl MeanMax {
-    fn of(v: impl Iterator<Item = f64>) -> Self {
-        let (mut s, mut m, mut n) = (0.0, 0.0f64, 0usize);
-        for x in v {
-            s += x;
-            m = m.max(x);
-            n += 1;
-        }
-        MeanMax { mean: if n > 0 { s / n as f64 } else { 0.0 }, max: m, n }
-    }
-}
-
 /// One registration of a bump case, scored against the analytic field at the surface vertices.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BumpRun {
     /// The unknown (`velocity` or `loads`).
     pub unknown: String,
     /// |x_registered − (x + u(x))| over every surface vertex (mm).
-    pub surface_error_mm: MeanMax,
+    pub surface_error_mm: Stats,
     /// The same for no registration, |u(x)| (mm).
-    pub surface_error_none_mm: MeanMax,
+    pub surface_error_none_mm: Stats,
     /// Surface vertices farther than 2σ from the bump's centre: how far the registration moved them (mm).
-    pub far_motion_mm: MeanMax,
+    pub far_motion_mm: Stats,
     /// … and their error against the analytic field (which moves them by at most A e⁻² there).
-    pub far_error_mm: MeanMax,
+    pub far_error_mm: Stats,
     /// Landmarks' distance to the target curve, each carried by the deformed *mesh* (the surface transfer).
-    pub landmark_to_curve_mesh_mm: MeanMax,
+    pub landmark_to_curve_mesh_mm: Stats,
     /// … carried by their nearest particles instead (what the loss sees with the thesis' scoring).
-    pub landmark_to_curve_particles_mm: MeanMax,
+    pub landmark_to_curve_particles_mm: Stats,
     /// Eq. 5.10 before and after (landmarks at their material points).
     pub loss_mm: [f64; 2],
     /// Iterations, particles, seconds.
@@ -210,6 +188,10 @@ pub struct BumpRun {
     pub seconds: f64,
     /// Energy audit of the registered run.
     pub energy: EnergyAudit,
+}
+
+fn stats(v: impl Iterator<Item = f64>) -> Stats {
+    Stats::of(&v.collect::<Vec<_>>())
 }
 
 /// Register the bump `case` on the organ `organ_path` (closed surface `surface`, mm) with `organ_cfg` and
@@ -247,12 +229,12 @@ pub fn run_bump(
     let lm_part: Vec<f64> = loss.groups[0].particles.iter().map(|&p| curve.distance(&def[p])).collect();
     let run = BumpRun {
         unknown: opt.unknown.name().into(),
-        surface_error_mm: MeanMax::of(registered.iter().zip(&truth).map(|(a, b)| (a - b).norm())),
-        surface_error_none_mm: MeanMax::of(surface.vertices.iter().zip(&truth).map(|(a, b)| (a - b).norm())),
-        far_motion_mm: MeanMax::of(far.iter().map(|&k| (registered[k] - surface.vertices[k]).norm())),
-        far_error_mm: MeanMax::of(far.iter().map(|&k| (registered[k] - truth[k]).norm())),
-        landmark_to_curve_mesh_mm: MeanMax::of(lm_mesh.into_iter()),
-        landmark_to_curve_particles_mm: MeanMax::of(lm_part.into_iter()),
+        surface_error_mm: stats(registered.iter().zip(&truth).map(|(a, b)| (a - b).norm())),
+        surface_error_none_mm: stats(surface.vertices.iter().zip(&truth).map(|(a, b)| (a - b).norm())),
+        far_motion_mm: stats(far.iter().map(|&k| (registered[k] - surface.vertices[k]).norm())),
+        far_error_mm: stats(far.iter().map(|&k| (registered[k] - truth[k]).norm())),
+        landmark_to_curve_mesh_mm: stats(lm_mesh.into_iter()),
+        landmark_to_curve_particles_mm: stats(lm_part.into_iter()),
         loss_mm: [before, after],
         iterations: reg.history.last().map(|r| r.iteration).unwrap_or(0),
         particles: organ.scene.n_particles(),

@@ -182,6 +182,12 @@ fn write_ply_particles(path: &Path, x: &[Vector<3>], v: &[Vector<3>], j: &[f64])
 
 /// Run a registration job, calling `progress` with every accepted iteration.
 pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<Report> {
+    if job.resume && matches!(job.optimizer.unknown, crate::optimize::Unknown::Loads { .. }) {
+        return Err(RegisterError::bad(
+            "resume",
+            "a run with loads as the unknown cannot resume (the checkpoint holds v₀): start it again",
+        ));
+    }
     std::fs::create_dir_all(&job.out)
         .map_err(|e| RegisterError::bad(job.out.display().to_string(), format!("cannot create: {e}")))?;
     let mut organ = organ_from_mesh(&job.organ, &job.organ_config)?;
@@ -196,12 +202,6 @@ pub fn run_job(job: &Job, progress: &mut dyn FnMut(&IterationRecord)) -> Result<
     let mut loss = build_loss(&organ, &job.landmarks, &job.targets, job.region_weight, input)?;
     if job.landmark_offsets {
         loss.offsets = landmark_offsets(&organ, &job.landmarks, &loss);
-    }
-    if job.resume && matches!(job.optimizer.unknown, crate::optimize::Unknown::Loads { .. }) {
-        return Err(RegisterError::bad(
-            "resume",
-            "a run with loads as the unknown cannot resume (the checkpoint holds v₀): start it again",
-        ));
     }
     let horizon = organ.horizon(&loss.landmark_particles());
     let mut warnings = organ.warnings.clone();
